@@ -1,0 +1,1 @@
+"""Implementations of the `gcs` sub-commands (called by groundstation.cli)."""

@@ -1,0 +1,16 @@
+"""``gcs scenarios``: list the bundled scenarios with their one-line descriptions."""
+
+from __future__ import annotations
+
+import argparse
+
+from sitl.scenario import bundled_scenarios, load_scenario
+
+
+def run(argv: list[str]) -> int:
+    parser = argparse.ArgumentParser(prog="gcs scenarios", description=__doc__)
+    parser.parse_args(argv)
+    for name in bundled_scenarios():
+        scenario = load_scenario(name)
+        print(f"{name:<16} {scenario.description}")
+    return 0

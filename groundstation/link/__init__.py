@@ -1,0 +1,37 @@
+"""Asyncio MAVLink transports (udpin/udpout/tcp/tcpin/serial), routing and tlogs.
+
+Public entry points: :func:`parse_link_url`, :func:`open_link`, :class:`Router`,
+:class:`TlogWriter`, :class:`TlogReader`. Importing this package has no side effects.
+"""
+
+from groundstation.link.base import (
+    Link,
+    LinkCounters,
+    LinkError,
+    LinkOptions,
+    ReceiveCallback,
+    Received,
+)
+from groundstation.link.factory import open_link
+from groundstation.link.router import Router, RouterCounters
+from groundstation.link.tlog import TlogReader, TlogRecord, TlogWriter
+from groundstation.link.url import LinkKind, LinkSpec, LinkUrlError, parse_link_url
+
+__all__ = [
+    "Link",
+    "LinkCounters",
+    "LinkError",
+    "LinkKind",
+    "LinkOptions",
+    "LinkSpec",
+    "LinkUrlError",
+    "ReceiveCallback",
+    "Received",
+    "Router",
+    "RouterCounters",
+    "TlogReader",
+    "TlogRecord",
+    "TlogWriter",
+    "open_link",
+    "parse_link_url",
+]

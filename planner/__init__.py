@@ -1,0 +1,28 @@
+"""Target-visitation planner: Dubins distances, the paper's model, exact and heuristic solvers."""
+
+from planner.dubins import dubins_distance_to_point
+from planner.problem import (
+    PlanningProblem,
+    PlanResult,
+    ProblemError,
+    TargetEstimate,
+    UavPose,
+    problem_from_dict,
+    problem_to_dict,
+    result_to_dict,
+)
+from planner.solve import PlanSolver, solve_plan
+
+__all__ = [
+    "PlanResult",
+    "PlanSolver",
+    "PlanningProblem",
+    "ProblemError",
+    "TargetEstimate",
+    "UavPose",
+    "dubins_distance_to_point",
+    "problem_from_dict",
+    "problem_to_dict",
+    "result_to_dict",
+    "solve_plan",
+]
