@@ -1,0 +1,266 @@
+"""The multi-target observer: one track per iceberg, predicted every step, corrected on sight.
+
+Pure maths: no I/O, no clock; every time is an argument (mission seconds).
+
+Measurement handling (:meth:`Observer.measure`):
+
+1. ``t_s``, ``x_m``, ``y_m`` or ``r_m2`` not finite, or ``r_m2 <= 0`` -> ``invalid``.
+2. Every track is predicted to ``t_s``.
+3. With a ``target_id``: unknown -> ``unknown_target`` (counted ``unassociated``); the track
+   is already past ``t_s`` (late or out of order) -> ``late``; Kalman model: squared
+   Mahalanobis distance ``d2 = y' S^-1 y`` of the innovation above the chi-square (2 dof)
+   gate ``-2 ln(1 - p)`` -> ``gate``. The linear model is not gated when the id is given
+   (its sigma is a staleness clock, not a variance).
+4. Without a ``target_id``: the track with the smallest ``d2`` among those not past ``t_s``
+   is chosen; none at all -> ``no_track``; all past ``t_s`` -> ``late``; the nearest one
+   outside the gate -> ``no_track`` (counted ``unassociated``: possibly a new target).
+5. Otherwise the track is corrected -> ``accepted``.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from collections.abc import Mapping, Sequence
+from types import MappingProxyType
+
+from observer.config import ObserverConfig
+from observer.kalman_track import KalmanTrack
+from observer.linear_track import LinearTrack
+from observer.records import MeasurementOutcome, TrackSnapshot
+
+COUNTER_NAMES: tuple[str, ...] = (
+    "accepted",
+    "rejected_gate",
+    "rejected_late",
+    "rejected_invalid",
+    "unassociated",
+)
+
+_Track = KalmanTrack | LinearTrack
+
+
+def _finite(name: str, value: float) -> float:
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise ValueError(f"{name} must be a number, got {value!r}")
+    v = float(value)
+    if not math.isfinite(v):
+        raise ValueError(f"{name} must be finite, got {value!r}")
+    return v
+
+
+def _non_negative(name: str, value: float) -> float:
+    v = _finite(name, value)
+    if v < 0.0:
+        raise ValueError(f"{name} must be >= 0, got {value!r}")
+    return v
+
+
+def _is_finite_number(value: object) -> bool:
+    return (
+        isinstance(value, numbers.Real)
+        and not isinstance(value, bool)
+        and math.isfinite(float(value))
+    )
+
+
+class Observer:
+    """One Kalman (or linear-model) track per target; see the module docstring."""
+
+    def __init__(self, config: ObserverConfig) -> None:
+        if not isinstance(config, ObserverConfig):
+            raise TypeError(f"config must be an ObserverConfig, got {type(config).__name__}")
+        self.config = config
+        self._tracks: dict[str, _Track] = {}
+        self._ever_lost: dict[str, bool] = {}
+        self._counters: dict[str, int] = dict.fromkeys(COUNTER_NAMES, 0)
+
+    # --- targets --------------------------------------------------------------------------
+    def add_target(
+        self,
+        target_id: str,
+        t_s: float,
+        x_m: float,
+        y_m: float,
+        *,
+        vx_m_s: float = 0.0,
+        vy_m_s: float = 0.0,
+        sigma0: float | None = None,
+        p0: Sequence[float] | None = None,
+        q_per_s: float | None = None,
+    ) -> None:
+        """Start tracking ``target_id`` at ``t_s`` from the given state.
+
+        Kalman model: ``P0 = diag(p0)`` if ``p0`` is given; else, with ``sigma0``,
+        ``diag(sigma0/2, sigma0/2, q h, q h)``; else ``Q(h) = diag(0, 0, q h, q h)`` (eq. 6),
+        ``h = max_step_s``. Linear model: ``sigma = sigma0`` (else ``p0[0] + p0[1]``, else 0).
+
+        Raises:
+            ValueError: duplicate id or a bad value (the message names the argument).
+        """
+        if not isinstance(target_id, str) or not target_id:
+            raise ValueError(f"target_id must be a non-empty string, got {target_id!r}")
+        if target_id in self._tracks:
+            raise ValueError(f"target_id {target_id!r} is already tracked")
+        t = _finite("t_s", t_s)
+        state = (
+            _finite("x_m", x_m),
+            _finite("y_m", y_m),
+            _finite("vx_m_s", vx_m_s),
+            _finite("vy_m_s", vy_m_s),
+        )
+        q = self.config.q_per_s if q_per_s is None else _non_negative("q_per_s", q_per_s)
+        s0 = None if sigma0 is None else _non_negative("sigma0", sigma0)
+        p0_diag: list[float] | None = None
+        if p0 is not None:
+            values = list(p0)
+            if len(values) != 4:
+                raise ValueError(f"p0 must hold 4 variances (x, y, vx, vy), got {len(values)}")
+            p0_diag = [_non_negative(f"p0[{i}]", v) for i, v in enumerate(values)]
+        h = self.config.max_step_s
+        track: _Track
+        if self.config.model == "kalman":
+            if p0_diag is None:
+                pos = 0.0 if s0 is None else 0.5 * s0
+                p0_diag = [pos, pos, q * h, q * h]
+            track = KalmanTrack(t, state, p0_diag, q, h)
+        else:
+            if s0 is None:
+                s0 = 0.0 if p0_diag is None else p0_diag[0] + p0_diag[1]
+            track = LinearTrack(t, state, s0, q, self.config.linear_growth_per_s)
+        self._tracks[target_id] = track
+        self._ever_lost[target_id] = False
+        self._check_lost(target_id)
+
+    def remove_target(self, target_id: str) -> None:
+        """Stop tracking ``target_id``. Raises KeyError if unknown."""
+        if target_id not in self._tracks:
+            raise KeyError(f"unknown target_id {target_id!r}")
+        del self._tracks[target_id]
+        del self._ever_lost[target_id]
+
+    def set_process_noise(self, target_id: str, q_per_s: float) -> None:
+        """Set a track's process-noise intensity (applies from its last committed time)."""
+        q = _non_negative("q_per_s", q_per_s)
+        self._get(target_id).set_process_noise(q)
+
+    # --- time -----------------------------------------------------------------------------
+    def predict_to(self, t_s: float) -> None:
+        """Advance every track to ``t_s``; a track already at or past ``t_s`` is left alone."""
+        t = _finite("t_s", t_s)
+        for target_id, track in self._tracks.items():
+            if t > track.t_s:
+                track.predict_to(t)
+                self._check_lost(target_id)
+
+    # --- measurements ---------------------------------------------------------------------
+    def measure(
+        self,
+        t_s: float,
+        x_m: float,
+        y_m: float,
+        target_id: str | None = None,
+        *,
+        r_m2: float | None = None,
+    ) -> MeasurementOutcome:
+        """Apply one position measurement; never raises on bad measurement data."""
+        r = self.config.r_m2 if r_m2 is None else r_m2
+        if not all(_is_finite_number(v) for v in (t_s, x_m, y_m, r)) or r <= 0.0:
+            return self._reject("rejected_invalid", target_id, "invalid", None)
+        t, x, y, r = float(t_s), float(x_m), float(y_m), float(r)
+        if target_id is not None and (
+            not isinstance(target_id, str) or target_id not in self._tracks
+        ):
+            return self._reject("unassociated", target_id, "unknown_target", None)
+        self.predict_to(t)
+        gate = self.config.gate_threshold
+        if target_id is not None:
+            track = self._tracks[target_id]
+            if track.t_s > t:
+                return self._reject("rejected_late", target_id, "late", None)
+            d2 = track.innovation(x, y, r)
+            if isinstance(track, KalmanTrack) and not d2 <= gate:
+                return self._reject("rejected_gate", target_id, "gate", d2)
+            return self._accept(target_id, t, x, y, r, d2)
+        if not self._tracks:
+            return self._reject("unassociated", None, "no_track", None)
+        candidates = [(tid, tr) for tid, tr in sorted(self._tracks.items()) if tr.t_s <= t]
+        if not candidates:
+            return self._reject("rejected_late", None, "late", None)
+        best_id, best_d2 = None, math.inf
+        for tid, tr in candidates:
+            d2 = tr.innovation(x, y, r)
+            if d2 < best_d2:
+                best_id, best_d2 = tid, d2
+        if best_id is None or not best_d2 <= gate:
+            return self._reject(
+                "unassociated", None, "no_track", None if best_id is None else best_d2
+            )
+        return self._accept(best_id, t, x, y, r, best_d2)
+
+    def _accept(
+        self, target_id: str, t: float, x: float, y: float, r: float, d2: float
+    ) -> MeasurementOutcome:
+        self._tracks[target_id].correct(t, x, y, r)
+        self._check_lost(target_id)
+        self._counters["accepted"] += 1
+        return MeasurementOutcome(True, target_id, "accepted", d2)
+
+    def _reject(
+        self, counter: str, target_id: object, reason: str, d2: float | None
+    ) -> MeasurementOutcome:
+        self._counters[counter] += 1
+        tid = target_id if isinstance(target_id, str) else None
+        return MeasurementOutcome(False, tid, reason, d2)
+
+    # --- read-out -------------------------------------------------------------------------
+    def _get(self, target_id: str) -> _Track:
+        try:
+            return self._tracks[target_id]
+        except KeyError:
+            raise KeyError(f"unknown target_id {target_id!r}") from None
+
+    def _is_lost(self, track: _Track) -> bool:
+        return math.sqrt(max(track.sigma, 0.0)) > self.config.fov_radius_m
+
+    def _check_lost(self, target_id: str) -> None:
+        if self._is_lost(self._tracks[target_id]):
+            self._ever_lost[target_id] = True
+
+    def track(self, target_id: str) -> TrackSnapshot:
+        """Snapshot of one track at its current time. Raises KeyError if unknown."""
+        tr = self._get(target_id)
+        x, y, vx, vy = tr.state
+        return TrackSnapshot(
+            id=target_id,
+            t_s=tr.t_s,
+            x_m=x,
+            y_m=y,
+            vx_m_s=vx,
+            vy_m_s=vy,
+            sigma=tr.sigma,
+            cov_xy=tr.cov_xy,
+            lost=self._is_lost(tr),
+            ever_lost=self._ever_lost[target_id],
+            last_seen_s=tr.last_seen_s,
+            q_per_s=tr.q_per_s,
+        )
+
+    def tracks(self) -> list[TrackSnapshot]:
+        """Snapshots of every track (lost ones included), sorted by id."""
+        return [self.track(tid) for tid in sorted(self._tracks)]
+
+    def sigma(self, target_id: str) -> float:
+        """``trace(P[:2, :2])`` (m^2), or the linear model's sigma."""
+        return self._get(target_id).sigma
+
+    @property
+    def target_ids(self) -> list[str]:
+        """Tracked ids, sorted."""
+        return sorted(self._tracks)
+
+    @property
+    def counters(self) -> Mapping[str, int]:
+        """Read-only copy: accepted, rejected_gate, rejected_late, rejected_invalid,
+        unassociated."""
+        return MappingProxyType(dict(self._counters))

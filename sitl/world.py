@@ -1,0 +1,220 @@
+"""The simulated world: drifting icebergs, the boat, and the UAVs' camera.
+
+Pure and seeded: no clock, no I/O; all randomness comes from the ``numpy.random.Generator``
+given to :class:`World`, split (``Generator.spawn``) so that the icebergs' paths never depend
+on how many UAVs look at them:
+
+* one child generator for the camera noise;
+* one child generator per iceberg (spawned in the order icebergs are added).
+
+Iceberg dynamics per step ``dt`` (the observer's constant-velocity model, eq. (3))::
+
+    p <- p + v dt,    then    v <- v + dv,   dv ~ N(0, q dt I)
+
+Boat: fixed course, ``p <- p + speed (cos psi, sin psi) dt``.
+
+Camera: at every tick ``t = k / rate_hz`` each UAV measures every iceberg within
+``fov_radius_m`` (horizontal distance) of it: ``z = p + n``, ``n ~ N(0, r I)``.
+:meth:`World.observe` is meant to be called after each :meth:`World.step`; it returns the
+measurements of the camera tick reached since the previous call (at most one tick per call),
+stamped with the current ``t_s`` (the tick itself when the step divides the camera period).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+_GRID_EPS = 1e-9
+
+
+@dataclass
+class Iceberg:
+    """A drifting iceberg: constant velocity plus process noise of intensity ``q_per_s``."""
+
+    id: str
+    x_m: float
+    y_m: float
+    vx_m_s: float
+    vy_m_s: float
+    q_per_s: float = 0.0
+
+
+@dataclass
+class Boat:
+    """The boat on a fixed course (heading counter-clockwise from +x)."""
+
+    x_m: float
+    y_m: float
+    heading_rad: float
+    speed_m_s: float
+
+
+@dataclass(frozen=True)
+class Measurement:
+    """One camera measurement of one iceberg by one vehicle."""
+
+    t_s: float
+    vehicle: str
+    target: str
+    x_m: float
+    y_m: float
+    r_m2: float
+    true_x_m: float
+    true_y_m: float
+
+
+class Camera:
+    """Down-looking camera: footprint radius, frame rate, noise variance per axis."""
+
+    def __init__(self, fov_radius_m: float = 150.0, rate_hz: float = 2.0, r_m2: float = 5.0):
+        for name, value in (("fov_radius_m", fov_radius_m), ("rate_hz", rate_hz)):
+            if not math.isfinite(value) or value <= 0.0:
+                raise ValueError(f"Camera.{name} must be finite and > 0, got {value!r}")
+        if not math.isfinite(r_m2) or r_m2 < 0.0:
+            raise ValueError(f"Camera.r_m2 must be finite and >= 0, got {r_m2!r}")
+        self.fov_radius_m = float(fov_radius_m)
+        self.rate_hz = float(rate_hz)
+        self.r_m2 = float(r_m2)
+
+    def tick(self, t_s: float) -> int:
+        """Index of the last camera tick at or before ``t_s``: ``floor(t rate)``."""
+        return math.floor(t_s * self.rate_hz + _GRID_EPS)
+
+
+def _check_iceberg(iceberg: Iceberg) -> None:
+    if not isinstance(iceberg.id, str) or not iceberg.id:
+        raise ValueError(f"Iceberg.id must be a non-empty string, got {iceberg.id!r}")
+    for name in ("x_m", "y_m", "vx_m_s", "vy_m_s", "q_per_s"):
+        value = getattr(iceberg, name)
+        if not math.isfinite(value):
+            raise ValueError(f"Iceberg {iceberg.id!r}: {name} must be finite, got {value!r}")
+    if iceberg.q_per_s < 0.0:
+        raise ValueError(f"Iceberg {iceberg.id!r}: q_per_s must be >= 0, got {iceberg.q_per_s}")
+
+
+class World:
+    """Icebergs, the boat and the camera, advanced in virtual time."""
+
+    def __init__(
+        self,
+        icebergs: Sequence[Iceberg],
+        boat: Boat | None,
+        camera: Camera,
+        rng: np.random.Generator,
+        *,
+        t_s: float = 0.0,
+    ) -> None:
+        if not math.isfinite(t_s):
+            raise ValueError(f"World.t_s must be finite, got {t_s!r}")
+        self.t_s = float(t_s)
+        self.boat = boat
+        self.camera = camera
+        self._rng = rng
+        (self._camera_rng,) = rng.spawn(1)
+        self.icebergs: dict[str, Iceberg] = {}
+        self._iceberg_rngs: dict[str, np.random.Generator] = {}
+        self._last_tick: int | None = None
+        for iceberg in icebergs:
+            self.add_iceberg(iceberg)
+
+    def add_iceberg(self, iceberg: Iceberg) -> None:
+        """Add an iceberg now. Raises ValueError for a duplicate id or bad values."""
+        _check_iceberg(iceberg)
+        if iceberg.id in self.icebergs:
+            raise ValueError(f"iceberg {iceberg.id!r} already exists")
+        self.icebergs[iceberg.id] = iceberg
+        (self._iceberg_rngs[iceberg.id],) = self._rng.spawn(1)
+
+    def remove_iceberg(self, id: str) -> None:
+        """Remove an iceberg. Raises KeyError if unknown."""
+        if id not in self.icebergs:
+            raise KeyError(f"unknown iceberg {id!r}")
+        del self.icebergs[id]
+        del self._iceberg_rngs[id]
+
+    def step(self, dt_s: float) -> None:
+        """Advance icebergs and boat by ``dt_s`` (see the module docstring)."""
+        if not math.isfinite(dt_s) or dt_s < 0.0:
+            raise ValueError(f"dt_s must be finite and >= 0, got {dt_s!r}")
+        for iceberg in self.icebergs.values():
+            iceberg.x_m += iceberg.vx_m_s * dt_s
+            iceberg.y_m += iceberg.vy_m_s * dt_s
+            if iceberg.q_per_s > 0.0 and dt_s > 0.0:
+                dv = self._iceberg_rngs[iceberg.id].normal(
+                    0.0, math.sqrt(iceberg.q_per_s * dt_s), size=2
+                )
+                iceberg.vx_m_s += float(dv[0])
+                iceberg.vy_m_s += float(dv[1])
+        if self.boat is not None:
+            self.boat.x_m += self.boat.speed_m_s * math.cos(self.boat.heading_rad) * dt_s
+            self.boat.y_m += self.boat.speed_m_s * math.sin(self.boat.heading_rad) * dt_s
+        self.t_s += dt_s
+
+    def observe(self, uav_positions: Mapping[str, Sequence[float]]) -> list[Measurement]:
+        """Measurements due at the current time (empty between camera ticks).
+
+        ``uav_positions`` maps a vehicle name to its position ``(x_m, y_m, ...)``; only the
+        horizontal coordinates matter. Vehicles and icebergs are visited in sorted order, so
+        the noise drawn does not depend on the mapping's order.
+        """
+        tick = self.camera.tick(self.t_s)
+        if self._last_tick is not None and tick <= self._last_tick:
+            return []
+        self._last_tick = tick
+        out: list[Measurement] = []
+        fov2 = self.camera.fov_radius_m**2
+        sd = math.sqrt(self.camera.r_m2)
+        for vehicle in sorted(uav_positions):
+            pos = uav_positions[vehicle]
+            ux, uy = float(pos[0]), float(pos[1])
+            for iid in sorted(self.icebergs):
+                ice = self.icebergs[iid]
+                if (ice.x_m - ux) ** 2 + (ice.y_m - uy) ** 2 > fov2:
+                    continue
+                n = self._camera_rng.normal(0.0, sd, size=2)
+                out.append(
+                    Measurement(
+                        t_s=self.t_s,
+                        vehicle=vehicle,
+                        target=iid,
+                        x_m=ice.x_m + float(n[0]),
+                        y_m=ice.y_m + float(n[1]),
+                        r_m2=self.camera.r_m2,
+                        true_x_m=ice.x_m,
+                        true_y_m=ice.y_m,
+                    )
+                )
+        return out
+
+    def true_positions(self) -> dict[str, tuple[float, float]]:
+        """Every iceberg's true position, by id."""
+        return {iid: (ice.x_m, ice.y_m) for iid, ice in self.icebergs.items()}
+
+
+def random_icebergs(
+    rng: np.random.Generator,
+    count: int,
+    x_range_m: tuple[float, float],
+    y_range_m: tuple[float, float],
+    v_range_m_s: tuple[float, float],
+    q_per_s: float = 0.0,
+    prefix: str = "T",
+) -> list[Iceberg]:
+    """``count`` icebergs ``{prefix}1 ... {prefix}count``, uniform in the ranges (paper
+    Table 1: x0, y0 in [0, 1500] m; vx, vy in [-3, 3] m/s)."""
+    if count < 0:
+        raise ValueError(f"count must be >= 0, got {count}")
+    out = []
+    for i in range(count):
+        x, y, vx, vy = (
+            rng.uniform(*x_range_m),
+            rng.uniform(*y_range_m),
+            rng.uniform(*v_range_m_s),
+            rng.uniform(*v_range_m_s),
+        )
+        out.append(Iceberg(f"{prefix}{i + 1}", float(x), float(y), float(vx), float(vy), q_per_s))
+    return out
