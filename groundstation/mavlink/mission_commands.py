@@ -1,0 +1,239 @@
+"""Sans-IO short mission exchanges: clear the mission, set the current item.
+
+:class:`MissionClear`: ``MISSION_CLEAR_ALL`` -> ``MISSION_ACK``. Clearing is idempotent, so
+silence resends it (default 0.5 s x 5, :data:`COMMAND_TIMEOUT_S`: ArduPlane answers within
+one loop).
+
+:class:`SetCurrent`: ``COMMAND_LONG(MAV_CMD_DO_SET_MISSION_CURRENT, param1=seq)`` (or the
+older ``MISSION_SET_CURRENT`` message), confirmed by ``COMMAND_ACK ACCEPTED`` and then by
+``MISSION_CURRENT.seq == seq``. ``MISSION_CURRENT`` reaching ``seq`` also confirms on its own
+when the ACK was lost, but only if it is news: the vehicle was known to be on another item
+(``known_current_seq``) or a ``MISSION_CURRENT`` with another seq was seen since start.
+(Re-sending the current seq reloads the item, design.md, so a stale ``MISSION_CURRENT``
+equal to ``seq`` must not count.) Silence before the ACK resends the command with
+``confirmation`` + 1; after the ACK nothing is resent (a resend would restart the item).
+Defaults 1.0 s x 5: MISSION_CURRENT streams at ~1 Hz, so a 6 s window sees ~6 of them.
+"""
+
+from __future__ import annotations
+
+from groundstation.mavlink.codec import MAVLinkMessage, mavlink2
+from groundstation.mavlink.errors import LocalProtocolError
+from groundstation.mavlink.mission_transfer import (
+    COMMAND_TIMEOUT_S,
+    DEFAULT_RETRIES,
+    Action,
+    Send,
+    TransferBase,
+    TransferCode,
+    int_field,
+)
+
+__all__ = ["MissionClear", "SetCurrent"]
+
+SET_CURRENT_TIMEOUT_S = 1.0
+
+_COMMAND_RESULT_CODES: dict[int, TransferCode] = {
+    mavlink2.MAV_RESULT_TEMPORARILY_REJECTED: TransferCode.COMMAND_FAILED,
+    mavlink2.MAV_RESULT_DENIED: TransferCode.DENIED,
+    mavlink2.MAV_RESULT_UNSUPPORTED: TransferCode.UNSUPPORTED,
+    mavlink2.MAV_RESULT_FAILED: TransferCode.COMMAND_FAILED,
+    6: TransferCode.REMOTE_CANCELLED,  # MAV_RESULT_CANCELLED (not in every dialect)
+}
+
+
+def _command_result_name(result: int) -> str:
+    entry = mavlink2.enums["MAV_RESULT"].get(result)
+    if entry is None or entry.name.endswith("ENUM_END"):
+        return f"MAV_RESULT_{result}"
+    return str(entry.name)
+
+
+class MissionClear(TransferBase):
+    """Delete the vehicle's mission of ``mission_type``."""
+
+    def __init__(
+        self,
+        target_system: int,
+        target_component: int,
+        *,
+        mission_type: int = mavlink2.MAV_MISSION_TYPE_MISSION,
+        timeout_s: float = COMMAND_TIMEOUT_S,
+        retries: int = DEFAULT_RETRIES,
+        own_system: int | None = None,
+        own_component: int | None = None,
+    ) -> None:
+        super().__init__(
+            target_system,
+            target_component,
+            mission_type=mission_type,
+            timeout_s=timeout_s,
+            retries=retries,
+            own_system=own_system,
+            own_component=own_component,
+        )
+
+    def start(self, now_s: float) -> list[Action]:
+        """Begin: send MISSION_CLEAR_ALL."""
+        self._begin(now_s)
+        return [Send(self._clear())]
+
+    def poll(self, now_s: float) -> list[Action]:
+        """Resend MISSION_CLEAR_ALL on silence, or give up (TIMEOUT)."""
+        due = self._timed_out(now_s)
+        if due is None:
+            return []
+        if due:
+            return self._finish(
+                TransferCode.TIMEOUT,
+                f"no MISSION_ACK after {self.retries + 1} MISSION_CLEAR_ALL",
+            )
+        return [Send(self._clear())]
+
+    def receive(self, msg: MAVLinkMessage, now_s: float) -> list[Action]:
+        """Handle one message; only this vehicle's MISSION_ACK matters."""
+        self._check_receive()
+        if msg.get_type() != "MISSION_ACK" or not self._from_vehicle(msg):
+            return []
+        ack_type = int_field(msg, "type")
+        if ack_type is None:
+            return []
+        mission_type = int_field(msg, "mission_type")
+        if mission_type != self.mission_type:
+            return self._finish(
+                TransferCode.MISSION_TYPE_MISMATCH,
+                f"MISSION_ACK for mission type {mission_type}, clearing {self.mission_type}",
+            )
+        if ack_type == mavlink2.MAV_MISSION_ACCEPTED:
+            return self._finish(
+                TransferCode.SUCCESS, "mission cleared", remote_code="MAV_MISSION_ACCEPTED"
+            )
+        return self._finish_for_ack(ack_type, "to MISSION_CLEAR_ALL")
+
+    def cancel(self, now_s: float) -> list[Action]:
+        """Stop waiting (nothing to tell the vehicle)."""
+        if self.done or not self._started:
+            return []
+        return self._finish(TransferCode.CANCELLED, "clear cancelled by the ground station")
+
+    def _clear(self) -> MAVLinkMessage:
+        return mavlink2.MAVLink_mission_clear_all_message(
+            self.target_system, self.target_component, self.mission_type
+        )
+
+
+class SetCurrent(TransferBase):
+    """Make item ``seq`` the vehicle's current mission item, and confirm it."""
+
+    def __init__(
+        self,
+        target_system: int,
+        target_component: int,
+        seq: int,
+        *,
+        known_current_seq: int | None = None,
+        use_command: bool = True,
+        timeout_s: float = SET_CURRENT_TIMEOUT_S,
+        retries: int = DEFAULT_RETRIES,
+        own_system: int | None = None,
+        own_component: int | None = None,
+    ) -> None:
+        super().__init__(
+            target_system,
+            target_component,
+            mission_type=mavlink2.MAV_MISSION_TYPE_MISSION,
+            timeout_s=timeout_s,
+            retries=retries,
+            own_system=own_system,
+            own_component=own_component,
+        )
+        if not 0 <= seq <= 65535:
+            raise LocalProtocolError(f"seq must be in 0..65535, got {seq}")
+        self.seq = seq
+        self.use_command = use_command
+        self._confirmation = 0
+        self._ack_accepted = False
+        self._seen_other_seq = known_current_seq is not None and known_current_seq != seq
+
+    def start(self, now_s: float) -> list[Action]:
+        """Begin: send the set-current command."""
+        self._begin(now_s)
+        return [Send(self._command())]
+
+    def poll(self, now_s: float) -> list[Action]:
+        """Resend the command while unacknowledged; give up after the retries (TIMEOUT)."""
+        due = self._timed_out(now_s)
+        if due is None:
+            return []
+        if due:
+            if self._ack_accepted:
+                message = f"COMMAND_ACK ACCEPTED but MISSION_CURRENT never showed {self.seq}"
+            else:
+                message = f"no confirmation of current item {self.seq}"
+            return self._finish(TransferCode.TIMEOUT, message)
+        if self._ack_accepted:
+            return []
+        self._confirmation = min(self._confirmation + 1, 255)
+        return [Send(self._command())]
+
+    def receive(self, msg: MAVLinkMessage, now_s: float) -> list[Action]:
+        """Handle COMMAND_ACK for our command and MISSION_CURRENT; ignore the rest."""
+        self._check_receive()
+        kind = msg.get_type()
+        if kind not in ("COMMAND_ACK", "MISSION_CURRENT") or not self._from_vehicle(msg):
+            return []
+        if kind == "MISSION_CURRENT":
+            current = int_field(msg, "seq")
+            if current is None:
+                return []
+            if current != self.seq:
+                self._seen_other_seq = True
+                return []
+            if self._ack_accepted:
+                how = "COMMAND_ACK and MISSION_CURRENT"
+            elif self._seen_other_seq:
+                how = "MISSION_CURRENT moved to it; no ACK seen"
+            else:
+                return []  # possibly stale: the vehicle may have been on seq already
+            return self._finish(TransferCode.SUCCESS, f"current item {self.seq} ({how})")
+        if int_field(msg, "command") != mavlink2.MAV_CMD_DO_SET_MISSION_CURRENT:
+            return []
+        result = int_field(msg, "result")
+        if result is None or result == mavlink2.MAV_RESULT_IN_PROGRESS:
+            return []
+        if result == mavlink2.MAV_RESULT_ACCEPTED:
+            if not self._ack_accepted:
+                self._ack_accepted = True
+                self._arm(now_s)
+            return []
+        name = _command_result_name(result)
+        return self._finish(
+            _COMMAND_RESULT_CODES.get(result, TransferCode.REMOTE_ERROR),
+            f"vehicle answered {name} to DO_SET_MISSION_CURRENT {self.seq}",
+            remote_code=name,
+        )
+
+    def cancel(self, now_s: float) -> list[Action]:
+        """Stop waiting (a command cannot be taken back)."""
+        if self.done or not self._started:
+            return []
+        return self._finish(TransferCode.CANCELLED, "set-current cancelled by the ground station")
+
+    def _command(self) -> MAVLinkMessage:
+        if not self.use_command:
+            return mavlink2.MAVLink_mission_set_current_message(
+                self.target_system, self.target_component, self.seq
+            )
+        return mavlink2.MAVLink_command_long_message(
+            self.target_system,
+            self.target_component,
+            mavlink2.MAV_CMD_DO_SET_MISSION_CURRENT,
+            self._confirmation,
+            float(self.seq),
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+        )

@@ -1,0 +1,184 @@
+"""Sans-IO mission download (vehicle -> ground station), ground-station driven.
+
+Sequence::
+
+    GCS  MISSION_REQUEST_LIST        ->
+         <- MISSION_COUNT(n)
+    GCS  MISSION_REQUEST_INT(0)      ->
+         <- MISSION_ITEM_INT(0)
+         ...
+    GCS  MISSION_ACK(ACCEPTED)       ->   after the last item (our side ends the transfer)
+
+Silence for ``timeout_s`` resends the pending request (REQUEST_LIST or REQUEST_INT(k)), at
+most ``retries`` times in a row; each received item resets the budget. Items with another
+seq than the one asked for (late duplicates) are ignored; a second MISSION_COUNT with the
+same n (an answer to a resent REQUEST_LIST) is ignored, with another n it is a
+PROTOCOL_ERROR (the mission changed under us). ``MISSION_ITEM`` (float) answers are accepted
+too. An error MISSION_ACK from the vehicle ends the download with its code. A count of 0
+ends at once (we still send the final ACK).
+"""
+
+from __future__ import annotations
+
+from groundstation.mavlink.codec import MAVLinkMessage, mavlink2
+from groundstation.mavlink.mission_items import MissionItem
+from groundstation.mavlink.mission_transfer import (
+    DEFAULT_RETRIES,
+    DEFAULT_TIMEOUT_S,
+    Action,
+    Send,
+    TransferBase,
+    TransferCode,
+    int_field,
+)
+
+__all__ = ["MissionDownload"]
+
+_HANDLED = ("MISSION_COUNT", "MISSION_ITEM_INT", "MISSION_ITEM", "MISSION_ACK")
+
+
+class MissionDownload(TransferBase):
+    """Read the vehicle's mission; ``result.items`` holds it on success."""
+
+    def __init__(
+        self,
+        target_system: int,
+        target_component: int,
+        *,
+        mission_type: int = mavlink2.MAV_MISSION_TYPE_MISSION,
+        timeout_s: float = DEFAULT_TIMEOUT_S,
+        retries: int = DEFAULT_RETRIES,
+        own_system: int | None = None,
+        own_component: int | None = None,
+    ) -> None:
+        super().__init__(
+            target_system,
+            target_component,
+            mission_type=mission_type,
+            timeout_s=timeout_s,
+            retries=retries,
+            own_system=own_system,
+            own_component=own_component,
+        )
+        self._count: int | None = None
+        self._items: list[MissionItem] = []
+
+    @property
+    def count(self) -> int | None:
+        """The vehicle's item count once known."""
+        return self._count
+
+    def start(self, now_s: float) -> list[Action]:
+        """Begin: send MISSION_REQUEST_LIST."""
+        self._begin(now_s)
+        return [Send(self._request_list())]
+
+    def poll(self, now_s: float) -> list[Action]:
+        """Handle timeouts: resend the pending request, or give up (TIMEOUT)."""
+        due = self._timed_out(now_s)
+        if due is None:
+            return []
+        if due:
+            if self._count is None:
+                what = f"no MISSION_COUNT after {self.retries + 1} MISSION_REQUEST_LIST"
+            else:
+                what = f"no MISSION_ITEM_INT {len(self._items)} of {self._count}"
+            return self._finish(
+                TransferCode.TIMEOUT,
+                f"{what} ({self.timeout_s:g} s each)",
+                send=self._mission_ack(mavlink2.MAV_MISSION_OPERATION_CANCELLED),
+            )
+        if self._count is None:
+            return [Send(self._request_list())]
+        return [Send(self._request_item(len(self._items)))]
+
+    def receive(self, msg: MAVLinkMessage, now_s: float) -> list[Action]:
+        """Handle one message from the link; anything not for this download is ignored."""
+        self._check_receive()
+        kind = msg.get_type()
+        if kind not in _HANDLED or not self._from_vehicle(msg):
+            return []
+        mission_type = int_field(msg, "mission_type")
+        if mission_type != self.mission_type:
+            return self._finish(
+                TransferCode.MISSION_TYPE_MISMATCH,
+                f"{kind} for mission type {mission_type}, downloading type {self.mission_type}",
+            )
+        if kind == "MISSION_COUNT":
+            return self._on_count(msg, now_s)
+        if kind == "MISSION_ACK":
+            ack_type = int_field(msg, "type")
+            if ack_type is None or ack_type == mavlink2.MAV_MISSION_ACCEPTED:
+                return []
+            return self._finish_for_ack(ack_type, "to the download")
+        return self._on_item(msg, now_s)
+
+    def cancel(self, now_s: float) -> list[Action]:
+        """Abandon the download, telling the vehicle (MISSION_ACK OPERATION_CANCELLED)."""
+        if self.done or not self._started:
+            return []
+        return self._finish(
+            TransferCode.CANCELLED,
+            "download cancelled by the ground station",
+            send=self._mission_ack(mavlink2.MAV_MISSION_OPERATION_CANCELLED),
+        )
+
+    # -- internals ------------------------------------------------------------------------
+
+    def _request_list(self) -> MAVLinkMessage:
+        return mavlink2.MAVLink_mission_request_list_message(
+            self.target_system, self.target_component, self.mission_type
+        )
+
+    def _request_item(self, seq: int) -> MAVLinkMessage:
+        return mavlink2.MAVLink_mission_request_int_message(
+            self.target_system, self.target_component, seq, self.mission_type
+        )
+
+    def _on_count(self, msg: MAVLinkMessage, now_s: float) -> list[Action]:
+        count = int_field(msg, "count")
+        if count is None or count < 0:
+            return []
+        if self._count is not None:
+            if count == self._count:
+                self._notes.append(f"duplicate MISSION_COUNT at t={now_s:.3f}s")
+                return []
+            return self._finish(
+                TransferCode.PROTOCOL_ERROR,
+                f"MISSION_COUNT changed from {self._count} to {count} during the download",
+                send=self._mission_ack(mavlink2.MAV_MISSION_OPERATION_CANCELLED),
+            )
+        self._count = count
+        if count == 0:
+            return self._finish(
+                TransferCode.SUCCESS,
+                "vehicle holds no mission items",
+                items=(),
+                send=self._mission_ack(mavlink2.MAV_MISSION_ACCEPTED),
+            )
+        self._arm(now_s)
+        return [Send(self._request_item(0))]
+
+    def _on_item(self, msg: MAVLinkMessage, now_s: float) -> list[Action]:
+        if self._count is None:
+            return []
+        expected = len(self._items)
+        if int_field(msg, "seq") != expected:
+            return []  # late duplicate or stray; silence resends the pending request
+        item = MissionItem.from_message(msg)
+        if item is None:
+            return self._finish(
+                TransferCode.PROTOCOL_ERROR,
+                f"item {expected} is unreadable ({msg.get_type()})",
+                send=self._mission_ack(mavlink2.MAV_MISSION_OPERATION_CANCELLED),
+            )
+        self._items.append(item)
+        if len(self._items) == self._count:
+            return self._finish(
+                TransferCode.SUCCESS,
+                f"{self._count} items downloaded",
+                items=tuple(self._items),
+                send=self._mission_ack(mavlink2.MAV_MISSION_ACCEPTED),
+            )
+        self._arm(now_s)
+        return [Send(self._request_item(len(self._items)))]

@@ -1,0 +1,194 @@
+"""Sans-IO mission upload (ground station -> vehicle), vehicle-driven as MAVLink specifies.
+
+Sequence::
+
+    GCS  MISSION_COUNT(n)            ->
+         <- MISSION_REQUEST[_INT](0)      (ArduPlane uses MISSION_REQUEST, not _INT)
+    GCS  MISSION_ITEM_INT(0)         ->
+         ...                              (one item per request, in the vehicle's order)
+         <- MISSION_ACK(ACCEPTED)         upload complete
+
+Rules (MAVSDK's MissionTransferClient semantics, adapted to ArduPlane):
+
+* Before the first request, silence for ``timeout_s`` resends MISSION_COUNT, at most
+  ``retries`` times. After it, the vehicle drives: silence only consumes retries (ArduPlane
+  re-requests by itself about every second); nothing is resent, so no resend storm.
+* Every request is answered by exactly one MISSION_ITEM_INT, duplicates included (a
+  duplicated request means our answer or its request was lost, or the link duplicated it).
+  Progress (a request) resets the retry budget.
+* A request for a seq outside 0..n-1 ends the upload (PROTOCOL_ERROR) and tells the vehicle
+  with MISSION_ACK OPERATION_CANCELLED.
+* MISSION_ACK ACCEPTED completes the upload only once every item was requested; earlier it
+  is a PROTOCOL_ERROR (a stale ACK, or a vehicle that dropped items). An error ACK ends it
+  with the matching code, except INVALID_SEQUENCE: ArduPlane sends that when an item
+  arrives out of order and then asks again, so it is only noted.
+* A request or ACK for another mission type (addressed to us) ends it with
+  MISSION_TYPE_MISMATCH, as MAVSDK does.
+* ``cancel`` sends MISSION_ACK OPERATION_CANCELLED and ends with CANCELLED.
+
+Remember (design.md): ArduPlane truncates its stored mission as soon as MISSION_COUNT
+arrives, so a failed upload leaves a partial mission; retry until verified by download.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from groundstation.mavlink.codec import MAVLinkMessage, mavlink2
+from groundstation.mavlink.mission_items import MissionItem, validate_items
+from groundstation.mavlink.mission_transfer import (
+    DEFAULT_RETRIES,
+    DEFAULT_TIMEOUT_S,
+    Action,
+    Send,
+    TransferBase,
+    TransferCode,
+    int_field,
+    mission_result_name,
+)
+
+__all__ = ["MissionUpload"]
+
+_REQUESTS = ("MISSION_REQUEST", "MISSION_REQUEST_INT")
+
+
+class MissionUpload(TransferBase):
+    """Upload ``items`` (already numbered 0..n-1; item 0 is home for ArduPilot)."""
+
+    def __init__(
+        self,
+        target_system: int,
+        target_component: int,
+        items: Sequence[MissionItem],
+        *,
+        mission_type: int = mavlink2.MAV_MISSION_TYPE_MISSION,
+        timeout_s: float = DEFAULT_TIMEOUT_S,
+        retries: int = DEFAULT_RETRIES,
+        own_system: int | None = None,
+        own_component: int | None = None,
+    ) -> None:
+        super().__init__(
+            target_system,
+            target_component,
+            mission_type=mission_type,
+            timeout_s=timeout_s,
+            retries=retries,
+            own_system=own_system,
+            own_component=own_component,
+        )
+        validate_items(items, mission_type)
+        self.items: tuple[MissionItem, ...] = tuple(items)
+        self._requested: set[int] = set()
+        self.items_sent = 0  # MISSION_ITEM_INT answers sent, duplicates included
+
+    @property
+    def requested_seqs(self) -> frozenset[int]:
+        """The item numbers the vehicle has asked for so far."""
+        return frozenset(self._requested)
+
+    def start(self, now_s: float) -> list[Action]:
+        """Begin: send MISSION_COUNT."""
+        self._begin(now_s)
+        return [Send(self._count_message())]
+
+    def poll(self, now_s: float) -> list[Action]:
+        """Handle timeouts: resend MISSION_COUNT before the first request, else just wait."""
+        due = self._timed_out(now_s)
+        if due is None:
+            return []
+        if due:
+            return self._finish(
+                TransferCode.TIMEOUT,
+                self._silence_message(),
+                maybe_stored=len(self._requested) == len(self.items),
+            )
+        if not self._requested:
+            return [Send(self._count_message())]
+        return []
+
+    def receive(self, msg: MAVLinkMessage, now_s: float) -> list[Action]:
+        """Handle one message from the link; anything not for this upload is ignored."""
+        self._check_receive()
+        kind = msg.get_type()
+        if kind not in (*_REQUESTS, "MISSION_ACK") or not self._from_vehicle(msg):
+            return []
+        mission_type = int_field(msg, "mission_type")
+        if mission_type != self.mission_type:
+            return self._finish(
+                TransferCode.MISSION_TYPE_MISMATCH,
+                f"{kind} for mission type {mission_type}, uploading type {self.mission_type}",
+            )
+        if kind == "MISSION_ACK":
+            return self._on_ack(msg, now_s)
+        return self._on_request(msg, kind, now_s)
+
+    def cancel(self, now_s: float) -> list[Action]:
+        """Abandon the upload, telling the vehicle (MISSION_ACK OPERATION_CANCELLED)."""
+        if self.done or not self._started:
+            return []
+        return self._finish(
+            TransferCode.CANCELLED,
+            "upload cancelled by the ground station",
+            send=self._mission_ack(mavlink2.MAV_MISSION_OPERATION_CANCELLED),
+        )
+
+    # -- internals ------------------------------------------------------------------------
+
+    def _count_message(self) -> MAVLinkMessage:
+        return mavlink2.MAVLink_mission_count_message(
+            self.target_system, self.target_component, len(self.items), self.mission_type
+        )
+
+    def _on_request(self, msg: MAVLinkMessage, kind: str, now_s: float) -> list[Action]:
+        seq = int_field(msg, "seq")
+        if seq is None or not 0 <= seq < len(self.items):
+            return self._finish(
+                TransferCode.PROTOCOL_ERROR,
+                f"vehicle requested item {seq} of a {len(self.items)}-item mission",
+                send=self._mission_ack(mavlink2.MAV_MISSION_OPERATION_CANCELLED),
+            )
+        if seq in self._requested:
+            self._notes.append(f"duplicate {kind} for item {seq} at t={now_s:.3f}s")
+        self._requested.add(seq)
+        self._arm(now_s)
+        self.items_sent += 1
+        return [Send(self.items[seq].to_message(self.target_system, self.target_component))]
+
+    def _on_ack(self, msg: MAVLinkMessage, now_s: float) -> list[Action]:
+        ack_type = int_field(msg, "type")
+        if ack_type is None:
+            return []
+        if ack_type == mavlink2.MAV_MISSION_ACCEPTED:
+            missing = len(self.items) - len(self._requested)
+            if missing:
+                return self._finish(
+                    TransferCode.PROTOCOL_ERROR,
+                    f"MISSION_ACK ACCEPTED before {missing} of {len(self.items)} items were "
+                    "requested: the vehicle may hold a partial mission",
+                    remote_code=mission_result_name(ack_type),
+                )
+            return self._finish(
+                TransferCode.SUCCESS,
+                f"{len(self.items)} items accepted",
+                remote_code=mission_result_name(ack_type),
+            )
+        if ack_type == mavlink2.MAV_MISSION_INVALID_SEQUENCE:
+            # ArduPlane: an item arrived out of order; it will ask again. Not fatal.
+            self._notes.append(f"MAV_MISSION_INVALID_SEQUENCE at t={now_s:.3f}s (not fatal)")
+            self._arm(now_s, reset_retries=False)
+            return []
+        return self._finish_for_ack(ack_type, "to the upload")
+
+    def _silence_message(self) -> str:
+        tries = self.retries + 1
+        if not self._requested:
+            return f"no MISSION_REQUEST after {tries} MISSION_COUNT ({self.timeout_s:g} s each)"
+        if len(self._requested) == len(self.items):
+            return (
+                "no MISSION_ACK after every item was sent; the vehicle may have stored the "
+                "mission (verify by download)"
+            )
+        return (
+            f"vehicle silent for {tries} x {self.timeout_s:g} s after requesting "
+            f"{len(self._requested)} of {len(self.items)} items"
+        )

@@ -1,0 +1,426 @@
+"""Sans-IO telemetry reducer: one vehicle's MAVLink stream -> a snapshot and events.
+
+:class:`VehicleTelemetry` is fed every decoded message with the mission time it arrived
+(``receive(msg, now_s)``) and keeps the vehicle's latest state in floe's frames:
+
+* position: ``GLOBAL_POSITION_INT`` lat/lon (degE7) -> local ENU (x_m east, y_m north) with
+  the mission :class:`GeoOrigin` (pymap3d, so cos(lat) is never forgotten); ``alt_m`` is the
+  altitude above home (``relative_alt``, mm); velocity ``vx`` (north) / ``vy`` (east) cm/s
+  -> ENU ``(ve, vn)``.
+* heading: compass ``hdg`` (GLOBAL_POSITION_INT, cdeg; 65535 = unknown), VFR_HUD ``heading``
+  (deg) or ATTITUDE ``yaw`` (rad, clockwise from north) -> ENU ``psi = pi/2 - hdg``, wrapped to
+  [-pi, pi). The latest valid source wins.
+* mode (HEARTBEAT ``custom_mode``, ArduPlane numbering), armed (``base_mode`` bit 128), mission
+  progress (MISSION_CURRENT, MISSION_ITEM_REACHED), battery (SYS_STATUS, BATTERY_STATUS),
+  pre-arm state (SYS_STATUS health bit 0x10000000, the best single "ready" signal).
+
+Values that are NaN or out of range are never stored: they are dropped and reported as
+:class:`InvalidTelemetry`. Messages from another system id, and HEARTBEATs of components
+that are not an autopilot (cameras, ground stations on the same system id), are ignored.
+A position older (``time_boot_ms``) than the last one (UDP reordering) is ignored as stale.
+
+Reboots: ``time_boot_ms`` (any message that carries it) going back by more than
+``reboot_backstep_ms`` means the autopilot restarted: :class:`Rebooted` is emitted and the
+mission progress forgotten. (A reboot during a silence shorter than the previous uptime is
+the case this cannot see.)
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+from typing import Literal
+
+from groundstation.mavlink.codec import MAVLinkMessage, mavlink2
+from groundstation.mavlink.geodesy import GeoOrigin, enu_rad_from_compass_deg, wrap_pi
+from groundstation.mavlink.telemetry_events import (
+    ARDUPLANE_MODES,
+    Armed,
+    BatteryLow,
+    Disarmed,
+    InvalidTelemetry,
+    MissionCurrentChanged,
+    MissionItemReached,
+    ModeChanged,
+    PrearmChanged,
+    Rebooted,
+    StatusText,
+    TelemetryEvent,
+    VehicleSnapshot,
+    mode_name,
+)
+
+__all__ = [
+    "ARDUPLANE_MODES",
+    "Armed",
+    "BatteryLow",
+    "Disarmed",
+    "InvalidTelemetry",
+    "LoiterEndDetector",
+    "MissionCurrentChanged",
+    "MissionItemReached",
+    "ModeChanged",
+    "PrearmChanged",
+    "Rebooted",
+    "StatusText",
+    "TelemetryEvent",
+    "VehicleSnapshot",
+    "VehicleTelemetry",
+    "mode_name",
+]
+
+PREARM_CHECK_BIT = 0x10000000  # MAV_SYS_STATUS_PREARM_CHECK
+_ARMED_FLAG = 128  # MAV_MODE_FLAG_SAFETY_ARMED
+_CUSTOM_MODE_FLAG = 1  # MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
+_UINT16_UNKNOWN = 65535
+_STATUSTEXT_CHUNK = 50
+_MAX_SPEED_M_S = 150.0
+_MAX_ALT_M = 20_000.0
+
+
+# --------------------------------------------------------------------------- reducer
+
+
+class VehicleTelemetry:
+    """Reduce one vehicle's messages to a :class:`VehicleSnapshot` and events.
+
+    ``battery_low_pct`` (and optionally ``battery_low_v``) trigger :class:`BatteryLow` once
+    per crossing; it re-arms when the level recovers ``battery_hysteresis_pct`` above.
+    Incomplete chunked STATUSTEXTs are flushed after ``statustext_timeout_s``. Only the
+    autopilot component ``component_id`` (1, MAV_COMP_ID_AUTOPILOT1; None: any) is listened
+    to: a camera or companion computer on the same system id has its own ``time_boot_ms``
+    and would fake reboots.
+    """
+
+    def __init__(
+        self,
+        system_id: int,
+        origin: GeoOrigin,
+        *,
+        battery_low_pct: float = 25.0,
+        battery_low_v: float | None = None,
+        battery_hysteresis_pct: float = 5.0,
+        reboot_backstep_ms: int = 3000,
+        statustext_timeout_s: float = 2.0,
+        component_id: int | None = 1,
+    ) -> None:
+        self.system_id = system_id
+        self.component_id = component_id
+        self.origin = origin
+        self.battery_low_pct = battery_low_pct
+        self.battery_low_v = battery_low_v
+        self.battery_hysteresis_pct = battery_hysteresis_pct
+        self.reboot_backstep_ms = reboot_backstep_ms
+        self.statustext_timeout_s = statustext_timeout_s
+        self._snap = VehicleSnapshot(system_id=system_id)
+        self._battery_low_reported = False
+        self._last_position_boot_ms: int | None = None
+        self._chunks: dict[int, tuple[float, int, dict[int, str], int | None]] = {}
+        self.stale_messages = 0
+        self.messages = 0
+
+    def snapshot(self) -> VehicleSnapshot:
+        """The current state (immutable)."""
+        return self._snap
+
+    def link_status(
+        self, now_s: float, lost_after_s: float, degraded_after_s: float | None = None
+    ) -> Literal["ok", "degraded", "lost"]:
+        """``"ok"`` if heard within ``degraded_after_s`` (default min(2.5 s, lost/2): ~1 Hz
+        telemetry with two messages missed), ``"degraded"`` until ``lost_after_s``, then
+        ``"lost"`` (also before the first message)."""
+        last = self._snap.last_heard_s
+        if last is None:
+            return "lost"
+        degraded = min(2.5, lost_after_s / 2.0) if degraded_after_s is None else degraded_after_s
+        silence_s = now_s - last
+        if silence_s > lost_after_s:
+            return "lost"
+        return "degraded" if silence_s > degraded else "ok"
+
+    def tick(self, now_s: float) -> list[TelemetryEvent]:
+        """Flush incomplete STATUSTEXTs that timed out (call now and then)."""
+        return self._flush_statustext(now_s)
+
+    def receive(self, msg: MAVLinkMessage, now_s: float) -> list[TelemetryEvent]:
+        """Fold one message into the state; returns the events it caused. Never raises."""
+        try:
+            if msg.get_srcSystem() != self.system_id:
+                return []
+            if self.component_id is not None and msg.get_srcComponent() != self.component_id:
+                return []
+        except AttributeError:
+            return []
+        kind = msg.get_type()
+        if kind == "HEARTBEAT" and (
+            getattr(msg, "autopilot", None) == mavlink2.MAV_AUTOPILOT_INVALID
+            or getattr(msg, "type", None) == mavlink2.MAV_TYPE_GCS
+        ):
+            return []
+        self.messages += 1
+        self._snap = replace(self._snap, last_heard_s=now_s)
+        events: list[TelemetryEvent] = self._flush_statustext(now_s)
+        boot_ms = getattr(msg, "time_boot_ms", None)
+        if isinstance(boot_ms, int) and not isinstance(boot_ms, bool):
+            events += self._on_boot_time(boot_ms, now_s)
+        handler = _HANDLERS.get(kind)
+        if handler is not None:
+            try:
+                events += handler(self, msg, now_s)
+            except (AttributeError, TypeError, ValueError, OverflowError) as exc:
+                events.append(InvalidTelemetry(now_s, kind, "<message>", repr(exc)))
+        return events
+
+    # -- helpers --------------------------------------------------------------------------
+
+    def _on_boot_time(self, boot_ms: int, now_s: float) -> list[TelemetryEvent]:
+        last = self._snap.time_boot_ms
+        if last is not None and boot_ms < last - self.reboot_backstep_ms:
+            self._snap = replace(
+                self._snap,
+                time_boot_ms=boot_ms,
+                mission_current_seq=None,
+                mission_total=None,
+                armed=None,
+                mode=None,
+                mode_name=None,
+            )
+            self._last_position_boot_ms = None
+            return [Rebooted(now_s, last, boot_ms)]
+        if last is None or boot_ms > last:
+            self._snap = replace(self._snap, time_boot_ms=boot_ms)
+        return []
+
+    def _on_heartbeat(self, msg: MAVLinkMessage, now_s: float) -> list[TelemetryEvent]:
+        events: list[TelemetryEvent] = []
+        snap = replace(self._snap, last_heartbeat_s=now_s)
+        armed = bool(int(msg.base_mode) & _ARMED_FLAG)
+        if snap.armed is not None and armed != snap.armed:  # transitions only
+            events.append(Armed(now_s) if armed else Disarmed(now_s))
+        snap = replace(snap, armed=armed)
+        if int(msg.base_mode) & _CUSTOM_MODE_FLAG:
+            mode = int(msg.custom_mode)
+            if mode != snap.mode:
+                events.append(ModeChanged(now_s, snap.mode, mode, snap.mode_name, mode_name(mode)))
+            snap = replace(snap, mode=mode, mode_name=mode_name(mode))
+        self._snap = snap
+        return events
+
+    def _on_global_position(self, msg: MAVLinkMessage, now_s: float) -> list[TelemetryEvent]:
+        events: list[TelemetryEvent] = []
+        boot_ms = int(msg.time_boot_ms)
+        if self._last_position_boot_ms is not None and boot_ms < self._last_position_boot_ms:
+            self.stale_messages += 1
+            return events
+        self._last_position_boot_ms = boot_ms
+        lat, lon = int(msg.lat), int(msg.lon)
+        snap = self._snap
+        if lat == 0 and lon == 0:
+            pass  # no GPS fix yet: ArduPilot sends 0/0; not an error, nothing to store
+        elif abs(lat) > 900_000_000 or abs(lon) > 1_800_000_000:
+            events.append(InvalidTelemetry(now_s, "GLOBAL_POSITION_INT", "lat/lon", (lat, lon)))
+        else:
+            x_m, y_m, _ = self.origin.to_local(lat * 1e-7, lon * 1e-7)
+            snap = replace(snap, x_m=x_m, y_m=y_m, last_position_s=now_s)
+        alt_m = int(msg.relative_alt) / 1000.0
+        if abs(alt_m) > _MAX_ALT_M:
+            events.append(InvalidTelemetry(now_s, "GLOBAL_POSITION_INT", "relative_alt", alt_m))
+        else:
+            snap = replace(snap, alt_m=alt_m)
+        vn_m_s, ve_m_s = int(msg.vx) / 100.0, int(msg.vy) / 100.0
+        snap = replace(snap, ve_m_s=ve_m_s, vn_m_s=vn_m_s, speed_m_s=math.hypot(ve_m_s, vn_m_s))
+        hdg = int(msg.hdg)
+        if hdg != _UINT16_UNKNOWN:
+            if 0 <= hdg <= 36000:
+                snap = replace(snap, heading_rad=enu_rad_from_compass_deg(hdg / 100.0))
+            else:
+                events.append(InvalidTelemetry(now_s, "GLOBAL_POSITION_INT", "hdg", hdg))
+        self._snap = snap
+        return events
+
+    def _on_vfr_hud(self, msg: MAVLinkMessage, now_s: float) -> list[TelemetryEvent]:
+        events: list[TelemetryEvent] = []
+        snap = self._snap
+        speeds: dict[str, float] = {}
+        for name in ("groundspeed", "airspeed"):
+            value = float(getattr(msg, name))
+            if math.isfinite(value) and -1.0 <= value <= _MAX_SPEED_M_S:
+                speeds[name] = max(value, 0.0)
+            else:
+                events.append(InvalidTelemetry(now_s, "VFR_HUD", name, value))
+        if "groundspeed" in speeds:
+            snap = replace(snap, speed_m_s=speeds["groundspeed"])
+        if "airspeed" in speeds:
+            snap = replace(snap, airspeed_m_s=speeds["airspeed"])
+        heading = int(msg.heading)
+        if 0 <= heading <= 360:
+            snap = replace(snap, heading_rad=enu_rad_from_compass_deg(float(heading)))
+        else:
+            events.append(InvalidTelemetry(now_s, "VFR_HUD", "heading", heading))
+        self._snap = snap
+        return events
+
+    def _on_attitude(self, msg: MAVLinkMessage, now_s: float) -> list[TelemetryEvent]:
+        yaw = float(msg.yaw)
+        if not (math.isfinite(yaw) and abs(yaw) <= 2.0 * math.pi + 1e-3):
+            return [InvalidTelemetry(now_s, "ATTITUDE", "yaw", yaw)]
+        self._snap = replace(self._snap, heading_rad=wrap_pi(math.pi / 2.0 - yaw))
+        return []
+
+    def _on_sys_status(self, msg: MAVLinkMessage, now_s: float) -> list[TelemetryEvent]:
+        events: list[TelemetryEvent] = []
+        present = int(msg.onboard_control_sensors_present)
+        if present & PREARM_CHECK_BIT:
+            ok = bool(int(msg.onboard_control_sensors_health) & PREARM_CHECK_BIT)
+            if ok != self._snap.prearm_ok:
+                events.append(PrearmChanged(now_s, ok))
+            self._snap = replace(self._snap, prearm_ok=ok)
+        voltage_mv = int(msg.voltage_battery)
+        events += self._battery(
+            now_s,
+            "SYS_STATUS",
+            int(msg.battery_remaining),
+            None if voltage_mv == _UINT16_UNKNOWN else voltage_mv,
+        )
+        return events
+
+    def _on_battery_status(self, msg: MAVLinkMessage, now_s: float) -> list[TelemetryEvent]:
+        voltages = list(msg.voltages)
+        cell0 = int(voltages[0]) if voltages else _UINT16_UNKNOWN
+        voltage_mv = None if cell0 == _UINT16_UNKNOWN else cell0
+        return self._battery(now_s, "BATTERY_STATUS", int(msg.battery_remaining), voltage_mv)
+
+    def _battery(
+        self, now_s: float, kind: str, remaining: int, voltage_mv: int | None
+    ) -> list[TelemetryEvent]:
+        events: list[TelemetryEvent] = []
+        snap = self._snap
+        if remaining != -1:
+            if 0 <= remaining <= 100:
+                snap = replace(snap, battery_remaining_pct=float(remaining))
+            else:
+                events.append(InvalidTelemetry(now_s, kind, "battery_remaining", remaining))
+        if voltage_mv is not None:
+            if 0 <= voltage_mv <= 100_000:
+                snap = replace(snap, battery_voltage_v=voltage_mv / 1000.0)
+            else:
+                events.append(InvalidTelemetry(now_s, kind, "voltage", voltage_mv))
+        self._snap = snap
+        pct, volts = snap.battery_remaining_pct, snap.battery_voltage_v
+        low = (pct is not None and pct < self.battery_low_pct) or (
+            self.battery_low_v is not None and volts is not None and 0 < volts < self.battery_low_v
+        )
+        if low and not self._battery_low_reported:
+            self._battery_low_reported = True
+            events.append(BatteryLow(now_s, pct, volts, self.battery_low_pct))
+        elif (
+            not low
+            and self._battery_low_reported
+            and (pct is None or pct >= self.battery_low_pct + self.battery_hysteresis_pct)
+        ):
+            self._battery_low_reported = False
+        return events
+
+    def _on_mission_current(self, msg: MAVLinkMessage, now_s: float) -> list[TelemetryEvent]:
+        seq = int(msg.seq)
+        total_raw = int(getattr(msg, "total", 0) or 0)
+        total = None if total_raw in (0, _UINT16_UNKNOWN) else total_raw
+        old = self._snap.mission_current_seq
+        self._snap = replace(self._snap, mission_current_seq=seq, mission_total=total)
+        if seq != old:
+            return [MissionCurrentChanged(now_s, old, seq, total)]
+        return []
+
+    def _on_item_reached(self, msg: MAVLinkMessage, now_s: float) -> list[TelemetryEvent]:
+        return [MissionItemReached(now_s, int(msg.seq))]
+
+    def _on_statustext(self, msg: MAVLinkMessage, now_s: float) -> list[TelemetryEvent]:
+        raw = msg.text
+        text = raw.decode("utf-8", "replace") if isinstance(raw, bytes | bytearray) else str(raw)
+        text = text.split("\x00", 1)[0]
+        severity = int(msg.severity)
+        text_id = int(getattr(msg, "id", 0) or 0)
+        if text_id == 0:
+            return [StatusText(now_s, severity, text)]
+        chunk_seq = int(getattr(msg, "chunk_seq", 0) or 0)
+        first_s, _, chunks, last_seq = self._chunks.get(text_id, (now_s, severity, {}, None))
+        chunks[chunk_seq] = text
+        if len(text) < _STATUSTEXT_CHUNK:
+            last_seq = chunk_seq  # a short chunk ends the text
+        self._chunks[text_id] = (first_s, severity, chunks, last_seq)
+        if last_seq is not None and all(i in chunks for i in range(last_seq + 1)):
+            del self._chunks[text_id]
+            return [StatusText(now_s, severity, "".join(chunks[i] for i in range(last_seq + 1)))]
+        return []
+
+    def _flush_statustext(self, now_s: float) -> list[TelemetryEvent]:
+        events: list[TelemetryEvent] = []
+        for text_id, (first_s, severity, chunks, _) in list(self._chunks.items()):
+            if now_s - first_s >= self.statustext_timeout_s:
+                del self._chunks[text_id]
+                top = max(chunks)
+                text = "".join(chunks.get(i, "[...]") for i in range(top + 1))
+                gapless = all(i in chunks for i in range(top + 1))  # unterminated 50k text
+                events.append(StatusText(now_s, severity, text, complete=gapless))
+        return events
+
+
+_HANDLERS = {
+    "HEARTBEAT": VehicleTelemetry._on_heartbeat,
+    "GLOBAL_POSITION_INT": VehicleTelemetry._on_global_position,
+    "VFR_HUD": VehicleTelemetry._on_vfr_hud,
+    "ATTITUDE": VehicleTelemetry._on_attitude,
+    "SYS_STATUS": VehicleTelemetry._on_sys_status,
+    "BATTERY_STATUS": VehicleTelemetry._on_battery_status,
+    "MISSION_CURRENT": VehicleTelemetry._on_mission_current,
+    "MISSION_ITEM_REACHED": VehicleTelemetry._on_item_reached,
+    "STATUSTEXT": VehicleTelemetry._on_statustext,
+}
+
+
+# --------------------------------------------------------------------------- loiter end
+
+
+class LoiterEndDetector:
+    """Detects, once, the end of the timed loiter at mission item ``loiter_seq``.
+
+    ArduPlane sends MISSION_ITEM_REACHED for it only once, so on a lossy link the end is
+    also inferred from MISSION_CURRENT moving past it: after a MISSION_CURRENT <= N has been
+    seen, any MISSION_CURRENT > N (or a MISSION_ITEM_REACHED > N) ends it. MISSION_CURRENT
+    values > N seen *before* that are ignored: they are the previous mission's (after a
+    re-upload the plane keeps flying its old item, MISSION_CURRENT may even exceed the
+    total). Feed it the reducer's events; :meth:`feed` returns True exactly once.
+    """
+
+    def __init__(self, loiter_seq: int, *, current_seq: int | None = None) -> None:
+        """``current_seq``: the vehicle's MISSION_CURRENT when the detector is created
+        (from the snapshot), since the reducer reports only changes."""
+        self.loiter_seq = loiter_seq
+        self.ended = False
+        self.ended_by: str | None = None
+        self.ended_at_s: float | None = None
+        self._seen_at_or_before = current_seq is not None and current_seq <= loiter_seq
+
+    def feed(self, event: TelemetryEvent) -> bool:
+        """Update with one event; True if this event is the one that ends the loiter."""
+        if self.ended:
+            return False
+        if isinstance(event, Rebooted):
+            self._seen_at_or_before = False
+            return False
+        if isinstance(event, MissionItemReached):
+            if event.seq == self.loiter_seq or (
+                event.seq > self.loiter_seq and self._seen_at_or_before
+            ):
+                return self._end("reached", event.t_s)
+            return False
+        if isinstance(event, MissionCurrentChanged):
+            if event.seq <= self.loiter_seq:
+                self._seen_at_or_before = True
+            elif self._seen_at_or_before:
+                return self._end("mission_current", event.t_s)
+        return False
+
+    def _end(self, how: str, t_s: float) -> bool:
+        self.ended, self.ended_by, self.ended_at_s = True, how, t_s
+        return True

@@ -1,0 +1,188 @@
+"""Events and the snapshot that the telemetry reducer (:mod:`.telemetry`) produces.
+
+Every event carries ``t_s``, the mission time at which the message that caused it arrived.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+__all__ = [
+    "ARDUPLANE_MODES",
+    "Armed",
+    "BatteryLow",
+    "Disarmed",
+    "InvalidTelemetry",
+    "MissionCurrentChanged",
+    "MissionItemReached",
+    "ModeChanged",
+    "PrearmChanged",
+    "Rebooted",
+    "StatusText",
+    "TelemetryEvent",
+    "VehicleSnapshot",
+    "mode_name",
+]
+
+ARDUPLANE_MODES: dict[int, str] = {
+    0: "MANUAL",
+    1: "CIRCLE",
+    2: "STABILIZE",
+    3: "TRAINING",
+    4: "ACRO",
+    5: "FBWA",
+    6: "FBWB",
+    7: "CRUISE",
+    8: "AUTOTUNE",
+    10: "AUTO",
+    11: "RTL",
+    12: "LOITER",
+    13: "TAKEOFF",
+    14: "AVOID_ADSB",
+    15: "GUIDED",
+    16: "INITIALISING",
+    17: "QSTABILIZE",
+    18: "QHOVER",
+    19: "QLOITER",
+    20: "QLAND",
+    21: "QRTL",
+    22: "QAUTOTUNE",
+    23: "QACRO",
+    24: "THERMAL",
+    25: "LOITER_ALT_QLAND",
+    26: "AUTOLAND",
+}
+
+
+def mode_name(custom_mode: int) -> str:
+    """ArduPlane mode name of ``custom_mode`` (``MODE_<n>`` if unknown)."""
+    return ARDUPLANE_MODES.get(custom_mode, f"MODE_{custom_mode}")
+
+
+# --------------------------------------------------------------------------- events
+
+
+@dataclass(frozen=True)
+class ModeChanged:
+    t_s: float
+    old: int | None
+    new: int
+    old_name: str | None
+    new_name: str
+
+
+@dataclass(frozen=True)
+class Armed:
+    t_s: float
+
+
+@dataclass(frozen=True)
+class Disarmed:
+    t_s: float
+
+
+@dataclass(frozen=True)
+class MissionItemReached:
+    t_s: float
+    seq: int
+
+
+@dataclass(frozen=True)
+class MissionCurrentChanged:
+    t_s: float
+    old: int | None
+    seq: int
+    total: int | None
+
+
+@dataclass(frozen=True)
+class StatusText:
+    """A whole STATUSTEXT (chunks reassembled); ``complete`` False if chunks went missing."""
+
+    t_s: float
+    severity: int
+    text: str
+    complete: bool = True
+
+
+@dataclass(frozen=True)
+class Rebooted:
+    t_s: float
+    previous_time_boot_ms: int
+    time_boot_ms: int
+
+
+@dataclass(frozen=True)
+class BatteryLow:
+    t_s: float
+    remaining_pct: float | None
+    voltage_v: float | None
+    threshold_pct: float
+
+
+@dataclass(frozen=True)
+class PrearmChanged:
+    t_s: float
+    ok: bool
+
+
+@dataclass(frozen=True)
+class InvalidTelemetry:
+    """A value that was dropped instead of stored."""
+
+    t_s: float
+    message: str
+    field: str
+    value: Any
+
+
+TelemetryEvent = (
+    ModeChanged
+    | Armed
+    | Disarmed
+    | MissionItemReached
+    | MissionCurrentChanged
+    | StatusText
+    | Rebooted
+    | BatteryLow
+    | PrearmChanged
+    | InvalidTelemetry
+)
+
+
+@dataclass(frozen=True)
+class VehicleSnapshot:
+    """The latest known state of one vehicle (None: not heard yet)."""
+
+    system_id: int
+    x_m: float | None = None
+    y_m: float | None = None
+    alt_m: float | None = None
+    ve_m_s: float | None = None
+    vn_m_s: float | None = None
+    heading_rad: float | None = None
+    speed_m_s: float | None = None
+    airspeed_m_s: float | None = None
+    mode: int | None = None
+    mode_name: str | None = None
+    armed: bool | None = None
+    mission_current_seq: int | None = None
+    mission_total: int | None = None
+    battery_remaining_pct: float | None = None
+    battery_voltage_v: float | None = None
+    prearm_ok: bool | None = None
+    last_heard_s: float | None = None
+    last_heartbeat_s: float | None = None
+    last_position_s: float | None = None
+    time_boot_ms: int | None = None
+
+    @property
+    def course_rad(self) -> float | None:
+        """ENU course over ground from the velocity, when moving faster than 1 m/s."""
+        if self.ve_m_s is None or self.vn_m_s is None:
+            return None
+        if math.hypot(self.ve_m_s, self.vn_m_s) < 1.0:
+            return None
+        return math.atan2(self.vn_m_s, self.ve_m_s)

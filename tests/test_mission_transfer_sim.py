@@ -1,0 +1,172 @@
+"""The protocol layer against the built-in simulator (sitl.SimVehicle over a Loopback).
+
+What the daemon composes, in virtual time: upload -> download-verify -> set current, then
+the telemetry reducer and the loiter-end detector follow the flight to the end of the timed
+loiter. Every message goes through the real codec.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+
+from groundstation.mavlink.geodesy import GeoOrigin
+from groundstation.mavlink.mission_commands import SetCurrent
+from groundstation.mavlink.mission_download import MissionDownload
+from groundstation.mavlink.mission_items import (
+    LoiterTime,
+    LoiterUnlimited,
+    Takeoff,
+    Waypoint,
+    build_mission_items,
+)
+from groundstation.mavlink.mission_transfer import Finished, Send, TransferCode, TransferResult
+from groundstation.mavlink.mission_upload import MissionUpload
+from groundstation.mavlink.mission_verify import compare_missions
+from groundstation.mavlink.telemetry import (
+    LoiterEndDetector,
+    ModeChanged,
+    Rebooted,
+    StatusText,
+    VehicleTelemetry,
+)
+from sitl.loopback import Loopback
+from sitl.vehicle import SimVehicle, VehicleConfig
+
+ORIGIN = GeoOrigin(78.93, 11.92)
+
+
+def make() -> Loopback:
+    cfg = VehicleConfig(
+        system_id=1,
+        origin=ORIGIN,
+        home_lat_deg=78.93,
+        home_lon_deg=11.92,
+        airborne=True,
+        fast_boot=True,
+        launch_x_m=105.0,
+        launch_y_m=0.0,
+        launch_heading_rad=1.5708,
+    )
+    lb = Loopback(SimVehicle(cfg))
+    lb.advance(3.0)
+    lb.inbox.clear()
+    return lb
+
+
+def drive(
+    lb: Loopback,
+    sm: Any,
+    telemetry: VehicleTelemetry,
+    limit_s: float = 30.0,
+    reboot_after_sends: int | None = None,
+    boot_s: float = 0.0,
+) -> Any:
+    """Run ``sm`` against the vehicle as the daemon's session would: every message also
+    feeds the telemetry reducer, whose Rebooted event is reported to the state machine."""
+    end = lb.t_s + limit_s
+    pending = sm.start(lb.t_s)
+    sends = 0
+    deaf_until_s = -1.0
+    while not sm.done and lb.t_s < end:
+        replies: list[Any] = []
+        for action in pending:
+            if isinstance(action, Send):
+                if lb.t_s >= deaf_until_s:
+                    replies += lb.send(action.msg)
+                sends += 1
+                if sends == reboot_after_sends:
+                    lb.vehicle.reboot(lb.t_s)
+                    deaf_until_s = lb.t_s + boot_s  # a booting autopilot hears nothing
+            else:
+                assert isinstance(action, Finished)
+        if not replies:
+            replies = lb.advance(0.05, 0.05)
+        pending = []
+        for msg in replies:
+            events = telemetry.receive(msg, lb.t_s)
+            if not sm.done and any(isinstance(e, Rebooted) for e in events):
+                pending += sm.notify_vehicle_rebooted(lb.t_s)
+            if not sm.done:
+                pending += sm.receive(msg, lb.t_s)
+        if not sm.done:
+            pending += sm.poll(lb.t_s)
+    assert isinstance(sm.result, TransferResult)
+    return sm.result
+
+
+def test_upload_verify_set_current_and_loiter_end_on_the_simulator() -> None:
+    lb = make()
+    tel = VehicleTelemetry(1, ORIGIN)
+    items = build_mission_items(
+        [
+            Waypoint(1200.0, 0.0, 100.0),
+            LoiterTime(1200.0, 800.0, 100.0, time_s=30),
+            LoiterUnlimited(1200.0, 800.0, 100.0, radius_m=120),
+        ],
+        ORIGIN,
+    )
+    up = drive(lb, MissionUpload(1, 1, items, own_system=255, own_component=190), tel)
+    assert up.ok, up
+    down = drive(lb, MissionDownload(1, 1, own_system=255), tel)
+    assert down.ok and down.items is not None
+    assert compare_missions(items, list(down.items)) == []
+    current = tel.snapshot().mission_current_seq
+    sc = drive(lb, SetCurrent(1, 1, 1, known_current_seq=current), tel)
+    assert sc.ok, sc
+    detector = LoiterEndDetector(2, current_seq=tel.snapshot().mission_current_seq)
+    texts: list[str] = []
+    t_end = lb.t_s + 400.0
+    while not detector.ended and lb.t_s < t_end:
+        for msg in lb.advance(0.5, 0.1):
+            for event in tel.receive(msg, lb.t_s):
+                detector.feed(event)
+                if isinstance(event, StatusText):
+                    texts.append(event.text)
+                assert not isinstance(event, ModeChanged) or event.new_name == "AUTO"
+    assert detector.ended and detector.ended_by in ("reached", "mission_current")
+    assert "Loiter time complete" in texts
+    snap = tel.snapshot()
+    assert snap.mode_name == "AUTO" and snap.armed is True
+    assert snap.x_m is not None and snap.y_m is not None
+    # the plane is on the loiter circle around (1200, 800), in local metres
+    assert 60.0 < ((snap.x_m - 1200.0) ** 2 + (snap.y_m - 800.0) ** 2) ** 0.5 < 300.0
+
+
+def test_takeoff_mission_round_trips() -> None:
+    lb = make()
+    tel = VehicleTelemetry(1, ORIGIN)
+    items = build_mission_items(
+        [Takeoff(alt_m=80.0), LoiterUnlimited(0.0, 600.0, 100.0, radius_m=150, clockwise=False)],
+        ORIGIN,
+    )
+    assert drive(lb, MissionUpload(1, 1, items), tel).ok
+    down = drive(lb, MissionDownload(1, 1), tel)
+    assert down.ok and down.items is not None
+    assert compare_missions(items, list(down.items)) == []
+    assert down.items[2].param3 == -150.0
+
+
+@pytest.mark.parametrize(
+    ("boot_s", "code"),
+    [
+        # a real autopilot takes seconds to boot: the upload falls silent, and the first
+        # telemetry after the boot shows time_boot_ms going back
+        (3.0, TransferCode.VEHICLE_REBOOTED),
+        # an instant reboot answers our next item as a stray one: MAV_MISSION_ERROR
+        (0.0, TransferCode.REMOTE_ERROR),
+    ],
+)
+def test_reboot_mid_upload(boot_s: float, code: TransferCode) -> None:
+    lb = make()
+    lb.advance(20.0)  # some uptime, so that the reboot sends time_boot_ms clearly back
+    tel = VehicleTelemetry(1, ORIGIN)
+    for msg in lb.advance(2.0):
+        tel.receive(msg, lb.t_s)
+    items = build_mission_items(
+        [Waypoint(900.0, 0.0, 100.0), LoiterUnlimited(900.0, 0.0, 100.0, radius_m=120)], ORIGIN
+    )
+    result = drive(lb, MissionUpload(1, 1, items), tel, reboot_after_sends=2, boot_s=boot_s)
+    assert result.code is code and result.retryable
+    assert lb.vehicle.reboots == 1
