@@ -1,0 +1,94 @@
+"""Point-mass fixed-wing airframe: lateral motion by sitl.dynamics (eq. 1, exact arcs),
+altitude as a first-order climb at a bounded rate, airspeed as a bounded acceleration.
+
+    h' = clamp(k_h (h_cmd - h), -sink_max, climb_max)      (k_h = 0.5 1/s)
+    V' = clamp(k_v (V_cmd - V), -a_max, a_max)
+
+Roll for ATTITUDE is the coordinated-turn bank angle ``phi = atan(-V u / g)`` (right wing
+down positive; u is counter-clockwise positive).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from sitl.dynamics import (
+    LoiterCommand,
+    UavState,
+    step_kinematics,
+    turn_rate_to_circle,
+    turn_rate_to_point,
+)
+
+__all__ = ["Airframe", "Guidance"]
+
+GRAVITY_M_S2 = 9.80665
+CLIMB_MAX_M_S = 5.0
+SINK_MAX_M_S = 5.0
+_ALT_GAIN_PER_S = 0.5
+_ACCEL_MAX_M_S2 = 2.0
+
+
+@dataclass(frozen=True)
+class Guidance:
+    """What the autopilot asks the airframe to do: ``kind`` is 'ground', 'straight',
+    'point' or 'loiter' (then ``radius_m`` is the flown radius, ``clockwise`` its sense)."""
+
+    kind: str
+    x_m: float = 0.0
+    y_m: float = 0.0
+    radius_m: float = 0.0
+    clockwise: bool = True
+
+
+@dataclass
+class Airframe:
+    """Kinematic state of one aircraft in the local ENU frame (alt relative to home)."""
+
+    x_m: float
+    y_m: float
+    heading_rad: float
+    speed_m_s: float
+    alt_m: float
+    min_turn_radius_m: float
+    on_ground: bool = True
+    climb_m_s: float = 0.0
+    turn_rate_rad_s: float = 0.0
+
+    def step(self, guidance: Guidance, alt_cmd_m: float, speed_cmd_m_s: float, dt_s: float) -> None:
+        """Advance by ``dt_s`` following ``guidance``."""
+        if guidance.kind == "ground":
+            self.speed_m_s = 0.0
+            self.climb_m_s = 0.0
+            self.turn_rate_rad_s = 0.0
+            return
+        self.on_ground = False
+        dv = max(
+            -_ACCEL_MAX_M_S2 * dt_s, min(_ACCEL_MAX_M_S2 * dt_s, speed_cmd_m_s - self.speed_m_s)
+        )
+        self.speed_m_s = max(0.1, self.speed_m_s + dv)
+        state = UavState(self.x_m, self.y_m, self.heading_rad, self.speed_m_s)
+        if guidance.kind == "point":
+            u = turn_rate_to_point(state, guidance.x_m, guidance.y_m, self.min_turn_radius_m)
+        elif guidance.kind == "loiter":
+            cmd = LoiterCommand(guidance.x_m, guidance.y_m, guidance.radius_m, guidance.clockwise)
+            u = turn_rate_to_circle(state, cmd, self.min_turn_radius_m)
+        else:
+            u = 0.0
+        new = step_kinematics(state, u, dt_s)
+        self.x_m, self.y_m, self.heading_rad = new.x_m, new.y_m, new.heading_rad
+        self.turn_rate_rad_s = u
+        climb = max(-SINK_MAX_M_S, min(CLIMB_MAX_M_S, _ALT_GAIN_PER_S * (alt_cmd_m - self.alt_m)))
+        self.alt_m += climb * dt_s
+        self.climb_m_s = climb
+
+    @property
+    def roll_rad(self) -> float:
+        """Coordinated-turn bank angle, right wing down positive (aviation convention):
+        a clockwise (right) turn has ENU turn rate u < 0, so phi = atan(-V u / g)."""
+        return math.atan(-self.speed_m_s * self.turn_rate_rad_s / GRAVITY_M_S2)
+
+    def distance_to_m(self, x_m: float, y_m: float) -> float:
+        """Horizontal distance to a point."""
+        return math.hypot(x_m - self.x_m, y_m - self.y_m)

@@ -1,0 +1,302 @@
+"""Launcher for N real ArduPlane SITL instances (``gcs sitl --ardupilot PATH``).
+
+Instance i is started as sim_vehicle.py would (ArduPilot's SITL_cmdline.cpp options)::
+
+    PATH -S --model plane --speedup K -I i --home LAT,LON,ALT,HDG \
+         --defaults <tree>/Tools/autotest/models/plane.parm --sysid i+1
+
+in its own working directory (``DIR/I<i>``: SITL keeps eeprom.bin and logs in the current
+directory). Instance i serves TCP 5760 + 10 i (SERIAL0, for the ground station; it waits
+for that client before it boots) and 5762 + 10 i (SERIAL1), where the launcher itself reads
+positions to play the camera. SITL exits when its parent goes away, so the launcher stays
+alive until Ctrl-C (or ``--duration``) and then terminates its children.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from groundstation.mavlink.codec import MavlinkDecoder, MavlinkEncoder, mavlink2
+
+__all__ = [
+    "ArduPilotLaunch",
+    "CameraLink",
+    "ardupilot_commands",
+    "default_defaults_file",
+    "run_ardupilot",
+    "run_camera_only",
+    "supervise",
+]
+
+CAMERA_SYSID = 250
+CAMERA_COMPID = 191
+
+
+@dataclass(frozen=True)
+class ArduPilotLaunch:
+    """One SITL instance: its command line, working directory and ports."""
+
+    instance: int
+    system_id: int
+    argv: list[str]
+    cwd: Path
+    gcs_port: int
+    camera_port: int
+
+
+def default_defaults_file(binary: Path) -> Path:
+    """``<tree>/Tools/autotest/models/plane.parm`` for ``<tree>/build/sitl/bin/arduplane``."""
+    tree = binary.resolve().parent.parent.parent.parent
+    return tree / "Tools" / "autotest" / "models" / "plane.parm"
+
+
+def ardupilot_commands(
+    binary: Path,
+    count: int,
+    speedup: float,
+    home: tuple[float, float],
+    defaults: Path,
+    workdir: Path,
+    home_alt_m: float = 0.0,
+    home_heading_deg: float = 0.0,
+) -> list[ArduPilotLaunch]:
+    """The command lines of ``count`` ArduPlane SITL instances."""
+    out = []
+    for i in range(count):
+        argv = [
+            str(binary),
+            "-S",
+            "--model",
+            "plane",
+            "--speedup",
+            f"{speedup:g}",
+            "-I",
+            str(i),
+            "--home",
+            f"{home[0]:.7f},{home[1]:.7f},{home_alt_m:g},{home_heading_deg:g}",
+            "--defaults",
+            str(defaults),
+            "--sysid",
+            str(i + 1),
+        ]
+        out.append(ArduPilotLaunch(i, i + 1, argv, workdir / f"I{i}", 5760 + 10 * i, 5762 + 10 * i))
+    return out
+
+
+class CameraLink:
+    """Reads one vehicle's position on a MAVLink TCP port (SITL's SERIAL1), reconnecting."""
+
+    def __init__(self, system_id: int, host: str, port: int, origin: Any) -> None:
+        self.system_id = system_id
+        self.host = host
+        self.port = port
+        self.origin = origin
+        self.position: tuple[float, float] | None = None
+        self.airborne = False
+
+    async def run(self) -> None:
+        """Connect, ask for positions at 4 Hz, keep the latest (forever; cancel to stop)."""
+        enc = MavlinkEncoder(CAMERA_SYSID, CAMERA_COMPID)
+        while True:
+            try:
+                reader, writer = await asyncio.open_connection(self.host, self.port)
+            except OSError:
+                await asyncio.sleep(1.0)
+                continue
+            dec = MavlinkDecoder()
+            writer.write(
+                enc.encode(
+                    mavlink2.MAVLink_request_data_stream_message(
+                        self.system_id, 1, mavlink2.MAV_DATA_STREAM_POSITION, 4, 1
+                    )
+                )
+            )
+            try:
+                while data := await reader.read(4096):
+                    msgs: list[Any] = dec.feed(data)
+                    for msg in msgs:
+                        if (
+                            msg.get_type() == "GLOBAL_POSITION_INT"
+                            and msg.lat != 0
+                            and (msg.get_srcSystem() == self.system_id)
+                        ):
+                            x, y, _ = self.origin.to_local(msg.lat * 1e-7, msg.lon * 1e-7)
+                            self.position = (x, y)
+                            self.airborne = msg.relative_alt > 5000
+            except OSError:
+                pass
+            writer.close()
+            await asyncio.sleep(1.0)
+
+
+async def _launch(
+    args: Any,
+    launches: list[ArduPilotLaunch],
+    feed: Any,
+    feed_address: tuple[str, int] | None,
+    origin: Any,
+) -> int:
+    procs = []
+    for launch in launches:
+        launch.cwd.mkdir(parents=True, exist_ok=True)
+        procs.append(
+            await asyncio.create_subprocess_exec(
+                *launch.argv,
+                cwd=str(launch.cwd),
+                stdin=subprocess.DEVNULL,
+                stdout=subprocess.DEVNULL,
+                stderr=subprocess.DEVNULL,
+            )
+        )
+        print(
+            f"ArduPlane SITL {launch.instance} (system id {launch.system_id}, pid "
+            f"{procs[-1].pid}): tcp:127.0.0.1:{launch.gcs_port} (camera reads "
+            f"{launch.camera_port})",
+            flush=True,
+        )
+    cameras = [CameraLink(x.system_id, "127.0.0.1", x.camera_port, origin) for x in launches]
+    return await supervise(args, procs, cameras, feed, feed_address)
+
+
+async def supervise(
+    args: Any,
+    procs: list[Any],
+    cameras: list[CameraLink],
+    feed: Any,
+    feed_address: tuple[str, int] | None,
+) -> int:
+    """Play the camera from the cameras' positions until Ctrl-C, ``--duration`` or a child's
+    exit; then terminate the children (SIGTERM, then SIGKILL after 5 s)."""
+    loop = asyncio.get_running_loop()
+    stop = asyncio.Event()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        with contextlib.suppress(NotImplementedError, RuntimeError):
+            loop.add_signal_handler(sig, stop.set)
+    tasks = [asyncio.create_task(c.run()) for c in cameras]
+    transport = None
+    if feed is not None and feed_address is not None:
+        transport, _ = await loop.create_datagram_endpoint(
+            asyncio.DatagramProtocol, remote_addr=feed_address
+        )
+    wall0 = time.monotonic()
+    status = 0
+    try:
+        while not stop.is_set():
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(stop.wait(), 0.05)
+            t_s = (time.monotonic() - wall0) * args.speedup
+            if feed is not None:
+                positions = {
+                    c.system_id: c.position
+                    for c in cameras
+                    if c.position is not None and c.airborne
+                }
+                for datagram in feed.step(t_s, positions):
+                    if transport is not None:
+                        transport.sendto(datagram)
+            if args.duration is not None and t_s >= args.duration:
+                break
+            dead = [p for p in procs if p.returncode is not None]
+            if dead:
+                print(
+                    f"gcs sitl: ArduPilot SITL exited (status {dead[0].returncode})",
+                    file=sys.stderr,
+                )
+                status = 1
+                break
+    finally:
+        for task in tasks:
+            task.cancel()
+        for proc in procs:
+            if proc.returncode is None:
+                proc.terminate()
+        for proc in procs:
+            try:
+                await asyncio.wait_for(proc.wait(), 5.0)
+            except TimeoutError:
+                proc.kill()
+                await proc.wait()
+        if transport is not None:
+            transport.close()
+    return status
+
+
+def run_ardupilot(args: Any) -> int:
+    """``gcs sitl --ardupilot PATH``: start, supervise and stop N SITL instances."""
+    from groundstation.commands.sitl import (
+        DEFAULT_HOME,
+        UsageError,
+        _check,
+        parse_latlon,
+        parse_udp_url,
+    )
+    from sitl.sitl_setup import scenario_setup
+
+    _check(args)
+    binary = Path(args.ardupilot)
+    if not binary.is_file():
+        raise UsageError(f"--ardupilot: no such file {binary}")
+    defaults = (
+        Path(args.ardupilot_defaults)
+        if args.ardupilot_defaults
+        else (default_defaults_file(binary))
+    )
+    if not defaults.is_file():
+        raise UsageError(
+            f"--ardupilot-defaults: no such file {defaults} (give the plane "
+            "defaults file, Tools/autotest/models/plane.parm)"
+        )
+    scenario = None
+    if args.scenario is not None:
+        from sitl.scenario import load_scenario
+
+        scenario = load_scenario(args.scenario)
+    count = args.count or (scenario.fleet.count if scenario is not None else 1)
+    home = parse_latlon(args.home) if args.home else None
+    setup = scenario_setup(scenario, count, home or DEFAULT_HOME, home is not None)
+    launches = ardupilot_commands(
+        binary, count, args.speedup, setup.home, defaults, Path("sitl-ardupilot").resolve()
+    )
+    feed_address = (
+        None if args.detections == "none" else parse_udp_url(args.detections, "--detections")
+    )
+    feed = setup.make_feed(args.seed, args.anonymous_detections)
+    return asyncio.run(_launch(args, launches, feed, feed_address, setup.origin))
+
+
+def run_camera_only(args: Any) -> int:
+    """``gcs sitl --camera-of HOST:PORT,...``: only the world and its camera, reading the
+    positions of vehicles served elsewhere (e.g. the SITL containers of docker-compose.yml);
+    the k-th endpoint is taken to be system id k."""
+    from groundstation.commands.sitl import DEFAULT_HOME, UsageError, _check, parse_udp_url
+    from sitl.sitl_setup import scenario_setup
+
+    _check(args)
+    if args.scenario is None:
+        raise UsageError("--camera-of needs --scenario (the world to play)")
+    from sitl.scenario import load_scenario
+
+    scenario = load_scenario(args.scenario)
+    endpoints = []
+    for part in args.camera_of.split(","):
+        host, sep, port = part.strip().removeprefix("tcp:").rpartition(":")
+        if not sep or not host or not port.isdigit():
+            raise UsageError(f"--camera-of: expected HOST:PORT[,HOST:PORT...], got {part!r}")
+        endpoints.append((host, int(port)))
+    setup = scenario_setup(scenario, len(endpoints), DEFAULT_HOME, False)
+    cameras = [CameraLink(i + 1, h, p, setup.origin) for i, (h, p) in enumerate(endpoints)]
+    feed = setup.make_feed(args.seed, args.anonymous_detections)
+    feed_address = (
+        None if args.detections == "none" else parse_udp_url(args.detections, "--detections")
+    )
+    for cam in cameras:
+        print(f"camera of system id {cam.system_id}: tcp:{cam.host}:{cam.port}", flush=True)
+    return asyncio.run(supervise(args, [], cameras, feed, feed_address))

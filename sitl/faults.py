@@ -1,0 +1,257 @@
+"""Seeded fault injection for one vehicle's link and autopilot (sans-IO, virtual time).
+
+Link impairments apply per MAVLink message, independently in each direction ("up":
+ground station -> vehicle, "down": vehicle -> ground station):
+
+* ``loss`` p: the message is dropped with probability p;
+* ``dup`` p: delivered twice;
+* ``reorder`` p: held back an extra U(0.05, 0.5) s so that later messages overtake it;
+* ``delay_s`` d and ``jitter_s`` j: delivered after d + U(0, j) seconds.
+
+Scheduled events (simulated seconds since the start): ``drop`` (the link is down in both
+directions for ``for_s``), ``reboot``, ``mode`` (the operator switches mode, e.g. to FBWA
+or RTL, as with the RC transmitter) and ``battery`` (the pack suddenly reads ``pct``
+percent). Events come from ``--fault`` specs or a scenario's scripted events.
+
+Spec grammar (command line)::
+
+    VEHICLES:KIND[:key=value,...]      VEHICLES = sysid | a,b,c | all
+    1:loss:p=0.2,dir=up       all:delay:s=0.3,jitter=0.1       2:dup:p=0.05
+    3:reorder:p=0.1           1:drop:at=60,for=20              2:reboot:at=120
+    1:mode:at=90,mode=FBWA    3:battery:at=200,pct=10
+"""
+
+from __future__ import annotations
+
+import heapq
+import random
+from dataclasses import dataclass, field
+from itertools import count
+from typing import Any
+
+from sitl.autopilot import MODE_NAMES
+
+__all__ = [
+    "FaultError",
+    "FaultEvent",
+    "LinkImpairment",
+    "VehicleFaults",
+    "apply_fault",
+    "parse_fault_spec",
+]
+
+_MODE_BY_NAME = {name: number for number, name in MODE_NAMES.items()}
+_KINDS = ("loss", "dup", "reorder", "delay", "drop", "reboot", "mode", "battery")
+
+
+class FaultError(ValueError):
+    """A fault spec that cannot be understood (the message names the bad part)."""
+
+
+@dataclass(frozen=True)
+class FaultEvent:
+    """A scheduled fault: ``kind`` reboot | mode | battery | drop."""
+
+    t_s: float
+    kind: str
+    mode: int = 0
+    fraction: float = 0.0
+    duration_s: float = 0.0
+
+
+@dataclass
+class LinkImpairment:
+    """Loss, duplication, reordering and delay of one direction of a link."""
+
+    loss: float = 0.0
+    dup: float = 0.0
+    reorder: float = 0.0
+    delay_s: float = 0.0
+    jitter_s: float = 0.0
+    _queue: list[tuple[float, int, Any]] = field(default_factory=list, repr=False)
+    _order: Any = field(default_factory=count, repr=False)
+
+    @property
+    def transparent(self) -> bool:
+        """True when the impairment does nothing (the fast path)."""
+        return not (self.loss or self.dup or self.reorder or self.delay_s or self.jitter_s)
+
+    def push(self, item: Any, t_s: float, rng: random.Random) -> None:
+        """Offer an item sent at ``t_s``."""
+        if self.loss and rng.random() < self.loss:
+            return
+        copies = 2 if self.dup and rng.random() < self.dup else 1
+        for _ in range(copies):
+            due = t_s + self.delay_s + (rng.uniform(0.0, self.jitter_s) if self.jitter_s else 0.0)
+            if self.reorder and rng.random() < self.reorder:
+                due += rng.uniform(0.05, 0.5)
+            heapq.heappush(self._queue, (due, next(self._order), item))
+
+    def pop_due(self, t_s: float) -> list[Any]:
+        """Items whose delivery time has come, in delivery order."""
+        out = []
+        while self._queue and self._queue[0][0] <= t_s + 1e-12:
+            out.append(heapq.heappop(self._queue)[2])
+        return out
+
+
+class VehicleFaults:
+    """All faults of one vehicle, driven by one seeded generator."""
+
+    def __init__(self, seed: int) -> None:
+        self.rng = random.Random(seed)
+        self.up = LinkImpairment()
+        self.down = LinkImpairment()
+        self.events: list[FaultEvent] = []
+        self._drops: list[tuple[float, float]] = []
+        self._next_event = 0
+
+    def add_event(self, event: FaultEvent) -> None:
+        """Schedule an event (kept sorted by time)."""
+        if event.kind == "drop":
+            self._drops.append((event.t_s, event.t_s + event.duration_s))
+        self.events.append(event)
+        self.events.sort(key=lambda e: e.t_s)
+
+    def link_down(self, t_s: float) -> bool:
+        """True while a link drop is in force."""
+        return any(a <= t_s < b for a, b in self._drops)
+
+    def send_up(self, item: Any, t_s: float) -> None:
+        """A message from the ground station enters the link."""
+        if not self.link_down(t_s):
+            self.up.push(item, t_s, self.rng)
+
+    def send_down(self, item: Any, t_s: float) -> None:
+        """A message from the vehicle enters the link."""
+        if not self.link_down(t_s):
+            self.down.push(item, t_s, self.rng)
+
+    def due_events(self, t_s: float) -> list[FaultEvent]:
+        """Autopilot events (reboot, mode, battery) whose time has come, each once."""
+        out = []
+        while self._next_event < len(self.events) and self.events[self._next_event].t_s <= t_s:
+            event = self.events[self._next_event]
+            self._next_event += 1
+            if event.kind != "drop":
+                out.append(event)
+        return out
+
+
+def _number(key: str, text: str, spec: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        raise FaultError(f"fault {spec!r}: {key}={text!r} is not a number") from None
+
+
+def _probability(key: str, text: str, spec: str) -> float:
+    p = _number(key, text, spec)
+    if not 0.0 <= p <= 1.0:
+        raise FaultError(f"fault {spec!r}: {key} must be in [0, 1], got {p}")
+    return p
+
+
+def parse_fault_spec(spec: str, count_: int) -> list[tuple[int, str, dict[str, str]]]:
+    """Split ``VEHICLES:KIND[:k=v,...]`` into (sysid, kind, options) per vehicle; validates."""
+    parts = spec.split(":")
+    if len(parts) not in (2, 3):
+        raise FaultError(f"fault {spec!r}: expected VEHICLES:KIND[:key=value,...]")
+    who, kind = parts[0].strip(), parts[1].strip()
+    if kind not in _KINDS:
+        raise FaultError(f"fault {spec!r}: unknown kind {kind!r} (one of {', '.join(_KINDS)})")
+    if who == "all":
+        sysids = list(range(1, count_ + 1))
+    else:
+        try:
+            sysids = [int(s) for s in who.split(",")]
+        except ValueError:
+            raise FaultError(f"fault {spec!r}: vehicles must be 'all' or system ids") from None
+        bad = [s for s in sysids if not 1 <= s <= count_]
+        if bad:
+            raise FaultError(f"fault {spec!r}: no vehicle with system id {bad[0]} (1..{count_})")
+    options: dict[str, str] = {}
+    if len(parts) == 3 and parts[2].strip():
+        for pair in parts[2].split(","):
+            key, sep, value = pair.partition("=")
+            if not sep:
+                raise FaultError(f"fault {spec!r}: option {pair!r} is not key=value")
+            options[key.strip()] = value.strip()
+    _validate(kind, options, spec)
+    return [(s, kind, options) for s in sysids]
+
+
+_ALLOWED = {
+    "loss": {"p", "dir"},
+    "dup": {"p", "dir"},
+    "reorder": {"p", "dir"},
+    "delay": {"s", "jitter", "dir"},
+    "drop": {"at", "for"},
+    "reboot": {"at"},
+    "mode": {"at", "mode"},
+    "battery": {"at", "pct"},
+}
+_REQUIRED = {
+    "loss": {"p"},
+    "dup": {"p"},
+    "reorder": {"p"},
+    "delay": {"s"},
+    "drop": {"at", "for"},
+    "reboot": {"at"},
+    "mode": {"at", "mode"},
+    "battery": {"at", "pct"},
+}
+
+
+def _validate(kind: str, options: dict[str, str], spec: str) -> None:
+    unknown = set(options) - _ALLOWED[kind]
+    if unknown:
+        raise FaultError(f"fault {spec!r}: unknown option {sorted(unknown)[0]!r} for {kind}")
+    missing = _REQUIRED[kind] - set(options)
+    if missing:
+        raise FaultError(f"fault {spec!r}: {kind} needs {sorted(missing)[0]}=...")
+    if options.get("dir", "both") not in ("up", "down", "both"):
+        raise FaultError(f"fault {spec!r}: dir must be up, down or both")
+    if "p" in options:
+        _probability("p", options["p"], spec)
+    for key in ("s", "jitter", "at", "for", "pct"):
+        if key in options and _number(key, options[key], spec) < 0:
+            raise FaultError(f"fault {spec!r}: {key} must be >= 0")
+    if "pct" in options and _number("pct", options["pct"], spec) > 100:
+        raise FaultError(f"fault {spec!r}: pct must be <= 100")
+    if (
+        kind == "mode"
+        and options["mode"].upper() not in _MODE_BY_NAME
+        and not (options["mode"].isdigit() and int(options["mode"]) in MODE_NAMES)
+    ):
+        raise FaultError(f"fault {spec!r}: unknown mode {options['mode']!r}")
+
+
+def apply_fault(faults: VehicleFaults, kind: str, options: dict[str, str]) -> None:
+    """Add one parsed fault to a vehicle's faults."""
+    directions = {"up": [faults.up], "down": [faults.down], "both": [faults.up, faults.down]}[
+        options.get("dir", "both")
+    ]
+    for link in directions:
+        if kind == "loss":
+            link.loss = float(options["p"])
+        elif kind == "dup":
+            link.dup = float(options["p"])
+        elif kind == "reorder":
+            link.reorder = float(options["p"])
+        elif kind == "delay":
+            link.delay_s = float(options["s"])
+            link.jitter_s = float(options.get("jitter", 0.0))
+    if kind in ("loss", "dup", "reorder", "delay"):
+        return
+    at = float(options["at"])
+    if kind == "drop":
+        faults.add_event(FaultEvent(at, "drop", duration_s=float(options["for"])))
+    elif kind == "reboot":
+        faults.add_event(FaultEvent(at, "reboot"))
+    elif kind == "mode":
+        name = options["mode"].upper()
+        mode = int(name) if name.isdigit() else _MODE_BY_NAME[name]
+        faults.add_event(FaultEvent(at, "mode", mode=mode))
+    elif kind == "battery":
+        faults.add_event(FaultEvent(at, "battery", fraction=float(options["pct"]) / 100.0))

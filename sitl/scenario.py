@@ -1,0 +1,436 @@
+"""Scenarios: the world, the fleet and the ground station's policy of one experiment.
+
+A scenario is a YAML file a user can copy and edit. The bundled ones live in
+``sitl/scenarios/`` and are addressed by name (``paper-boat``, ``svalbard-2015``, ...);
+anything else is a path. Unknown or invalid fields are errors naming the field.
+
+Frames: local ENU metres around ``origin``, headings in radians counter-clockwise from east.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from groundstation.mavlink.geodesy import GeoOrigin
+from sitl.yaml_fields import FieldError, Fields
+
+__all__ = [
+    "BoatSpec",
+    "FleetSpec",
+    "ObserverSpec",
+    "PlannerSpec",
+    "PolicySpec",
+    "Scenario",
+    "ScenarioError",
+    "ScriptedEvent",
+    "TargetSpec",
+    "bundled_scenarios",
+    "load_scenario",
+    "parse_scenario",
+    "resolve_targets",
+]
+
+EVENT_KINDS = (
+    "target_added",
+    "target_removed",
+    "vehicle_lost",
+    "vehicle_returned",
+    "vehicle_rebooted",
+    "override",
+    "resume",
+    "battery_low",
+)
+
+
+class ScenarioError(ValueError):
+    """A scenario cannot be loaded; the message names the file and the field."""
+
+
+@dataclass(frozen=True)
+class TargetSpec:
+    """One iceberg: true initial state, and what the ground station knows at first."""
+
+    id: str
+    x_m: float
+    y_m: float
+    vx_m_s: float = 0.0
+    vy_m_s: float = 0.0
+    sigma0: float | None = None
+    appear_s: float = 0.0
+
+
+@dataclass(frozen=True)
+class RandomTargets:
+    """The paper's Table 1 draw: uniform positions and velocities."""
+
+    count: int
+    x_m: tuple[float, float]
+    y_m: tuple[float, float]
+    vx_m_s: tuple[float, float]
+    vy_m_s: tuple[float, float]
+
+
+@dataclass(frozen=True)
+class BoatSpec:
+    x_m: float
+    y_m: float
+    heading_rad: float
+    speed_m_s: float
+
+
+@dataclass(frozen=True)
+class FleetSpec:
+    """The UAVs. ``launch`` is ``"boat"`` or a point; headings spread over [0, pi]."""
+
+    count: int = 3
+    speed_m_s: float = 22.0
+    turn_radius_m: float = 105.0
+    fov_radius_m: float = 150.0
+    loiter_s: float = 0.0
+    loiter_radius_m: float = 120.0
+    arrival_radius_m: float = 30.0
+    launch_x_m: float | None = None
+    launch_y_m: float | None = None
+    headings_rad: tuple[float, ...] | None = None
+
+    def launch_headings_rad(self, count: int) -> list[float]:
+        """Explicit headings if given (cycled), else k * pi / (K - 1): 0, pi/2, pi for 3."""
+        if self.headings_rad:
+            return [self.headings_rad[k % len(self.headings_rad)] for k in range(count)]
+        if count == 1:
+            return [0.0]
+        return [k * math.pi / (count - 1) for k in range(count)]
+
+
+@dataclass(frozen=True)
+class ObserverSpec:
+    model: str = "kalman"
+    q_per_s: float = 0.1
+    r_m2: float = 5.0
+    step_s: float = 0.1
+    camera_rate_hz: float = 2.0
+    linear_growth_per_s: float = 1.0
+    iceberg_q_per_s: float = 0.1
+    priority_gain: float = 0.0
+    priority_near_m: float = 300.0
+    priority_far_m: float = 1500.0
+
+
+@dataclass(frozen=True)
+class PlannerSpec:
+    tau: float = 0.5
+    objective: str = "sequence"
+    time_limit_s: float = 2.0
+    min_sigma_fraction: float = 0.1
+
+
+@dataclass(frozen=True)
+class PolicySpec:
+    """When to replan (``replan``: event, period or both) and whether vehicles commit."""
+
+    replan: str = "event"
+    period_s: float | None = None
+    commit: bool = True
+
+
+@dataclass(frozen=True)
+class ScriptedEvent:
+    t_s: float
+    kind: str
+    vehicle: str | None = None
+    target: TargetSpec | None = None
+    target_id: str | None = None
+
+
+@dataclass(frozen=True)
+class Scenario:
+    name: str
+    description: str
+    duration_s: float
+    origin: GeoOrigin
+    fleet: FleetSpec
+    boat: BoatSpec | None
+    targets: tuple[TargetSpec, ...]
+    random_targets: RandomTargets | None
+    observer: ObserverSpec
+    planner: PlannerSpec
+    policy: PolicySpec
+    events: tuple[ScriptedEvent, ...] = field(default=())
+    faults: tuple[str, ...] = field(default=())
+    source: str = ""
+
+    def launch_point(self) -> tuple[float, float]:
+        """Where the UAVs start: the given point, else the boat, else the origin."""
+        if self.fleet.launch_x_m is not None and self.fleet.launch_y_m is not None:
+            return self.fleet.launch_x_m, self.fleet.launch_y_m
+        if self.boat is not None:
+            return self.boat.x_m, self.boat.y_m
+        return 0.0, 0.0
+
+
+def bundled_scenarios() -> list[str]:
+    """Names of the scenarios shipped with floe."""
+    folder = resources.files("sitl") / "scenarios"
+    return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".yaml"))
+
+
+def load_scenario(name_or_path: str) -> Scenario:
+    """Load a bundled scenario by name, or a YAML file by path."""
+    if name_or_path in bundled_scenarios():
+        resource = resources.files("sitl") / "scenarios" / f"{name_or_path}.yaml"
+        text = resource.read_text(encoding="utf-8")
+        source = name_or_path
+    else:
+        path = Path(name_or_path)
+        if not path.is_file():
+            known = ", ".join(bundled_scenarios())
+            raise ScenarioError(
+                f"scenario {name_or_path!r}: no such file or bundled scenario (bundled: {known})"
+            )
+        try:
+            text = path.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as exc:
+            raise ScenarioError(f"scenario {name_or_path}: cannot read: {exc}") from exc
+        source = str(path)
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise ScenarioError(f"scenario {source}: not valid YAML: {exc}".splitlines()[0]) from exc
+    try:
+        return parse_scenario(data, source=source)
+    except FieldError as exc:
+        raise ScenarioError(f"scenario {source}: {exc}") from exc
+
+
+def parse_scenario(data: Any, *, source: str = "") -> Scenario:
+    """Validate a scenario mapping; raises FieldError naming the field."""
+    top = Fields(data)
+    name = top.string("name", Path(source).stem if source else "scenario")
+    description = top.string("description", "")
+    duration_s = top.number("duration_s", 200.0, minimum=0.0, exclusive_minimum=True)
+    origin_f = top.sub("origin")
+    lat = origin_f.number("lat_deg", 78.93, minimum=-90.0, maximum=90.0)
+    lon = origin_f.number("lon_deg", 11.92, minimum=-180.0, maximum=180.0)
+    alt = origin_f.number("alt_m", 0.0)
+    origin_f.done()
+    fleet = _parse_fleet(top.sub("fleet"))
+    boat = _parse_boat(top.sub("boat")) if top.has("boat") else None
+    top.raw("boat")
+    targets, random_targets = _parse_targets(top.sub("targets"))
+    observer = _parse_observer(top.sub("observer"))
+    planner = _parse_planner(top.sub("planner"))
+    policy = _parse_policy(top.sub("policy"))
+    events = tuple(
+        _parse_event(Fields(item, f"events[{i}]")) for i, item in enumerate(top.items("events"))
+    )
+    faults = _parse_faults(top.items("faults"))
+    top.done()
+    ids = [t.id for t in targets] + [e.target.id for e in events if e.target is not None]
+    duplicates = sorted({i for i in ids if ids.count(i) > 1})
+    if duplicates:
+        raise FieldError("targets", f"duplicate target id {duplicates[0]!r}")
+    if fleet.launch_x_m is None and boat is None and fleet.launch_y_m is not None:
+        raise FieldError("fleet.launch", "needs both x_m and y_m")
+    return Scenario(
+        name=name,
+        description=description,
+        duration_s=duration_s,
+        origin=GeoOrigin(lat, lon, alt),
+        fleet=fleet,
+        boat=boat,
+        targets=tuple(targets),
+        random_targets=random_targets,
+        observer=observer,
+        planner=planner,
+        policy=policy,
+        events=tuple(sorted(events, key=lambda e: e.t_s)),
+        faults=faults,
+        source=source,
+    )
+
+
+def _parse_faults(items: list[Any]) -> tuple[str, ...]:
+    """``--fault`` specs (``VEHICLES:KIND[:key=value,...]``) applied by the MAVLink simulator
+    (``gcs sitl``, ``gcs run --vehicles sim:N``); the offline simulator has no links."""
+    from sitl.faults import FaultError, parse_fault_spec
+
+    specs: list[str] = []
+    for i, item in enumerate(items):
+        if not isinstance(item, str):
+            raise FieldError(f"faults[{i}]", f"must be a fault spec string, got {item!r}")
+        try:
+            parse_fault_spec(item, 255)
+        except FaultError as exc:
+            raise FieldError(f"faults[{i}]", str(exc)) from exc
+        specs.append(item)
+    return tuple(specs)
+
+
+def resolve_targets(scenario: Scenario, rng: np.random.Generator) -> list[TargetSpec]:
+    """The scenario's listed targets plus its random draw, as every frontend draws them:
+    ids T1, T2, ... after the listed ones; per target x, y, vx, vy uniform in that order.
+    One seed gives the same icebergs in ``gcs simulate``, ``gcs sitl`` and ``gcs run``."""
+    targets = list(scenario.targets)
+    spec = scenario.random_targets
+    if spec is not None:
+        taken = {t.id for t in targets}
+        k = 1
+        for _ in range(spec.count):
+            while f"T{k}" in taken:
+                k += 1
+            targets.append(TargetSpec(
+                id=f"T{k}",
+                x_m=float(rng.uniform(*spec.x_m)),
+                y_m=float(rng.uniform(*spec.y_m)),
+                vx_m_s=float(rng.uniform(*spec.vx_m_s)),
+                vy_m_s=float(rng.uniform(*spec.vy_m_s)),
+            ))
+            taken.add(f"T{k}")
+    return targets
+
+
+def _parse_fleet(f: Fields) -> FleetSpec:
+    count = f.integer("count", 3, minimum=1)
+    speed = f.number("speed_m_s", 22.0, minimum=0.0, exclusive_minimum=True)
+    turn = f.number("turn_radius_m", 105.0, minimum=0.0, exclusive_minimum=True)
+    fov = f.number("fov_radius_m", 150.0, minimum=0.0, exclusive_minimum=True)
+    loiter_s = f.number("loiter_s", 0.0, minimum=0.0)
+    loiter_r = f.number("loiter_radius_m", 120.0, minimum=0.0, exclusive_minimum=True)
+    arrival = f.number("arrival_radius_m", 30.0, minimum=0.0, exclusive_minimum=True)
+    launch_x: float | None = None
+    launch_y: float | None = None
+    launch = f.raw("launch")
+    if launch is not None and launch != "boat":
+        lf = Fields(launch, f.path_of("launch"))
+        launch_x = lf.number("x_m")
+        launch_y = lf.number("y_m")
+        lf.done()
+    headings: tuple[float, ...] | None = None
+    if f.has("headings_rad"):
+        values = f.items("headings_rad")
+        if not values:
+            raise FieldError(f.path_of("headings_rad"), "must not be empty")
+        from sitl.yaml_fields import check_number
+
+        headings = tuple(
+            check_number(f"{f.path_of('headings_rad')}[{i}]", v) for i, v in enumerate(values)
+        )
+    else:
+        f.raw("headings_rad")
+    f.done()
+    return FleetSpec(count, speed, turn, fov, loiter_s, loiter_r, arrival, launch_x, launch_y,
+                     headings)
+
+
+def _parse_boat(f: Fields) -> BoatSpec:
+    boat = BoatSpec(
+        x_m=f.number("x_m"),
+        y_m=f.number("y_m"),
+        heading_rad=f.number("heading_rad", 0.0),
+        speed_m_s=f.number("speed_m_s", 0.0, minimum=0.0),
+    )
+    f.done()
+    return boat
+
+
+def _parse_target(f: Fields) -> TargetSpec:
+    target = TargetSpec(
+        id=f.string("id"),
+        x_m=f.number("x_m"),
+        y_m=f.number("y_m"),
+        vx_m_s=f.number("vx_m_s", 0.0),
+        vy_m_s=f.number("vy_m_s", 0.0),
+        sigma0=f.optional_number("sigma0", minimum=0.0),
+        appear_s=f.number("appear_s", 0.0, minimum=0.0),
+    )
+    if not target.id:
+        raise FieldError(f.path_of("id"), "must not be empty")
+    f.done()
+    return target
+
+
+def _parse_targets(f: Fields) -> tuple[list[TargetSpec], RandomTargets | None]:
+    listed = [
+        _parse_target(Fields(item, f"{f.path_of('list')}[{i}]"))
+        for i, item in enumerate(f.items("list"))
+    ]
+    random_targets: RandomTargets | None = None
+    if f.has("random"):
+        rf = f.sub("random")
+        random_targets = RandomTargets(
+            count=rf.integer("count", minimum=0),
+            x_m=rf.range_pair("x_m", (0.0, 1500.0)),
+            y_m=rf.range_pair("y_m", (0.0, 1500.0)),
+            vx_m_s=rf.range_pair("vx_m_s", (-3.0, 3.0)),
+            vy_m_s=rf.range_pair("vy_m_s", (-3.0, 3.0)),
+        )
+        rf.done()
+    else:
+        f.raw("random")
+    f.done()
+    return listed, random_targets
+
+
+def _parse_observer(f: Fields) -> ObserverSpec:
+    spec = ObserverSpec(
+        model=f.string("model", "kalman", choices=("kalman", "linear")),
+        q_per_s=f.number("q_per_s", 0.1, minimum=0.0),
+        r_m2=f.number("r_m2", 5.0, minimum=0.0, exclusive_minimum=True),
+        step_s=f.number("step_s", 0.1, minimum=0.0, exclusive_minimum=True, maximum=5.0),
+        camera_rate_hz=f.number("camera_rate_hz", 2.0, minimum=0.0, exclusive_minimum=True),
+        linear_growth_per_s=f.number("linear_growth_per_s", 1.0, minimum=0.0),
+        iceberg_q_per_s=f.number("iceberg_q_per_s", 0.1, minimum=0.0),
+        priority_gain=f.number("priority_gain", 0.0, minimum=0.0),
+        priority_near_m=f.number("priority_near_m", 300.0, minimum=0.0),
+        priority_far_m=f.number("priority_far_m", 1500.0, minimum=0.0),
+    )
+    if spec.priority_far_m <= spec.priority_near_m and spec.priority_gain > 0:
+        raise FieldError(f.path_of("priority_far_m"), "must be above priority_near_m")
+    f.done()
+    return spec
+
+
+def _parse_planner(f: Fields) -> PlannerSpec:
+    spec = PlannerSpec(
+        tau=f.number("tau", 0.5, minimum=0.0, maximum=1.0),
+        objective=f.string("objective", "sequence", choices=("sequence", "arrival")),
+        time_limit_s=f.number("time_limit_s", 2.0, minimum=0.0, exclusive_minimum=True),
+        min_sigma_fraction=f.number("min_sigma_fraction", 0.1, minimum=0.0, maximum=1.0),
+    )
+    f.done()
+    return spec
+
+
+def _parse_policy(f: Fields) -> PolicySpec:
+    replan = f.string("replan", "event", choices=("event", "period", "both"))
+    period = f.optional_number("period_s", minimum=0.0, exclusive_minimum=True)
+    if replan in ("period", "both") and period is None:
+        raise FieldError(f.path_of("period_s"), f"is required when replan is {replan!r}")
+    commit = f.boolean("commit", replan == "event")
+    f.done()
+    return PolicySpec(replan=replan, period_s=period, commit=commit)
+
+
+def _parse_event(f: Fields) -> ScriptedEvent:
+    t_s = f.number("t_s", minimum=0.0)
+    kind = f.string("kind", choices=EVENT_KINDS)
+    vehicle: str | None = None
+    target: TargetSpec | None = None
+    target_id: str | None = None
+    if kind == "target_added":
+        target = _parse_target(f.sub("target"))
+        target = TargetSpec(target.id, target.x_m, target.y_m, target.vx_m_s, target.vy_m_s,
+                            target.sigma0, t_s)
+    elif kind == "target_removed":
+        target_id = f.string("target")
+    else:
+        vehicle = f.string("vehicle")
+    f.done()
+    return ScriptedEvent(t_s=t_s, kind=kind, vehicle=vehicle, target=target, target_id=target_id)

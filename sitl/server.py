@@ -1,0 +1,343 @@
+"""asyncio server for the built-in vehicles: TCP per vehicle, shared UDP, simulated clock.
+
+* Vehicle i listens on TCP ``host:(base_port + 10 i)`` (``base_port`` 0: each vehicle binds
+  an ephemeral port; :attr:`SitlServer.tcp_ports` tells which). Several clients may connect;
+  every client gets everything the vehicle sends.
+* With ``out`` set, one UDP socket (ephemeral port) is shared by all vehicles: each sends
+  to ``out`` and to every address that has sent a datagram to the socket ("UDP replies go to
+  whoever sent"); ground stations tell vehicles apart by system id. Incoming UDP messages
+  go to the vehicle named by ``target_system`` (0 or none: all vehicles).
+* The simulated clock advances ``speedup`` times the wall clock, by at most
+  max(``max_step_s``, ``speedup * max_stall_s``) per tick (0.5 s, or 0.1 wall seconds'
+  worth), so an overloaded or stalled host slows simulated time instead of making it jump
+  (the achieved real-time factor is :attr:`SitlServer.realtime_factor`).
+* ``wait_for_client``: a vehicle boots only when its first TCP client connects (as
+  ArduPilot SITL does); otherwise all boot at once.
+* Faults (:mod:`sitl.faults`) sit between the sockets and each vehicle.
+* Answers addressed to the requester (a non-zero ``target_system``: COMMAND_ACK, mission
+  protocol replies) go back only on the link the request came from (the TCP client, or the
+  UDP address), as ArduPilot answers on the requesting channel; everything else (telemetry,
+  STATUSTEXT, PARAM_VALUE, MISSION_CURRENT, the upload's timed re-requests) goes to every
+  link of the vehicle.
+* An optional feed (:class:`sitl.detections.DetectionFeed`-like: ``step(t_s, positions)``
+  returning datagrams) is given each vehicle's local position and its datagrams are sent
+  to ``feed_address``.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+from groundstation.mavlink.codec import MavlinkDecoder, MavlinkEncoder
+from sitl.faults import VehicleFaults
+from sitl.vehicle import SimVehicle, VehicleConfig
+
+__all__ = ["Feed", "ServerOptions", "SitlServer"]
+
+_MAX_CLIENT_BUFFER = 1 << 20
+
+
+class Feed(Protocol):
+    """Something fed with the vehicles' positions that emits UDP datagrams."""
+
+    def step(self, t_s: float, positions: dict[int, tuple[float, float]]) -> list[bytes]:
+        """Datagrams to send after advancing to ``t_s``."""
+        ...
+
+
+@dataclass
+class ServerOptions:
+    """Sockets and clock of a :class:`SitlServer`."""
+
+    speedup: float = 1.0
+    host: str = "127.0.0.1"
+    base_port: int = 5760
+    out: tuple[str, int] | None = None
+    wait_for_client: bool = False
+    tick_s: float = 0.01
+    max_step_s: float = 0.5
+    max_stall_s: float = 0.1
+    feed_address: tuple[str, int] | None = None
+
+
+@dataclass
+class _Slot:
+    index: int
+    config: VehicleConfig
+    faults: VehicleFaults
+    encoder: MavlinkEncoder
+    vehicle: SimVehicle | None = None
+    server: asyncio.Server | None = None
+    port: int = 0
+    clients: set[asyncio.StreamWriter] = field(default_factory=set)
+
+
+class _Udp(asyncio.DatagramProtocol):
+    def __init__(self, on_datagram: Callable[[bytes, Any], None]) -> None:
+        self._on = on_datagram
+
+    def datagram_received(self, data: bytes, addr: Any) -> None:
+        self._on(data, addr)
+
+    def error_received(self, exc: Exception) -> None:  # e.g. ICMP port unreachable
+        pass
+
+
+class SitlServer:
+    """Serves N :class:`SimVehicle` over TCP/UDP in simulated time."""
+
+    def __init__(
+        self,
+        configs: list[VehicleConfig],
+        options: ServerOptions,
+        faults: dict[int, VehicleFaults] | None = None,
+        feed: Feed | None = None,
+    ) -> None:
+        faults = faults or {}
+        self.options = options
+        self.feed = feed
+        self.slots = [
+            _Slot(
+                i,
+                c,
+                faults.get(c.system_id) or VehicleFaults(c.system_id),
+                MavlinkEncoder(c.system_id, c.component_id),
+            )
+            for i, c in enumerate(configs)
+        ]
+        self.t_s = 0.0
+        self._wall0 = 0.0
+        self._last_wall = 0.0
+        self._udp: asyncio.DatagramTransport | None = None
+        self._feed_udp: asyncio.DatagramTransport | None = None
+        self._udp_peers: dict[Any, None] = {}
+        self._udp_decoders: dict[Any, MavlinkDecoder] = {}
+        self._stop = asyncio.Event()
+        self._behind = False
+        self.bytes_out = 0
+        self.messages_in = 0
+        self.bad_frames = 0
+        self.udp_port: int | None = None
+
+    # ----------------------------------------------------------------- setup
+    @property
+    def tcp_ports(self) -> list[int]:
+        """Actual TCP port of each vehicle (after :meth:`start`)."""
+        return [s.port for s in self.slots]
+
+    @property
+    def realtime_factor(self) -> float:
+        """Simulated seconds per wall second since start."""
+        wall = time.monotonic() - self._wall0
+        return self.t_s / wall if wall > 0 else 0.0
+
+    def vehicles(self) -> list[SimVehicle]:
+        """The booted vehicles."""
+        return [s.vehicle for s in self.slots if s.vehicle is not None]
+
+    async def start(self) -> None:
+        """Bind every socket and boot the vehicles (unless waiting for clients)."""
+        opts = self.options
+        loop = asyncio.get_running_loop()
+        for slot in self.slots:
+            port = opts.base_port + 10 * slot.index if opts.base_port else 0
+            slot.server = await asyncio.start_server(self._client_handler(slot), opts.host, port)
+            slot.port = slot.server.sockets[0].getsockname()[1]
+        if opts.out is not None:
+            transport, _ = await loop.create_datagram_endpoint(
+                lambda: _Udp(self._on_udp), local_addr=(opts.host, 0)
+            )
+            self._udp = transport
+            self.udp_port = transport.get_extra_info("sockname")[1]
+            self._udp_peers[opts.out] = None
+        if self.feed is not None and opts.feed_address is not None:
+            transport, _ = await loop.create_datagram_endpoint(
+                lambda: _Udp(lambda d, a: None), remote_addr=opts.feed_address
+            )
+            self._feed_udp = transport
+        self._wall0 = self._last_wall = time.monotonic()
+        if not opts.wait_for_client:
+            for slot in self.slots:
+                self._boot(slot)
+
+    def describe(self) -> list[str]:
+        """What is served, one line per endpoint."""
+        host = self.options.host
+        lines = [
+            f"vehicle {s.index} (system id {s.config.system_id}): tcp:{host}:{s.port}"
+            for s in self.slots
+        ]
+        if self.options.out is not None:
+            lines.append(
+                f"all vehicles -> udp:{self.options.out[0]}:{self.options.out[1]} "
+                f"(from udp:{host}:{self.udp_port})"
+            )
+        if self._feed_udp is not None and self.options.feed_address is not None:
+            addr = self.options.feed_address
+            lines.append(f"detection feed -> udp:{addr[0]}:{addr[1]}")
+        lines.append(
+            f"speed-up {self.options.speedup:g}x"
+            + (", vehicles boot when a TCP client connects" if self.options.wait_for_client else "")
+        )
+        return lines
+
+    def _boot(self, slot: _Slot) -> None:
+        if slot.vehicle is None:
+            slot.vehicle = SimVehicle(slot.config, self.t_s)
+
+    # ------------------------------------------------------------------ I/O
+    def _client_handler(
+        self, slot: _Slot
+    ) -> Callable[[asyncio.StreamReader, asyncio.StreamWriter], Any]:
+        async def handler(reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+            await self._serve_client(slot, reader, writer)
+
+        return handler
+
+    async def _serve_client(
+        self, slot: _Slot, reader: asyncio.StreamReader, writer: asyncio.StreamWriter
+    ) -> None:
+        slot.clients.add(writer)
+        self._boot(slot)
+        decoder = MavlinkDecoder()
+        try:
+            while not self._stop.is_set():
+                data = await reader.read(65536)
+                if not data:
+                    break
+                msgs = decoder.feed(data)
+                self.bad_frames = max(self.bad_frames, decoder.bad_frames)
+                for msg in msgs:
+                    self._inbound(slot, msg, writer)
+                self._service(slot)
+        except (ConnectionError, OSError):
+            pass
+        finally:
+            slot.clients.discard(writer)
+            writer.close()
+
+    def _on_udp(self, data: bytes, addr: Any) -> None:
+        self._udp_peers[addr] = None
+        decoder = self._udp_decoders.setdefault(addr, MavlinkDecoder())
+        for msg in decoder.feed(data):
+            target = getattr(msg, "target_system", 0) or 0
+            for slot in self.slots:
+                if slot.vehicle is not None and target in (0, slot.config.system_id):
+                    self._inbound(slot, msg, ("udp", addr))
+        for slot in self.slots:
+            self._service(slot)
+
+    def _inbound(self, slot: _Slot, msg: Any, origin: Any) -> None:
+        self.messages_in += 1
+        slot.faults.send_up((msg, origin), self.t_s)
+
+    def _service(self, slot: _Slot) -> None:
+        """Deliver due uplink messages, run due faults, flush due downlink messages."""
+        vehicle = slot.vehicle
+        if vehicle is None:
+            return
+        t = self.t_s
+        out: list[Any] = []
+        for event in slot.faults.due_events(t):
+            out += vehicle.apply_fault(event, t)
+        self._downlink(slot, out)
+        for msg, origin in slot.faults.up.pop_due(t):
+            # answers addressed to the requester (COMMAND_ACK, mission protocol) go back on
+            # the link the request came from, as ArduPilot does; the rest to every link
+            replies = vehicle.receive(msg, t)
+            self._downlink(slot, replies, origin)
+
+    def _downlink(self, slot: _Slot, msgs: list[Any], origin: Any = None) -> None:
+        faults = slot.faults
+        for msg in msgs:
+            private = origin is not None and bool(getattr(msg, "target_system", 0))
+            faults.send_down((msg, origin if private else None), self.t_s)
+        for msg, dest in faults.down.pop_due(self.t_s):
+            try:
+                data = slot.encoder.encode(msg)
+            except Exception:  # a message that cannot be packed is dropped, never fatal
+                continue
+            self._send(slot, data, dest)
+
+    def _send(self, slot: _Slot, data: bytes, dest: Any = None) -> None:
+        if dest is not None:  # one link only
+            if isinstance(dest, tuple):
+                if self._udp is not None:
+                    self._udp.sendto(data, dest[1])
+                    self.bytes_out += len(data)
+            elif not dest.is_closing():
+                dest.write(data)
+                self.bytes_out += len(data)
+            return
+        for writer in list(slot.clients):
+            if writer.is_closing():
+                slot.clients.discard(writer)
+                continue
+            if writer.transport.get_write_buffer_size() < _MAX_CLIENT_BUFFER:
+                writer.write(data)
+                self.bytes_out += len(data)
+        udp_backlog = getattr(self._udp, "get_write_buffer_size", lambda: 0)
+        if self._udp is not None and udp_backlog() < _MAX_CLIENT_BUFFER:
+            for peer in self._udp_peers:
+                self._udp.sendto(data, peer)
+                self.bytes_out += len(data)
+
+    # ------------------------------------------------------------------ loop
+    def tick(self) -> None:
+        """Advance the simulated clock to now and run every vehicle and the feed."""
+        now = time.monotonic()
+        speedup = self.options.speedup
+        cap_s = max(self.options.max_step_s, speedup * self.options.max_stall_s)
+        want_s = (now - self._last_wall) * speedup
+        self._behind = want_s > cap_s
+        self.t_s += min(want_s, cap_s)
+        self._last_wall = now
+        for slot in self.slots:
+            if slot.vehicle is None:
+                continue
+            self._service(slot)
+            self._downlink(slot, slot.vehicle.step(self.t_s))
+        if self.feed is not None:
+            positions = {
+                s.config.system_id: (s.vehicle.airframe.x_m, s.vehicle.airframe.y_m)
+                for s in self.slots
+                if s.vehicle is not None and not s.vehicle.airframe.on_ground
+            }
+            for datagram in self.feed.step(self.t_s, positions):
+                if self._feed_udp is not None:
+                    self._feed_udp.sendto(datagram)
+
+    async def run(self, duration_s: float | None = None) -> None:
+        """Tick until :meth:`stop` or ``duration_s`` simulated seconds."""
+        while not self._stop.is_set():
+            self.tick()
+            if duration_s is not None and self.t_s >= duration_s:
+                break
+            if self._behind:  # overloaded: yield to I/O, then tick again at once
+                await asyncio.sleep(0)
+                continue
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(self._stop.wait(), self.options.tick_s)
+
+    def stop(self) -> None:
+        """Ask :meth:`run` to return."""
+        self._stop.set()
+
+    async def close(self) -> None:
+        """Close every socket."""
+        self._stop.set()
+        for slot in self.slots:
+            for writer in list(slot.clients):
+                writer.close()
+            if slot.server is not None:
+                slot.server.close()
+                with contextlib.suppress(Exception):
+                    await asyncio.wait_for(slot.server.wait_closed(), 1.0)
+        for transport in (self._udp, self._feed_udp):
+            if transport is not None:
+                transport.close()

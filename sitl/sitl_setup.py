@@ -1,0 +1,107 @@
+"""What ``gcs sitl`` derives from a scenario: origin, home, airframe, launch poses, the
+world's detection feed and the scripted vehicle events turned into faults.
+
+Scenario events map to faults of the vehicle whose system id is the event's ``vehicle``
+(an integer string): ``vehicle_lost`` -> link drop until the matching ``vehicle_returned``
+(else for good), ``vehicle_rebooted`` -> reboot, ``override`` -> the operator switches to
+FBWA, ``resume`` -> the operator switches back to AUTO, ``battery_low`` -> 10 % battery.
+A scenario attribute ``faults`` (a list of ``--fault`` specs), if the scenario format has
+one, is added as is. Without a scenario: origin = home, no world (no detection feed),
+vehicles start at home with headings spread over the circle.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from groundstation.mavlink.geodesy import GeoOrigin
+from sitl.detections import DetectionFeed
+
+__all__ = ["SitlSetup", "scenario_setup"]
+
+
+@dataclass
+class SitlSetup:
+    """Derived settings for N built-in vehicles."""
+
+    origin: GeoOrigin
+    home: tuple[float, float]
+    speed_m_s: float = 22.0
+    turn_radius_m: float = 105.0
+    launch: list[tuple[float, float, float]] = field(default_factory=list)
+    fault_specs: list[str] = field(default_factory=list)
+    feed_factory: Callable[[int, bool], DetectionFeed | None] | None = None
+    skipped_events: list[str] = field(default_factory=list)
+
+    def make_feed(self, seed: int, anonymous: bool) -> DetectionFeed | None:
+        """The detection feed (None without a scenario)."""
+        return self.feed_factory(seed, anonymous) if self.feed_factory else None
+
+
+def _event_faults(scenario: Any, count: int) -> tuple[list[str], list[str]]:
+    specs: list[str] = []
+    skipped: list[str] = []
+    events = sorted(scenario.events, key=lambda e: e.t_s)
+    for i, ev in enumerate(events):
+        if ev.vehicle is None:
+            continue
+        if not ev.vehicle.isdigit() or not 1 <= int(ev.vehicle) <= count:
+            skipped.append(
+                f"{ev.kind} at {ev.t_s:g} s: vehicle {ev.vehicle!r} is not a system id 1..{count}"
+            )
+            continue
+        sysid = int(ev.vehicle)
+        if ev.kind == "vehicle_lost":
+            back = next(
+                (
+                    e.t_s
+                    for e in events[i + 1 :]
+                    if e.kind == "vehicle_returned" and e.vehicle == ev.vehicle
+                ),
+                None,
+            )
+            duration = (back - ev.t_s) if back is not None else 1e9
+            specs.append(f"{sysid}:drop:at={ev.t_s},for={duration}")
+        elif ev.kind == "vehicle_rebooted":
+            specs.append(f"{sysid}:reboot:at={ev.t_s}")
+        elif ev.kind == "override":
+            specs.append(f"{sysid}:mode:at={ev.t_s},mode=FBWA")
+        elif ev.kind == "resume":
+            specs.append(f"{sysid}:mode:at={ev.t_s},mode=AUTO")
+        elif ev.kind == "battery_low":
+            specs.append(f"{sysid}:battery:at={ev.t_s},pct=10")
+    return specs, skipped
+
+
+def scenario_setup(
+    scenario: Any, count: int, home: tuple[float, float], home_given: bool
+) -> SitlSetup:
+    """Settings for ``count`` vehicles from ``scenario`` (or None) and the home position."""
+    if scenario is None:
+        launch = [(0.0, 0.0, 2.0 * math.pi * i / count) for i in range(count)]
+        return SitlSetup(GeoOrigin(*home), home, launch=launch)
+    origin: GeoOrigin = scenario.origin
+    lx, ly = scenario.launch_point()
+    if not home_given:
+        lat, lon, _ = origin.to_geodetic(lx, ly)
+        home = (lat, lon)
+    headings = scenario.fleet.launch_headings_rad(count)
+    specs, skipped = _event_faults(scenario, count)
+    specs += [str(spec) for spec in getattr(scenario, "faults", ()) or ()]
+
+    def factory(seed: int, anonymous: bool) -> DetectionFeed:
+        return DetectionFeed.for_scenario(scenario, seed, origin, anonymous)
+
+    return SitlSetup(
+        origin,
+        home,
+        float(scenario.fleet.speed_m_s),
+        float(scenario.fleet.turn_radius_m),
+        [(lx, ly, h) for h in headings],
+        specs,
+        factory,
+        skipped,
+    )

@@ -1,0 +1,385 @@
+"""One simulated ArduPlane, sans-IO and clock-free: ``receive(msg, t_s)`` and
+``step(t_s)`` return the MAVLink messages the vehicle sends (to every link).
+
+Boot as ArduPlane SITL: INITIALISING for ``init_s`` (mission storage not ready: uploads get
+NO_SPACE), then MANUAL; GPS 3D fix after ``gps_fix_s``; the EKF uses GPS and home is set
+after ``ekf_s`` and only then is the pre-arm-check bit (0x10000000) of SYS_STATUS health
+set. ``fast_boot`` shortens the three to 0.5, 1 and 2 s. ``airborne`` starts flying at
+``airborne_alt_m``, armed, in AUTO on item 1 of the mission [home, NAV_LOITER_UNLIM over
+home], like a UAV launched before the ground station took over.
+
+Battery: a 3S pack; consumption ``I`` = 15 A flying, 0.5 A on the ground;
+``remaining = 1 - used_mAh / BATT_CAPACITY``; ``voltage = 10.2 + 2.4 remaining`` V (12.6 V
+full, BATT_LOW_VOLT 10.5 V at 12.5 %). Below BATT_LOW_VOLT: "Battery 1 is low ..." and the
+BATT_FS_LOW_ACT action (1 or 2: RTL).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+from groundstation.mavlink.codec import mavlink2
+from groundstation.mavlink.geodesy import GeoOrigin, compass_deg_from_enu_rad
+from sitl import command_handler
+from sitl.airframe import Airframe
+from sitl.autopilot import AUTO, INITIALISING, MANUAL, MODE_NAMES, Autopilot
+from sitl.faults import FaultEvent
+from sitl.mission_protocol import MissionEvents, MissionServer
+from sitl.mission_store import MAX_MISSION_ITEMS, MissionItem, MissionStore
+from sitl.params import ParamStore, default_param_specs
+from sitl.statustext import StatusTextFactory
+from sitl.telemetry import StreamScheduler
+from sitl.vehicle_messages import build_message
+
+__all__ = ["SimVehicle", "VehicleConfig"]
+
+M = mavlink2
+PHYSICS_DT_S = 0.1
+PREARM_REPORT_S = 30.0
+MISSION_MESSAGES = frozenset(
+    {
+        "MISSION_COUNT",
+        "MISSION_ITEM",
+        "MISSION_ITEM_INT",
+        "MISSION_REQUEST_LIST",
+        "MISSION_REQUEST",
+        "MISSION_REQUEST_INT",
+        "MISSION_CLEAR_ALL",
+        "MISSION_ACK",
+    }
+)
+
+
+@dataclass(frozen=True)
+class VehicleConfig:
+    """Everything that defines one simulated vehicle."""
+
+    system_id: int
+    origin: GeoOrigin
+    home_lat_deg: float
+    home_lon_deg: float
+    home_amsl_m: float = 0.0
+    cruise_speed_m_s: float = 22.0
+    min_turn_radius_m: float = 105.0
+    launch_x_m: float | None = None
+    launch_y_m: float | None = None
+    launch_heading_rad: float = 0.0
+    airborne: bool = False
+    airborne_alt_m: float = 100.0
+    fast_boot: bool = False
+    unix_time_at_zero_s: float = 1.7e9
+    component_id: int = 1
+    params: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def boot_times_s(self) -> tuple[float, float, float]:
+        """(init, GPS fix, EKF ready) seconds after boot."""
+        return (0.5, 1.0, 2.0) if self.fast_boot else (2.0, 10.0, 20.0)
+
+
+class SimVehicle:
+    """ArduPlane-compatible vehicle: protocol, autopilot and airframe in virtual time."""
+
+    def __init__(self, config: VehicleConfig, t_s: float = 0.0) -> None:
+        self.config = config
+        self.params = ParamStore(default_param_specs(config.system_id, config.cruise_speed_m_s))
+        for name, value in config.params.items():
+            self.params.set(name, value)
+        self.text = StatusTextFactory()
+        hx, hy, _ = config.origin.to_local(config.home_lat_deg, config.home_lon_deg)
+        self.home_xy_m = (hx, hy)
+        self.store = MissionStore(self._home_item())
+        self.battery_used_mah = 0.0
+        self.reboots = 0
+        self.handler_errors = 0
+        self.last_handler_error = ""
+        self._geodetic_cache: tuple[tuple[float, float], tuple[float, float]] = (
+            (math.nan, math.nan),
+            (0.0, 0.0),
+        )
+        self._boot(t_s)
+
+    # ------------------------------------------------------------------ boot
+    def _home_item(self) -> MissionItem:
+        c = self.config
+        return MissionItem(
+            M.MAV_CMD_NAV_WAYPOINT,
+            M.MAV_FRAME_GLOBAL,
+            x=round(c.home_lat_deg * 1e7),
+            y=round(c.home_lon_deg * 1e7),
+            z=c.home_amsl_m,
+        )
+
+    def _boot(self, t_s: float) -> None:
+        c = self.config
+        self.t_boot_s = t_s
+        self.t_s = t_s
+        self.mission = MissionServer(self.store, self.text)
+        # de-phase the vehicles' 1 Hz streams (like independent autopilots) so that N
+        # vehicles do not all burst in the same tick
+        self.streams = StreamScheduler(t_s + (c.system_id * 0.137) % 1.0)
+        self.autopilot = Autopilot(
+            self.store,
+            self.params,
+            self.text,
+            c.origin,
+            self.home_xy_m,
+            c.home_amsl_m,
+            c.cruise_speed_m_s,
+        )
+        x0 = c.launch_x_m if c.launch_x_m is not None else self.home_xy_m[0]
+        y0 = c.launch_y_m if c.launch_y_m is not None else self.home_xy_m[1]
+        self.airframe = Airframe(x0, y0, c.launch_heading_rad, 0.0, 0.0, c.min_turn_radius_m)
+        self.ready_flags = {"init": False, "gps": False, "ekf": False}
+        self.home_set = False
+        self.battery_low_sent = False
+        self._next_prearm_report_s = t_s + PREARM_REPORT_S
+        self._pending: list[Any] = []
+        if c.airborne:
+            self._start_airborne()
+
+    def _start_airborne(self) -> None:
+        c = self.config
+        self.ready_flags = dict.fromkeys(self.ready_flags, True)
+        self.home_set = True
+        self.store.capacity = MAX_MISSION_ITEMS
+        if len(self.store) <= 1:
+            self.store.write(
+                1,
+                MissionItem(
+                    M.MAV_CMD_NAV_LOITER_UNLIM,
+                    M.MAV_FRAME_GLOBAL_RELATIVE_ALT,
+                    x=round(c.home_lat_deg * 1e7),
+                    y=round(c.home_lon_deg * 1e7),
+                    z=c.airborne_alt_m,
+                ),
+            )
+        af = self.airframe
+        af.on_ground, af.alt_m, af.speed_m_s = False, c.airborne_alt_m, c.cruise_speed_m_s
+        self.autopilot.armed = True
+        self.autopilot.current_seq = 1
+        self._pending += self.autopilot.set_mode(AUTO, af)
+
+    def reboot(self, t_s: float) -> list[Any]:
+        """Restart the autopilot (mission and parameters persist, as in EEPROM). A vehicle
+        configured ``airborne`` comes back armed in AUTO on item 1 where it was flying;
+        otherwise it restarts on the ground at its launch point and boots as at power-on."""
+        self.reboots += 1
+        self.store.capacity = 0
+        flying = None if self.airframe.on_ground else self.airframe
+        self._boot(t_s)
+        if flying is not None and self.config.airborne:
+            # an airborne vehicle keeps flying where it was (the physics does not reboot)
+            af = self.airframe
+            af.x_m, af.y_m, af.heading_rad = flying.x_m, flying.y_m, flying.heading_rad
+            af.alt_m, af.speed_m_s = flying.alt_m, flying.speed_m_s
+        return self._drain()
+
+    def apply_fault(self, event: FaultEvent, t_s: float) -> list[Any]:
+        """Apply a scheduled fault: reboot, operator mode switch or low battery."""
+        out = self.step(t_s)
+        if event.kind == "reboot":
+            return out + self.reboot(t_s)
+        if event.kind == "mode" and self.ready_flags["init"] and event.mode in MODE_NAMES:
+            return out + self.autopilot.set_mode(event.mode, self.airframe)
+        if event.kind == "battery":
+            return out + self.set_battery_remaining(event.fraction)
+        return out
+
+    def _drain(self) -> list[Any]:
+        out, self._pending = self._pending, []
+        return out
+
+    # ----------------------------------------------------------- properties
+    @property
+    def system_id(self) -> int:
+        """MAVLink system id."""
+        return self.config.system_id
+
+    @property
+    def time_boot_ms(self) -> int:
+        """Milliseconds since (re)boot in simulated time."""
+        return max(0, round((self.t_s - self.t_boot_s) * 1000.0))
+
+    @property
+    def prearm_ok(self) -> bool:
+        """GPS and EKF settled: ready to arm."""
+        return all(self.ready_flags.values())
+
+    @property
+    def battery_remaining(self) -> float:
+        """Remaining charge fraction in [0, 1]."""
+        cap = max(1.0, self.params.get("BATT_CAPACITY"))
+        return max(0.0, 1.0 - self.battery_used_mah / cap)
+
+    @property
+    def battery_voltage_v(self) -> float:
+        """Pack voltage."""
+        return 10.2 + 2.4 * self.battery_remaining
+
+    @property
+    def battery_current_a(self) -> float:
+        """Pack current."""
+        return 0.5 if self.airframe.on_ground else 15.0
+
+    def position_geodetic(self) -> tuple[float, float, float]:
+        """(lat_deg, lon_deg, alt_amsl_m) of the aircraft."""
+        af = self.airframe
+        key = (af.x_m, af.y_m)
+        if self._geodetic_cache[0] != key:  # GPS_RAW_INT and GLOBAL_POSITION_INT share it
+            lat, lon, _ = self.config.origin.to_geodetic(af.x_m, af.y_m)
+            self._geodetic_cache = (key, (lat, lon))
+        lat, lon = self._geodetic_cache[1]
+        return lat, lon, self.config.home_amsl_m + af.alt_m
+
+    @property
+    def mode_name(self) -> str:
+        """Name of the current mode."""
+        return MODE_NAMES.get(self.autopilot.mode, str(self.autopilot.mode))
+
+    # ------------------------------------------------------------------ step
+    def step(self, t_s: float) -> list[Any]:
+        """Advance to ``t_s`` (simulated seconds) and return what the vehicle sends."""
+        out = self._drain()
+        while self.t_s < t_s - 1e-9:  # telemetry per physics step: rates hold at any tick
+            dt = min(PHYSICS_DT_S, t_s - self.t_s)
+            self.t_s += dt
+            out += self._physics(dt)
+            out += self._periodic()
+        self.t_s = max(self.t_s, t_s)
+        return out + self._periodic()
+
+    def _periodic(self) -> list[Any]:
+        out = self._boot_progress()
+        out += self.mission.step(self.t_s)
+        out += self._prearm_report()
+        ap = self.autopilot
+        if ap.current_changed:
+            ap.current_changed = False
+            out.append(build_message(self, M.MAVLINK_MSG_ID_MISSION_CURRENT))
+        for msg_id in self.streams.due(self.t_s):
+            msg = build_message(self, msg_id)
+            if msg is not None:
+                out.append(msg)
+        return out
+
+    def _physics(self, dt_s: float) -> list[Any]:
+        ap, af = self.autopilot, self.airframe
+        guidance, alt_cmd = ap.guidance(af)
+        af.step(guidance, alt_cmd, ap.speed_cmd_m_s, dt_s)
+        self.battery_used_mah += self.battery_current_a * dt_s / 3.6
+        out = ap.update(self.t_s, af)
+        if not self.battery_low_sent and self.battery_voltage_v < self.params.get("BATT_LOW_VOLT"):
+            out += self.battery_low()
+        return out
+
+    def battery_low(self) -> list[Any]:
+        """The low-battery failsafe: warn once, then the BATT_FS_LOW_ACT action."""
+        self.battery_low_sent = True
+        out = self.text.make(
+            f"Battery 1 is low {self.battery_voltage_v:.2f}V used {self.battery_used_mah:.0f} mAh",
+            M.MAV_SEVERITY_CRITICAL,
+        )
+        action = int(self.params.get("BATT_FS_LOW_ACT"))
+        if action in (1, 2) and self.autopilot.armed and not self.airframe.on_ground:
+            out += self.autopilot.set_mode(11, self.airframe)
+        return out
+
+    def set_battery_remaining(self, fraction: float) -> list[Any]:
+        """Fault: drop the battery to ``fraction`` remaining."""
+        cap = self.params.get("BATT_CAPACITY")
+        self.battery_used_mah = max(self.battery_used_mah, (1.0 - fraction) * cap)
+        return []
+
+    def _boot_progress(self) -> list[Any]:
+        init_s, gps_s, ekf_s = self.config.boot_times_s
+        age = self.t_s - self.t_boot_s
+        out: list[Any] = []
+        flags = self.ready_flags
+        if not flags["init"] and age >= init_s:
+            flags["init"] = True
+            self.store.capacity = MAX_MISSION_ITEMS
+            mode = int(self.params.get("INITIAL_MODE"))
+            self.autopilot.mode = mode if mode in MODE_NAMES and mode != INITIALISING else MANUAL
+            out += self.text.make("ArduPlane V4.7.0-dev (floe-sim)")
+            out += self.text.make("Ready to FLY")
+        if not flags["gps"] and age >= gps_s:
+            flags["gps"] = True
+            out += self.text.make("GPS 1: detected u-blox")
+        if not flags["ekf"] and age >= ekf_s and flags["gps"]:
+            flags["ekf"] = True
+            self.home_set = True
+            out += self.text.make("EKF3 IMU0 is using GPS")
+            out.append(build_message(self, M.MAVLINK_MSG_ID_HOME_POSITION))
+        return out
+
+    def prearm_failure(self) -> str | None:
+        """Why arming is refused now, or None."""
+        if not self.ready_flags["init"]:
+            return "System not initialised"
+        if not self.ready_flags["gps"]:
+            return "GPS 1: Bad fix"
+        if not self.ready_flags["ekf"]:
+            return "AHRS: waiting for home"
+        return None
+
+    def _prearm_report(self) -> list[Any]:
+        if self.t_s < self._next_prearm_report_s:
+            return []
+        self._next_prearm_report_s = self.t_s + PREARM_REPORT_S
+        reason = self.prearm_failure()
+        if reason is None or self.autopilot.armed:
+            return []
+        return self.text.make(f"PreArm: {reason}", M.MAV_SEVERITY_CRITICAL)
+
+    # --------------------------------------------------------------- receive
+    def receive(self, msg: Any, t_s: float) -> list[Any]:
+        """Handle one message from a ground station; returns the answers. Never raises."""
+        try:
+            return self._receive(msg, max(t_s, self.t_s))
+        except Exception as exc:  # defensive: bad peer input must never take the vehicle down
+            self.handler_errors += 1  # counted (and kept) so tests and logs can see them
+            self.last_handler_error = f"{msg.get_type()}: {exc!r}"
+            return []
+
+    def _receive(self, msg: Any, t_s: float) -> list[Any]:
+        kind = msg.get_type()
+        target = getattr(msg, "target_system", 0)
+        if target not in (0, self.system_id) or kind == "BAD_DATA":
+            return []
+        if msg.get_srcSystem() == self.system_id and kind == "HEARTBEAT":
+            return []
+        if kind in ("MISSION_ITEM", "MISSION_ITEM_INT") and int(msg.current) in (2, 3):
+            return command_handler.guided_item(self, msg)
+        if kind in MISSION_MESSAGES:
+            events = MissionEvents()
+            return self.mission.handle(msg, t_s, events)
+        if kind == "MISSION_SET_CURRENT":
+            _ok, out = self.autopilot.set_current_item(int(msg.seq), self.airframe)
+            return [*out, build_message(self, M.MAVLINK_MSG_ID_MISSION_CURRENT)]
+        return command_handler.handle(self, msg, t_s)
+
+    def mode_of_custom(self) -> tuple[int, int]:
+        """(base_mode, custom_mode) for HEARTBEAT."""
+        ap = self.autopilot
+        base = M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | M.MAV_MODE_FLAG_STABILIZE_ENABLED
+        if ap.mode in (AUTO, 11, 12, 15):
+            base |= M.MAV_MODE_FLAG_GUIDED_ENABLED
+        if ap.mode == AUTO:
+            base |= M.MAV_MODE_FLAG_AUTO_ENABLED
+        if ap.mode == MANUAL:
+            base |= M.MAV_MODE_FLAG_MANUAL_INPUT_ENABLED
+        if ap.armed:
+            base |= M.MAV_MODE_FLAG_SAFETY_ARMED
+        return base, ap.mode
+
+    def heading_deg(self) -> float:
+        """Compass heading."""
+        return compass_deg_from_enu_rad(self.airframe.heading_rad)
+
+    def groundspeed_vector_m_s(self) -> tuple[float, float]:
+        """(east, north) velocity."""
+        af = self.airframe
+        return af.speed_m_s * math.cos(af.heading_rad), af.speed_m_s * math.sin(af.heading_rad)

@@ -1,0 +1,243 @@
+"""Builds the telemetry messages of a :class:`sitl.vehicle.SimVehicle` from its state."""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, Any
+
+from groundstation.mavlink.codec import mavlink2
+
+if TYPE_CHECKING:
+    from sitl.vehicle import SimVehicle
+
+__all__ = ["autopilot_version", "build_message"]
+
+M = mavlink2
+PREARM_BIT = M.MAV_SYS_STATUS_PREARM_CHECK
+_SENSORS = (
+    M.MAV_SYS_STATUS_SENSOR_3D_GYRO
+    | M.MAV_SYS_STATUS_SENSOR_3D_ACCEL
+    | M.MAV_SYS_STATUS_SENSOR_3D_MAG
+    | M.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
+    | M.MAV_SYS_STATUS_SENSOR_DIFFERENTIAL_PRESSURE
+    | M.MAV_SYS_STATUS_SENSOR_GPS
+    | M.MAV_SYS_STATUS_AHRS
+    | M.MAV_SYS_STATUS_SENSOR_BATTERY
+    | PREARM_BIT
+)
+CAPABILITIES = (
+    M.MAV_PROTOCOL_CAPABILITY_MISSION_FLOAT
+    | M.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT
+    | M.MAV_PROTOCOL_CAPABILITY_MISSION_INT
+    | M.MAV_PROTOCOL_CAPABILITY_COMMAND_INT
+    | M.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_GLOBAL_INT
+    | M.MAV_PROTOCOL_CAPABILITY_MAVLINK2
+)
+FLIGHT_SW_VERSION = (4 << 24) | (7 << 16) | (0 << 8) | M.FIRMWARE_VERSION_TYPE_DEV
+
+
+def autopilot_version(v: SimVehicle) -> Any:
+    """AUTOPILOT_VERSION: ArduPlane 4.7.0-dev with the MISSION_INT capability."""
+    return M.MAVLink_autopilot_version_message(
+        CAPABILITIES,
+        FLIGHT_SW_VERSION,
+        0,
+        0,
+        0,
+        [0] * 8,
+        [0] * 8,
+        [0] * 8,
+        0x1209,
+        0x5740,
+        0xF10E0000 + v.system_id,
+    )
+
+
+def _sys_status(v: SimVehicle) -> Any:
+    flags = v.ready_flags
+    health = _SENSORS & ~(M.MAV_SYS_STATUS_SENSOR_GPS | M.MAV_SYS_STATUS_AHRS | PREARM_BIT)
+    if flags["gps"]:
+        health |= M.MAV_SYS_STATUS_SENSOR_GPS
+    if flags["ekf"]:
+        health |= M.MAV_SYS_STATUS_AHRS
+    if v.prearm_ok:
+        health |= PREARM_BIT
+    return M.MAVLink_sys_status_message(
+        _SENSORS,
+        _SENSORS,
+        health,
+        200,
+        int(v.battery_voltage_v * 1000),
+        int(v.battery_current_a * 100),
+        int(v.battery_remaining * 100),
+        0,
+        0,
+        0,
+        0,
+        0,
+        0,
+    )
+
+
+def _battery(v: SimVehicle) -> Any:
+    cells = int(v.battery_voltage_v * 1000 / 3)
+    return M.MAVLink_battery_status_message(
+        0,
+        M.MAV_BATTERY_FUNCTION_ALL,
+        M.MAV_BATTERY_TYPE_LIPO,
+        2000,
+        [cells] * 3 + [65535] * 7,
+        int(v.battery_current_a * 100),
+        int(v.battery_used_mah),
+        -1,
+        int(v.battery_remaining * 100),
+    )
+
+
+def _gps(v: SimVehicle) -> Any:
+    t_us = int(v.t_s * 1e6)
+    if not v.ready_flags["gps"]:
+        return M.MAVLink_gps_raw_int_message(t_us, 1, 0, 0, 0, 9999, 9999, 0, 0, 0)
+    lat, lon, alt = v.position_geodetic()
+    speed = v.airframe.speed_m_s
+    return M.MAVLink_gps_raw_int_message(
+        t_us,
+        3,
+        round(lat * 1e7),
+        round(lon * 1e7),
+        round(alt * 1000),
+        121,
+        200,
+        round(speed * 100),
+        round(v.heading_deg() * 100) % 36000,
+        10,
+    )
+
+
+def _global_position(v: SimVehicle) -> Any:
+    if not v.ready_flags["ekf"]:
+        return M.MAVLink_global_position_int_message(v.time_boot_ms, 0, 0, 0, 0, 0, 0, 0, 0)
+    lat, lon, alt = v.position_geodetic()
+    ve, vn = v.groundspeed_vector_m_s()
+    return M.MAVLink_global_position_int_message(
+        v.time_boot_ms,
+        round(lat * 1e7),
+        round(lon * 1e7),
+        round(alt * 1000),
+        round(v.airframe.alt_m * 1000),
+        round(vn * 100),
+        round(ve * 100),
+        round(-v.airframe.climb_m_s * 100),
+        round(v.heading_deg() * 100) % 36000,
+    )
+
+
+def _attitude(v: SimVehicle) -> Any:
+    af = v.airframe
+    yaw = math.radians(v.heading_deg())
+    yaw = yaw - 2 * math.pi if yaw > math.pi else yaw
+    pitch = math.atan2(af.climb_m_s, max(af.speed_m_s, 1.0))
+    return M.MAVLink_attitude_message(
+        v.time_boot_ms, af.roll_rad, pitch, yaw, 0.0, 0.0, -af.turn_rate_rad_s
+    )
+
+
+def _vfr_hud(v: SimVehicle) -> Any:
+    af = v.airframe
+    throttle = 0 if af.on_ground else 60
+    return M.MAVLink_vfr_hud_message(
+        af.speed_m_s,
+        af.speed_m_s,
+        round(v.heading_deg()) % 360,
+        throttle,
+        v.config.home_amsl_m + af.alt_m,
+        af.climb_m_s,
+    )
+
+
+def _home(v: SimVehicle) -> Any:
+    c = v.config
+    if not v.home_set:
+        return None
+    return M.MAVLink_home_position_message(
+        round(c.home_lat_deg * 1e7),
+        round(c.home_lon_deg * 1e7),
+        round(c.home_amsl_m * 1000),
+        0.0,
+        0.0,
+        0.0,
+        [1.0, 0.0, 0.0, 0.0],
+        0.0,
+        0.0,
+        0.0,
+        int(v.t_s * 1e6),
+    )
+
+
+def _mission_current(v: SimVehicle) -> Any:
+    ap = v.autopilot
+    total = max(0, len(v.store) - 1)
+    if total == 0:
+        state = M.MISSION_STATE_NO_MISSION
+    elif ap.mission_complete:
+        state = M.MISSION_STATE_COMPLETE
+    elif ap.mode == 10:
+        state = M.MISSION_STATE_ACTIVE
+    else:
+        state = M.MISSION_STATE_PAUSED if ap.current_seq > 1 else M.MISSION_STATE_NOT_STARTED
+    return M.MAVLink_mission_current_message(ap.current_seq, total, state, int(ap.mode == 10))
+
+
+def _nav_controller(v: SimVehicle) -> Any:
+    nav = v.autopilot.nav
+    af = v.airframe
+    if nav is None:
+        return M.MAVLink_nav_controller_output_message(0, 0, 0, 0, 0, 0, 0, 0)
+    bearing = math.degrees(math.atan2(nav.x_m - af.x_m, nav.y_m - af.y_m)) % 360
+    return M.MAVLink_nav_controller_output_message(
+        math.degrees(af.roll_rad),
+        0.0,
+        round(bearing),
+        round(bearing),
+        min(65535, round(af.distance_to_m(nav.x_m, nav.y_m))),
+        nav.alt_m - af.alt_m,
+        0.0,
+        0.0,
+    )
+
+
+def build_message(v: SimVehicle, msg_id: int) -> Any:
+    """The message ``msg_id`` as the vehicle would send it now (None if it has none)."""
+    if msg_id == M.MAVLINK_MSG_ID_HEARTBEAT:
+        base, custom = v.mode_of_custom()
+        if not v.ready_flags["init"]:
+            status = M.MAV_STATE_BOOT
+        elif v.autopilot.armed:
+            status = M.MAV_STATE_CRITICAL if v.battery_low_sent else M.MAV_STATE_ACTIVE
+        else:
+            status = M.MAV_STATE_STANDBY
+        return M.MAVLink_heartbeat_message(
+            M.MAV_TYPE_FIXED_WING, M.MAV_AUTOPILOT_ARDUPILOTMEGA, base, custom, status, 3
+        )
+    builders = {
+        M.MAVLINK_MSG_ID_SYS_STATUS: _sys_status,
+        M.MAVLINK_MSG_ID_BATTERY_STATUS: _battery,
+        M.MAVLINK_MSG_ID_GPS_RAW_INT: _gps,
+        M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: _global_position,
+        M.MAVLINK_MSG_ID_ATTITUDE: _attitude,
+        M.MAVLINK_MSG_ID_VFR_HUD: _vfr_hud,
+        M.MAVLINK_MSG_ID_HOME_POSITION: _home,
+        M.MAVLINK_MSG_ID_MISSION_CURRENT: _mission_current,
+        M.MAVLINK_MSG_ID_NAV_CONTROLLER_OUTPUT: _nav_controller,
+        M.MAVLINK_MSG_ID_AUTOPILOT_VERSION: autopilot_version,
+    }
+    if msg_id == M.MAVLINK_MSG_ID_SYSTEM_TIME:
+        unix_us = int((v.config.unix_time_at_zero_s + v.t_s) * 1e6)
+        return M.MAVLink_system_time_message(unix_us, v.time_boot_ms)
+    if msg_id == M.MAVLINK_MSG_ID_EXTENDED_SYS_STATE:
+        landed = (
+            M.MAV_LANDED_STATE_ON_GROUND if v.airframe.on_ground else (M.MAV_LANDED_STATE_IN_AIR)
+        )
+        return M.MAVLink_extended_sys_state_message(M.MAV_VTOL_STATE_UNDEFINED, landed)
+    builder = builders.get(msg_id)
+    return builder(v) if builder is not None else None

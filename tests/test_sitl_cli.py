@@ -1,0 +1,208 @@
+"""`gcs sitl` command line: argument checking, what it serves, scenario wiring, and the
+ArduPilot SITL launcher's command lines."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import stat
+import sys
+from pathlib import Path
+
+import pytest
+
+from groundstation.commands import sitl as cmd
+from sitl.ardupilot import ardupilot_commands, default_defaults_file
+
+
+@pytest.mark.parametrize(
+    ("argv", "needle"),
+    [
+        (["--count", "0"], "--count"),
+        (["--speedup", "-3"], "--speedup"),
+        (["--out", "udp:nohost"], "--out"),
+        (["--home", "95,10"], "--home"),
+        (["--fault", "1:loss:p=7"], "--fault"),
+        (["--loss", "1.5"], "--loss"),
+        (["--scenario", "no-such-scenario"], "no-such-scenario"),
+        (["--detections", "udp:h:99999"], "--detections"),
+        (["--ardupilot", "/nonexistent/arduplane"], "--ardupilot"),
+    ],
+)
+def test_bad_arguments_exit_2_with_the_option_named(
+    argv: list[str], needle: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert cmd.run(["--base-port", "0", "--duration", "1", *argv]) == 2
+    err = capsys.readouterr().err
+    assert needle in err and "Traceback" not in err
+
+
+def test_runs_for_a_duration_and_prints_ports(capsys: pytest.CaptureFixture[str]) -> None:
+    status = cmd.run(
+        [
+            "--count",
+            "2",
+            "--base-port",
+            "0",
+            "--speedup",
+            "50",
+            "--duration",
+            "10",
+            "--fast-boot",
+            "--detections",
+            "none",
+        ]
+    )
+    out = capsys.readouterr().out
+    assert status == 0
+    assert "vehicle 0 (system id 1): tcp:127.0.0.1:" in out
+    assert "vehicle 1 (system id 2): tcp:127.0.0.1:" in out
+    assert "stopped after 10" in out
+
+
+def parse(argv: list[str]) -> argparse.Namespace:
+    return cmd._parser().parse_args(argv)
+
+
+def test_scenario_sets_fleet_origin_launch_and_event_faults(tmp_path: Path) -> None:
+    scenario = tmp_path / "s.yaml"
+    scenario.write_text(
+        "name: t\ndescription: t\nduration_s: 100\norigin: {lat_deg: 70.0, lon_deg: 20.0}\n"
+        "fleet: {count: 2, speed_m_s: 18, turn_radius_m: 90, launch: {x_m: 100, y_m: 50}}\n"
+        "targets:\n  list:\n    - {id: A, x_m: 800, y_m: 300}\n"
+        "events:\n  - {t_s: 30, kind: vehicle_lost, vehicle: '2'}\n"
+        "  - {t_s: 50, kind: vehicle_returned, vehicle: '2'}\n"
+        "  - {t_s: 60, kind: override, vehicle: '1'}\n",
+        encoding="utf-8",
+    )
+    configs, faults, feed, options = cmd.build(
+        parse(["--scenario", str(scenario), "--base-port", "0", "--seed", "3"])
+    )
+    assert [c.system_id for c in configs] == [1, 2]
+    assert configs[0].cruise_speed_m_s == 18 and configs[0].min_turn_radius_m == 90
+    assert configs[0].origin.lat_deg == 70.0
+    x, y, _ = configs[0].origin.to_local(configs[0].home_lat_deg, configs[0].home_lon_deg)
+    assert (x, y) == pytest.approx((100, 50), abs=0.01)  # home = the launch point
+    assert faults[2].link_down(40.0) and not faults[2].link_down(55.0)
+    assert [e.kind for e in faults[1].events] == ["mode"]
+    assert feed is not None and options.feed_address == ("127.0.0.1", 14600)
+
+
+def test_default_home_is_ny_alesund() -> None:
+    configs, _, feed, _ = cmd.build(parse(["--base-port", "0"]))
+    assert (configs[0].home_lat_deg, configs[0].home_lon_deg) == (78.93, 11.92)
+    assert feed is None  # no scenario: no world
+
+
+def test_ardupilot_command_lines(tmp_path: Path) -> None:
+    binary = tmp_path / "ardupilot" / "build" / "sitl" / "bin" / "arduplane"
+    defaults = default_defaults_file(binary)
+    assert (
+        defaults
+        == (tmp_path / "ardupilot" / "Tools" / "autotest" / "models" / "plane.parm").resolve()
+    )
+    launches = ardupilot_commands(binary, 3, 10.0, (78.93, 11.92), defaults, tmp_path / "w")
+    assert [(x.instance, x.system_id, x.gcs_port, x.camera_port) for x in launches] == [
+        (0, 1, 5760, 5762),
+        (1, 2, 5770, 5772),
+        (2, 3, 5780, 5782),
+    ]
+    argv = launches[2].argv
+    assert argv[0] == str(binary) and "-S" in argv
+    assert argv[argv.index("--model") + 1] == "plane"
+    assert argv[argv.index("--speedup") + 1] == "10"
+    assert argv[argv.index("-I") + 1] == "2"
+    assert argv[argv.index("--sysid") + 1] == "3"
+    assert argv[argv.index("--home") + 1] == "78.9300000,11.9200000,0,0"
+    assert argv[argv.index("--defaults") + 1] == str(defaults)
+    assert len({x.cwd for x in launches}) == 3
+
+
+def test_ardupilot_launcher_keeps_children_alive_then_stops_them(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    tree = tmp_path / "ardupilot"
+    binary = tree / "build" / "sitl" / "bin" / "arduplane"
+    binary.parent.mkdir(parents=True)
+    parm = tree / "Tools" / "autotest" / "models" / "plane.parm"
+    parm.parent.mkdir(parents=True)
+    parm.write_text("", encoding="utf-8")
+    record = tmp_path / "argv.txt"
+    binary.write_text(
+        f"#!{sys.executable}\nimport sys, time\n"
+        f"open({str(record)!r}, 'a').write(' '.join(sys.argv[1:]) + '\\n')\n"
+        "time.sleep(60)\n",
+        encoding="utf-8",
+    )
+    binary.chmod(binary.stat().st_mode | stat.S_IEXEC)
+    cwd = os.getcwd()
+    os.chdir(tmp_path)
+    try:
+        status = cmd.run(
+            [
+                "--ardupilot",
+                str(binary),
+                "--count",
+                "2",
+                "--speedup",
+                "50",
+                "--duration",
+                "25",
+                "--detections",
+                "none",
+            ]
+        )
+    finally:
+        os.chdir(cwd)
+    assert status == 0
+    lines = record.read_text(encoding="utf-8").splitlines()
+    assert len(lines) == 2 and {ln.split("--sysid ")[1] for ln in lines} == {"1", "2"}
+    assert "ArduPlane SITL 1 (system id 2" in capsys.readouterr().out
+
+
+def test_ctrl_c_stops_cleanly() -> None:
+    import signal
+    import subprocess
+
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-c",
+            "import sys; from groundstation.cli import main; sys.exit(main(sys.argv[1:]))",
+            "sitl",
+            "--count",
+            "2",
+            "--base-port",
+            "0",
+            "--speedup",
+            "10",
+            "--detections",
+            "none",
+            "--out",
+            "udp:127.0.0.1:9",
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    assert proc.stdout is not None
+    lines = [proc.stdout.readline() for _ in range(3)]
+    assert lines[0].startswith("vehicle 0 (system id 1): tcp:127.0.0.1:")
+    assert "all vehicles -> udp:127.0.0.1:9" in lines[2]
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=10)
+    assert proc.returncode == 0, err
+    assert "stopped after" in out and "Traceback" not in err
+
+
+def test_port_in_use_is_a_clear_error(capsys: pytest.CaptureFixture[str]) -> None:
+    import socket
+
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        status = cmd.run(["--base-port", str(port), "--duration", "1", "--detections", "none"])
+    assert status == 1
+    err = capsys.readouterr().err
+    assert "cannot open a port" in err and "--base-port" in err and "Traceback" not in err
