@@ -1,0 +1,196 @@
+"""``gcs simulate``: run a scenario in virtual time and write metrics and plots.
+
+    gcs simulate --scenario paper-boat --uavs 1,3 --seed 0 --out out/paper
+
+writes ``out/paper/uavs-1/metrics.json``, ``journal.jsonl`` and plots, the same for 3 UAVs,
+and ``out/paper/comparison.png``; with a single fleet size, ``out/paper/metrics.json``
+directly.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+from typing import Any
+
+from sitl.scenario import ScenarioError, bundled_scenarios, load_scenario
+
+__all__ = ["run"]
+
+
+def _fleet_sizes(text: str) -> list[int]:
+    sizes: list[int] = []
+    for part in text.split(","):
+        part = part.strip()
+        if not part.isdigit() or int(part) < 1:
+            raise argparse.ArgumentTypeError(
+                f"--uavs takes positive integers separated by commas, got {text!r}"
+            )
+        sizes.append(int(part))
+    if len(set(sizes)) != len(sizes):
+        raise argparse.ArgumentTypeError(f"--uavs lists a size twice: {text!r}")
+    return sizes
+
+
+def _positive(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
+    return value
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="gcs simulate",
+        description="Run a scenario in virtual time: the decision core against the world "
+        "model. Writes metrics.json and PNG plots.",
+    )
+    parser.add_argument(
+        "--scenario",
+        default="paper-boat",
+        help=f"bundled name ({', '.join(bundled_scenarios())}) or a YAML file"
+        " (default: paper-boat)",
+    )
+    parser.add_argument(
+        "--uavs",
+        type=_fleet_sizes,
+        default=None,
+        help="fleet size, or a comma list (1,3) to compare sizes (default: the scenario's)",
+    )
+    parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    parser.add_argument(
+        "--out",
+        type=Path,
+        default=Path("out/simulate"),
+        help="output folder (default out/simulate)",
+    )
+    parser.add_argument(
+        "--duration",
+        type=_positive,
+        default=None,
+        help="mission seconds to simulate (default: the scenario's)",
+    )
+    parser.add_argument(
+        "--objective",
+        choices=("sequence", "arrival"),
+        default=None,
+        help="planner objective (default: the scenario's)",
+    )
+    parser.add_argument(
+        "--workers",
+        type=int,
+        default=1,
+        help="CP-SAT worker threads (default 1: deterministic runs)",
+    )
+    parser.add_argument("--no-plots", action="store_true", help="write metrics only")
+    parser.add_argument(
+        "--no-journal",
+        action="store_true",
+        help="do not write journal.jsonl (every core input and decision)",
+    )
+    parser.add_argument("--quiet", action="store_true", help="no progress output")
+    return parser
+
+
+class _Progress:
+    """Progress on stderr: a rewritten line on a terminal, quarter marks otherwise."""
+
+    def __init__(self, label: str, quiet: bool) -> None:
+        self.label = label
+        self.quiet = quiet
+        self.tty = sys.stderr.isatty()
+        self.next_mark = 0.25
+
+    def __call__(self, t_s: float, duration_s: float) -> None:
+        if self.quiet or duration_s <= 0:
+            return
+        fraction = t_s / duration_s
+        if self.tty:
+            end = "\n" if fraction >= 1.0 else ""
+            print(
+                f"\r{self.label}: t = {t_s:6.0f} / {duration_s:.0f} s",
+                end=end,
+                file=sys.stderr,
+                flush=True,
+            )
+        elif fraction >= self.next_mark - 1e-9:
+            print(f"{self.label}: t = {t_s:.0f} / {duration_s:.0f} s", file=sys.stderr)
+            while self.next_mark <= fraction + 1e-9:
+                self.next_mark += 0.25
+
+
+def run(argv: list[str]) -> int:
+    args = _parser().parse_args(argv)
+    if args.workers < 1:
+        print("gcs simulate: error: --workers must be >= 1", file=sys.stderr)
+        return 2
+    try:
+        scenario = load_scenario(args.scenario)
+    except ScenarioError as exc:
+        print(f"gcs simulate: error: {exc}", file=sys.stderr)
+        return 2
+    # heavy imports only once the arguments are known to be good
+    from groundstation.runners.plots import plot_comparison, write_plots
+    from groundstation.runners.simulate import SimulationOptions, run_simulation
+
+    sizes: list[int] = args.uavs or [scenario.fleet.count]
+    try:
+        args.out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        print(f"gcs simulate: error: cannot create {args.out}: {exc}", file=sys.stderr)
+        return 2
+    curves: dict[int, list[list[float]]] = {}
+    rows: list[dict[str, Any]] = []
+    for uavs in sizes:
+        out_dir = args.out / f"uavs-{uavs}" if len(sizes) > 1 else args.out
+        out_dir.mkdir(parents=True, exist_ok=True)
+        options = SimulationOptions(
+            seed=args.seed,
+            uavs=uavs,
+            duration_s=args.duration,
+            num_workers=args.workers,
+            deterministic=args.workers == 1,
+            objective=args.objective,
+            progress=_Progress(f"{scenario.name} uavs={uavs} seed={args.seed}", args.quiet),
+            journal=not args.no_journal,
+        )
+        result = run_simulation(scenario, options)
+        metrics = result.metrics
+        (out_dir / "metrics.json").write_text(json.dumps(metrics, indent=1) + "\n")
+        if result.journal:
+            with (out_dir / "journal.jsonl").open("w", encoding="utf-8") as handle:
+                for record in result.journal:
+                    handle.write(json.dumps(record) + "\n")
+        if not args.no_plots:
+            write_plots(result, out_dir)
+        curves[uavs] = metrics["uncertainty_series"]
+        rows.append({"uavs": uavs, "dir": str(out_dir), **metrics})
+    if len(sizes) > 1 and not args.no_plots:
+        plot_comparison(
+            curves,
+            f"{scenario.name}, seed {args.seed}: mean uncertainty",
+            args.out / "comparison.png",
+        )
+    _print_summary(rows)
+    return 0
+
+
+def _print_summary(rows: list[dict[str, Any]]) -> None:
+    header = (
+        f"{'uavs':>4} {'mean sigma':>11} {'max sigma':>11} {'final':>11} {'bounded':>8}"
+        f" {'lost':>4} {'visits':>6} {'plans':>5} {'x realtime':>10}  output"
+    )
+    print(header)
+    for r in rows:
+        print(
+            f"{r['uavs']:>4} {r['mean_uncertainty']:>11.1f} {r['max_uncertainty']:>11.1f}"
+            f" {r['final_uncertainty']:>11.1f} {('yes' if r['bounded'] else 'no'):>8}"
+            f" {len(r['lost_targets']):>4} {len(r['visits']):>6} {r['plans']:>5}"
+            f" {r['realtime_factor']:>10.0f}  {r['dir']}"
+        )

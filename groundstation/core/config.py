@@ -1,0 +1,109 @@
+"""Configuration of the decision core: replan policy, planner settings, loiter, observer."""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from observer import ObserverConfig
+
+__all__ = ["CoreConfig", "ReplanPolicy", "config_from_dict", "config_to_dict"]
+
+
+@dataclass(frozen=True)
+class ReplanPolicy:
+    """When the core replans, and which vehicles a replan may redirect.
+
+    * ``on_events``: replan when something changes (a loiter ended, a target appeared or
+      went, a vehicle joined, was lost, came back, was taken over or given back). The
+      daemon's default.
+    * ``period_s``: also replan every ``period_s`` mission seconds (the paper's 5 s
+      sample-based replanning). ``None``: never on time alone.
+    * ``commit``: True keeps a vehicle on its target until its loiter ends, and its target
+      counts as covered (only idle vehicles are planned); False lets every replan redirect
+      every vehicle (the paper's simulation).
+    """
+
+    on_events: bool = True
+    period_s: float | None = None
+    commit: bool = True
+
+    def __post_init__(self) -> None:
+        if self.period_s is not None and not self.period_s > 0:
+            raise ValueError(f"period_s must be > 0, got {self.period_s}")
+        if not self.on_events and self.period_s is None:
+            raise ValueError("a replan policy needs events, a period, or both")
+
+    @classmethod
+    def from_names(cls, replan: str, period_s: float | None, commit: bool) -> ReplanPolicy:
+        """Build from a scenario/config ``replan`` name: event, period or both."""
+        if replan == "event":
+            return cls(on_events=True, period_s=period_s, commit=commit)
+        if replan == "period":
+            return cls(on_events=False, period_s=period_s, commit=commit)
+        if replan == "both":
+            return cls(on_events=True, period_s=period_s, commit=commit)
+        raise ValueError(f"replan must be event, period or both, got {replan!r}")
+
+    def describe(self) -> str:
+        parts = []
+        if self.on_events:
+            parts.append("event")
+        if self.period_s is not None:
+            parts.append(f"every {self.period_s:g} s")
+        return f"{' + '.join(parts)}, {'commit' if self.commit else 'no commit'}"
+
+
+@dataclass(frozen=True)
+class CoreConfig:
+    """Everything the decision core needs to decide; no I/O settings here."""
+
+    policy: ReplanPolicy = field(default_factory=ReplanPolicy)
+    observer: ObserverConfig = field(default_factory=ObserverConfig)
+    turn_radius_m: float = 105.0
+    speed_m_s: float = 22.0
+    loiter_s: float = 30.0
+    loiter_radius_m: float = 120.0
+    tau: float = 0.5
+    objective: str = "sequence"
+    time_limit_s: float = 2.0
+    min_sigma_fraction: float = 0.1
+    retarget_threshold_m: float = 50.0
+    battery_low_action: str = "rtl"
+    priority_gain: float = 0.0
+    priority_near_m: float = 300.0
+    priority_far_m: float = 1500.0
+
+    def __post_init__(self) -> None:
+        if self.turn_radius_m <= 0:
+            raise ValueError("turn_radius_m must be > 0")
+        if self.speed_m_s <= 0:
+            raise ValueError("speed_m_s must be > 0")
+        if self.loiter_s < 0:
+            raise ValueError("loiter_s must be >= 0")
+        if self.battery_low_action not in ("rtl", "release"):
+            raise ValueError("battery_low_action must be rtl or release")
+
+
+def config_to_dict(config: CoreConfig) -> dict[str, Any]:
+    """The core configuration as plain JSON/YAML data (journalled at start for replay)."""
+    return dataclasses.asdict(config)
+
+
+def config_from_dict(data: Mapping[str, Any]) -> CoreConfig:
+    """Inverse of :func:`config_to_dict`; raises ValueError naming an unknown or bad key."""
+    known = {f.name for f in dataclasses.fields(CoreConfig)}
+    unknown = sorted(set(data) - known)
+    if unknown:
+        raise ValueError(f"core config: unknown key {unknown[0]!r}")
+    values = dict(data)
+    try:
+        if "policy" in values:
+            values["policy"] = ReplanPolicy(**values["policy"])
+        if "observer" in values:
+            values["observer"] = ObserverConfig(**values["observer"])
+        return CoreConfig(**values)
+    except TypeError as exc:
+        raise ValueError(f"core config: {exc}") from exc

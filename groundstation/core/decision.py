@@ -1,0 +1,414 @@
+"""The decision core: given events and the time, return what to do.
+
+Events change state and mark the plan dirty; plans are requested on the next ``Tick`` (the
+frontends tick at their step, 10 Hz), so a burst of events gives one plan.
+
+Written once and driven by three frontends (daemon, offline simulator, replay). It reads no
+clock and does no I/O: every input is an :mod:`~groundstation.core.events` value carrying its
+mission time, every output a :mod:`~groundstation.core.commands` value. Solving is the
+frontend's job too: the core emits a :class:`SolveRequest` and receives a
+:class:`PlanSolved`, so the offline runner can solve inline while the daemon solves in a
+worker thread with a deadline; an answer to a request that a newer one overtook is dropped.
+
+Which vehicles a plan may redirect is the :class:`ReplanPolicy`'s ``commit``: with commit,
+only *idle* vehicles (newly joined, returned, or whose loiter ended) are planned and the
+targets of *busy* vehicles count as covered; without it every active vehicle is replanned.
+
+A vehicle flies to where its first target is predicted to be on arrival::
+
+    t_arr = D(pose, p) / V,   p <- p_hat + v_hat * t_arr      (two fixed-point iterations)
+
+with ``D`` the Dubins distance from the vehicle's pose and ``V`` its airspeed.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+
+from groundstation.core.commands import (
+    CancelSolve,
+    Command,
+    FlyToTarget,
+    Note,
+    PlanAdopted,
+    ReleaseVehicle,
+    SendHome,
+    SolveRequest,
+)
+from groundstation.core.config import CoreConfig
+from groundstation.core.events import (
+    BatteryLow,
+    BoatPosition,
+    Detection,
+    Event,
+    LoiterEnded,
+    OperatorOverride,
+    OperatorResume,
+    PlanSolved,
+    TargetAdded,
+    TargetRemoved,
+    Telemetry,
+    Tick,
+    VehicleJoined,
+    VehicleLost,
+    VehicleRebooted,
+    VehicleReturned,
+)
+from observer import Observer, boat_priority_q
+from planner import (
+    PlanningProblem,
+    PlanResult,
+    TargetEstimate,
+    UavPose,
+    dubins_distance_to_point,
+)
+
+__all__ = ["DecisionCore", "VehicleRecord"]
+
+ACTIVE = "active"
+OVERRIDDEN = "overridden"
+LOST = "lost"
+HOME = "home"
+
+
+@dataclass
+class VehicleRecord:
+    """What the core knows of one vehicle."""
+
+    id: str
+    x_m: float
+    y_m: float
+    heading_rad: float
+    speed_m_s: float
+    pose_t_s: float
+    status: str = ACTIVE
+    target: str | None = None
+    busy: bool = False
+    aim_xy_m: tuple[float, float] | None = None
+    route: tuple[str, ...] = field(default=())
+
+    @property
+    def idle(self) -> bool:
+        return self.status == ACTIVE and not self.busy
+
+
+class DecisionCore:
+    """Events and time in, commands out (see module docstring)."""
+
+    def __init__(self, config: CoreConfig) -> None:
+        self.config = config
+        self.observer = Observer(config.observer)
+        self.vehicles: dict[str, VehicleRecord] = {}
+        self.t_s = 0.0
+        self.last_result: PlanResult | None = None
+        self.plans_adopted = 0
+        self.counters: dict[str, int] = {}
+        self.boat_xy_m: tuple[float, float] | None = None
+        self._next_request_id = 1
+        # Called with every input before it is applied (frontends journal it for replay).
+        self.on_input: Callable[[Event], None] | None = None
+        self._pending: SolveRequest | None = None
+        self._dirty_reason: str | None = None
+        # the first periodic plan is due at once
+        self._next_periodic_s: float | None = 0.0 if config.policy.period_s else None
+
+    # ------------------------------------------------------------------ public API
+    def handle(self, event: Event) -> list[Command]:
+        """Apply one event; return the commands it causes (possibly none)."""
+        if self.on_input is not None:
+            self.on_input(event)
+        if event.t_s > self.t_s:
+            self.t_s = event.t_s
+        out: list[Command] = []
+        if isinstance(event, Tick):
+            self.observer.predict_to(event.t_s)
+            self._apply_priority()
+        elif isinstance(event, Telemetry):
+            self._on_pose(event.vehicle, event.t_s, event.x_m, event.y_m, event.heading_rad,
+                          event.speed_m_s)
+        elif isinstance(event, Detection):
+            out += self._on_detection(event)
+        elif isinstance(event, PlanSolved):
+            out += self._on_solved(event)
+        elif isinstance(event, BoatPosition):
+            if math.isfinite(event.x_m) and math.isfinite(event.y_m):
+                self.boat_xy_m = (event.x_m, event.y_m)
+        else:
+            out += self._on_fleet_or_target_event(event)
+        if isinstance(event, Tick):
+            # Events only mark the plan dirty; the next tick replans once for all of them,
+            # so a burst (several targets added at once) gives one plan, not one each.
+            out += self._maybe_replan(event.t_s)
+        return out
+
+    def set_boat(self, x_m: float, y_m: float, t_s: float | None = None) -> None:
+        """Shorthand for handling :class:`BoatPosition` (recorded like every input)."""
+        self.handle(BoatPosition(self.t_s if t_s is None else t_s, x_m, y_m))
+
+    @property
+    def pending_request(self) -> SolveRequest | None:
+        return self._pending
+
+    def active_vehicles(self) -> list[VehicleRecord]:
+        return [v for v in self.vehicles.values() if v.status == ACTIVE]
+
+    # ------------------------------------------------------------------ event handlers
+    def _count(self, key: str) -> None:
+        self.counters[key] = self.counters.get(key, 0) + 1
+
+    def _on_pose(self, vehicle: str, t_s: float, x_m: float, y_m: float, heading_rad: float,
+                 speed_m_s: float) -> None:
+        values = (x_m, y_m, heading_rad, speed_m_s)
+        if not all(math.isfinite(v) for v in values):
+            self._count("invalid_telemetry")
+            return
+        record = self.vehicles.get(vehicle)
+        if record is None:
+            return
+        record.x_m, record.y_m, record.heading_rad = x_m, y_m, heading_rad
+        record.speed_m_s = speed_m_s if speed_m_s > 1.0 else self.config.speed_m_s
+        record.pose_t_s = t_s
+
+    def _on_detection(self, event: Detection) -> list[Command]:
+        out: list[Command] = []
+        if event.target is not None and event.target not in self.observer.target_ids:
+            if not (math.isfinite(event.x_m) and math.isfinite(event.y_m)):
+                self._count("detections_invalid")
+                return out
+            self.observer.add_target(event.target, event.t_s, event.x_m, event.y_m,
+                                     sigma0=event.r_m2)
+            out.append(Note(event.t_s, "target_discovered", event.vehicle, event.target))
+            self._mark_dirty("target discovered")
+            return out
+        outcome = self.observer.measure(event.t_s, event.x_m, event.y_m, event.target,
+                                        r_m2=event.r_m2)
+        self._count(f"detections_{outcome.reason}")
+        return out
+
+    def _on_fleet_or_target_event(self, event: Event) -> list[Command]:
+        out: list[Command] = []
+        if isinstance(event, TargetAdded):
+            if event.target in self.observer.target_ids:
+                out.append(Note(event.t_s, "duplicate_target", target=event.target))
+                return out
+            self.observer.add_target(
+                event.target, event.t_s, event.x_m, event.y_m, vx_m_s=event.vx_m_s,
+                vy_m_s=event.vy_m_s, sigma0=event.sigma0, q_per_s=event.q_per_s,
+            )
+            self._mark_dirty("target added")
+        elif isinstance(event, TargetRemoved):
+            if event.target not in self.observer.target_ids:
+                out.append(Note(event.t_s, "unknown_target", target=event.target))
+                return out
+            self.observer.remove_target(event.target)
+            for v in self.vehicles.values():
+                if v.target == event.target:
+                    v.target, v.busy, v.aim_xy_m = None, False, None
+            self._mark_dirty("target removed")
+        elif isinstance(event, VehicleJoined):
+            record = self.vehicles.get(event.vehicle)
+            if record is None:
+                record = VehicleRecord(event.vehicle, event.x_m, event.y_m, event.heading_rad,
+                                       event.speed_m_s, event.t_s)
+                self.vehicles[event.vehicle] = record
+            record.status, record.busy, record.target = ACTIVE, False, None
+            self._on_pose(event.vehicle, event.t_s, event.x_m, event.y_m, event.heading_rad,
+                          event.speed_m_s)
+            self._mark_dirty("vehicle joined")
+        elif isinstance(event, LoiterEnded):
+            out += self._on_loiter_ended(event)
+        else:
+            out += self._on_status_change(event)
+        return out
+
+    def _on_loiter_ended(self, event: LoiterEnded) -> list[Command]:
+        """Without commitment the vehicle goes on along its planned sequence at once
+        (the paper's UAVs pass over one target and head for the next, not waiting for the
+        next sample); with commitment it becomes idle and the next tick replans it."""
+        record = self.vehicles.get(event.vehicle)
+        if record is None or record.status != ACTIVE or not record.busy:
+            return []
+        record.busy = False
+        self._mark_dirty("loiter ended")
+        if self.config.policy.commit or record.target not in record.route:
+            return []
+        rest = record.route[record.route.index(record.target) + 1:]
+        known = set(self.observer.target_ids)
+        rest = tuple(t for t in rest if t in known)
+        if not rest:
+            return []
+        command = self._fly(event.t_s, record, rest[0], rest)
+        return [command] if command is not None else []
+
+    def _on_status_change(self, event: Event) -> list[Command]:
+        out: list[Command] = []
+        vehicle = getattr(event, "vehicle", None)
+        record = self.vehicles.get(vehicle) if isinstance(vehicle, str) else None
+        if record is None:
+            return out
+        t_s = event.t_s
+        if isinstance(event, VehicleLost):
+            if record.status == ACTIVE:
+                record.status, record.busy = LOST, False
+                self._mark_dirty("vehicle lost")
+        elif isinstance(event, VehicleReturned):
+            if record.status == LOST:
+                record.status, record.busy = ACTIVE, False
+                self._mark_dirty("vehicle returned")
+        elif isinstance(event, VehicleRebooted):
+            if record.status in (ACTIVE, LOST):
+                record.status, record.busy, record.target = ACTIVE, False, None
+                self._mark_dirty("vehicle rebooted")
+        elif isinstance(event, OperatorOverride):
+            if record.status != OVERRIDDEN:
+                record.status, record.busy = OVERRIDDEN, False
+                out.append(ReleaseVehicle(t_s, record.id, "operator override"))
+                self._mark_dirty("operator override")
+        elif isinstance(event, OperatorResume):
+            if record.status in (OVERRIDDEN, HOME):
+                record.status, record.busy, record.target = ACTIVE, False, None
+                self._mark_dirty("operator resume")
+        elif isinstance(event, BatteryLow) and record.status == ACTIVE:
+            record.status, record.busy, record.target = HOME, False, None
+            if self.config.battery_low_action == "rtl":
+                out.append(SendHome(t_s, record.id, "battery low"))
+            else:
+                out.append(ReleaseVehicle(t_s, record.id, "battery low"))
+            self._mark_dirty("battery low")
+        return out
+
+    # ------------------------------------------------------------------ planning
+    def _mark_dirty(self, reason: str) -> None:
+        if self.config.policy.on_events and self._dirty_reason is None:
+            self._dirty_reason = reason
+
+    def _apply_priority(self) -> None:
+        if self.config.priority_gain <= 0 or self.boat_xy_m is None:
+            return
+        bx, by = self.boat_xy_m
+        for track in self.observer.tracks():
+            q = boat_priority_q(
+                self.config.observer.q_per_s, math.hypot(track.x_m - bx, track.y_m - by),
+                near_m=self.config.priority_near_m, far_m=self.config.priority_far_m,
+                gain=self.config.priority_gain,
+            )
+            self.observer.set_process_noise(track.id, q)
+
+    def _maybe_replan(self, t_s: float) -> list[Command]:
+        reason = self._dirty_reason
+        period = self.config.policy.period_s
+        if period is not None and self._next_periodic_s is not None and t_s >= (
+            self._next_periodic_s - 1e-9
+        ):
+            while self._next_periodic_s <= t_s + 1e-9:
+                self._next_periodic_s += period
+            reason = reason or "period"
+        if reason is None:
+            return []
+        self._dirty_reason = None
+        return self._request_plan(t_s, reason)
+
+    def planned_vehicles(self) -> list[VehicleRecord]:
+        """Vehicles a replan may redirect under the policy."""
+        if self.config.policy.commit:
+            return [v for v in self.vehicles.values() if v.idle]
+        return self.active_vehicles()
+
+    def _request_plan(self, t_s: float, reason: str) -> list[Command]:
+        out: list[Command] = []
+        vehicles = sorted(self.planned_vehicles(), key=lambda v: v.id)
+        self.observer.predict_to(t_s)
+        covered = {
+            v.target for v in self.vehicles.values()
+            if v.status == ACTIVE and v.busy and v.target is not None
+        } if self.config.policy.commit else set()
+        targets = [
+            TargetEstimate(tr.id, tr.x_m, tr.y_m, tr.sigma)
+            for tr in self.observer.tracks() if tr.id not in covered
+        ]
+        if not vehicles or not targets:
+            return out
+        problem = PlanningProblem(
+            uavs=tuple(UavPose(v.id, v.x_m, v.y_m, v.heading_rad) for v in vehicles),
+            targets=tuple(targets),
+            turn_radius_m=self.config.turn_radius_m,
+            tau=self.config.tau,
+            min_sigma_fraction=self.config.min_sigma_fraction,
+            time_limit_s=self.config.time_limit_s,
+            objective=self.config.objective,
+            speed_m_s=self.config.speed_m_s,
+        )
+        if self._pending is not None:
+            out.append(CancelSolve(t_s, self._pending.request_id))
+        request = SolveRequest(t_s, self._next_request_id, problem, self._hint(problem), reason)
+        self._next_request_id += 1
+        self._pending = request
+        out.append(request)
+        return out
+
+    def _hint(self, problem: PlanningProblem) -> dict[str, list[str]]:
+        if self.last_result is None:
+            return {}
+        targets = {t.id for t in problem.targets}
+        return {
+            u.id: [t for t in self.last_result.routes.get(u.id, []) if t in targets]
+            for u in problem.uavs
+        }
+
+    def _on_solved(self, event: PlanSolved) -> list[Command]:
+        request = self._pending
+        if request is None or event.request_id != request.request_id:
+            self._count("stale_plans_dropped")
+            return []
+        self._pending = None
+        result = event.result
+        self.last_result = result
+        self.plans_adopted += 1
+        known = set(self.observer.target_ids)
+        assignments: dict[str, str] = {}
+        fly: list[Command] = []
+        for uav in request.problem.uavs:
+            record = self.vehicles.get(uav.id)
+            route = result.routes.get(uav.id, [])
+            target = route[0] if route else result.idle.get(uav.id)
+            if record is None or target is None or target not in known:
+                continue
+            if record.status != ACTIVE or (self.config.policy.commit and record.busy):
+                continue
+            assignments[uav.id] = target
+            command = self._fly(event.t_s, record, target, tuple(route))
+            if command is not None:
+                fly.append(command)
+        adopted = PlanAdopted(event.t_s, request.request_id, request.problem, result, assignments)
+        return [adopted, *fly]
+
+    def _fly(self, t_s: float, record: VehicleRecord, target: str,
+             route: tuple[str, ...]) -> FlyToTarget | None:
+        aim = self.aim_point(record, target)
+        unchanged = (
+            record.target == target and record.aim_xy_m is not None
+            and math.dist(record.aim_xy_m, aim) < self.config.retarget_threshold_m
+        )
+        record.route = route
+        record.busy = True
+        if unchanged and not self.config.policy.commit:
+            return None
+        record.target, record.aim_xy_m = target, aim
+        return FlyToTarget(t_s, record.id, target, aim[0], aim[1], self.config.loiter_s,
+                           self.config.loiter_radius_m, route)
+
+    def aim_point(self, record: VehicleRecord, target: str) -> tuple[float, float]:
+        """Where ``target`` is predicted to be when ``record`` arrives (module docstring)."""
+        track = self.observer.track(target)
+        x, y = track.x_m, track.y_m
+        for _ in range(2):
+            d = dubins_distance_to_point(record.x_m, record.y_m, record.heading_rad, x, y,
+                                         self.config.turn_radius_m)
+            t_arr = d / max(record.speed_m_s, 1.0)
+            x, y = track.x_m + track.vx_m_s * t_arr, track.y_m + track.vy_m_s * t_arr
+        return x, y
+
+    def snapshot_assignments(self) -> Mapping[str, str | None]:
+        return {v.id: v.target for v in self.vehicles.values()}

@@ -1,0 +1,185 @@
+"""Inputs of the decision core.
+
+Every event carries the mission time ``t_s`` at which it happened. Frontends (the daemon,
+the offline runner, replay) translate what they observe into these plain values; the core
+never sees a socket, a clock or a MAVLink message.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from planner import PlanResult
+
+__all__ = [
+    "BatteryLow",
+    "BoatPosition",
+    "Detection",
+    "Event",
+    "LoiterEnded",
+    "OperatorOverride",
+    "OperatorResume",
+    "PlanSolved",
+    "TargetAdded",
+    "TargetRemoved",
+    "Telemetry",
+    "Tick",
+    "VehicleJoined",
+    "VehicleLost",
+    "VehicleRebooted",
+    "VehicleReturned",
+]
+
+
+@dataclass(frozen=True)
+class Tick:
+    """Time passes (drives periodic replanning and the observer's prediction)."""
+
+    t_s: float
+
+
+@dataclass(frozen=True)
+class Telemetry:
+    """A vehicle's planar pose and airspeed (local ENU, heading CCW from east)."""
+
+    t_s: float
+    vehicle: str
+    x_m: float
+    y_m: float
+    heading_rad: float
+    speed_m_s: float
+
+
+@dataclass(frozen=True)
+class Detection:
+    """A camera measurement of a target's position (``target`` None: associate it)."""
+
+    t_s: float
+    vehicle: str | None
+    target: str | None
+    x_m: float
+    y_m: float
+    r_m2: float | None = None
+
+
+@dataclass(frozen=True)
+class TargetAdded:
+    """A target the ground station must keep track of from now on."""
+
+    t_s: float
+    target: str
+    x_m: float
+    y_m: float
+    vx_m_s: float = 0.0
+    vy_m_s: float = 0.0
+    sigma0: float | None = None
+    q_per_s: float | None = None
+
+
+@dataclass(frozen=True)
+class TargetRemoved:
+    t_s: float
+    target: str
+
+
+@dataclass(frozen=True)
+class LoiterEnded:
+    """A vehicle finished the timed loiter (or the pass) over its target."""
+
+    t_s: float
+    vehicle: str
+
+
+@dataclass(frozen=True)
+class VehicleJoined:
+    """A vehicle is flying and available to the plan (launched or taken over)."""
+
+    t_s: float
+    vehicle: str
+    x_m: float
+    y_m: float
+    heading_rad: float
+    speed_m_s: float
+
+
+@dataclass(frozen=True)
+class VehicleLost:
+    """The link to a vehicle has been silent for too long; it leaves the plan."""
+
+    t_s: float
+    vehicle: str
+
+
+@dataclass(frozen=True)
+class VehicleReturned:
+    """A lost vehicle is heard again and is taken back into the plan."""
+
+    t_s: float
+    vehicle: str
+
+
+@dataclass(frozen=True)
+class VehicleRebooted:
+    """A vehicle's autopilot rebooted: its stored mission is gone."""
+
+    t_s: float
+    vehicle: str
+
+
+@dataclass(frozen=True)
+class OperatorOverride:
+    """Someone else took the vehicle (mode switch, another GCS's upload): stop commanding."""
+
+    t_s: float
+    vehicle: str
+
+
+@dataclass(frozen=True)
+class OperatorResume:
+    """An operator gave the vehicle back to floe."""
+
+    t_s: float
+    vehicle: str
+
+
+@dataclass(frozen=True)
+class BatteryLow:
+    t_s: float
+    vehicle: str
+
+
+@dataclass(frozen=True)
+class BoatPosition:
+    """Where the boat is (drives the priority knob: process noise rising near the boat)."""
+
+    t_s: float
+    x_m: float
+    y_m: float
+
+
+@dataclass(frozen=True)
+class PlanSolved:
+    """The frontend finished solving the request ``request_id``."""
+
+    t_s: float
+    request_id: int
+    result: PlanResult
+
+
+Event = (
+    Tick
+    | Telemetry
+    | Detection
+    | TargetAdded
+    | TargetRemoved
+    | LoiterEnded
+    | VehicleJoined
+    | VehicleLost
+    | VehicleReturned
+    | VehicleRebooted
+    | OperatorOverride
+    | OperatorResume
+    | BatteryLow
+    | BoatPosition
+    | PlanSolved
+)

@@ -1,0 +1,168 @@
+"""Journal records of the decision core's inputs and decisions, and back.
+
+Replay is exact only if every input the core saw can be fed to it again. Frontends journal
+each input with :func:`event_to_record` (``{"event": "input", "kind": "Telemetry", ...}``)
+and each decision with :func:`command_to_record`; :func:`record_to_event` turns an input line
+back into the event. Floats are written with full precision (JSON ``repr``), so a replayed
+run sees bit-identical inputs.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from typing import Any
+
+from groundstation.core.commands import (
+    CancelSolve,
+    Command,
+    FlyToTarget,
+    Note,
+    PlanAdopted,
+    ReleaseVehicle,
+    SendHome,
+    SolveRequest,
+)
+from groundstation.core.events import (
+    BatteryLow,
+    BoatPosition,
+    Detection,
+    Event,
+    LoiterEnded,
+    OperatorOverride,
+    OperatorResume,
+    PlanSolved,
+    TargetAdded,
+    TargetRemoved,
+    Telemetry,
+    Tick,
+    VehicleJoined,
+    VehicleLost,
+    VehicleRebooted,
+    VehicleReturned,
+)
+from planner import PlanResult, problem_from_dict, problem_to_dict, result_to_dict
+
+__all__ = [
+    "RecordError",
+    "command_to_record",
+    "event_to_record",
+    "record_to_event",
+    "result_from_record",
+    "result_to_record",
+]
+
+_EVENT_TYPES: dict[str, type] = {
+    cls.__name__: cls
+    for cls in (
+        Tick, Telemetry, Detection, TargetAdded, TargetRemoved, LoiterEnded, VehicleJoined,
+        VehicleLost, VehicleReturned, VehicleRebooted, OperatorOverride, OperatorResume,
+        BatteryLow, BoatPosition, PlanSolved,
+    )
+}
+
+
+class RecordError(ValueError):
+    """A journal line cannot be turned back into an event."""
+
+
+def result_to_record(result: PlanResult) -> dict[str, Any]:
+    """The ``gcs plan`` output object plus ``hit_time_limit``."""
+    return {**result_to_dict(result), "hit_time_limit": result.hit_time_limit}
+
+
+def result_from_record(data: Mapping[str, Any]) -> PlanResult:
+    try:
+        return PlanResult(
+            status=str(data["status"]),
+            solver=str(data["solver"]),
+            objective=float(data["objective"]),
+            f1=float(data["f1"]),
+            f2=float(data["f2"]),
+            mu=float(data["mu"]),
+            routes={str(k): [str(t) for t in v] for k, v in data["routes"].items()},
+            idle={str(k): str(v) for k, v in data.get("idle", {}).items()},
+            excluded=[str(t) for t in data.get("excluded", [])],
+            solve_time_s=float(data["solve_time_s"]),
+            hit_time_limit=bool(data.get("hit_time_limit", False)),
+        )
+    except (KeyError, TypeError, ValueError, AttributeError) as exc:
+        raise RecordError(f"bad plan result record: {exc}") from exc
+
+
+def event_to_record(event: Event) -> dict[str, Any]:
+    """``{"event": "input", "kind": <class name>, "t": t_s, ...fields}``."""
+    record: dict[str, Any] = {"event": "input", "kind": type(event).__name__, "t": event.t_s}
+    for f in dataclasses.fields(event):
+        if f.name == "t_s":
+            continue
+        value = getattr(event, f.name)
+        record[f.name] = result_to_record(value) if isinstance(value, PlanResult) else value
+    return record
+
+
+def record_to_event(record: Mapping[str, Any]) -> Event:
+    """Inverse of :func:`event_to_record`; raises RecordError on a malformed line."""
+    kind = record.get("kind")
+    cls = _EVENT_TYPES.get(kind) if isinstance(kind, str) else None
+    if cls is None:
+        raise RecordError(f"unknown input kind {kind!r}")
+    kwargs: dict[str, Any] = {}
+    for f in dataclasses.fields(cls):
+        key = "t" if f.name == "t_s" else f.name
+        if key not in record:
+            if f.default is dataclasses.MISSING:
+                raise RecordError(f"{kind}: missing field {key!r}")
+            continue
+        value = record[key]
+        if f.name == "result":
+            value = result_from_record(value)
+        kwargs[f.name] = value
+    try:
+        event: Event = cls(**kwargs)
+    except TypeError as exc:
+        raise RecordError(f"{kind}: {exc}") from exc
+    return event
+
+
+def command_to_record(command: Command) -> dict[str, Any]:
+    """A decision as a journal line (names other tools rely on: ``plan``, ``fly`` ...)."""
+    if isinstance(command, PlanAdopted):
+        return {
+            "event": "plan", "t": command.t_s, "request_id": command.request_id,
+            "routes": command.result.routes, "assignments": dict(command.assignments),
+            "solve_time_s": command.result.solve_time_s, "status": command.result.status,
+            "objective": command.result.objective,
+            "problem": problem_to_dict(command.problem),
+            "result": result_to_record(command.result),
+        }
+    if isinstance(command, SolveRequest):
+        return {
+            "event": "solve_request", "t": command.t_s, "request_id": command.request_id,
+            "reason": command.reason, "problem": problem_to_dict(command.problem),
+            "hint": {k: list(v) for k, v in command.hint.items()},
+        }
+    if isinstance(command, CancelSolve):
+        return {"event": "solve_cancelled", "t": command.t_s, "request_id": command.request_id}
+    if isinstance(command, FlyToTarget):
+        return {
+            "event": "fly", "t": command.t_s, "vehicle": command.vehicle,
+            "target": command.target, "x_m": command.x_m, "y_m": command.y_m,
+            "loiter_s": command.loiter_s, "loiter_radius_m": command.loiter_radius_m,
+            "route": list(command.route),
+        }
+    if isinstance(command, ReleaseVehicle):
+        return {"event": "release", "t": command.t_s, "vehicle": command.vehicle,
+                "reason": command.reason}
+    if isinstance(command, SendHome):
+        return {"event": "send_home", "t": command.t_s, "vehicle": command.vehicle,
+                "reason": command.reason}
+    if isinstance(command, Note):
+        return {"event": command.kind, "t": command.t_s, "vehicle": command.vehicle,
+                "target": command.target, "detail": command.detail}
+    raise TypeError(f"not a command: {command!r}")
+
+
+def problem_of_record(record: Mapping[str, Any]) -> Any:
+    """The planning problem recorded in a ``plan`` or ``solve_request`` line."""
+    return problem_from_dict(record["problem"])

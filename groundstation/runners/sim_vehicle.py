@@ -1,0 +1,97 @@
+"""A UAV of the offline simulator, flying what the decision core commands.
+
+It executes a :class:`FlyToTarget` the way floe's ArduPlane mission does
+(``NAV_LOITER_TIME`` over the aim point, then ``NAV_LOITER_UNLIM`` there):
+
+* ``transit``: with a timed loiter, fly onto the loiter circle (vector field); the loiter
+  timer starts on reaching the circle, as ArduPlane's does. With ``loiter_s == 0`` (the
+  paper's pass-over) fly to the point itself; arriving within ``arrival_radius_m`` ends it.
+* ``loiter``: circle until the timer runs out; then the loiter has *ended* (an event).
+* ``hold``: circle the point for ever (until the next command).
+
+A released vehicle (operator override) or one sent home holds on a circle where it is or
+over the launch point, and is no longer commanded.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from sitl.dynamics import (
+    LoiterCommand,
+    UavState,
+    distance_to_circle_m,
+    step_kinematics,
+    turn_rate_to_circle,
+    turn_rate_to_point,
+)
+
+__all__ = ["OfflineVehicle"]
+
+_ON_CIRCLE_TOLERANCE_M = 15.0
+
+
+@dataclass
+class OfflineVehicle:
+    id: str
+    state: UavState
+    turn_radius_m: float
+    arrival_radius_m: float = 30.0
+    phase: str = "free"
+    aim_xy_m: tuple[float, float] | None = None
+    loiter_radius_m: float = 120.0
+    loiter_s: float = 0.0
+    loiter_end_s: float | None = None
+    target: str | None = None
+    commanded: bool = True
+    lost: bool = False
+
+    def command_fly(self, x_m: float, y_m: float, loiter_s: float, loiter_radius_m: float,
+                    target: str) -> None:
+        self.aim_xy_m = (x_m, y_m)
+        self.loiter_s = loiter_s
+        self.loiter_radius_m = loiter_radius_m
+        self.loiter_end_s = None
+        self.target = target
+        self.phase = "transit"
+
+    def command_hold(self, x_m: float, y_m: float, loiter_radius_m: float) -> None:
+        """Circle (x, y) for ever: an unlimited loiter (release, RTL, no plan)."""
+        self.aim_xy_m = (x_m, y_m)
+        self.loiter_radius_m = loiter_radius_m
+        self.phase = "hold"
+        self.target = None
+
+    def step(self, t_s: float, dt_s: float) -> bool:
+        """Advance by ``dt_s`` ending at ``t_s + dt_s``; True when a loiter (or pass) ended."""
+        ended = False
+        s = self.state
+        if self.aim_xy_m is None:
+            rate = 0.0
+        elif self.phase == "transit" and self.loiter_s <= 0.0:
+            rate = turn_rate_to_point(s, *self.aim_xy_m, self.turn_radius_m)
+        else:
+            circle = LoiterCommand(*self.aim_xy_m, self.loiter_radius_m)
+            rate = turn_rate_to_circle(s, circle, self.turn_radius_m)
+        self.state = step_kinematics(s, rate, dt_s)
+        t_next = t_s + dt_s
+        if self.aim_xy_m is None:
+            return False
+        if self.phase == "transit":
+            if self.loiter_s <= 0.0:
+                if math.dist((self.state.x_m, self.state.y_m), self.aim_xy_m) <= (
+                    self.arrival_radius_m
+                ):
+                    self.phase, ended = "hold", True
+            else:
+                circle = LoiterCommand(*self.aim_xy_m, self.loiter_radius_m)
+                if distance_to_circle_m(self.state, circle, self.turn_radius_m) <= (
+                    _ON_CIRCLE_TOLERANCE_M
+                ):
+                    self.phase, self.loiter_end_s = "loiter", t_next + self.loiter_s
+        elif self.phase == "loiter" and self.loiter_end_s is not None and (
+            t_next >= self.loiter_end_s - 1e-9
+        ):
+            self.phase, ended = "hold", True
+        return ended

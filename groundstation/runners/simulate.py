@@ -1,0 +1,390 @@
+"""The offline simulator behind ``gcs simulate``: the decision core against the world model.
+
+Virtual time advances in fixed steps (the scenario's ``observer.step_s``, 0.1 s in the
+paper). Each step, in order:
+
+1. scripted events due by now (targets appearing, vehicles lost, overrides...) reach the
+   world and the core;
+2. the core gets a ``Tick`` and may ask for a plan; requests are solved inline (the same
+   planner the daemon runs in a worker thread) and the answer goes back as ``PlanSolved``;
+3. the vehicles fly what they were told for one step; loiter ends become events;
+4. the world moves (icebergs, boat); the camera measures what lies in a UAV's field of
+   view at its rate, and the measurements reach the core as ``Detection`` events;
+5. every second of mission time the metrics are sampled.
+
+No clock is read except to report the wall time the run took.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from groundstation.core.commands import (
+    Command,
+    FlyToTarget,
+    PlanAdopted,
+    ReleaseVehicle,
+    SendHome,
+    SolveRequest,
+)
+from groundstation.core.config import CoreConfig, ReplanPolicy, config_to_dict
+from groundstation.core.decision import DecisionCore
+from groundstation.core.events import (
+    BatteryLow,
+    BoatPosition,
+    Detection,
+    Event,
+    LoiterEnded,
+    OperatorOverride,
+    OperatorResume,
+    PlanSolved,
+    TargetAdded,
+    TargetRemoved,
+    Telemetry,
+    Tick,
+    VehicleJoined,
+    VehicleLost,
+    VehicleRebooted,
+    VehicleReturned,
+)
+from groundstation.core.records import command_to_record, event_to_record
+from groundstation.runners.metrics import MetricsRecorder
+from groundstation.runners.sim_vehicle import OfflineVehicle
+from observer import ObserverConfig
+from planner import solve_plan
+from sitl.dynamics import UavState
+from sitl.scenario import Scenario, ScriptedEvent, resolve_targets
+from sitl.world import Boat, Camera, Iceberg, World
+
+__all__ = ["SimulationOptions", "SimulationRun", "core_config_for", "run_simulation"]
+
+
+@dataclass(frozen=True)
+class SimulationOptions:
+    seed: int = 0
+    uavs: int | None = None
+    duration_s: float | None = None
+    num_workers: int = 1
+    deterministic: bool = True
+    objective: str | None = None
+    snapshot_times_s: tuple[float, ...] = ()
+    progress: Callable[[float, float], None] | None = None
+    journal: bool = False
+
+
+@dataclass
+class MapSnapshot:
+    t_s: float
+    uav_xy_m: dict[str, tuple[float, float]]
+    routes: dict[str, list[str]]
+    estimates: dict[str, tuple[float, float, float]]
+    truth: dict[str, tuple[float, float]]
+    boat_xy_m: tuple[float, float] | None
+
+
+@dataclass
+class SimulationRun:
+    """Everything a run produced: metrics and the history the plots draw."""
+
+    scenario: Scenario
+    options: SimulationOptions
+    metrics: dict[str, Any]
+    uav_tracks: dict[str, list[tuple[float, float, float]]] = field(default_factory=dict)
+    target_truth: dict[str, list[tuple[float, float, float]]] = field(default_factory=dict)
+    target_estimates: dict[str, list[tuple[float, float, float, float]]] = field(
+        default_factory=dict
+    )
+    boat_track: list[tuple[float, float, float]] = field(default_factory=list)
+    snapshots: list[MapSnapshot] = field(default_factory=list)
+    events: list[dict[str, Any]] = field(default_factory=list)
+    journal: list[dict[str, Any]] = field(default_factory=list)
+
+
+def core_config_for(scenario: Scenario, objective: str | None = None) -> CoreConfig:
+    """The decision core's configuration as a scenario describes it."""
+    obs = scenario.observer
+    return CoreConfig(
+        policy=ReplanPolicy.from_names(
+            scenario.policy.replan, scenario.policy.period_s, scenario.policy.commit
+        ),
+        observer=ObserverConfig(
+            model=obs.model,
+            q_per_s=obs.q_per_s,
+            r_m2=obs.r_m2,
+            max_step_s=obs.step_s,
+            fov_radius_m=scenario.fleet.fov_radius_m,
+            linear_growth_per_s=obs.linear_growth_per_s,
+        ),
+        turn_radius_m=scenario.fleet.turn_radius_m,
+        speed_m_s=scenario.fleet.speed_m_s,
+        loiter_s=scenario.fleet.loiter_s,
+        loiter_radius_m=scenario.fleet.loiter_radius_m,
+        tau=scenario.planner.tau,
+        objective=objective or scenario.planner.objective,
+        time_limit_s=scenario.planner.time_limit_s,
+        min_sigma_fraction=scenario.planner.min_sigma_fraction,
+        priority_gain=obs.priority_gain,
+        priority_near_m=obs.priority_near_m,
+        priority_far_m=obs.priority_far_m,
+    )
+
+
+class _Simulation:
+    def __init__(self, scenario: Scenario, options: SimulationOptions) -> None:
+        self.scenario = scenario
+        self.options = options
+        self.rng = np.random.default_rng(options.seed)
+        self.dt_s = scenario.observer.step_s
+        self.duration_s = options.duration_s or scenario.duration_s
+        self.core = DecisionCore(core_config_for(scenario, options.objective))
+        self.metrics = MetricsRecorder()
+        self.run = SimulationRun(scenario, options, metrics={})
+        targets = resolve_targets(scenario, self.rng)
+        boat = scenario.boat
+        camera = Camera(scenario.fleet.fov_radius_m, scenario.observer.camera_rate_hz,
+                        scenario.observer.r_m2)
+        self.world = World(
+            [], Boat(boat.x_m, boat.y_m, boat.heading_rad, boat.speed_m_s) if boat else None,
+            camera, self.rng,
+        )
+        count = options.uavs or scenario.fleet.count
+        x0, y0 = scenario.launch_point()
+        fleet = scenario.fleet
+        self.vehicles = {
+            str(k + 1): OfflineVehicle(
+                str(k + 1), UavState(x0, y0, heading, fleet.speed_m_s), fleet.turn_radius_m,
+                fleet.arrival_radius_m, loiter_radius_m=fleet.loiter_radius_m,
+            )
+            for k, heading in enumerate(fleet.launch_headings_rad(count))
+        }
+        self.script: list[ScriptedEvent] = [
+            ScriptedEvent(t.appear_s, "target_added", target=t) for t in targets
+        ] + list(scenario.events)
+        self.script.sort(key=lambda e: e.t_s)
+        self.script_index = 0
+        self.snapshot_times = sorted(options.snapshot_times_s)
+        if options.journal:
+            self.core.on_input = lambda event: self.run.journal.append(event_to_record(event))
+            self.run.journal.append({
+                "event": "start", "t": 0.0, "frontend": "simulate", "scenario": scenario.name,
+                "seed": options.seed, "uavs": len(self.vehicles),
+                "policy": self.core.config.policy.describe(),
+                "objective": self.core.config.objective,
+                "duration_s": self.duration_s,
+                "core_config": config_to_dict(self.core.config),
+            })
+
+    # --------------------------------------------------------------- core plumbing
+    def feed(self, event: Event) -> None:
+        pending = self.core.handle(event)
+        while pending:
+            command = pending.pop(0)
+            pending.extend(self.execute(command))
+
+    def execute(self, command: Command) -> list[Command]:
+        if self.options.journal:
+            self.run.journal.append(command_to_record(command))
+        if isinstance(command, SolveRequest):
+            result = solve_plan(
+                command.problem, command.hint, num_workers=self.options.num_workers,
+                random_seed=self.options.seed, deterministic=self.options.deterministic,
+            )
+            return self.core.handle(PlanSolved(command.t_s, command.request_id, result))
+        if isinstance(command, PlanAdopted):
+            self.metrics.plan(command.result.solve_time_s)
+        elif isinstance(command, FlyToTarget):
+            vehicle = self.vehicles[command.vehicle]
+            if vehicle.commanded:
+                vehicle.command_fly(command.x_m, command.y_m, command.loiter_s,
+                                    command.loiter_radius_m, command.target)
+        elif isinstance(command, SendHome):
+            vehicle = self.vehicles[command.vehicle]
+            vehicle.commanded = False
+            vehicle.command_hold(*self.scenario.launch_point(), vehicle.loiter_radius_m)
+            self.log(command.t_s, "send_home", vehicle=command.vehicle)
+        elif isinstance(command, ReleaseVehicle):
+            vehicle = self.vehicles[command.vehicle]
+            vehicle.commanded = False
+            vehicle.command_hold(vehicle.state.x_m, vehicle.state.y_m, vehicle.loiter_radius_m)
+            self.log(command.t_s, "release", vehicle=command.vehicle, reason=command.reason)
+        return []
+
+    def log(self, t_s: float, event: str, **fields: Any) -> None:
+        self.run.events.append({"t_s": round(t_s, 3), "event": event, **fields})
+        if self.options.journal:
+            self.run.journal.append({"event": event, "t": t_s, **fields})
+
+    # --------------------------------------------------------------- scripted events
+    def apply_script(self, t_s: float) -> None:
+        while self.script_index < len(self.script) and self.script[self.script_index].t_s <= (
+            t_s + 1e-9
+        ):
+            item = self.script[self.script_index]
+            self.script_index += 1
+            self.apply_scripted(t_s, item)
+
+    def apply_scripted(self, t_s: float, item: ScriptedEvent) -> None:
+        self.log(t_s, item.kind, vehicle=item.vehicle,
+                 target=item.target.id if item.target else item.target_id)
+        if item.kind == "target_added" and item.target is not None:
+            spec = item.target
+            self.world.add_iceberg(Iceberg(spec.id, spec.x_m, spec.y_m, spec.vx_m_s,
+                                           spec.vy_m_s, self.scenario.observer.iceberg_q_per_s))
+            self.feed(TargetAdded(t_s, spec.id, spec.x_m, spec.y_m, spec.vx_m_s, spec.vy_m_s,
+                                  spec.sigma0))
+            return
+        if item.kind == "target_removed" and item.target_id is not None:
+            if item.target_id in self.world.icebergs:
+                self.world.remove_iceberg(item.target_id)
+            self.feed(TargetRemoved(t_s, item.target_id))
+            return
+        vehicle_id = item.vehicle or ""
+        vehicle = self.vehicles.get(vehicle_id)
+        if vehicle is None:
+            self.log(t_s, "script_error", detail=f"no vehicle {vehicle_id!r}")
+            return
+        if item.kind == "vehicle_lost":
+            vehicle.lost = True
+            self.feed(VehicleLost(t_s, vehicle_id))
+        elif item.kind == "vehicle_returned":
+            vehicle.lost = False
+            self.feed(self.telemetry(t_s, vehicle))
+            self.feed(VehicleReturned(t_s, vehicle_id))
+        elif item.kind == "vehicle_rebooted":
+            vehicle.command_hold(vehicle.state.x_m, vehicle.state.y_m, vehicle.loiter_radius_m)
+            self.feed(VehicleRebooted(t_s, vehicle_id))
+        elif item.kind == "override":
+            vehicle.commanded = False
+            self.feed(OperatorOverride(t_s, vehicle_id))
+        elif item.kind == "resume":
+            vehicle.commanded = True
+            self.feed(OperatorResume(t_s, vehicle_id))
+        elif item.kind == "battery_low":
+            self.feed(BatteryLow(t_s, vehicle_id))
+
+    @staticmethod
+    def telemetry(t_s: float, vehicle: OfflineVehicle) -> Telemetry:
+        s = vehicle.state
+        return Telemetry(t_s, vehicle.id, s.x_m, s.y_m, s.heading_rad, s.speed_m_s)
+
+    # --------------------------------------------------------------- the loop
+    def execute_run(self) -> SimulationRun:
+        wall_start = time.perf_counter()
+        for vehicle in self.vehicles.values():
+            s = vehicle.state
+            self.feed(VehicleJoined(0.0, vehicle.id, s.x_m, s.y_m, s.heading_rad, s.speed_m_s))
+        steps = round(self.duration_s / self.dt_s)
+        next_sample_s = 0.0
+        for k in range(steps + 1):
+            t_s = k * self.dt_s
+            self.apply_script(t_s)
+            for vehicle in self.vehicles.values():
+                if not vehicle.lost:
+                    self.feed(self.telemetry(t_s, vehicle))
+            if self.world.boat is not None and self.core.config.priority_gain > 0:
+                self.feed(BoatPosition(t_s, self.world.boat.x_m, self.world.boat.y_m))
+            self.feed(Tick(t_s))
+            if t_s >= next_sample_s - 1e-9:
+                self.sample(t_s)
+                next_sample_s += 1.0
+                if self.options.progress is not None:
+                    self.options.progress(t_s, self.duration_s)
+            if k == steps:
+                break
+            for vehicle in self.vehicles.values():
+                if vehicle.step(t_s, self.dt_s) and not vehicle.lost and vehicle.commanded:
+                    if self.options.journal:
+                        self.run.journal.append({"event": "loiter_end", "t": t_s + self.dt_s,
+                                                 "vehicle": vehicle.id})
+                    self.feed(LoiterEnded(t_s + self.dt_s, vehicle.id))
+            self.world.step(self.dt_s)
+            positions = {v.id: (v.state.x_m, v.state.y_m) for v in self.vehicles.values()}
+            for m in self.world.observe(positions):
+                if self.vehicles[m.vehicle].lost:
+                    continue
+                if self.options.journal:
+                    self.run.journal.append({"event": "detection", "t": m.t_s,
+                                             "vehicle": m.vehicle, "target": m.target,
+                                             "x_m": m.x_m, "y_m": m.y_m})
+                before = self.core.counters.get("detections_accepted", 0)
+                self.feed(Detection(m.t_s, m.vehicle, m.target, m.x_m, m.y_m, m.r_m2))
+                if self.core.counters.get("detections_accepted", 0) > before:
+                    self.metrics.seen(m.t_s, m.vehicle, m.target)
+        wall = time.perf_counter() - wall_start
+        metrics = self.metrics.to_dict(wall)
+        metrics["realtime_factor"] = self.duration_s / wall if wall > 0 else math.inf
+        metrics["scenario"] = self.scenario.name
+        metrics["uavs"] = len(self.vehicles)
+        metrics["seed"] = self.options.seed
+        metrics["duration_s"] = self.duration_s
+        metrics["policy"] = self.core.config.policy.describe()
+        metrics["objective"] = self.core.config.objective
+        metrics["observer_counters"] = dict(self.core.observer.counters)
+        self.run.metrics = metrics
+        return self.run
+
+    def sample(self, t_s: float) -> None:
+        tracks = self.core.observer.tracks()
+        self.metrics.sample(t_s, (tr.sigma for tr in tracks))
+        truth = self.world.true_positions()
+        for tr in tracks:
+            if tr.lost:
+                self.metrics.mark_lost(tr.id)
+            if tr.id in truth:
+                tx, ty = truth[tr.id]
+                self.metrics.error(tr.id, math.hypot(tr.x_m - tx, tr.y_m - ty))
+            self.run.target_estimates.setdefault(tr.id, []).append((t_s, tr.x_m, tr.y_m,
+                                                                    tr.sigma))
+        for target, (x, y) in truth.items():
+            self.run.target_truth.setdefault(target, []).append((t_s, x, y))
+        if self.options.journal:
+            for tr in tracks:
+                self.run.journal.append({
+                    "event": "track", "t": t_s, "target": tr.id, "x_m": tr.x_m, "y_m": tr.y_m,
+                    "vx_m_s": tr.vx_m_s, "vy_m_s": tr.vy_m_s, "sigma": tr.sigma,
+                    "lost": tr.lost,
+                })
+            for target, (x, y) in truth.items():
+                self.run.journal.append({"event": "truth", "t": t_s, "target": target,
+                                         "x_m": x, "y_m": y})
+            if self.world.boat is not None:
+                self.run.journal.append({"event": "boat", "t": t_s, "x_m": self.world.boat.x_m,
+                                         "y_m": self.world.boat.y_m})
+        for vehicle in self.vehicles.values():
+            self.run.uav_tracks.setdefault(vehicle.id, []).append(
+                (t_s, vehicle.state.x_m, vehicle.state.y_m)
+            )
+        boat = self.world.boat
+        if boat is not None:
+            self.run.boat_track.append((t_s, boat.x_m, boat.y_m))
+        while self.snapshot_times and self.snapshot_times[0] <= t_s + 1e-9:
+            self.snapshot_times.pop(0)
+            self.run.snapshots.append(MapSnapshot(
+                t_s=t_s,
+                uav_xy_m={v.id: (v.state.x_m, v.state.y_m) for v in self.vehicles.values()},
+                routes={
+                    v.id: [r for r in v.route] for v in self.core.vehicles.values()
+                },
+                estimates={tr.id: (tr.x_m, tr.y_m, tr.sigma) for tr in tracks},
+                truth=dict(truth),
+                boat_xy_m=(boat.x_m, boat.y_m) if boat else None,
+            ))
+
+
+def run_simulation(scenario: Scenario, options: SimulationOptions | None = None) -> SimulationRun:
+    """Run ``scenario`` in virtual time and return its metrics and history."""
+    options = options or SimulationOptions()
+    if options.uavs is not None and options.uavs < 1:
+        raise ValueError("the fleet needs at least one UAV")
+    if options.duration_s is not None and not options.duration_s > 0:
+        raise ValueError("duration must be > 0 s")
+    if not options.snapshot_times_s:
+        duration = options.duration_s or scenario.duration_s
+        options = replace(options, snapshot_times_s=(duration / 4, duration / 2, duration))
+    return _Simulation(scenario, options).execute_run()

@@ -1,0 +1,162 @@
+"""The offline simulator: the paper's claims, the field test, metrics, scripted events."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import statistics
+from pathlib import Path
+
+import pytest
+
+from groundstation.cli import main
+from groundstation.runners.metrics import boundedness_ratio
+from groundstation.runners.simulate import SimulationOptions, run_simulation
+from sitl.scenario import ScriptedEvent, load_scenario
+
+METRIC_KEYS = {
+    "uncertainty_series", "mean_uncertainty", "max_uncertainty", "final_uncertainty",
+    "max_estimation_error_m", "lost_targets", "visits", "plans", "solve_time_s", "wall_time_s",
+}
+NO_SNAPSHOTS = (1.0,)
+
+
+def simulate(name: str, uavs: int | None = None, seed: int = 0, **kw: object) -> dict:
+    options = SimulationOptions(seed=seed, uavs=uavs, snapshot_times_s=NO_SNAPSHOTS, **kw)
+    return run_simulation(load_scenario(name), options).metrics
+
+
+def test_three_uavs_keep_uncertainty_bounded_where_one_cannot() -> None:
+    """The paper's Figure 4 over four seeds (figures for 20 seeds: benchmarks/)."""
+    one = [simulate("paper-boat", 1, seed) for seed in range(4)]
+    three = [simulate("paper-boat", 3, seed) for seed in range(4)]
+    assert not any(m["bounded"] for m in one)
+    assert sum(m["bounded"] for m in three) >= 3
+    for m1, m3 in zip(one, three, strict=True):
+        assert m3["mean_uncertainty"] < m1["mean_uncertainty"] / 3
+        assert len(m3["visits"]) > len(m1["visits"])
+    # one UAV: the average keeps growing to the end of the run
+    assert all(m["final_uncertainty"] > 0.5 * m["max_uncertainty"] for m in one)
+
+
+def test_field_test_visits_every_target_and_the_fifth_after_it_appears() -> None:
+    metrics = simulate("svalbard-2015")
+    visited = {v["target"] for v in metrics["visits"]}
+    assert visited == {"T1", "T2", "T3", "T4", "T5"}
+    first_t5 = min(v["t_s"] for v in metrics["visits"] if v["target"] == "T5")
+    assert first_t5 > 100.0
+    # event-based: one plan per loiter end (30 s loiters over an 800 s run)
+    assert 5 <= metrics["plans"] <= 800 / 30
+    # linear model: sigma grows 1/s unseen, so the average stays below the run length
+    assert metrics["max_uncertainty"] < 800
+    assert metrics["lost_targets"] == []
+
+
+def test_metrics_have_the_documented_keys_and_a_sample_every_second() -> None:
+    metrics = simulate("paper-boat", 3, duration_s=20.0)
+    assert set(metrics) >= METRIC_KEYS
+    times = [t for t, _ in metrics["uncertainty_series"]]
+    assert times == pytest.approx([float(k) for k in range(21)])
+    assert set(metrics["solve_time_s"]) == {"median", "max"}
+    json.dumps(metrics)  # serialisable
+
+
+def test_runs_are_reproducible_for_a_seed() -> None:
+    a = simulate("paper-boat", 3, seed=7, duration_s=60.0)
+    b = simulate("paper-boat", 3, seed=7, duration_s=60.0)
+    c = simulate("paper-boat", 3, seed=8, duration_s=60.0)
+    assert a["uncertainty_series"] == b["uncertainty_series"]
+    assert a["visits"] == b["visits"]
+    assert a["uncertainty_series"] != c["uncertainty_series"]
+
+
+def test_scripted_fleet_events_change_who_is_planned() -> None:
+    base = load_scenario("paper-boat")
+    events = (
+        ScriptedEvent(20.0, "vehicle_lost", vehicle="2"),
+        ScriptedEvent(50.0, "vehicle_returned", vehicle="2"),
+        ScriptedEvent(60.0, "override", vehicle="3"),
+        ScriptedEvent(80.0, "resume", vehicle="3"),
+        ScriptedEvent(90.0, "battery_low", vehicle="1"),
+        ScriptedEvent(95.0, "target_removed", target_id="T1"),
+    )
+    scenario = dataclasses.replace(base, duration_s=200.0, events=events)
+    run = run_simulation(scenario, SimulationOptions(seed=1, uavs=3,
+                                                     snapshot_times_s=NO_SNAPSHOTS))
+    kinds = [e["event"] for e in run.events]
+    assert "release" in kinds and "send_home" in kinds
+    visits = run.metrics["visits"]
+    assert not [v for v in visits if v["vehicle"] == "2" and 20.0 < v["t_s"] < 50.0]
+    assert not [v for v in visits if v["target"] == "T1" and v["t_s"] > 95.0]
+    # the vehicle sent home ends near the launch point (the boat's start)
+    x, y = run.uav_tracks["1"][-1][1:]
+    assert abs(x - 1500.0) < 400 and abs(y) < 400
+
+
+def test_boundedness_ratio_definition() -> None:
+    flat = [[float(t), 10.0] for t in range(11)]
+    assert boundedness_ratio(flat) == 1.0
+    growing = [[float(t), float(t)] for t in range(11)]
+    assert boundedness_ratio(growing) == pytest.approx(10 / 5)
+
+
+def test_cli_writes_metrics_and_plots_for_a_fleet_list(tmp_path: Path,
+                                                       capsys: pytest.CaptureFixture) -> None:
+    status = main(["simulate", "--scenario", "paper-boat", "--uavs", "1,3", "--seed", "2",
+                   "--duration", "30", "--out", str(tmp_path), "--quiet"])
+    assert status == 0
+    for k in (1, 3):
+        metrics = json.loads((tmp_path / f"uavs-{k}" / "metrics.json").read_text())
+        assert metrics["uavs"] == k
+        for png in ("uncertainty.png", "map.png"):
+            data = (tmp_path / f"uavs-{k}" / png).read_bytes()
+            assert data.startswith(b"\x89PNG") and len(data) > 10_000
+    assert (tmp_path / "comparison.png").read_bytes().startswith(b"\x89PNG")
+    out = capsys.readouterr().out
+    assert "uavs" in out and str(tmp_path / "uavs-3") in out
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--scenario", "nope"], "no such file or bundled scenario"),
+        (["--uavs", "0"], "--uavs takes positive integers"),
+        (["--uavs", "two"], "--uavs takes positive integers"),
+        (["--duration", "-5"], "expected a positive number"),
+    ],
+)
+def test_cli_user_errors_are_one_line_with_status_2(
+    args: list[str], message: str, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    try:
+        status = main(["simulate", *args, "--out", str(tmp_path)])
+    except SystemExit as exc:  # argparse reports type errors by exiting with 2
+        status = int(exc.code or 0)
+    assert status == 2
+    err = capsys.readouterr().err
+    assert message in err
+    assert "Traceback" not in err
+
+
+def test_arrival_objective_runs_and_is_reported() -> None:
+    metrics = simulate("paper-boat", 3, seed=1, duration_s=60.0, objective="arrival")
+    assert metrics["objective"] == "arrival"
+    assert statistics.fmean(s for _, s in metrics["uncertainty_series"]) > 0
+
+
+def test_boat_priority_run_replays_identically(tmp_path: Path) -> None:
+    """The boat's position is a recorded core input, so a priority run replays exactly."""
+    from importlib import resources
+
+    text = (resources.files("sitl") / "scenarios" / "paper-boat.yaml").read_text()
+    scenario = tmp_path / "priority.yaml"
+    scenario.write_text(text.replace("  iceberg_q_per_s: 0.0",
+                                     "  iceberg_q_per_s: 0.0\n  priority_gain: 4.0"))
+    out = tmp_path / "run"
+    assert main(["simulate", "--scenario", str(scenario), "--uavs", "2", "--duration", "40",
+                 "--out", str(out), "--quiet", "--no-plots"]) == 0
+    lines = (out / "journal.jsonl").read_text().splitlines()
+    assert any('"kind": "BoatPosition"' in line for line in lines)
+    assert main(["replay", str(out)]) == 0
+    # and a changed priority gain is a difference
+    assert main(["replay", str(out), "--set", "priority_gain=0.5"]) == 1
