@@ -1,0 +1,308 @@
+"""``gcs target``: add, move, remove and list the targets of a running daemon.
+
+    gcs target add ICE7 --x 1200 --y -300 [--vx 0.5 --vy -0.2 --sigma0 5]
+    gcs target add --lat 78.94 --lon 11.93          # the daemon names it
+    gcs target move ICE7 --x 1210 --y -310
+    gcs target remove ICE7
+    gcs target list [--json]
+
+A client of the daemon's control API (docs/control.md): ``--api URL`` (default ``$FLOE_API``
+or http://127.0.0.1:8080) and, for writes, ``--token`` (default ``$FLOE_TOKEN``; printed by
+``gcs run`` at start-up). Exit status: 0 done, 1 refused by the daemon (unknown id, outside
+the operating area ...) or daemon unreachable, 2 user error (bad option, missing or wrong
+token, request rejected as malformed).
+
+This module also holds the small HTTP client shared with ``gcs vehicle``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+import urllib.error
+import urllib.parse
+import urllib.request
+from typing import Any
+
+__all__ = ["ApiClient", "ApiError", "add_api_options", "run", "table"]
+
+DEFAULT_API = "http://127.0.0.1:8080"
+EXIT_REFUSED = 1
+EXIT_USAGE = 2
+
+
+class ApiError(Exception):
+    """A failed call: one-line message and the exit status it maps to."""
+
+    def __init__(self, message: str, status: int) -> None:
+        super().__init__(message)
+        self.status = status
+
+
+def add_api_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--api",
+        default=None,
+        metavar="URL",
+        help=f"control API of the running daemon (default $FLOE_API or {DEFAULT_API})",
+    )
+    p.add_argument(
+        "--token", default=None, help="write token printed by 'gcs run' (default $FLOE_TOKEN)"
+    )
+    p.add_argument("--timeout", type=float, default=5.0, help="seconds to wait (default 5)")
+
+
+class ApiClient:
+    """Blocking JSON client of the control API (stdlib only)."""
+
+    def __init__(self, api: str | None, token: str | None, timeout_s: float = 5.0) -> None:
+        base = (api or os.environ.get("FLOE_API") or DEFAULT_API).strip().rstrip("/")
+        parsed = urllib.parse.urlsplit(base)
+        if parsed.scheme not in ("http", "https") or not parsed.hostname:
+            raise ApiError(f"--api: expected http://HOST:PORT, got {base!r}", EXIT_USAGE)
+        try:
+            parsed.port  # noqa: B018 - validates the port
+        except ValueError:
+            raise ApiError(f"--api: bad port in {base!r}", EXIT_USAGE) from None
+        if not (math.isfinite(timeout_s) and timeout_s > 0):
+            raise ApiError("--timeout: must be a positive number of seconds", EXIT_USAGE)
+        self.base = base
+        self.token = token if token is not None else os.environ.get("FLOE_TOKEN")
+        self.timeout_s = timeout_s
+
+    def get(self, path: str) -> Any:
+        return self.request("GET", path)
+
+    def write(self, method: str, path: str, body: dict[str, Any] | None = None) -> Any:
+        if not self.token:
+            raise ApiError(
+                "no token: pass the token printed by 'gcs run' with --token or FLOE_TOKEN",
+                EXIT_USAGE,
+            )
+        return self.request(method, path, body)
+
+    def request(self, method: str, path: str, body: dict[str, Any] | None = None) -> Any:
+        headers = {"Accept": "application/json"}
+        data = None
+        if body is not None:
+            data = json.dumps(body).encode()
+            headers["Content-Type"] = "application/json"
+        if method != "GET" and self.token:
+            headers["Authorization"] = f"Bearer {self.token}"
+        req = urllib.request.Request(self.base + path, data=data, method=method, headers=headers)
+        try:
+            with urllib.request.urlopen(req, timeout=self.timeout_s) as resp:
+                return self._decode(resp.read())
+        except urllib.error.HTTPError as exc:
+            raise self._http_error(exc) from None
+        except urllib.error.URLError as exc:
+            reason = exc.reason
+            if isinstance(reason, ConnectionRefusedError):
+                raise ApiError(
+                    f"daemon not running at {self.base} (connection refused; "
+                    "start 'gcs run --http ...' or set --api/FLOE_API)",
+                    EXIT_REFUSED,
+                ) from None
+            if isinstance(reason, TimeoutError):
+                raise ApiError(
+                    f"no answer from {self.base} within {self.timeout_s:g} s", EXIT_REFUSED
+                ) from None
+            raise ApiError(
+                f"cannot reach the daemon at {self.base}: {reason}", EXIT_REFUSED
+            ) from None
+        except TimeoutError:
+            raise ApiError(
+                f"no answer from {self.base} within {self.timeout_s:g} s", EXIT_REFUSED
+            ) from None
+        except (ConnectionError, OSError) as exc:
+            raise ApiError(f"connection to {self.base} failed: {exc}", EXIT_REFUSED) from None
+
+    def _decode(self, raw: bytes) -> Any:
+        try:
+            return json.loads(raw)
+        except (UnicodeDecodeError, json.JSONDecodeError):
+            raise ApiError(
+                f"{self.base} did not answer JSON: is it a floe daemon?", EXIT_REFUSED
+            ) from None
+
+    def _http_error(self, exc: urllib.error.HTTPError) -> ApiError:
+        try:
+            reason = str(json.loads(exc.read()).get("error") or exc.reason)
+        except (ValueError, AttributeError, OSError):
+            reason = str(exc.reason)
+        reason = " ".join(reason.split())
+        if exc.code == 401:
+            return ApiError(
+                f"token rejected by {self.base}: pass the token printed by "
+                "'gcs run' with --token or FLOE_TOKEN",
+                EXIT_USAGE,
+            )
+        if exc.code in (400, 413):
+            return ApiError(f"bad request: {reason}", EXIT_USAGE)
+        if exc.code == 404 and reason.lower() in ("not found", ""):
+            return ApiError(
+                f"{self.base} has no control API here: is it a floe daemon?", EXIT_REFUSED
+            )
+        if exc.code in (404, 409):
+            return ApiError(f"refused: {reason}", EXIT_REFUSED)
+        return ApiError(f"daemon error (HTTP {exc.code}): {reason}", EXIT_REFUSED)
+
+
+def table(rows: list[list[str]], header: list[str]) -> str:
+    widths = [max(len(r[i]) for r in [header, *rows]) for i in range(len(header))]
+    lines = [
+        "  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip()
+        for r in [header, *rows]
+    ]
+    return "\n".join(lines)
+
+
+def _fmt(value: Any, digits: int = 1) -> str:
+    if value is None:
+        return "-"
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, float):
+        return f"{value:.{digits}f}"
+    return str(value)
+
+
+def _finite(value: float | None, option: str) -> float | None:
+    if value is not None and not math.isfinite(value):
+        raise ApiError(f"{option}: must be a finite number", EXIT_USAGE)
+    return value
+
+
+def _position(args: argparse.Namespace) -> dict[str, float]:
+    x, y = _finite(args.x, "--x"), _finite(args.y, "--y")
+    lat, lon = _finite(args.lat, "--lat"), _finite(args.lon, "--lon")
+    local, geo = (x is not None or y is not None), (lat is not None or lon is not None)
+    if local and geo:
+        raise ApiError("give either --x/--y or --lat/--lon, not both", EXIT_USAGE)
+    if local:
+        if x is None or y is None:
+            raise ApiError(
+                f"{'--y' if y is None else '--x'}: missing (--x and --y go together)", EXIT_USAGE
+            )
+        return {"x_m": x, "y_m": y}
+    if geo:
+        if lat is None or lon is None:
+            raise ApiError(
+                f"{'--lon' if lon is None else '--lat'}: missing (--lat and --lon go together)",
+                EXIT_USAGE,
+            )
+        if not -90.0 <= lat <= 90.0:
+            raise ApiError("--lat: must be in [-90, 90] degrees", EXIT_USAGE)
+        if not -180.0 <= lon <= 180.0:
+            raise ApiError("--lon: must be in [-180, 180] degrees", EXIT_USAGE)
+        return {"lat_deg": lat, "lon_deg": lon}
+    raise ApiError("position missing: give --x X --y Y (local metres) or --lat --lon", EXIT_USAGE)
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="gcs target",
+        description="Add, move, remove or list the targets of the "
+        "running daemon (through its control API).",
+    )
+    sub = p.add_subparsers(dest="action", required=True, metavar="ACTION")
+
+    def position_options(sp: argparse.ArgumentParser) -> None:
+        sp.add_argument("--x", type=float, help="east of the mission origin (m)")
+        sp.add_argument("--y", type=float, help="north of the mission origin (m)")
+        sp.add_argument("--lat", type=float, help="latitude (deg, WGS-84)")
+        sp.add_argument("--lon", type=float, help="longitude (deg, WGS-84)")
+
+    add = sub.add_parser("add", help="add a target")
+    add.add_argument("id", nargs="?", default=None, help="target id (default: daemon names it)")
+    position_options(add)
+    add.add_argument("--vx", type=float, default=None, help="drift east (m/s)")
+    add.add_argument("--vy", type=float, default=None, help="drift north (m/s)")
+    add.add_argument("--sigma0", type=float, default=None, help="initial uncertainty (m^2)")
+    move = sub.add_parser("move", help="tell the daemon where a target is now")
+    move.add_argument("id", help="target id")
+    position_options(move)
+    remove = sub.add_parser("remove", help="remove a target")
+    remove.add_argument("id", help="target id")
+    lst = sub.add_parser("list", help="list the targets")
+    lst.add_argument("--json", action="store_true", help="print the API's JSON")
+    for sp in (add, move, remove, lst):
+        add_api_options(sp)
+    return p
+
+
+def _quote(target_id: str) -> str:
+    return urllib.parse.quote(target_id, safe="")
+
+
+def _list(client: ApiClient, as_json: bool) -> int:
+    body = client.get("/api/targets")
+    targets = body.get("targets") or [] if isinstance(body, dict) else []
+    if as_json:
+        print(json.dumps(body, indent=2))
+        return 0
+    now = body.get("t") if isinstance(body, dict) else None
+    rows = []
+    for t in targets:
+        seen = t.get("last_seen_s")
+        ago = (
+            f"{now - seen:.0f} s ago"
+            if isinstance(now, int | float) and isinstance(seen, int | float)
+            else "never"
+        )
+        rows.append(
+            [
+                str(t.get("id")),
+                _fmt(t.get("x_m")),
+                _fmt(t.get("y_m")),
+                _fmt(t.get("vx_m_s"), 2),
+                _fmt(t.get("vy_m_s"), 2),
+                _fmt(t.get("sigma")),
+                ago,
+                _fmt(t.get("lost")),
+            ]
+        )
+    print(table(rows, ["id", "x_m", "y_m", "vx_m_s", "vy_m_s", "sigma", "last seen", "lost"]))
+    if not rows:
+        print("(no targets)")
+    return 0
+
+
+def _execute(args: argparse.Namespace) -> int:
+    client = ApiClient(args.api, args.token, args.timeout)
+    if args.action == "list":
+        return _list(client, args.json)
+    if args.action == "add":
+        body: dict[str, Any] = _position(args)
+        if args.id is not None:
+            body["id"] = args.id
+        for option, key in (("vx", "vx_m_s"), ("vy", "vy_m_s"), ("sigma0", "sigma0")):
+            value = _finite(getattr(args, option), f"--{option}")
+            if value is not None:
+                body[key] = value
+        if body.get("sigma0", 0.0) < 0:
+            raise ApiError("--sigma0: must be >= 0", EXIT_USAGE)
+        reply = client.write("POST", "/api/targets", body)
+        print(f"added target {reply.get('target', args.id)}")
+    elif args.action == "move":
+        client.write("PUT", f"/api/targets/{_quote(args.id)}", _position(args))
+        print(f"moved target {args.id}")
+    else:
+        client.write("DELETE", f"/api/targets/{_quote(args.id)}")
+        print(f"removed target {args.id}")
+    return 0
+
+
+def run(argv: list[str]) -> int:
+    try:
+        args = _parser().parse_args(argv)
+    except SystemExit as exc:  # argparse already printed the usage error
+        return int(exc.code or 0) if not isinstance(exc.code, str) else EXIT_USAGE
+    try:
+        return _execute(args)
+    except ApiError as exc:
+        print(f"gcs target: error: {exc}", file=sys.stderr)
+        return exc.status

@@ -1,0 +1,115 @@
+"""``gcs vehicle``: launch, resume, release and list the vehicles of a running daemon.
+
+    gcs vehicle launch uav1      # arm when ready, take off, hand over to floe
+    gcs vehicle release uav2     # stop commanding it (the operator flies it)
+    gcs vehicle resume uav2      # give it back to floe
+    gcs vehicle list [--json]
+
+A vehicle is named by its id, its name or its MAVLink system id. Same ``--api``/``--token``
+options and exit statuses as ``gcs target`` (docs/control.md).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import urllib.parse
+from typing import Any
+
+from groundstation.commands.target import ApiClient, ApiError, add_api_options, table
+
+__all__ = ["run"]
+
+ACTIONS = {
+    "launch": "arm a vehicle on the ground when its pre-arm checks pass, take off, take over",
+    "resume": "give a released or overridden vehicle back to floe",
+    "release": "stop commanding a vehicle (it keeps flying its current mission)",
+}
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="gcs vehicle",
+        description="Launch, resume, release or list the vehicles of "
+        "the running daemon (through its control API).",
+    )
+    sub = p.add_subparsers(dest="action", required=True, metavar="ACTION")
+    for action, text in ACTIONS.items():
+        sp = sub.add_parser(action, help=text)
+        sp.add_argument("id", help="vehicle id, name or system id")
+        add_api_options(sp)
+    lst = sub.add_parser("list", help="list the vehicles")
+    lst.add_argument("--json", action="store_true", help="print the API's JSON")
+    add_api_options(lst)
+    return p
+
+
+def _fmt(value: Any, fmt: str = "{}") -> str:
+    if value is None:
+        return "-"
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    return fmt.format(value)
+
+
+def _list(client: ApiClient, as_json: bool) -> int:
+    body = client.get("/api/vehicles")
+    if as_json:
+        print(json.dumps(body, indent=2))
+        return 0
+    vehicles = (body.get("vehicles") or []) if isinstance(body, dict) else []
+    rows = [
+        [
+            str(v.get("id")),
+            _fmt(v.get("name")),
+            _fmt(v.get("system_id")),
+            _fmt(v.get("mode")),
+            _fmt(v.get("armed")),
+            _fmt(v.get("status")),
+            _fmt(v.get("link")),
+            _fmt(v.get("battery_pct"), "{:.0f}%"),
+            _fmt(v.get("target")),
+            " ".join(str(t) for t in v.get("route") or []) or "-",
+        ]
+        for v in vehicles
+    ]
+    print(
+        table(
+            rows,
+            [
+                "id",
+                "name",
+                "sysid",
+                "mode",
+                "armed",
+                "status",
+                "link",
+                "battery",
+                "target",
+                "route",
+            ],
+        )
+    )
+    if not rows:
+        print("(no vehicles)")
+    return 0
+
+
+def run(argv: list[str]) -> int:
+    try:
+        args = _parser().parse_args(argv)
+    except SystemExit as exc:  # argparse already printed the usage error
+        return int(exc.code or 0) if not isinstance(exc.code, str) else 2
+    try:
+        client = ApiClient(args.api, args.token, args.timeout)
+        if args.action == "list":
+            return _list(client, args.json)
+        ref = urllib.parse.quote(args.id, safe="")
+        reply = client.write("POST", f"/api/vehicles/{ref}/{args.action}")
+        vehicle = reply.get("vehicle", args.id) if isinstance(reply, dict) else args.id
+        print(f"{args.action}: vehicle {vehicle} ok")
+        return 0
+    except ApiError as exc:
+        print(f"gcs vehicle: error: {exc}", file=sys.stderr)
+        return exc.status

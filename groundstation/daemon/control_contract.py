@@ -1,0 +1,81 @@
+"""The contract between the running daemon and its control surfaces (HTTP API, live page).
+
+The daemon implements :class:`DaemonControl`; the HTTP server (``control_server.py``) only
+calls it. Positions are local ENU metres around the mission origin (``x_m`` east, ``y_m``
+north) or WGS-84 degrees; the daemon converts. Every write returns a JSON-able reply
+``{"ok": bool, "error": str | None, ...}``; a refused request (unknown id, position outside
+the operating area, vehicle not in a state to be launched...) is ``ok: false`` with a
+one-line reason, never an exception.
+
+State snapshot (``state()``), JSON-able, the same document the live page draws::
+
+    {
+      "t": mission time (s), "unix_s": float, "speedup": float, "advisory": bool,
+      "origin": {"lat_deg", "lon_deg"}, "operating_radius_m": float | None,
+      "vehicles": [{"id", "name", "system_id", "x_m", "y_m", "alt_m", "heading_rad",
+                    "speed_m_s", "mode", "armed", "status" (active|overridden|lost|home|
+                    on_ground|joining), "link" (ok|degraded|lost), "battery_pct",
+                    "target", "route": [ids], "aim": [x_m, y_m] | None,
+                    "track": [[x_m, y_m], ...] (recent positions)}],
+      "targets": [{"id", "x_m", "y_m", "vx_m_s", "vy_m_s", "sigma", "cov_xy": [pxx, pxy, pyy],
+                   "lost", "last_seen_s"}],
+      "boat": {"x_m", "y_m"} | None,
+      "fov_radius_m": float,
+      "plan": {"t", "routes", "status", "solve_time_s"} | None,
+      "events": [recent journal lines, newest last]
+    }
+"""
+
+from __future__ import annotations
+
+from collections.abc import AsyncIterator
+from typing import Any, Protocol
+
+__all__ = ["VEHICLE_ACTIONS", "DaemonControl"]
+
+VEHICLE_ACTIONS = ("launch", "resume", "release")
+
+
+class DaemonControl(Protocol):
+    """What a control surface may ask of the daemon."""
+
+    def state(self) -> dict[str, Any]:
+        """The live state document (see module docstring)."""
+        ...
+
+    def subscribe(self) -> AsyncIterator[dict[str, Any]]:
+        """Journal events as they happen (for pushing to pages); ends when the daemon stops."""
+        ...
+
+    async def add_target(
+        self,
+        target_id: str | None,
+        *,
+        x_m: float | None = None,
+        y_m: float | None = None,
+        lat_deg: float | None = None,
+        lon_deg: float | None = None,
+        vx_m_s: float = 0.0,
+        vy_m_s: float = 0.0,
+        sigma0: float | None = None,
+    ) -> dict[str, Any]:
+        """Add a target (``target_id`` None: the daemon names it). Reply has ``target``."""
+        ...
+
+    async def move_target(
+        self,
+        target_id: str,
+        *,
+        x_m: float | None = None,
+        y_m: float | None = None,
+        lat_deg: float | None = None,
+        lon_deg: float | None = None,
+    ) -> dict[str, Any]:
+        """Tell the daemon where a target is now (a manual fix, fused as a measurement)."""
+        ...
+
+    async def remove_target(self, target_id: str) -> dict[str, Any]: ...
+
+    async def vehicle_action(self, vehicle_id: str, action: str) -> dict[str, Any]:
+        """``launch``, ``resume`` (give back to floe) or ``release`` (stop commanding)."""
+        ...

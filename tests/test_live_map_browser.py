@@ -1,0 +1,435 @@
+"""The live page in a real headless browser (Debian's chromium + chromium-driver, Selenium).
+
+Two backends: the fake daemon of test_control_fake.py moved in real time (vehicles circling,
+targets drifting), and the real daemon ``gcs run --vehicles sim:3 --sim-airborne --http
+127.0.0.1:0`` in a subprocess. On each: the page loads and draws the map, the vehicles move
+between two reads of the page's state and two screenshots, a target added by clicking on the
+map with the token appears in the daemon's state (and, for the real daemon, in its next
+plan), a target can be removed from the page, and a read-only page cannot change anything.
+Screenshots are saved in pytest's tmp dir and checked (PNG, map drawn: many colours).
+
+Marked ``browser``. Without chromium/chromedriver/selenium the test fails in CI (CI set) with
+the install command, and is skipped (with that reason) elsewhere.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import io
+import json
+import math
+import os
+import re
+import shutil
+import subprocess
+import sys
+import time
+import urllib.parse
+import urllib.request
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+from test_control_fake import ServerThread
+
+pytestmark = pytest.mark.browser
+
+CHROMIUM = os.environ.get("FLOE_CHROMIUM", "/usr/bin/chromium")
+CHROMEDRIVER = os.environ.get("FLOE_CHROMEDRIVER", "/usr/bin/chromedriver")
+FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+         "--disable-background-networking", "--disable-component-update", "--disable-sync",
+         "--disable-dev-shm-usage", "--window-size=1280,800"]
+WAIT_S = 10.0
+
+
+def _missing() -> str | None:
+    for path in (CHROMIUM, CHROMEDRIVER):
+        if not (os.path.exists(path) or shutil.which(path)):
+            return (f"{path} not found: install Debian's browser with "
+                    "'apt-get install -y chromium chromium-driver'")
+    try:
+        import selenium  # noqa: F401
+    except ImportError:
+        return "selenium not installed: pip install 'selenium>=4.15,<5'"
+    return None
+
+
+@pytest.fixture(scope="module")
+def driver(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Any]:
+    reason = _missing()
+    if reason is not None:
+        if os.environ.get("CI"):
+            pytest.fail(f"live-page browser test cannot run: {reason}")
+        pytest.skip(reason)
+    from selenium import webdriver
+    from selenium.webdriver.chrome.service import Service
+
+    options = webdriver.ChromeOptions()
+    options.binary_location = CHROMIUM
+    for flag in FLAGS:
+        options.add_argument(flag)
+    options.add_argument(f"--user-data-dir={tmp_path_factory.mktemp('chromium-profile')}")
+    options.set_capability("goog:loggingPrefs", {"browser": "ALL"})
+    drv = webdriver.Chrome(service=Service(CHROMEDRIVER), options=options)
+    drv.set_page_load_timeout(WAIT_S)
+    drv.set_script_timeout(WAIT_S)
+    try:
+        yield drv
+    finally:
+        drv.quit()
+
+
+# ------------------------------------------------------------------ backends
+
+
+class Backend:
+    url: str
+    token: str
+    real: bool
+
+
+class FakeBackend(Backend):
+    real = False
+
+    def __init__(self, server: ServerThread) -> None:
+        self.server = server
+        self.url, self.token = server.url, server.token
+
+    def writes(self) -> int:
+        return int(self.server.call(lambda: len(self.server.control.calls)))
+
+
+class DaemonBackend(Backend):
+    real = True
+
+    def __init__(self, proc: subprocess.Popen[str], url: str, token: str) -> None:
+        self.proc, self.url, self.token = proc, url, token
+
+    def writes(self) -> int:  # what a write would change: the targets
+        return len(get(self.url, "/api/targets")["targets"])
+
+
+def get(url: str, path: str) -> Any:
+    with urllib.request.urlopen(url + path, timeout=5) as resp:
+        return json.loads(resp.read())
+
+
+def start_daemon(tmp: Path) -> DaemonBackend:
+    cmd = [sys.executable, "-u", "-m", "groundstation.cli", "run", "--vehicles", "sim:3",
+           "--sim-airborne", "--http", "127.0.0.1:0", "--detections", "off", "--speedup", "10",
+           "--duration", "3000", "--status", "log", "--run-dir", str(tmp / "runs")]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                            cwd=tmp)
+    assert proc.stdout is not None
+    deadline = time.monotonic() + 20.0
+    lines: list[str] = []
+    while time.monotonic() < deadline:
+        line = proc.stdout.readline()
+        if not line:
+            break
+        lines.append(line)
+        m = re.search(r"control API (http://\S+) token (\S+)", line)
+        if m:
+            return DaemonBackend(proc, m.group(1), m.group(2))
+    proc.kill()
+    proc.wait(5)
+    raise AssertionError("gcs run did not print its control API:\n" + "".join(lines))
+
+
+@pytest.fixture(params=["fake", "daemon"])
+def backend(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[Backend]:
+    if request.param == "fake":
+        with ServerThread(tick_s=0.1, token="page-token", push_hz=5.0) as server:
+            yield FakeBackend(server)
+        return
+    if not _daemon_available():
+        pytest.skip("gcs run (groundstation/commands/run.py) not available in this tree")
+    daemon = start_daemon(tmp_path)
+    try:
+        yield daemon
+    finally:
+        daemon.proc.terminate()
+        try:
+            daemon.proc.wait(10)
+        except subprocess.TimeoutExpired:
+            daemon.proc.kill()
+            daemon.proc.wait(5)
+
+
+def _daemon_available() -> bool:
+    try:
+        from groundstation.cli import COMMANDS
+    except ImportError:
+        return False
+    return "run" in COMMANDS and (Path(__file__).parents[1] / "groundstation" / "commands"
+                                  / "run.py").exists()
+
+
+# ------------------------------------------------------------------ page helpers
+
+
+def wait_for(cond: Callable[[], Any], what: str, timeout_s: float = WAIT_S) -> Any:
+    deadline = time.monotonic() + timeout_s
+    while True:
+        value = cond()
+        if value:
+            return value
+        if time.monotonic() > deadline:
+            raise AssertionError(f"timed out waiting for {what}")
+        time.sleep(0.05)
+
+
+def vehicle_positions(drv: Any) -> dict[str, tuple[float, float]]:
+    state = drv.execute_script("return window.floe && window.floe.state")
+    return {str(v["id"]): (v["x_m"], v["y_m"]) for v in (state or {}).get("vehicles", [])
+            if v.get("x_m") is not None}
+
+
+def screenshot(drv: Any, path: Path) -> bytes:
+    png = drv.get_screenshot_as_png()
+    path.write_bytes(png)
+    return bytes(png)
+
+
+def check_map_drawn(png: bytes) -> None:
+    """A PNG, not blank: the map canvas region has many colours (grid, icons, ellipses)."""
+    from PIL import Image
+
+    assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 5000
+    image = Image.open(io.BytesIO(png)).convert("RGB")
+    w, h = image.size
+    region = image.crop((0, 40, int(w * 0.6), h))  # the map's side of the page
+    colours = region.getcolors(maxcolors=1_000_000) or []
+    assert len(colours) > 50, f"map looks empty: {len(colours)} colours"
+    dominant = max(count for count, _ in colours) / (region.width * region.height)
+    assert dominant < 0.97, f"map is {dominant:.0%} one colour"
+
+
+def open_page(drv: Any, url: str) -> None:
+    drv.get(url)
+    wait_for(lambda: drv.execute_script(
+        "return window.floe && window.floe.connected && window.floe.states >= 2"),
+        "the page to connect and get states")
+
+
+def click_map(drv: Any, dx: int, dy: int) -> tuple[float, float]:
+    """Click at (dx, dy) pixels from the canvas centre; the world point the page computes."""
+    from selenium.webdriver.common.action_chains import ActionChains
+    from selenium.webdriver.common.by import By
+
+    canvas = drv.find_element(By.ID, "map")
+    ActionChains(drv).move_to_element_with_offset(canvas, dx, dy).perform()
+    time.sleep(0.05)  # the pointer is over the map: the page stops re-fitting the view
+    world = drv.execute_script(
+        "const r = document.getElementById('map').getBoundingClientRect();"
+        "return window.floe.toWorld(r.width / 2 + arguments[0], r.height / 2 + arguments[1]);",
+        dx, dy)
+    ActionChains(drv).click().perform()
+    return float(world[0]), float(world[1])
+
+
+def fetch_from_page(drv: Any, method: str, path: str, body: dict[str, Any] | None) -> int:
+    status: int = drv.execute_async_script(
+        "const done = arguments[arguments.length - 1];"
+        "fetch(arguments[1], {method: arguments[0], headers: {'Content-Type': "
+        "'application/json'}, body: arguments[2] ? JSON.stringify(arguments[2]) : undefined})"
+        ".then(r => done(r.status), e => done(-1));", method, path, body)
+    return status
+
+
+# ------------------------------------------------------------------ the test
+
+
+def test_live_page(driver: Any, backend: Backend, tmp_path: Path) -> None:
+    from selenium.webdriver.common.by import By
+
+    drv = driver
+    shots = tmp_path / "screenshots"
+    shots.mkdir()
+    drv.get("about:blank")
+    drv.get_log("browser")  # drop what an earlier page logged
+
+    # --- read-only page: loads, draws, shows vehicles moving, cannot change anything
+    open_page(drv, backend.url + "/")
+    assert drv.execute_script("return window.floe.write") is False
+    assert "can-write" not in (drv.find_element(By.TAG_NAME, "body").get_attribute("class")
+                               or "")
+    assert drv.find_element(By.ID, "access").text == "read-only"
+    assert not drv.find_element(By.ID, "add-target").is_displayed()
+    wait_for(lambda: len(vehicle_positions(drv)) == 3, "three vehicles on the page")
+    rows = drv.find_elements(By.CSS_SELECTOR, "#vehicles tbody tr")
+    assert len(rows) == 3
+    first = vehicle_positions(drv)
+    png1 = screenshot(drv, shots / "read-only-1.png")
+    check_map_drawn(png1)
+    time.sleep(1.0)
+    second = wait_for(lambda: (p := vehicle_positions(drv)) and max(
+        math.dist(p[k], first[k]) for k in first) > 20.0 and p, "the vehicles to move")
+    png2 = screenshot(drv, shots / "read-only-2.png")
+    check_map_drawn(png2)
+    assert png1 != png2  # the map was redrawn with the vehicles elsewhere
+    assert min(math.dist(second[k], first[k]) for k in first) > 1.0  # every vehicle moved
+
+    before = backend.writes()
+    targets_before = {t["id"] for t in get(backend.url, "/api/targets")["targets"]}
+    click_map(drv, 60, -40)  # a click on a read-only map only selects
+    assert fetch_from_page(drv, "POST", "/api/targets", {"x_m": 1.0, "y_m": 2.0}) == 401
+    assert fetch_from_page(drv, "DELETE", "/api/targets/" + (sorted(targets_before) or ["A"])[0],
+                           None) == 401
+    time.sleep(0.3)
+    assert backend.writes() == before
+    assert {t["id"] for t in get(backend.url, "/api/targets")["targets"]} == targets_before
+
+    # --- with the token: add a target by clicking on the map
+    open_page(drv, f"{backend.url}/?token={backend.token}")
+    wait_for(lambda: drv.execute_script("return window.floe.write"), "the token to be accepted")
+    assert "token=" not in drv.current_url  # removed from the address bar
+    assert drv.find_element(By.ID, "access").text == "control"
+    drv.find_element(By.ID, "new-id").send_keys("WEB1")
+    drv.find_element(By.ID, "add-target").click()
+    assert drv.execute_script("return window.floe.mode") == "add"
+    x, y = click_map(drv, 90, -60)
+
+    def added() -> dict[str, Any] | None:
+        return next((t for t in get(backend.url, "/api/targets")["targets"]
+                     if t["id"] == "WEB1"), None)
+
+    target = wait_for(added, "the clicked target in the daemon's state")
+    assert math.dist((target["x_m"], target["y_m"]), (x, y)) < 5.0
+    wait_for(lambda: "WEB1" in drv.find_element(By.ID, "targets").text,
+             "the new target in the page's table")
+    wait_for(lambda: "target_added" in drv.find_element(By.ID, "events").text,
+             "the target_added event on the page")
+
+    def planned() -> bool:
+        events = get(backend.url, "/api/events?since=0")["events"]
+        plans = [e["line"] for e in events if e["line"].get("event") == "plan"]
+        in_plan = any("WEB1" in json.dumps(p.get("routes")) for p in plans)
+        vehicles = get(backend.url, "/api/vehicles")["vehicles"]
+        return in_plan or any(v.get("target") == "WEB1" or "WEB1" in (v.get("route") or [])
+                              for v in vehicles)
+
+    wait_for(planned, "a plan that includes the new target")
+    time.sleep(0.5)
+    check_map_drawn(screenshot(drv, shots / "control-added.png"))
+
+    # --- and remove it from the page: select its row, press Remove
+    row = drv.find_element(By.CSS_SELECTOR, '#targets tbody tr[data-id="WEB1"]')
+    row.click()
+    drv.find_element(By.ID, "remove-target").click()
+    wait_for(lambda: added() is None, "the target to be removed")
+    check_map_drawn(screenshot(drv, shots / "control-removed.png"))
+    for name in ("read-only-1", "read-only-2", "control-added", "control-removed"):
+        assert (shots / f"{name}.png").stat().st_size > 5000
+
+    if isinstance(backend, FakeBackend):
+        check_pan_and_zoom(drv, backend)
+        check_reconnect(drv, backend)
+    errors = [e for e in drv.get_log("browser") if e.get("level") == "SEVERE"
+              and "401" not in e.get("message", "")]  # the read-only writes above
+    drv.get("about:blank")  # leave no page reconnecting to a stopped server
+    assert errors == [], errors
+
+
+def check_pan_and_zoom(drv: Any, backend: FakeBackend) -> None:
+    """Dragging pans the map (and adds nothing); the zoom button zooms."""
+    from selenium.webdriver.common.action_chains import ActionChains
+    from selenium.webdriver.common.by import By
+
+    writes = backend.writes()
+    canvas = drv.find_element(By.ID, "map")
+    ActionChains(drv).move_to_element(canvas).perform()  # hovering: no automatic re-fit
+    time.sleep(0.05)
+    corner = drv.execute_script("return window.floe.toWorld(0, 0)")
+    ActionChains(drv).click_and_hold().move_by_offset(120, 80).release().perform()
+    moved = drv.execute_script("return window.floe.toWorld(0, 0)")
+    scale = drv.execute_script("const a = window.floe.toWorld(0, 0), b = window.floe.toWorld("
+                               "100, 0); return b[0] - a[0];")
+    assert moved[0] == pytest.approx(corner[0] - 120 * scale / 100, abs=3 * scale / 100)
+    assert moved[1] == pytest.approx(corner[1] + 80 * scale / 100, abs=3 * scale / 100)
+    drv.find_element(By.ID, "zoom-in").click()
+    zoomed = drv.execute_script("const a = window.floe.toWorld(0, 0), b = window.floe.toWorld("
+                                "100, 0); return b[0] - a[0];")
+    assert zoomed == pytest.approx(scale / 1.5, rel=0.01)
+    drv.find_element(By.ID, "fit").click()
+    assert backend.writes() == writes
+
+
+def check_reconnect(drv: Any, backend: FakeBackend) -> None:
+    """Cut every page's WebSocket: the page reconnects and catches up what it missed."""
+    from selenium.webdriver.common.by import By
+
+    server = backend.server
+    connections = drv.execute_script("return window.floe.connections")
+
+    async def cut() -> None:
+        for client in list(server.server._clients):
+            await client.ws.close()
+        server.control.emit("while_away", vehicle="uav1")  # before the page is back
+
+    asyncio.run_coroutine_threadsafe(cut(), server.loop).result(5.0)
+    wait_for(lambda: drv.execute_script(
+        "return window.floe.connected && window.floe.connections") == connections + 1,
+        "the page to reconnect")
+    wait_for(lambda: "while_away" in drv.find_element(By.ID, "events").text,
+             "the missed event on the page")
+    seqs = drv.execute_script("return window.floe.events.map(e => e.seq)")
+    assert seqs == sorted(set(seqs))  # nothing shown twice
+
+
+TILE_RGB = (250, 236, 190)
+
+
+def test_tile_layer_only_when_configured(driver: Any, tmp_path: Path) -> None:
+    """No tile is fetched by default (offline grid); with ?tiles=TEMPLATE the page draws
+    Web-Mercator tiles from that server under the map."""
+    import http.server
+    import threading
+
+    from PIL import Image
+
+    buf = io.BytesIO()
+    Image.new("RGB", (256, 256), TILE_RGB).save(buf, "PNG")
+    tile_png = buf.getvalue()
+    requested: list[str] = []
+
+    class Tiles(http.server.BaseHTTPRequestHandler):
+        def do_GET(self) -> None:
+            requested.append(self.path)
+            self.send_response(200)
+            self.send_header("Content-Type", "image/png")
+            self.send_header("Content-Length", str(len(tile_png)))
+            self.end_headers()
+            self.wfile.write(tile_png)
+
+        def log_message(self, *args: object) -> None:
+            pass
+
+    tiles = http.server.ThreadingHTTPServer(("127.0.0.1", 0), Tiles)
+    thread = threading.Thread(target=tiles.serve_forever, daemon=True)
+    thread.start()
+    drv = driver
+    try:
+        with ServerThread(tick_s=0.1, token="t") as server:
+            open_page(drv, server.url + "/")
+            time.sleep(0.5)
+            assert requested == []
+            template = f"http://127.0.0.1:{tiles.server_port}/{{z}}/{{x}}/{{y}}.png"
+            open_page(drv, server.url + "/?tiles=" + urllib.parse.quote(template, safe=""))
+            wait_for(lambda: len(requested) >= 2, "tile requests")
+            z, x, y = (int(p) for p in requested[0].removesuffix(".png").strip("/").split("/"))
+            # Around the fake's origin (78.93 N, 11.92 E) at a few km across: z ~ 10-15.
+            assert 8 <= z <= 17 and 0 <= x < 2**z and 0 <= y < 2**z
+            assert abs(x - (11.92 + 180) / 360 * 2**z) < 4
+            time.sleep(0.5)
+            png = screenshot(drv, tmp_path / "tiles.png")
+            image = Image.open(io.BytesIO(png)).convert("RGB")
+            region = image.crop((0, 40, int(image.width * 0.6), image.height))
+            counts = {rgb: n for n, rgb in region.getcolors(maxcolors=1_000_000) or []}
+            share = counts.get(TILE_RGB, 0) / (region.width * region.height)
+            assert share > 0.3, f"tiles cover {share:.0%} of the map"
+            drv.get("about:blank")
+    finally:
+        tiles.shutdown()
+        tiles.server_close()
