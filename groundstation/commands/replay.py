@@ -1,0 +1,376 @@
+"""``gcs replay``: a recorded run through today's decision core, or its vehicles back on air.
+
+    gcs replay runs/20260101T120000Z                  # regression check, exit 0/1/2
+    gcs replay out/sim --set planner.tau=0.9          # what-if: shows the differences
+    gcs replay runs/X --serve udpout:127.0.0.1:14550 --speed 5   # play the tlog as vehicles
+    gcs replay flight.tlog --detections det.jsonl     # the core on a bare tlog
+
+Exit status: 0 the replayed decisions are the recorded ones (or serving ended), 1 they
+differ, 2 bad input (missing or unreadable journal or tlog, bad option), 130 interrupted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import collections
+import json
+import math
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+__all__ = ["run"]
+
+_PROG = "gcs replay"
+
+
+def _positive(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
+    return value
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog=_PROG,
+        description="Feed a recorded run (RUN_DIR/journal.jsonl) through today's decision "
+        "core and report, event by event, where it decides differently (exit 0 identical, "
+        "1 differences, 2 bad input); or, with --serve, play the recorded vehicles "
+        "(RUN_DIR/flight.tlog or FILE.tlog) back as live MAVLink sources.",
+    )
+    parser.add_argument(
+        "run",
+        type=Path,
+        metavar="RUN_DIR|FILE",
+        help="a run folder (gcs run / gcs simulate), a journal.jsonl or a .tlog",
+    )
+    pace = parser.add_mutually_exclusive_group()
+    pace.add_argument(
+        "--speed",
+        type=_positive,
+        default=None,
+        metavar="K",
+        help="pace inputs (or served frames) at K times the recorded pace "
+        "(default: as fast as possible for a regression check; 1 for --serve)",
+    )
+    pace.add_argument(
+        "--as-fast-as-possible", action="store_true", help="no pacing (the default without --serve)"
+    )
+    parser.add_argument(
+        "--serve",
+        metavar="URL",
+        default=None,
+        help="send the recorded vehicles' frames to URL (udpout:HOST:PORT, "
+        "udp:HOST:PORT, tcp:HOST:PORT, tcpin:HOST:PORT, udpin:HOST:PORT)",
+    )
+    parser.add_argument(
+        "--detections",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="detection feed JSON lines, to replay the core on a bare tlog",
+    )
+    parser.add_argument(
+        "--set",
+        "--override",
+        dest="settings",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="change a core setting for a what-if replay (tau=0.9, "
+        "planner.tau=0.9, policy.commit=false, observer.q_per_s=0.2); "
+        "repeatable",
+    )
+    parser.add_argument(
+        "--no-resolve",
+        action="store_true",
+        help="do not re-solve the recorded plans (faster; problems are still compared)",
+    )
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.add_argument(
+        "--max-lines",
+        type=int,
+        default=200,
+        metavar="N",
+        help="print at most N differences (default 200; --json prints all)",
+    )
+    parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    return parser
+
+
+def _error(message: str) -> int:
+    print(f"{_PROG}: error: {message}", file=sys.stderr)
+    return 2
+
+
+def make_pace(speed: float) -> Callable[[float], None]:
+    """Sleep so that mission time ``t`` is reached at wall time ``(t - t0) / speed``."""
+    state: dict[str, float] = {}
+
+    def pace(t_s: float) -> None:
+        if not state:
+            state["wall0"], state["t0"] = time.monotonic(), t_s
+            return
+        delay = state["wall0"] + (t_s - state["t0"]) / speed - time.monotonic()
+        if delay > 0:
+            time.sleep(delay)
+
+    return pace
+
+
+def _is_tlog(path: Path) -> bool:
+    if path.is_dir():
+        return not (path / "journal.jsonl").exists() and (path / "flight.tlog").exists()
+    return path.suffix.lower() == ".tlog"
+
+
+def run(argv: list[str]) -> int:
+    args = _parser().parse_args(argv)
+    if args.serve is not None:
+        speed = 1e9 if args.as_fast_as_possible else (args.speed or 1.0)
+        return _serve_command(args.run, args.serve, speed, quiet=args.quiet, as_json=args.json)
+    if _is_tlog(args.run):
+        if args.detections is None:
+            return _error(
+                f"{args.run}: a tlog holds no core inputs; give --detections FILE "
+                "to replay the decision core on it, or --serve URL to play it back"
+            )
+        return _tlog_core_command(args.run, args.detections, args.settings, as_json=args.json)
+    if args.detections is not None:
+        return _error("--detections is for a bare tlog; a journal already holds its detections")
+    return _journal_replay(args)
+
+
+def _journal_replay(args: argparse.Namespace) -> int:
+    from groundstation.runners.replay import replay_journal
+    from groundstation.runners.replay_journal import (
+        JournalError,
+        apply_overrides,
+        core_config_of,
+        load_journal,
+    )
+
+    try:
+        journal = load_journal(args.run)
+        recorded = core_config_of(journal)
+        config = apply_overrides(recorded, args.settings)
+    except (JournalError, ValueError) as exc:
+        return _error(str(exc))
+    if not any(r.get("event") == "input" for r in journal.records):
+        return _error(
+            f"{journal.path}: no core inputs ('input' records) to replay: the frontend that "
+            "wrote it did not journal the decision core's inputs"
+        )
+    quiet = args.quiet or args.json
+
+    def progress(done: int, total: int) -> None:
+        if not quiet and sys.stderr.isatty():
+            end = "\n" if done >= total else ""
+            print(f"\r{_PROG}: {done}/{total} inputs", end=end, file=sys.stderr, flush=True)
+
+    pace = make_pace(args.speed) if args.speed is not None else None
+    report = replay_journal(
+        journal,
+        config,
+        recorded_config=recorded,
+        pace=pace,
+        progress=progress,
+        resolve=not args.no_resolve,
+    )
+    if args.json:
+        print(json.dumps(report.as_dict(), indent=1))
+    else:
+        for warning in report.warnings:
+            print(f"warning: {warning}")
+        for change in report.config_changes:
+            print(f"setting changed: {change}")
+        for diff in report.differences[: max(args.max_lines, 0)]:
+            print(diff.text())
+        hidden = len(report.differences) - max(args.max_lines, 0)
+        if hidden > 0:
+            print(f"... {hidden} more difference(s) (--max-lines, --json)")
+        for item in report.not_comparable[:20]:
+            print(f"not comparable: {item}")
+        print(report.summary())
+    return 0 if report.identical else 1
+
+
+# ----------------------------------------------------------------------------- --serve
+_READY_TIMEOUT_S = 30.0
+
+
+def serve_spec(url: str) -> Any:
+    """The link for ``--serve URL``: sending forms as given; ``udp:`` sends (design.md:
+    ``--out`` and ``--serve`` always send), like ``udpout:``."""
+    from groundstation.link import parse_link_url
+
+    text = url.strip()
+    if text.lower().startswith("udp:"):
+        text = "udpout:" + text[4:].removeprefix("//")
+    return parse_link_url(text)
+
+
+async def serve_frames(
+    spec: Any,
+    frames: Any,
+    *,
+    ready_timeout_s: float = _READY_TIMEOUT_S,
+    say: Callable[[str], None] | None = None,
+) -> dict[str, Any]:
+    """Send each :class:`ServedFrame` at its time on a link to ``spec``; returns counters.
+
+    Waits (at most ``ready_timeout_s``) for a TCP connection, or for a peer of a listening
+    link; raises ``LinkError`` if none comes. Cancellation (Ctrl-C) stops at once; the
+    link is always closed.
+    """
+    from groundstation.link import LinkError, open_link
+
+    link = open_link(spec, link_id="serve")
+    await link.start()
+    sent: collections.Counter[int] = collections.Counter()
+    failed = 0
+    try:
+        loop = asyncio.get_running_loop()
+        deadline = loop.time() + ready_timeout_s
+        if not link.connected and say is not None:
+            say(f"waiting for a peer on {spec.canonical} (up to {ready_timeout_s:.0f} s)")
+        while not link.connected:
+            if loop.time() > deadline:
+                raise LinkError(f"{spec.canonical}: no peer within {ready_timeout_s:.0f} s")
+            await asyncio.sleep(0.05)
+        start = loop.time()
+        for n, frame in enumerate(frames):
+            delay = start + frame.at_s - loop.time()
+            if delay > 0:
+                await asyncio.sleep(delay)
+            elif n % 64 == 0:
+                await asyncio.sleep(0)  # let the transport drain when behind schedule
+            if link.send(frame.raw):
+                sent[frame.system_id] += 1
+            else:
+                failed += 1
+        await asyncio.sleep(0.05)  # the last datagrams leave before the socket closes
+        wall = loop.time() - start
+    finally:
+        await link.stop()
+    return {
+        "frames_sent": sum(sent.values()),
+        "by_system": dict(sorted(sent.items())),
+        "send_failures": failed,
+        "wall_s": round(wall, 3),
+    }
+
+
+def _serve_command(path: Path, url: str, speed: float, *, quiet: bool, as_json: bool) -> int:
+    from groundstation.link import LinkError, LinkUrlError
+    from groundstation.runners.replay_serve import serving_schedule
+    from groundstation.runners.replay_tlog import TlogError
+
+    try:
+        spec = serve_spec(url)
+        summary, frames = serving_schedule(path, speed)
+    except (LinkUrlError, TlogError, ValueError) as exc:
+        return _error(str(exc))
+    vehicles = summary.vehicles
+    if not vehicles:
+        return _error(
+            f"{summary.path}: no vehicle frames to serve (system ids "
+            f"{sorted(summary.systems)} are ground stations)"
+        )
+    say: Callable[[str], None] = (
+        (lambda text: None)
+        if (quiet or as_json)
+        else (lambda text: print(f"{_PROG}: {text}", file=sys.stderr, flush=True))
+    )
+    for line in summary.skipped_text():
+        say(f"warning: {summary.path}: {line}")
+    span = (summary.last_t_s or 0.0) - (summary.first_t_s or 0.0)
+    interrupted = False
+    try:  # from here on, Ctrl-C (even before the loop starts) ends cleanly with 130
+        say(
+            f"serving {len(vehicles)} vehicle(s) (system ids {', '.join(map(str, vehicles))}) "
+            f"from {summary.path} to {spec.canonical}: {span:.1f} s recorded at {speed:g}x"
+        )
+        stats = asyncio.run(serve_frames(spec, frames, say=say))
+    except LinkError as exc:
+        return _error(str(exc))
+    except KeyboardInterrupt:
+        interrupted = True
+        stats = {}
+    result = {
+        "tlog": str(summary.path),
+        "url": spec.canonical,
+        "speed": speed,
+        "records": summary.records,
+        "skipped": [list(r) for r in summary.skipped],
+        "vehicles": list(vehicles),
+        "interrupted": interrupted,
+        **stats,
+    }
+    if as_json:
+        print(json.dumps(result, indent=1))
+    elif interrupted:
+        print(f"{_PROG}: interrupted; link closed")
+    else:
+        per = ", ".join(f"{k}: {v}" for k, v in result["by_system"].items())
+        print(
+            f"served {result['frames_sent']} frames ({per}) in {result['wall_s']:.1f} s; "
+            f"{len(summary.skipped)} damaged range(s) skipped"
+        )
+    return 130 if interrupted else 0
+
+
+# ----------------------------------------------------------------------------- bare tlog
+def _tlog_core_command(tlog: Path, detections: Path, settings: list[str], *, as_json: bool) -> int:
+    from groundstation.runners.replay_journal import apply_overrides
+    from groundstation.runners.replay_tlog import TlogError
+    from groundstation.runners.replay_tlog_core import TLOG_DEFAULT_CONFIG, run_core_on_tlog
+
+    try:
+        config = apply_overrides(TLOG_DEFAULT_CONFIG, settings)
+        result = run_core_on_tlog(tlog, detections, config)
+    except (TlogError, ValueError) as exc:
+        return _error(str(exc))
+    except OSError as exc:
+        return _error(f"{exc.filename or detections}: {exc.strerror or exc}")
+    if as_json:
+        print(
+            json.dumps(
+                {
+                    "inputs": result.inputs,
+                    "detections_used": result.detections_used,
+                    "detections_skipped": result.detections_skipped,
+                    "skipped": [list(r) for r in result.skipped_ranges],
+                    "origin": result.origin,
+                    "decisions": result.decisions,
+                },
+                indent=1,
+            )
+        )
+        return 0
+    for a, b in result.skipped_ranges:
+        print(f"warning: {tlog}: skipped damaged bytes {a}..{b}")
+    for line in result.detections_skipped[:20]:
+        print(f"warning: {detections}: {line}")
+    for d in result.decisions:
+        if d["event"] == "fly":
+            print(
+                f"t={d['t']:9.3f}  fly        vehicle {d['vehicle']} -> {d['target']} "
+                f"({d['x_m']:.1f}, {d['y_m']:.1f})"
+            )
+        elif d["event"] != "plan":
+            print(f"t={d['t']:9.3f}  {d['event']:<10} vehicle {d['vehicle']}")
+    plans = sum(1 for d in result.decisions if d["event"] == "plan")
+    print(
+        f"the core on {tlog}: {result.inputs} inputs, {result.detections_used} detections, "
+        f"{plans} plans, {len(result.decisions) - plans} vehicle commands (nothing recorded "
+        "to compare with)"
+    )
+    return 0

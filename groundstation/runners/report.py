@@ -1,0 +1,178 @@
+"""``gcs report``: one self-contained HTML page about a flight.
+
+:func:`build_report` gathers the run's data (:mod:`~groundstation.runners.report_data`),
+draws the figures (:mod:`~groundstation.runners.report_plots`) and writes
+``OUT/report.html`` with every PNG embedded as a ``data:image/png;base64`` URI, so the
+page can be mailed or archived alone. The map's ``<img>`` carries the plotted extent
+(``data-xlim``, ``data-ylim``, metres) and the vehicles' track bounding box
+(``data-track-bbox``) for checks. The PNGs are also written next to the page.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import json
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from groundstation.runners.report_data import RunData, load_run_data, summary_rows
+from groundstation.runners.report_plots import (
+    FigurePng,
+    plot_map,
+    plot_solves,
+    plot_timeline,
+    plot_uncertainty,
+)
+
+__all__ = ["ReportResult", "build_report", "render_html"]
+
+_EVENT_ROWS = 200
+
+_CSS = """
+body { font-family: sans-serif; margin: 1.5em auto; max-width: 1100px; color: #222; }
+h1 { font-size: 1.4em; } h2 { font-size: 1.15em; margin-top: 1.6em; }
+table { border-collapse: collapse; font-size: 0.9em; }
+td, th { border: 1px solid #ccc; padding: 0.25em 0.6em; text-align: left; vertical-align: top; }
+th { background: #f0f0f0; }
+figure { margin: 1em 0; } figure img { max-width: 100%; border: 1px solid #ddd; }
+.warn { color: #a40; }
+"""
+
+
+@dataclass
+class ReportResult:
+    """What :func:`build_report` wrote."""
+
+    html_path: Path
+    figures: list[FigurePng] = field(default_factory=list)
+    data: RunData | None = None
+
+
+def _events(data: RunData) -> list[tuple[float, str, str, str]]:
+    rows: list[tuple[float, str, str, str]] = []
+    for u in data.uploads:
+        if not u["ok"] or u["retries"]:
+            detail = f"retries {u['retries']}" + (f", {u['error']}" if u.get("error") else "")
+            rows.append(
+                (u["t"], str(u["vehicle"]), "upload " + ("ok" if u["ok"] else "FAILED"), detail)
+            )
+    for e in data.link_events:
+        rows.append((e["t"], str(e["vehicle"]), e["event"], ""))
+    for o in data.overrides:
+        rows.append((o["t"], str(o["vehicle"]), o["event"], str(o.get("reason") or "")))
+    for p in data.plans:
+        if p["hit_time_limit"] or p["status"] == "fallback":
+            rows.append(
+                (
+                    p["t"],
+                    "",
+                    "plan " + str(p["status"]),
+                    f"request {p['request']}, {p['solve_time_s']:.3f} s, hit the limit",
+                )
+            )
+    return sorted(rows, key=lambda r: r[0])
+
+
+def render_html(data: RunData, figures: list[FigurePng]) -> str:
+    """The page (see the module docstring)."""
+    esc = html.escape
+    out = [
+        "<!DOCTYPE html>",
+        '<html lang="en"><head><meta charset="utf-8">',
+        f"<title>floe report: {esc(data.title)}</title>",
+        f"<style>{_CSS}</style>",
+        "</head><body>",
+        f"<h1>floe flight report: {esc(data.title)}</h1>",
+    ]
+    out.append('<h2>Summary</h2><table id="summary">')
+    for name, value in summary_rows(data):
+        out.append(f"<tr><th>{esc(name)}</th><td>{esc(value)}</td></tr>")
+    out.append("</table>")
+    if data.warnings:
+        out.append('<h2>Warnings</h2><ul class="warn">')
+        out += [f"<li>{esc(w)}</li>" for w in data.warnings[:50]]
+        if len(data.warnings) > 50:
+            out.append(f"<li>... {len(data.warnings) - 50} more</li>")
+        out.append("</ul>")
+    for fig in figures:
+        attrs = ""
+        if fig.name == "map":
+            for key in ("xlim", "ylim", "track_bbox"):
+                if key in fig.info:
+                    attrs += (
+                        f' data-{key.replace("_", "-")}="'
+                        + esc(",".join(f"{v:.3f}" for v in fig.info[key]))
+                        + '"'
+                    )
+        b64 = base64.b64encode(fig.png).decode("ascii")
+        out.append(
+            f'<h2>{esc(fig.title)}</h2><figure id="fig-{esc(fig.name)}">'
+            f'<img alt="{esc(fig.title)}" src="data:image/png;base64,{b64}"{attrs}>'
+            "</figure>"
+        )
+    events = _events(data)
+    out.append("<h2>Upload retries, link losses, overrides</h2>")
+    if events:
+        out.append(
+            '<table id="events"><tr><th>t (s)</th><th>vehicle</th><th>event</th>'
+            "<th>detail</th></tr>"
+        )
+        for t, vehicle, event, detail in events[:_EVENT_ROWS]:
+            out.append(
+                f"<tr><td>{t:.1f}</td><td>{esc(vehicle)}</td><td>{esc(event)}</td>"
+                f"<td>{esc(detail)}</td></tr>"
+            )
+        out.append("</table>")
+        if len(events) > _EVENT_ROWS:
+            out.append(f"<p>... {len(events) - _EVENT_ROWS} more</p>")
+    else:
+        out.append("<p>none recorded</p>")
+    if data.tlog is not None and data.tlog.vehicles:
+        out.append(
+            '<h2>Vehicles in the tlog</h2><table id="tlog"><tr><th>system id</th>'
+            "<th>frames</th><th>positions</th><th>modes</th><th>top messages</th></tr>"
+        )
+        for sysid, v in data.tlog.vehicles.items():
+            modes = " &rarr; ".join(esc(m) for _t, m in v.modes[:12])
+            top = ", ".join(f"{esc(k)} {n}" for k, n in v.messages.most_common(6))
+            out.append(
+                f"<tr><td>{sysid}</td><td>{v.frames}</td><td>{len(v.positions)}</td>"
+                f"<td>{modes}</td><td>{top}</td></tr>"
+            )
+        out.append("</table>")
+    out.append("</body></html>")
+    return "\n".join(out) + "\n"
+
+
+def build_report(
+    path: Path, out_dir: Path, say: Callable[[str], None] | None = None
+) -> ReportResult:
+    """Write ``out_dir/report.html`` (and the PNGs) for the run at ``path``.
+
+    Raises :class:`~groundstation.runners.report_data.ReportError` when there is nothing
+    to report, ``OSError`` when ``out_dir`` cannot be written.
+    """
+    note = say or (lambda text: None)
+    data = load_run_data(path, note)
+    figures: list[FigurePng] = []
+    for name, draw in (
+        ("map", plot_map),
+        ("uncertainty", plot_uncertainty),
+        ("timeline", plot_timeline),
+        ("solves", plot_solves),
+    ):
+        note(f"drawing {name}")
+        fig = draw(data)
+        if fig is not None:
+            figures.append(fig)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    for fig in figures:
+        (out_dir / f"{fig.name}.png").write_bytes(fig.png)
+    (out_dir / "figures.json").write_text(
+        json.dumps({f.name: f.info for f in figures}, indent=1) + "\n", encoding="utf-8"
+    )
+    html_path = out_dir / "report.html"
+    html_path.write_text(render_html(data, figures), encoding="utf-8")
+    return ReportResult(html_path, figures, data)
