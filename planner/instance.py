@@ -1,0 +1,169 @@
+"""Numeric instance built from a PlanningProblem: kept targets, distances, mu, route costs.
+
+Nodes: UAVs 0..m-1, kept targets m..N-1 (N = m + n). `d` is N x N: Euclidean, except
+UAV -> target, which is the Dubins distance to the point with free final heading.
+
+Paper objective ("sequence"), with t[uav] = 1 and t = 1 + p for the p-th target of a path:
+
+    J = -(1 - tau) F1 + tau F2,   F1 = sum_i sigma_i (N - t_i),   F2 = mu sum_(i,j) y_ij d_ij.
+
+Writing H_i for the hop count p_i, F1 = (N - 1) S - sum_i sigma_i H_i with S = sum sigma, so
+
+    J = -(1 - tau) (N - 1) S + (1 - tau) sum_i sigma_i H_i + tau mu sum_arcs d_ij.
+
+"arrival" replaces the hop count by the arrival time in units of the mean hop time:
+H_i = (D_i / speed) / (d_avg / speed) = D_i / d_avg, D_i = path length (m) to target i,
+i.e. F1' = sum_i sigma_i (N - 1 - arrival_i / T_hop), T_hop = d_avg / speed_m_s. (If
+d_avg = 0 every D_i is 0 and H_i = 0.) Both are "cumulative hop" objectives with hop
+length h_ij = 1 (sequence) or h_ij = d_ij / d_avg (arrival), and a path's cost can be
+summed over arcs: arc (i -> j) costs tau mu d_ij + (1 - tau) h_ij R_j, where R_j is the sigma
+of j and of every target after it on the path.
+
+mu = F1max / F2avg unless given; F2avg = d_avg (N - m); F1max = sum_k sigma_(k) (N - t_k),
+sigma sorted descending, t_k = 2 + k // m; mu = 1 if either is 0.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from planner.dubins import dubins_distance_to_point
+from planner.problem import PlanningProblem, ProblemError
+
+FloatArray = npt.NDArray[np.float64]
+
+
+def kept_targets(problem: PlanningProblem) -> tuple[list[int], list[int]]:
+    """10 % rule: indices of kept and excluded targets (sigma < fraction * mean is dropped)."""
+    sigmas = [t.sigma for t in problem.targets]
+    if not sigmas:
+        return [], []
+    limit = problem.min_sigma_fraction * (sum(sigmas) / len(sigmas))
+    kept = [k for k, s in enumerate(sigmas) if not s < limit]
+    dropped = [k for k, s in enumerate(sigmas) if s < limit]
+    return kept, dropped
+
+
+def f1_max(sigmas: Sequence[float], n_uav: int, n_nodes: int) -> float:
+    """Round-robin upper bound of F1: the k-th largest sigma gets t = 2 + k // n_uav."""
+    ordered = sorted(sigmas, reverse=True)
+    return float(sum(s * (n_nodes - (2 + k // n_uav)) for k, s in enumerate(ordered)))
+
+
+@dataclass
+class Instance:
+    """Kept targets only. Arrays are indexed by node (UAVs first)."""
+
+    problem: PlanningProblem
+    target_index: list[int]  # kept target k -> index into problem.targets
+    excluded: list[str]
+    m: int
+    n: int
+    d: FloatArray  # N x N distances (m)
+    hop: FloatArray  # N x N hop lengths (1 or d / d_avg)
+    sigma: FloatArray  # length n, kept targets
+    mu: float
+    d_avg: float
+    tau: float
+
+    @property
+    def n_nodes(self) -> int:
+        return self.m + self.n
+
+    @property
+    def constant(self) -> float:
+        """-(1 - tau) (N - 1) S: the route-independent part of J."""
+        return -(1.0 - self.tau) * (self.n_nodes - 1) * float(self.sigma.sum())
+
+    def arc_weight(self) -> FloatArray:
+        """tau mu d: distance part of every arc."""
+        return self.tau * self.mu * self.d
+
+    def route_cost(self, uav: int, route: Sequence[int]) -> float:
+        """Variable cost of one path (targets as 0-based kept indices); 0 if empty."""
+        cost = 0.0
+        prev = uav
+        hops = 0.0
+        a = self.tau * self.mu
+        b = 1.0 - self.tau
+        m = self.m
+        for k in route:
+            node = m + k
+            hops += self.hop[prev, node]
+            cost += a * self.d[prev, node] + b * self.sigma[k] * hops
+            prev = node
+        return cost
+
+    def evaluate(self, routes: Sequence[Sequence[int]]) -> tuple[float, float, float]:
+        """(J, F1, F2) of a full plan (one route per UAV)."""
+        f1 = (self.n_nodes - 1) * float(self.sigma.sum())
+        dist = 0.0
+        m = self.m
+        for u, route in enumerate(routes):
+            prev = u
+            hops = 0.0
+            for k in route:
+                node = m + k
+                hops += self.hop[prev, node]
+                dist += self.d[prev, node]
+                f1 -= self.sigma[k] * hops
+                prev = node
+        f2 = self.mu * dist
+        return -(1.0 - self.tau) * f1 + self.tau * f2, f1, f2
+
+    def target_id(self, k: int) -> str:
+        return self.problem.targets[self.target_index[k]].id
+
+
+def build_instance(problem: PlanningProblem) -> Instance:
+    """Apply the 10 % rule and compute d, hop lengths and mu."""
+    if not problem.uavs:
+        raise ProblemError("uavs", "at least one UAV is needed")
+    if problem.turn_radius_m <= 0 or not math.isfinite(problem.turn_radius_m):
+        raise ProblemError("turn_radius", "must be > 0")
+    kept, dropped = kept_targets(problem)
+    uavs = problem.uavs
+    targets = [problem.targets[k] for k in kept]
+    m, n = len(uavs), len(targets)
+    nodes = [(u.x_m, u.y_m) for u in uavs] + [(t.x_m, t.y_m) for t in targets]
+    xy = np.array(nodes, dtype=float).reshape(m + n, 2)
+    diff = xy[:, None, :] - xy[None, :, :]
+    d = np.sqrt((diff**2).sum(axis=2))
+    for i, u in enumerate(uavs):
+        for k, t in enumerate(targets):
+            d[i, m + k] = dubins_distance_to_point(
+                u.x_m, u.y_m, u.heading_rad, t.x_m, t.y_m, problem.turn_radius_m
+            )
+    size = m + n
+    d_avg = float(d.sum() / (size * (size - 1))) if size > 1 else 0.0
+    sigma = np.array([t.sigma for t in targets], dtype=float)
+    if problem.mu is not None:
+        mu = float(problem.mu)
+    else:
+        f1m = f1_max(sigma.tolist(), m, size) if m else 0.0
+        f2avg = d_avg * (size - m)
+        mu = f1m / f2avg if f1m != 0.0 and f2avg != 0.0 else 1.0
+    if problem.objective == "arrival":
+        hop = d / d_avg if d_avg > 0.0 else np.zeros_like(d)
+    else:
+        hop = np.ones_like(d)
+    if not math.isfinite(mu):
+        mu = 1.0
+    return Instance(
+        problem=problem,
+        target_index=kept,
+        excluded=[problem.targets[k].id for k in dropped],
+        m=m,
+        n=n,
+        d=d,
+        hop=hop,
+        sigma=sigma,
+        mu=mu,
+        d_avg=d_avg,
+        tau=problem.tau,
+    )

@@ -1,0 +1,244 @@
+"""Planning problem and result types, and the `gcs plan` JSON format.
+
+Problem JSON (all planar metres, headings in radians counter-clockwise from +x)::
+
+    {"uavs": [{"id": "u1", "x": 0, "y": 0, "heading": 0.0}, ...],
+     "targets": [{"id": "t1", "x": 10, "y": 5, "sigma": 3.0}, ...],
+     "turn_radius": 105.0, "tau": 0.5,
+     "mu": null | float, "min_sigma_fraction": 0.1, "time_limit_s": 5.0,
+     "objective": "sequence" | "arrival", "speed_m_s": 22.0}
+
+`uavs`, `targets` and `turn_radius` are required; any other key is an error.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+OBJECTIVES = ("sequence", "arrival")
+STATUSES = ("optimal", "feasible", "fallback")
+
+
+class ProblemError(ValueError):
+    """Malformed planning problem: `field` names the offending key (e.g. ``targets[2].sigma``)."""
+
+    def __init__(self, field: str, message: str) -> None:
+        super().__init__(f"{field}: {message}")
+        self.field = field
+        self.message = message
+
+
+@dataclass(frozen=True)
+class UavPose:
+    """A UAV at (x_m, y_m) flying heading_rad (counter-clockwise from +x)."""
+
+    id: str
+    x_m: float
+    y_m: float
+    heading_rad: float
+
+
+@dataclass(frozen=True)
+class TargetEstimate:
+    """A target position estimate with uncertainty sigma = trace(P[:2, :2]) (m^2)."""
+
+    id: str
+    x_m: float
+    y_m: float
+    sigma: float
+
+
+@dataclass(frozen=True)
+class PlanningProblem:
+    """One planning instance; see docs/planner.md for the model."""
+
+    uavs: tuple[UavPose, ...]
+    targets: tuple[TargetEstimate, ...]
+    turn_radius_m: float
+    tau: float = 0.5
+    mu: float | None = None
+    min_sigma_fraction: float = 0.1
+    time_limit_s: float = 5.0
+    objective: str = "sequence"
+    speed_m_s: float = 22.0
+
+
+@dataclass(frozen=True)
+class PlanResult:
+    """Outcome of a solve. `routes` is the model optimum; `idle` the idle-UAV rule."""
+
+    status: str
+    solver: str
+    objective: float
+    f1: float
+    f2: float
+    mu: float
+    routes: dict[str, list[str]]
+    idle: dict[str, str]
+    excluded: list[str]
+    solve_time_s: float
+    hit_time_limit: bool
+
+
+_TOP_KEYS = {
+    "uavs",
+    "targets",
+    "turn_radius",
+    "tau",
+    "mu",
+    "min_sigma_fraction",
+    "time_limit_s",
+    "objective",
+    "speed_m_s",
+}
+_UAV_KEYS = ("id", "x", "y", "heading")
+_TARGET_KEYS = ("id", "x", "y", "sigma")
+
+
+def _number(value: Any, field: str) -> float:
+    """A finite real number (bool is rejected)."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise ProblemError(field, f"expected a number, got {type(value).__name__}")
+    try:
+        out = float(value)
+    except OverflowError:
+        raise ProblemError(field, "must be finite") from None
+    if not math.isfinite(out):
+        raise ProblemError(field, "must be finite")
+    return out
+
+
+def _items(d: Mapping[str, Any], key: str, keys: tuple[str, ...]) -> list[dict[str, Any]]:
+    raw = d[key]
+    if not isinstance(raw, list):
+        raise ProblemError(key, f"expected a list, got {type(raw).__name__}")
+    seen: set[str] = set()
+    out: list[dict[str, Any]] = []
+    for k, item in enumerate(raw):
+        where = f"{key}[{k}]"
+        if not isinstance(item, Mapping):
+            raise ProblemError(where, f"expected an object, got {type(item).__name__}")
+        for name in item:
+            if name not in keys:
+                raise ProblemError(f"{where}.{name}", "unknown key")
+        for name in keys:
+            if name not in item:
+                raise ProblemError(f"{where}.{name}", "missing")
+        ident = item["id"]
+        if not isinstance(ident, str) or not ident:
+            raise ProblemError(f"{where}.id", "expected a non-empty string")
+        if ident in seen:
+            raise ProblemError(f"{where}.id", f"duplicate id {ident!r}")
+        seen.add(ident)
+        out.append({name: item[name] for name in keys})
+    return out
+
+
+def problem_from_dict(d: Mapping[str, Any]) -> PlanningProblem:
+    """Parse and validate the `gcs plan` problem format; raise ProblemError on any defect."""
+    if not isinstance(d, Mapping):
+        raise ProblemError("problem", f"expected a JSON object, got {type(d).__name__}")
+    for key in d:
+        if key not in _TOP_KEYS:
+            raise ProblemError(str(key), "unknown key")
+    for key in ("uavs", "targets", "turn_radius"):
+        if key not in d:
+            raise ProblemError(key, "missing")
+    uavs = []
+    for k, u in enumerate(_items(d, "uavs", _UAV_KEYS)):
+        where = f"uavs[{k}]"
+        uavs.append(
+            UavPose(
+                u["id"],
+                _number(u["x"], f"{where}.x"),
+                _number(u["y"], f"{where}.y"),
+                _number(u["heading"], f"{where}.heading"),
+            )
+        )
+    if not uavs:
+        raise ProblemError("uavs", "at least one UAV is needed")
+    targets = []
+    for k, t in enumerate(_items(d, "targets", _TARGET_KEYS)):
+        where = f"targets[{k}]"
+        sigma = _number(t["sigma"], f"{where}.sigma")
+        if sigma < 0:
+            raise ProblemError(f"{where}.sigma", "must be >= 0")
+        targets.append(
+            TargetEstimate(
+                t["id"], _number(t["x"], f"{where}.x"), _number(t["y"], f"{where}.y"), sigma
+            )
+        )
+    uav_ids = {u.id for u in uavs}
+    for k, tgt in enumerate(targets):
+        if tgt.id in uav_ids:
+            raise ProblemError(f"targets[{k}].id", f"{tgt.id!r} is also a UAV id")
+    turn_radius = _number(d["turn_radius"], "turn_radius")
+    if turn_radius <= 0:
+        raise ProblemError("turn_radius", "must be > 0")
+    tau = _number(d.get("tau", 0.5), "tau")
+    if not 0.0 <= tau <= 1.0:
+        raise ProblemError("tau", "must be in [0, 1]")
+    mu: float | None = None
+    if d.get("mu") is not None:
+        mu = _number(d["mu"], "mu")
+        if mu < 0:
+            raise ProblemError("mu", "must be >= 0")
+    frac = _number(d.get("min_sigma_fraction", 0.1), "min_sigma_fraction")
+    if not 0.0 <= frac <= 1.0:
+        raise ProblemError("min_sigma_fraction", "must be in [0, 1]")
+    limit = _number(d.get("time_limit_s", 5.0), "time_limit_s")
+    if limit <= 0:
+        raise ProblemError("time_limit_s", "must be > 0")
+    objective = d.get("objective", "sequence")
+    if objective not in OBJECTIVES:
+        raise ProblemError("objective", f"must be one of {', '.join(OBJECTIVES)}")
+    speed = _number(d.get("speed_m_s", 22.0), "speed_m_s")
+    if speed <= 0:
+        raise ProblemError("speed_m_s", "must be > 0")
+    return PlanningProblem(
+        uavs=tuple(uavs),
+        targets=tuple(targets),
+        turn_radius_m=turn_radius,
+        tau=tau,
+        mu=mu,
+        min_sigma_fraction=frac,
+        time_limit_s=limit,
+        objective=str(objective),
+        speed_m_s=speed,
+    )
+
+
+def problem_to_dict(p: PlanningProblem) -> dict[str, Any]:
+    """Inverse of problem_from_dict (`mu` only when set)."""
+    out: dict[str, Any] = {
+        "uavs": [{"id": u.id, "x": u.x_m, "y": u.y_m, "heading": u.heading_rad} for u in p.uavs],
+        "targets": [{"id": t.id, "x": t.x_m, "y": t.y_m, "sigma": t.sigma} for t in p.targets],
+        "turn_radius": p.turn_radius_m,
+        "tau": p.tau,
+        "min_sigma_fraction": p.min_sigma_fraction,
+        "time_limit_s": p.time_limit_s,
+        "objective": p.objective,
+        "speed_m_s": p.speed_m_s,
+    }
+    if p.mu is not None:
+        out["mu"] = p.mu
+    return out
+
+
+def result_to_dict(r: PlanResult) -> dict[str, Any]:
+    """The `gcs plan` output object."""
+    return {
+        "status": r.status,
+        "solver": r.solver,
+        "objective": r.objective,
+        "f1": r.f1,
+        "f2": r.f2,
+        "mu": r.mu,
+        "routes": {k: list(v) for k, v in r.routes.items()},
+        "idle": dict(r.idle),
+        "excluded": list(r.excluded),
+        "solve_time_s": r.solve_time_s,
+    }
