@@ -1,0 +1,171 @@
+"""``gcs run``: the ground-station daemon (closes the loop over MAVLink).
+
+    gcs run --vehicles sim:3 --scenario paper-boat --speedup 20 --duration 200
+    gcs run --vehicles tcp:127.0.0.1:5760 tcp:127.0.0.1:5770 --launch --targets ice.yaml
+    gcs run --config field.yaml --vehicles /dev/ttyUSB0,57600 --scenario svalbard-2015 --advisory
+
+Every flag can be set in ``--config FILE`` (YAML, the flag's name with underscores); flags
+win. Bad input (a bad URL or config key, a port in use) is one line on stderr and exit 2.
+See docs/daemon.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from typing import Any
+
+from groundstation.commands.async_main import run_async
+
+__all__ = ["build_config", "run"]
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> Any:  # one line, exit 2 (argparse prints usage too)
+        self.exit(2, f"gcs run: error: {message}\n")
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = _Parser(
+        prog="gcs run",
+        description="The floe ground-station daemon: keeps a fleet of "
+        "fixed-wing UAVs tracking drifting targets over MAVLink.",
+        argument_default=argparse.SUPPRESS,
+    )
+    a = p.add_argument
+    a("--config", metavar="FILE", help="YAML file setting any option below (flags win)")
+    a(
+        "--vehicles",
+        nargs="+",
+        metavar="URL",
+        help="vehicle links (udpin:/udp:/udpout:/tcp:/tcpin:/serial DEVICE,BAUD) or sim:N "
+        "for N built-in simulated vehicles in this process",
+    )
+    a("--out", nargs="+", metavar="URL", help="forward all traffic to these ground stations")
+    a("--scenario", metavar="NAME|FILE", help="simulated targets/boat/detections (a scenario)")
+    a(
+        "--targets",
+        metavar="FILE",
+        help="YAML list of targets {id, x_m, y_m | lat_deg, lon_deg, vx_m_s, vy_m_s, sigma0}",
+    )
+    a("--duration", type=float, metavar="S", help="stop after S mission seconds")
+    a(
+        "--launch",
+        dest="launch",
+        action="store_true",
+        help="arm and launch vehicles on the ground when ready (default: only sim:N)",
+    )
+    a(
+        "--no-launch",
+        dest="launch",
+        action="store_false",
+        help="never arm a vehicle on the ground (wait for `gcs vehicle launch`)",
+    )
+    a("--advisory", action="store_true", help="plan and journal, never command a vehicle")
+    a(
+        "--on-exit",
+        choices=("loiter", "rtl"),
+        help="what vehicles do when floe stops (default loiter)",
+    )
+    a("--http", metavar="HOST:PORT|off", help="control API (default 127.0.0.1:0)")
+    a("--detections", metavar="HOST:PORT|off", help="detection feed UDP (default 127.0.0.1:14600)")
+    a("--run-dir", metavar="DIR", help="parent of the run folders (default runs)")
+    a("--journal", metavar="FILE", help="journal path (default RUN/journal.jsonl)")
+    a("--gcs-system-id", type=int, metavar="ID", help="floe's MAVLink system id (default 245)")
+    a(
+        "--speedup",
+        type=float,
+        metavar="K",
+        help="mission clock speed-up: the simulator's for "
+        "sim:N (default 50 there), else the vehicles' (default 1)",
+    )
+    a("--seed", type=int, help="random seed (world, solver, faults)")
+    a("--num-workers", type=int, help="CP-SAT workers (default 1)")
+    a("--origin", metavar="LAT,LON", help="mission origin (default: scenario, else first fix)")
+    a("--altitude", dest="altitude_m", type=float, metavar="M", help="default altitude (100)")
+    a("--loiter", dest="loiter_s", type=float, metavar="S", help="timed loiter per visit")
+    a(
+        "--operating-radius",
+        dest="operating_radius_m",
+        type=float,
+        metavar="M",
+        help="operating area radius around home or the boat (default 10000)",
+    )
+    a(
+        "--lost-after",
+        dest="lost_after_s",
+        type=float,
+        metavar="S",
+        help="declare a silent vehicle lost after S mission seconds (default 5)",
+    )
+    a("--replan", choices=("event", "period", "both"), help="replanning trigger")
+    a("--period", dest="period_s", type=float, metavar="S", help="replan period")
+    a("--commit", dest="commit", action="store_true", help="keep vehicles on their target")
+    a("--no-commit", dest="commit", action="store_false", help="let replans redirect")
+    a("--sim-airborne", action="store_true", help="sim:N vehicles start flying in AUTO")
+    a("--sim-loss", type=float, metavar="P", help="sim:N packet loss on every link")
+    a("--sim-fault", action="append", metavar="SPEC", help="sim:N fault (gcs sitl --fault)")
+    a(
+        "--status",
+        choices=("auto", "table", "log", "quiet"),
+        help="live table (TTY), log lines, or nothing",
+    )
+    return p
+
+
+def build_config(argv: list[str]) -> Any:
+    """Parse ``argv`` into an effective :class:`DaemonConfig` (raises ConfigError)."""
+    from groundstation.daemon.config import (
+        ConfigError,
+        DaemonConfig,
+        apply_mapping,
+        load_config_file,
+    )
+
+    args = vars(_parser().parse_args(argv))
+    config = DaemonConfig()
+    path = args.pop("config", None)
+    data = load_config_file(path) if path else {}
+    if "speedup" not in data and "speedup" not in args:
+        sim = ("vehicles" in args and any(v.startswith("sim:") for v in args["vehicles"])) or (
+            "vehicles" not in args
+            and any(str(v).startswith("sim:") for v in data.get("vehicles") or [])
+        )
+        config.speedup = 50.0 if sim else 1.0
+    apply_mapping(config, data)
+    for key, value in args.items():
+        try:
+            apply_mapping(config, {key: value})
+        except ConfigError as exc:
+            raise ConfigError(f"--{key.replace('_', '-')}: {exc}") from None
+    config.validate()
+    return config
+
+
+def run(argv: list[str]) -> int:
+    """Entry point of ``gcs run``; returns the exit status."""
+    from groundstation.daemon.config import ConfigError
+    from groundstation.daemon.startup import StartError, run_daemon
+
+    try:
+        config = build_config(argv)
+    except ConfigError as exc:
+        print(f"gcs run: error: {exc}", file=sys.stderr)
+        return 2
+    try:
+        daemon = run_async(lambda: run_daemon(config))
+    except (StartError, ConfigError) as exc:
+        print(f"gcs run: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        return 130
+    summary = daemon.summary()
+    mean = summary.get("mean_uncertainty")
+    mean_text = f"{mean:.0f} m^2" if isinstance(mean, (int, float)) else "n/a"
+    print(
+        f"gcs run: stopped ({daemon.stop_reason or 'done'}) after {summary['mission_s']:.1f} "
+        f"mission s; plans {summary['plans']}, uploads {summary['uploads_ok']} ok / "
+        f"{summary['uploads_failed']} failed, mean uncertainty "
+        f"{mean_text}; run folder {daemon.run_dir}"
+    )
+    return 0

@@ -1,0 +1,211 @@
+"""The daemon's side of the control contract (``control_contract.DaemonControl``).
+
+The HTTP control API and the live page call these methods; every write answers
+``{"ok": bool, "error": str | None, ...}`` and never raises on bad requests.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import AsyncIterator
+from typing import TYPE_CHECKING, Any
+
+from groundstation.core import events as ev
+from groundstation.daemon.control_contract import VEHICLE_ACTIONS
+
+if TYPE_CHECKING:
+    from groundstation.daemon.daemon import Daemon
+
+__all__ = ["DaemonController"]
+
+
+def _refuse(error: str) -> dict[str, Any]:
+    return {"ok": False, "error": error}
+
+
+class DaemonController:
+    """Implements :class:`~groundstation.daemon.control_contract.DaemonControl`."""
+
+    def __init__(self, daemon: Daemon) -> None:
+        self.daemon = daemon
+        self._names = itertools.count(1)
+
+    # ------------------------------------------------------------------ reads
+    def state(self) -> dict[str, Any]:
+        d = self.daemon
+        t = d.clock.now_s()
+        origin = d.origin_or_none
+        vehicles = []
+        for s in sorted(d.sessions.values(), key=lambda s: s.system_id):
+            snap = s.snapshot
+            vehicles.append(
+                {
+                    "id": s.id,
+                    "name": s.id,
+                    "system_id": s.system_id,
+                    "x_m": snap.x_m,
+                    "y_m": snap.y_m,
+                    "alt_m": snap.alt_m,
+                    "heading_rad": snap.heading_rad,
+                    "speed_m_s": snap.airspeed_m_s or snap.speed_m_s,
+                    "mode": snap.mode_name,
+                    "armed": snap.armed,
+                    "status": s.status,
+                    "link": s.link,
+                    "battery_pct": snap.battery_remaining_pct,
+                    "target": s.fly.target if s.fly else None,
+                    "route": list(s.fly.route) if s.fly else [],
+                    "aim": [s.fly.x_m, s.fly.y_m] if s.fly else None,
+                    "track": [list(p) for p in s.track],
+                }
+            )
+        targets = [
+            {
+                "id": tr.id,
+                "x_m": tr.x_m,
+                "y_m": tr.y_m,
+                "vx_m_s": tr.vx_m_s,
+                "vy_m_s": tr.vy_m_s,
+                "sigma": tr.sigma,
+                "cov_xy": list(tr.cov_xy),
+                "lost": tr.lost,
+                "last_seen_s": tr.last_seen_s,
+            }
+            for tr in d.core.observer.tracks()
+        ]
+        return {
+            "t": t,
+            "unix_s": d.clock.unix_s(),
+            "speedup": d.clock.speedup,
+            "advisory": d.config.advisory,
+            "origin": {"lat_deg": origin.lat_deg, "lon_deg": origin.lon_deg} if origin else None,
+            "operating_radius_m": d.config.operating_radius_m,
+            "vehicles": vehicles,
+            "targets": targets,
+            "boat": {"x_m": d.boat_xy_m[0], "y_m": d.boat_xy_m[1]} if d.boat_xy_m else None,
+            "fov_radius_m": d.core_config.observer.fov_radius_m,
+            "plan": d.last_plan,
+            "events": [
+                line
+                for line in d.journal_file.recent
+                if line["event"] not in ("detection", "track")
+            ][-50:],
+        }
+
+    def subscribe(self) -> AsyncIterator[dict[str, Any]]:
+        return self.daemon.journal_file.subscribe()
+
+    # ------------------------------------------------------------------ writes
+    def _position(
+        self, x_m: float | None, y_m: float | None, lat_deg: float | None, lon_deg: float | None
+    ) -> tuple[float, float] | str:
+        if x_m is not None and y_m is not None:
+            x, y = float(x_m), float(y_m)
+        elif lat_deg is not None and lon_deg is not None:
+            if self.daemon.origin_or_none is None:
+                return "no mission origin yet (no vehicle position heard)"
+            if not (-90 <= lat_deg <= 90 and -180 <= lon_deg <= 180):
+                return "lat_deg/lon_deg out of range"
+            x, y, _ = self.daemon.origin.to_local(float(lat_deg), float(lon_deg))
+        else:
+            return "give x_m and y_m, or lat_deg and lon_deg"
+        if not (math.isfinite(x) and math.isfinite(y)):
+            return "position must be finite"
+        if not self.daemon.inside_area(x, y):
+            return (
+                f"position ({x:.0f}, {y:.0f}) m is outside the operating area "
+                f"({self.daemon.config.operating_radius_m:g} m)"
+            )
+        return x, y
+
+    async def add_target(
+        self,
+        target_id: str | None,
+        *,
+        x_m: float | None = None,
+        y_m: float | None = None,
+        lat_deg: float | None = None,
+        lon_deg: float | None = None,
+        vx_m_s: float = 0.0,
+        vy_m_s: float = 0.0,
+        sigma0: float | None = None,
+    ) -> dict[str, Any]:
+        d = self.daemon
+        pos = self._position(x_m, y_m, lat_deg, lon_deg)
+        if isinstance(pos, str):
+            return _refuse(pos)
+        known = set(d.core.observer.target_ids)
+        if target_id is None:
+            target_id = next(f"U{k}" for k in self._names if f"U{k}" not in known)
+        if not isinstance(target_id, str) or not target_id:
+            return _refuse("target id must be a non-empty string")
+        if target_id in known:
+            return _refuse(f"target {target_id!r} already exists")
+        if sigma0 is not None and not (math.isfinite(sigma0) and sigma0 >= 0):
+            return _refuse("sigma0 must be >= 0")
+        if not (math.isfinite(vx_m_s) and math.isfinite(vy_m_s)):
+            return _refuse("velocity must be finite")
+        t = d.clock.now_s()
+        d.journal(
+            "target_added",
+            target=target_id,
+            x_m=pos[0],
+            y_m=pos[1],
+            vx_m_s=vx_m_s,
+            vy_m_s=vy_m_s,
+            sigma0=sigma0,
+            source="api",
+        )
+        d.core_event(ev.TargetAdded(t, target_id, pos[0], pos[1], vx_m_s, vy_m_s, sigma0))
+        return {"ok": True, "error": None, "target": target_id}
+
+    async def move_target(
+        self,
+        target_id: str,
+        *,
+        x_m: float | None = None,
+        y_m: float | None = None,
+        lat_deg: float | None = None,
+        lon_deg: float | None = None,
+    ) -> dict[str, Any]:
+        d = self.daemon
+        if target_id not in d.core.observer.target_ids:
+            return _refuse(f"unknown target {target_id!r}")
+        pos = self._position(x_m, y_m, lat_deg, lon_deg)
+        if isinstance(pos, str):
+            return _refuse(pos)
+        d.add_detection(ev.Detection(d.clock.now_s(), None, target_id, pos[0], pos[1]))
+        return {"ok": True, "error": None, "target": target_id}
+
+    async def remove_target(self, target_id: str) -> dict[str, Any]:
+        d = self.daemon
+        if target_id not in d.core.observer.target_ids:
+            return _refuse(f"unknown target {target_id!r}")
+        d.journal("target_removed", target=target_id, source="api")
+        d.core_event(ev.TargetRemoved(d.clock.now_s(), target_id))
+        return {"ok": True, "error": None, "target": target_id}
+
+    async def vehicle_action(self, vehicle_id: str, action: str) -> dict[str, Any]:
+        d = self.daemon
+        if action not in VEHICLE_ACTIONS:
+            return _refuse(f"unknown action {action!r}; use {', '.join(VEHICLE_ACTIONS)}")
+        session = d.by_name.get(vehicle_id)
+        if session is None and vehicle_id.isdigit():
+            session = d.sessions.get(int(vehicle_id))
+        if session is None:
+            return _refuse(f"unknown vehicle {vehicle_id!r}")
+        t = d.clock.now_s()
+        if action == "launch":
+            if d.config.advisory:
+                return _refuse("advisory mode: floe commands no vehicle")
+            ok, error = session.request_launch()
+            return {"ok": ok, "error": error or None, "vehicle": session.id}
+        if action == "resume":
+            if not session.resume(t, "api"):
+                return _refuse(f"vehicle {session.id} is {session.status}, not overridden")
+            return {"ok": True, "error": None, "vehicle": session.id}
+        if session.status != "active":
+            return _refuse(f"vehicle {session.id} is {session.status}, not active")
+        session.override(t, "api release")
+        return {"ok": True, "error": None, "vehicle": session.id}

@@ -1,0 +1,567 @@
+"""The daemon behind ``gcs run``: links, sessions, the decision core, the journal.
+
+One root ``asyncio.TaskGroup`` holds the ticker (``Tick`` every 0.1 mission s, the world,
+housekeeping), the GCS heartbeat (1 Hz of mission time, system id ``gcs_system_id``), the
+embedded simulator (``sim:N``), the status display, the control API and one task per
+vehicle session. Every task runs under :meth:`Daemon._supervise`: an exception is logged,
+journalled (``task_error``) and the task restarted, so one vehicle's failure never takes
+the others down. The decision core is driven exactly as ``gcs simulate`` drives it: events
+in, commands out, plans requested on ticks and solved in a worker thread
+(:class:`~groundstation.daemon.planning.SolverRunner`).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import math
+import time
+from collections.abc import Awaitable, Callable
+from pathlib import Path
+from typing import Any
+
+from groundstation.core import events as ev
+from groundstation.core.commands import (
+    CancelSolve,
+    Command,
+    FlyToTarget,
+    Note,
+    PlanAdopted,
+    ReleaseVehicle,
+    SendHome,
+    SolveRequest,
+)
+from groundstation.core.config import CoreConfig
+from groundstation.core.decision import DecisionCore
+from groundstation.core.records import command_to_record, event_to_record, result_to_record
+from groundstation.daemon.clock import MissionClock
+from groundstation.daemon.config import DaemonConfig
+from groundstation.daemon.journal import Journal
+from groundstation.daemon.planning import SolverRunner
+from groundstation.daemon.session import VehicleSession
+from groundstation.daemon.vehicle_port import VehiclePort
+from groundstation.daemon.world import ScenarioWorld
+from groundstation.link import Received, Router, TlogWriter
+from groundstation.link.base import Link
+from groundstation.mavlink.codec import MavlinkEncoder, mavlink2
+from groundstation.mavlink.geodesy import GeoOrigin
+from groundstation.runners.metrics import MetricsRecorder
+from planner import PlanResult, problem_to_dict
+
+__all__ = ["Daemon"]
+
+log = logging.getLogger(__name__)
+M = mavlink2
+TICK_S = 0.1
+MIN_WAKE_WALL_S = 0.01
+MAX_TICKS_PER_WAKE = 100
+MISSION_MESSAGES_FROM_GCS = frozenset(
+    {"MISSION_COUNT", "MISSION_CLEAR_ALL", "MISSION_ITEM", "MISSION_ITEM_INT"}
+)
+
+
+class Daemon:
+    """See the module docstring. Built by :mod:`groundstation.daemon.startup`."""
+
+    def __init__(
+        self,
+        config: DaemonConfig,
+        core_config: CoreConfig,
+        clock: MissionClock,
+        run_dir: Path,
+        origin: GeoOrigin | None,
+        journal: Journal,
+        tlog: TlogWriter | None,
+    ) -> None:
+        self.config = config
+        self.core_config = core_config
+        self.clock = clock
+        self.run_dir = run_dir
+        self.origin_or_none = origin
+        self.journal_file = journal
+        self.core = DecisionCore(core_config)
+        # every input the core sees is journalled exactly (replay feeds them again)
+        self.core.on_input = lambda event: journal.write_record(event_to_record(event))
+        self.encoder = MavlinkEncoder(config.gcs_system_id, M.MAV_COMP_ID_MISSIONPLANNER)
+        self.router = Router(self._on_vehicle_frame, self._on_out_frame, tlog)
+        self.tlog = tlog
+        self.sessions: dict[int, VehicleSession] = {}
+        self.by_name: dict[str, VehicleSession] = {}
+        self.solver = SolverRunner(
+            self._on_solved,
+            num_workers=config.num_workers,
+            seed=config.seed,
+            on_error=self._on_solve_error,
+        )
+        self.metrics = MetricsRecorder()
+        self.world: ScenarioWorld | None = None
+        self.sim: Any = None
+        self.extra_tasks: list[Callable[[], Awaitable[None]]] = []
+        self.extra_stops: list[Callable[[], Awaitable[None]]] = []
+        self.on_finish: list[Callable[[], None]] = []
+        self.control_url: str | None = None
+        self.control_token: str | None = None
+        self.detection_address: tuple[str, int] | None = None
+        self.boat_xy_m: tuple[float, float] | None = None
+        self.stopping = False
+        self.stop_reason = ""
+        self.last_plan: dict[str, Any] | None = None
+        self._stop = asyncio.Event()
+        self._kick = asyncio.Event()
+        self._finished = False
+        self._requests: dict[int, SolveRequest] = {}
+        self._tg: asyncio.TaskGroup | None = None
+        self._tasks: list[asyncio.Task[None]] = []
+        self._next_tick_s = 0.0
+        self._next_sample_s = 0.0
+        self._next_track_s = 0.0
+        self._wall_start = time.perf_counter()
+        self._cpu_start = time.process_time()
+        self.detections_dropped = 0
+
+    # ------------------------------------------------------------------ SessionHost
+    @property
+    def origin(self) -> GeoOrigin:
+        assert self.origin_or_none is not None
+        return self.origin_or_none
+
+    def journal(self, event: str, **fields: Any) -> None:
+        line = self.journal_file.write(event, **fields)
+        if event in _LOGGED:
+            log.info("%s", _describe(line))
+
+    def core_event(self, event: ev.Event) -> None:
+        """Feed the core and carry out what it says (as the offline runner does).
+
+        A fleet event (loiter end, vehicle joined/lost...) also wakes the ticker at once, so
+        the plan it triggers is asked for on the next 0.1 s tick without waiting for the
+        ticker's sleep."""
+        if not isinstance(event, ev.Tick | ev.Telemetry | ev.Detection | ev.PlanSolved):
+            self._kick.set()
+        try:
+            pending = self.core.handle(event)
+        except Exception:
+            log.exception("decision core failed on %s", type(event).__name__)
+            self.journal("core_error", input=type(event).__name__)
+            return
+        for command in pending:
+            self._execute(command)
+
+    def clip(self, x_m: float, y_m: float) -> tuple[float, float, bool]:
+        """Clip a waypoint into the operating area (a circle around home or the boat)."""
+        radius = self.config.operating_radius_m
+        if radius is None:
+            return x_m, y_m, False
+        cx, cy = self.area_center()
+        d = math.hypot(x_m - cx, y_m - cy)
+        if d <= radius:
+            return x_m, y_m, False
+        k = radius / d
+        return cx + (x_m - cx) * k, cy + (y_m - cy) * k, True
+
+    def area_center(self) -> tuple[float, float]:
+        if self.config.operating_center == "boat" and self.boat_xy_m is not None:
+            return self.boat_xy_m
+        return 0.0, 0.0
+
+    def inside_area(self, x_m: float, y_m: float) -> bool:
+        radius = self.config.operating_radius_m
+        if radius is None:
+            return True
+        cx, cy = self.area_center()
+        return math.hypot(x_m - cx, y_m - cy) <= radius
+
+    # ------------------------------------------------------------------ core commands
+    def _execute(self, command: Command) -> None:
+        if isinstance(command, SolveRequest):
+            self.journal_file.write_record(command_to_record(command))
+            self._requests[command.request_id] = command
+            if len(self._requests) > 50:
+                for key in sorted(self._requests)[:-50]:
+                    del self._requests[key]
+            self.solver.submit(command)
+        elif isinstance(command, CancelSolve):
+            self.solver.cancel(command.request_id)
+            self.journal("plan_cancelled", request=command.request_id)
+        elif isinstance(command, PlanAdopted):
+            self._journal_plan(command)
+        elif isinstance(command, FlyToTarget):
+            session = self.by_name.get(command.vehicle)
+            self.journal(
+                "fly",
+                vehicle=command.vehicle,
+                target=command.target,
+                x_m=round(command.x_m, 1),
+                y_m=round(command.y_m, 1),
+                loiter_s=command.loiter_s,
+                route=list(command.route),
+                advisory=self.config.advisory or None,
+            )
+            if session is not None and not self.config.advisory:
+                session.command_fly(command)
+        elif isinstance(command, ReleaseVehicle | SendHome):
+            session = self.by_name.get(command.vehicle)
+            if session is not None:
+                session.release(command.reason, home=isinstance(command, SendHome))
+        elif isinstance(command, Note):
+            self.journal(
+                "note",
+                kind=command.kind,
+                vehicle=command.vehicle,
+                target=command.target,
+                detail=command.detail or None,
+            )
+
+    def _journal_plan(self, adopted: PlanAdopted) -> None:
+        request = self._requests.pop(adopted.request_id, None)
+        result = adopted.result
+        self.metrics.plan(result.solve_time_s)
+        self.last_plan = {
+            "t": round(adopted.t_s, 3),
+            "routes": dict(result.routes),
+            "status": result.status,
+            "solve_time_s": result.solve_time_s,
+        }
+        self.journal(
+            "plan",
+            request=adopted.request_id,
+            request_id=adopted.request_id,
+            reason=request.reason if request else None,
+            routes=result.routes,
+            assignments=dict(adopted.assignments),
+            status=result.status,
+            solve_time_s=round(result.solve_time_s, 4),
+            problem=problem_to_dict(adopted.problem),
+            hint={k: list(v) for k, v in request.hint.items()} if request else None,
+            result=result_to_record(result),
+        )
+
+    def _on_solved(self, request: SolveRequest, result: PlanResult) -> None:
+        self.core_event(ev.PlanSolved(self.clock.now_s(), request.request_id, result))
+
+    def _on_solve_error(self, request: SolveRequest, error: str) -> None:
+        self.journal("plan_failed", request=request.request_id, error=error)
+
+    # ------------------------------------------------------------------ frames
+    def _on_vehicle_frame(self, rx: Received) -> None:
+        msg = rx.message
+        sysid = rx.system_id
+        if sysid == self.config.gcs_system_id:
+            return
+        session = self.sessions.get(sysid)
+        if session is None:
+            if (
+                msg.get_type() == "GLOBAL_POSITION_INT"
+                and self.origin_or_none is None
+                and (msg.lat != 0 or msg.lon != 0)
+            ):
+                self.origin_or_none = GeoOrigin(msg.lat / 1e7, msg.lon / 1e7)
+                self.journal(
+                    "origin", lat_deg=msg.lat / 1e7, lon_deg=msg.lon / 1e7, source=f"system {sysid}"
+                )
+            if (
+                msg.get_type() != "HEARTBEAT"
+                or rx.component_id != 1
+                or msg.type == M.MAV_TYPE_GCS
+                or msg.autopilot == M.MAV_AUTOPILOT_INVALID
+                or self.origin_or_none is None
+                or self.stopping
+            ):
+                return
+            session = self._new_session(sysid)
+        try:
+            session.on_message(msg)
+        except Exception:
+            log.exception("vehicle %s: message handling failed", session.id)
+
+    def _new_session(self, sysid: int) -> VehicleSession:
+        settings = self.config.settings_for(sysid)
+        name = settings.name or str(sysid)
+        port = VehiclePort(
+            sysid,
+            self.router.send_to,
+            self.encoder,
+            self.clock,
+            timeout_s=self.config.transfer_timeout_s,
+            retries=self.config.transfer_retries,
+        )
+        index = sysid - 1 if self.config.sim_count else len(self.sessions)
+        session = VehicleSession(sysid, name, index, self, self.config, settings, port, self.clock)
+        self.sessions[sysid] = session
+        self.by_name[name] = session
+        self.journal("vehicle_seen", vehicle=name, system_id=sysid, altitude_m=session.alt_m)
+        if self._tg is not None:
+            self._spawn(f"vehicle {name}", session.run)
+        return session
+
+    def _on_out_frame(self, rx: Received) -> None:
+        """Another ground station's traffic (through --out): its mission upload to a vehicle
+        floe commands is an operator override."""
+        msg = rx.message
+        if rx.system_id == self.config.gcs_system_id:
+            return
+        if msg.get_type() in MISSION_MESSAGES_FROM_GCS:
+            if getattr(msg, "mission_type", 0) != M.MAV_MISSION_TYPE_MISSION:
+                return
+            session = self.sessions.get(int(getattr(msg, "target_system", 0)))
+            if session is not None and session.status == "active":
+                session.override(
+                    self.clock.now_s(), f"mission {msg.get_type()} from GCS system {rx.system_id}"
+                )
+
+    # ------------------------------------------------------------------ tasks
+    def _spawn(self, name: str, factory: Callable[[], Awaitable[None]]) -> None:
+        assert self._tg is not None
+        self._tasks.append(self._tg.create_task(self._supervise(name, factory), name=name))
+
+    async def _supervise(self, name: str, factory: Callable[[], Awaitable[None]]) -> None:
+        failures = 0
+        while not self._finished:
+            try:
+                await factory()
+                return
+            except asyncio.CancelledError:
+                raise
+            except Exception as exc:
+                failures += 1
+                log.exception("task %s failed (restart %d)", name, failures)
+                self.journal("task_error", task=name, error=repr(exc), restarts=failures)
+                await asyncio.sleep(min(5.0, 0.2 * failures))
+
+    def request_stop(self, reason: str) -> None:
+        if not self._stop.is_set():
+            self.stop_reason = reason
+            self._stop.set()
+
+    async def run(self, links: list[Link], out_links: list[Link]) -> None:
+        """Run until stopped (signal, ``--duration``, :meth:`request_stop`)."""
+        for link in links:
+            self.router.add_vehicle_link(link)
+        for link in out_links:
+            self.router.add_out_link(link)
+        await self.router.start()
+        try:
+            async with asyncio.TaskGroup() as tg:
+                self._tg = tg
+                self._spawn("ticker", self._tick_loop)
+                self._spawn("heartbeat", self._heartbeat_loop)
+                for factory in self.extra_tasks:
+                    self._spawn(getattr(factory, "__name__", "task"), factory)
+                for session in self.sessions.values():
+                    self._spawn(f"vehicle {session.id}", session.run)
+                await self._stop.wait()
+                await self._shutdown()
+                self._finished = True
+                for finish in self.on_finish:
+                    finish()
+                for task in self._tasks:
+                    task.cancel()
+        finally:
+            self.solver.close()
+            await self.router.stop()
+
+    async def _shutdown(self) -> None:
+        """Never mid-upload: stop taking commands, wait for running exchanges, then act."""
+        self.stopping = True
+        for session in self.sessions.values():
+            session.stopping = True
+        deadline = time.monotonic() + max(2.0, min(20.0, self.clock.wall_s(30.0)))
+        while any(s.port.busy for s in self.sessions.values()) and time.monotonic() < deadline:
+            await asyncio.sleep(0.01)
+        for session in self.sessions.values():
+            if session.port.busy:
+                self.journal("stop_wait_timeout", vehicle=session.id)
+            if (
+                self.config.on_exit == "rtl"
+                and session.status == "active"
+                and not self.config.advisory
+                and session.link != "lost"
+            ):
+                for _ in range(3):
+                    session.port.fire_mode(11)
+                self.journal("rtl", vehicle=session.id, ok=None, reason="on exit")
+        self.journal("stop", reason=self.stop_reason, **self.summary())
+
+    # ------------------------------------------------------------------ loops
+    async def _heartbeat_loop(self) -> None:
+        msg = M.MAVLink_heartbeat_message(
+            M.MAV_TYPE_GCS, M.MAV_AUTOPILOT_INVALID, 0, 0, M.MAV_STATE_ACTIVE, 3
+        )
+        while not self._finished:
+            self.router.broadcast(self.encoder.encode(msg))
+            await asyncio.sleep(max(0.02, self.clock.wall_s(1.0)))
+
+    async def _tick_loop(self) -> None:
+        while not self.stopping:
+            now = self.clock.now_s()
+            self.tick(now)
+            if self.config.duration is not None and now >= self.config.duration:
+                self.request_stop("duration")
+                return
+            self._kick.clear()
+            with contextlib.suppress(TimeoutError):
+                async with asyncio.timeout(max(MIN_WAKE_WALL_S, self.clock.wall_s(TICK_S))):
+                    await self._kick.wait()
+
+    def tick(self, now: float) -> None:
+        """Everything due by ``now`` (mission s): world, ticks, metrics, housekeeping."""
+        if self._next_tick_s < now - MAX_TICKS_PER_WAKE * TICK_S:
+            self._next_tick_s = now - MAX_TICKS_PER_WAKE * TICK_S
+        while self._next_tick_s <= now + 1e-9:
+            t = self._next_tick_s
+            if self.world is not None:
+                for event in self.world.step_to(t):
+                    self._world_event(event)
+                if self.world.boat_xy_m is not None:
+                    self.boat_xy_m = self.world.boat_xy_m
+                    self.core.set_boat(*self.world.boat_xy_m)
+            self.core_event(ev.Tick(t))
+            if t >= self._next_sample_s - 1e-9:
+                self._sample(t)
+                self._next_sample_s += 1.0
+            self._next_tick_s = round(self._next_tick_s + TICK_S, 6)
+        for session in self.sessions.values():
+            session.check_link(now)
+        if now >= self._next_track_s:
+            self._next_track_s = now + self.config.track_period_s
+            for tr in self.core.observer.tracks():
+                self.journal(
+                    "track",
+                    target=tr.id,
+                    sigma=round(tr.sigma, 3),
+                    x_m=round(tr.x_m, 1),
+                    y_m=round(tr.y_m, 1),
+                    lost=tr.lost or None,
+                )
+
+    def _world_event(self, event: ev.Event) -> None:
+        if isinstance(event, ev.Detection):
+            self.add_detection(event)
+            return
+        if isinstance(event, ev.TargetAdded):
+            if not self.inside_area(event.x_m, event.y_m):
+                self.journal(
+                    "target_refused",
+                    target=event.target,
+                    x_m=event.x_m,
+                    y_m=event.y_m,
+                    reason="outside the operating area",
+                )
+                return
+            self.journal(
+                "target_added",
+                target=event.target,
+                x_m=event.x_m,
+                y_m=event.y_m,
+                vx_m_s=event.vx_m_s,
+                vy_m_s=event.vy_m_s,
+                sigma0=event.sigma0,
+                source="scenario",
+            )
+        elif isinstance(event, ev.TargetRemoved):
+            self.journal("target_removed", target=event.target, source="scenario")
+        self.core_event(event)
+
+    def add_detection(self, event: ev.Detection) -> None:
+        """A camera measurement (virtual camera or detection feed) for the core."""
+        if not self.inside_area(event.x_m, event.y_m):
+            self.detections_dropped += 1
+            return
+        before = self.core.counters.get("detections_accepted", 0)
+        self.core_event(event)
+        accepted = self.core.counters.get("detections_accepted", 0) > before
+        if accepted and event.target is not None:
+            self.metrics.seen(event.t_s, event.vehicle, event.target)
+        self.journal(
+            "detection",
+            vehicle=event.vehicle,
+            target=event.target,
+            x_m=round(event.x_m, 1),
+            y_m=round(event.y_m, 1),
+            accepted=accepted,
+        )
+
+    def _sample(self, t: float) -> None:
+        tracks = self.core.observer.tracks()
+        self.metrics.sample(t, (tr.sigma for tr in tracks))
+        truth = self.world.truth() if self.world is not None else {}
+        for tr in tracks:
+            if tr.lost:
+                self.metrics.mark_lost(tr.id)
+            if tr.id in truth:
+                tx, ty = truth[tr.id]
+                self.metrics.error(tr.id, math.hypot(tr.x_m - tx, tr.y_m - ty))
+
+    # ------------------------------------------------------------------ reports
+    def summary(self) -> dict[str, Any]:
+        wall = time.perf_counter() - self._wall_start
+        cpu = time.process_time() - self._cpu_start
+        metrics = self.metrics.to_dict(wall)
+        delays = [d for s in self.sessions.values() for d in s.upload_delays_s]
+        return {
+            "mission_s": round(self.clock.now_s(), 2),
+            "wall_s": round(wall, 2),
+            "cpu_s": round(cpu, 2),
+            "mean_uncertainty": metrics.get("mean_uncertainty"),
+            "max_uncertainty": metrics.get("max_uncertainty"),
+            "final_uncertainty": metrics.get("final_uncertainty"),
+            "plans": self.core.plans_adopted,
+            "uploads_ok": sum(s.uploads_ok for s in self.sessions.values()),
+            "uploads_failed": sum(s.uploads_failed for s in self.sessions.values()),
+            "loiter_to_upload_s": sorted(round(d, 3) for d in delays),
+            "visits": len(metrics.get("visits", [])),
+        }
+
+    def metrics_dict(self) -> dict[str, Any]:
+        wall = time.perf_counter() - self._wall_start
+        out = self.metrics.to_dict(wall)
+        out["summary"] = self.summary()
+        return out
+
+
+_LOGGED = frozenset(
+    {
+        "plan",
+        "upload",
+        "loiter_end",
+        "link_lost",
+        "link_restored",
+        "override",
+        "resume",
+        "battery_low",
+        "vehicle_joined",
+        "reboot",
+        "launch",
+        "target_added",
+        "target_removed",
+        "task_error",
+        "rtl",
+        "release",
+        "stop",
+        "autopilot_mode",
+        "on_ground",
+        "waiting",
+        "plan_failed",
+    }
+)
+
+
+def _describe(line: dict[str, Any]) -> str:
+    skip = {"t", "unix_s", "event", "problem", "result", "hint", "request_id"}
+    parts = [f"t={line['t']:.1f}", line["event"]]
+    for key, value in line.items():
+        if key not in skip:
+            parts.append(f"{key}={_short(value)}")
+    return " ".join(parts)
+
+
+def _short(value: Any) -> Any:
+    """Floats to 4 significant digits for the log (the journal keeps full precision)."""
+    if isinstance(value, float):
+        return f"{value:.4g}" if abs(value) < 1e5 else f"{value:.0f}"
+    if isinstance(value, list) and len(value) > 6 and all(isinstance(v, float) for v in value):
+        return f"[{len(value)} values, median {sorted(value)[len(value) // 2]:.3g}]"
+    if isinstance(value, list):
+        return [_short(v) for v in value]
+    return value

@@ -1,0 +1,95 @@
+"""``--vehicles sim:N``: the built-in simulator in the daemon's own event loop.
+
+The vehicles serve TCP on ephemeral 127.0.0.1 ports and the daemon connects to them with
+ordinary ``tcp:`` links, exactly as to ArduPilot SITL. Launch poses, origin and home come
+from the scenario (``sitl.sitl_setup.scenario_setup``), whose scripted vehicle events
+become simulator faults (vehicle_lost -> link drop, override -> the operator switches to
+FBWA, resume -> AUTO, battery_low -> 10 %); ``sim_loss`` and ``sim_fault`` add more. The
+mission clock follows the simulator's simulated time. The simulator ticks every 5 ms and
+advances by at most max(0.05 s, min(0.5 s, 5 ms x K)) per tick, so a loaded host slows the
+run down instead of making the vehicles' clocks jump (a jump of a few simulated seconds
+fires ArduPlane's 1 s re-request and 8 s upload timers for nothing).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+from groundstation.daemon.config import ConfigError, DaemonConfig
+from groundstation.mavlink.geodesy import GeoOrigin
+from sitl.scenario import Scenario
+from sitl.server import ServerOptions, SitlServer
+
+__all__ = ["EmbeddedSim", "build_embedded_sim"]
+
+DEFAULT_HOME = (78.93, 11.92)
+SIM_TICK_S = 0.005
+
+
+@dataclass
+class EmbeddedSim:
+    server: SitlServer
+    origin: GeoOrigin
+    fault_specs: list[str]
+
+
+def build_embedded_sim(config: DaemonConfig, scenario: Scenario | None) -> EmbeddedSim:
+    """The simulator for ``config.sim_count`` vehicles (not started)."""
+    from sitl.faults import FaultError, VehicleFaults, apply_fault, parse_fault_spec
+    from sitl.sitl_setup import scenario_setup
+    from sitl.vehicle import VehicleConfig
+
+    count = config.sim_count
+    assert count is not None
+    home_given = config.origin is not None
+    home = DEFAULT_HOME
+    if config.origin is not None:
+        from groundstation.daemon.config import parse_latlon
+
+        home = parse_latlon(config.origin, "origin")
+    setup = scenario_setup(scenario, count, home, home_given)
+    configs = []
+    for i in range(count):
+        sysid = i + 1
+        settings = config.settings_for(sysid)
+        alt = settings.altitude_m or config.altitude_m + config.altitude_step_m * i
+        configs.append(
+            VehicleConfig(
+                system_id=sysid,
+                origin=setup.origin,
+                home_lat_deg=setup.home[0],
+                home_lon_deg=setup.home[1],
+                cruise_speed_m_s=setup.speed_m_s,
+                min_turn_radius_m=setup.turn_radius_m,
+                launch_x_m=setup.launch[i][0],
+                launch_y_m=setup.launch[i][1],
+                launch_heading_rad=setup.launch[i][2],
+                airborne=config.sim_airborne,
+                airborne_alt_m=alt,
+                fast_boot=config.sim_fast_boot,
+                unix_time_at_zero_s=time.time(),
+            )
+        )
+    faults = {c.system_id: VehicleFaults(config.seed * 1000 + c.system_id) for c in configs}
+    specs = list(config.sim_fault)
+    if config.sim_loss > 0:
+        specs.append(f"all:loss:p={config.sim_loss}")
+    specs += setup.fault_specs
+    try:
+        for spec in specs:
+            for sysid, kind, fault_options in parse_fault_spec(spec, count):
+                apply_fault(faults[sysid], kind, fault_options)
+    except FaultError as exc:
+        raise ConfigError(f"sim_fault: {exc}") from None
+
+    step_s = max(0.05, min(0.5, config.speedup * SIM_TICK_S))
+    options = ServerOptions(
+        speedup=config.speedup,
+        host="127.0.0.1",
+        base_port=0,
+        tick_s=SIM_TICK_S,
+        max_step_s=step_s,
+        max_stall_s=SIM_TICK_S,
+    )
+    return EmbeddedSim(SitlServer(configs, options, faults, None), setup.origin, specs)

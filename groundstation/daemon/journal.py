@@ -1,0 +1,131 @@
+"""The run's JSON-lines journal: one object a line, flushed per line.
+
+Every line has ``t`` (mission seconds), ``unix_s`` (wall clock) and ``event``; ``vehicle``
+and ``target`` where they apply. Each line is written with one ``write`` + ``flush``, so a
+crash loses at most the line being written. Live subscribers (the control API's event
+stream) get every line through a bounded queue; a slow subscriber loses lines, never
+blocks the daemon.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import collections
+import json
+import logging
+import math
+from collections.abc import AsyncIterator, Callable
+from pathlib import Path
+from typing import Any, TextIO
+
+__all__ = ["Journal"]
+
+log = logging.getLogger(__name__)
+
+_RECENT = 200
+_SUBSCRIBER_QUEUE = 1000
+
+
+def _clean(value: Any) -> Any:
+    """JSON-safe: NaN/inf -> None, tuples -> lists, unknown objects -> str."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {str(k): _clean(v) for k, v in value.items()}
+    if isinstance(value, list | tuple | set | frozenset):
+        return [_clean(v) for v in value]
+    if value is None or isinstance(value, bool | int | str):
+        return value
+    return str(value)
+
+
+class Journal:
+    """Append-only JSON-lines writer with live subscribers."""
+
+    def __init__(
+        self, path: str | Path | None, now_s: Callable[[], float], unix_s: Callable[[], float]
+    ) -> None:
+        self.path = Path(path) if path is not None else None
+        self._now_s = now_s
+        self._unix_s = unix_s
+        self._file: TextIO | None = None
+        if self.path is not None:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            self._file = self.path.open("a", encoding="utf-8")
+        self.recent: collections.deque[dict[str, Any]] = collections.deque(maxlen=_RECENT)
+        self.counts: collections.Counter[str] = collections.Counter()
+        self._subscribers: list[asyncio.Queue[dict[str, Any] | None]] = []
+        self.lines = 0
+
+    def write(self, event: str, **fields: Any) -> dict[str, Any]:
+        """Journal one event now; returns the line as written."""
+        line: dict[str, Any] = {
+            "t": round(self._now_s(), 3),
+            "unix_s": round(self._unix_s(), 3),
+            "event": event,
+        }
+        for key, value in fields.items():
+            if value is not None:
+                line[key] = _clean(value)
+        self.counts[event] += 1
+        self.lines += 1
+        if self._file is not None:
+            try:
+                self._file.write(json.dumps(line, separators=(",", ":")) + "\n")
+                self._file.flush()
+            except (OSError, ValueError) as exc:  # full disk: logged, never fatal
+                log.error("journal write failed: %s", exc)
+        self.recent.append(line)
+        for queue in self._subscribers:
+            if not queue.full():
+                queue.put_nowait(line)
+        return line
+
+    def write_record(self, record: dict[str, Any]) -> None:
+        """Journal a ready-made record (a core input from ``core.records``): its ``t`` is
+        kept exact, ``unix_s`` is added; not sent to live subscribers (high rate)."""
+        line = {"t": record.get("t"), "unix_s": round(self._unix_s(), 3)}
+        line.update({k: _clean(v) for k, v in record.items() if k != "t"})
+        self.counts[str(record.get("event"))] += 1
+        self.lines += 1
+        if self._file is not None:
+            try:
+                self._file.write(json.dumps(line, separators=(",", ":")) + "\n")
+                self._file.flush()
+            except (OSError, ValueError) as exc:
+                log.error("journal write failed: %s", exc)
+
+    async def subscribe(self) -> AsyncIterator[dict[str, Any]]:
+        """Every line written from now on, until :meth:`close`."""
+        queue: asyncio.Queue[dict[str, Any] | None] = asyncio.Queue(_SUBSCRIBER_QUEUE)
+        self._subscribers.append(queue)
+        try:
+            while True:
+                item = await queue.get()
+                if item is None:
+                    return
+                yield item
+        finally:
+            if queue in self._subscribers:
+                self._subscribers.remove(queue)
+
+    def close(self) -> None:
+        for queue in self._subscribers:
+            if queue.full():
+                queue.get_nowait()
+            queue.put_nowait(None)
+        if self._file is not None:
+            self._file.close()
+            self._file = None
+
+
+def read_journal(path: str | Path) -> list[dict[str, Any]]:
+    """Every complete line of a journal (a truncated last line is skipped)."""
+    out: list[dict[str, Any]] = []
+    with Path(path).open(encoding="utf-8") as fh:
+        for text in fh:
+            try:
+                out.append(json.loads(text))
+            except json.JSONDecodeError:
+                continue
+    return out

@@ -1,0 +1,117 @@
+"""CP-SAT off the event loop: one worker thread, a deadline, a fallback, stale plans dropped.
+
+``submit(request)`` starts :class:`planner.PlanSolver` in a worker thread (``num_workers``
+CP-SAT workers, 1 by default: all cores would starve the event loop on a 2-core machine).
+The solver honours the problem's ``time_limit_s`` itself; if it has not answered after
+``1.5 x time_limit_s + 0.5`` wall seconds it is stopped (``PlanSolver.stop``) and returns its
+best plan so far (status ``fallback`` when CP-SAT found none). If solving raises, the
+heuristic alone is tried; if that fails too, the request gets no answer and the next
+trigger asks again. ``cancel(id)`` stops an overtaken solve; its answer is dropped here
+(the core would drop it too).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import concurrent.futures
+import logging
+from collections.abc import Callable, Mapping, Sequence
+
+from groundstation.core.commands import SolveRequest
+from planner import PlanResult, PlanSolver
+
+__all__ = ["SolverRunner"]
+
+log = logging.getLogger(__name__)
+
+
+class SolverRunner:
+    """Runs solve requests in a worker thread and answers with ``on_solved``."""
+
+    def __init__(
+        self,
+        on_solved: Callable[[SolveRequest, PlanResult], None],
+        *,
+        num_workers: int = 1,
+        seed: int = 0,
+        on_error: Callable[[SolveRequest, str], None] | None = None,
+    ) -> None:
+        self.on_solved = on_solved
+        self.on_error = on_error
+        self.num_workers = num_workers
+        self.seed = seed
+        self._executor = concurrent.futures.ThreadPoolExecutor(
+            max_workers=2, thread_name_prefix="floe-solver"
+        )
+        self._solvers: dict[int, PlanSolver] = {}
+        self._tasks: set[asyncio.Task[None]] = set()
+        self.cancelled = 0
+        self.deadline_stops = 0
+        self.solved = 0
+
+    def submit(self, request: SolveRequest) -> None:
+        solver = PlanSolver(
+            request.problem,
+            _hint(request.hint),
+            num_workers=self.num_workers,
+            random_seed=self.seed,
+        )
+        self._solvers[request.request_id] = solver
+        task = asyncio.get_running_loop().create_task(self._solve(request, solver))
+        self._tasks.add(task)
+        task.add_done_callback(self._tasks.discard)
+
+    def cancel(self, request_id: int) -> None:
+        solver = self._solvers.pop(request_id, None)
+        if solver is not None:
+            solver.stop()
+            self.cancelled += 1
+
+    @property
+    def busy(self) -> bool:
+        return bool(self._solvers)
+
+    async def _solve(self, request: SolveRequest, solver: PlanSolver) -> None:
+        loop = asyncio.get_running_loop()
+        future = loop.run_in_executor(self._executor, solver.solve)
+        deadline_s = 1.5 * request.problem.time_limit_s + 0.5
+        result: PlanResult | None = None
+        try:
+            result = await asyncio.wait_for(asyncio.shield(future), deadline_s)
+        except TimeoutError:
+            self.deadline_stops += 1
+            solver.stop()
+            try:
+                result = await future
+            except Exception as exc:
+                log.warning("solver failed after stop: %s", exc)
+        except asyncio.CancelledError:
+            solver.stop()
+            raise
+        except Exception as exc:
+            log.warning("solver failed (%s): trying the heuristic", exc)
+            fallback = PlanSolver(
+                request.problem, _hint(request.hint), method="heuristic", random_seed=self.seed
+            )
+            try:
+                result = await loop.run_in_executor(self._executor, fallback.solve)
+            except Exception as exc2:
+                if self.on_error is not None:
+                    self.on_error(request, repr(exc2))
+        if self._solvers.pop(request.request_id, None) is None:
+            return  # cancelled: a newer request overtook it
+        if result is not None:
+            self.solved += 1
+            self.on_solved(request, result)
+
+    def close(self) -> None:
+        for solver in self._solvers.values():
+            solver.stop()
+        self._solvers.clear()
+        for task in list(self._tasks):
+            task.cancel()
+        self._executor.shutdown(wait=False, cancel_futures=True)
+
+
+def _hint(hint: Mapping[str, Sequence[str]]) -> dict[str, list[str]]:
+    return {k: list(v) for k, v in hint.items()}

@@ -1,0 +1,111 @@
+"""A scenario's simulated world for the daemon: icebergs, boat and a virtual camera.
+
+With ``--scenario`` the targets are simulated: the daemon adds them to the core when they
+appear (``TargetAdded`` at their ``appear_s`` or scripted time), moves them and the boat in
+0.1 s steps of mission time, and a virtual camera measures every iceberg within the FOV
+radius of a flying vehicle at the camera rate (2 Hz), as ``Detection`` events. The vehicle
+positions come from ``positions()``: the built-in simulator's true positions (``sim:N``) or
+the vehicles' telemetry (real or ArduPilot SITL vehicles: the paper's 2015 field test).
+The random targets are drawn as ``gcs simulate`` draws them (same seed, same icebergs).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+
+import numpy as np
+
+from groundstation.core import events as ev
+from sitl.scenario import Scenario, resolve_targets
+from sitl.world import Boat, Camera, Iceberg, World
+
+__all__ = ["ScenarioWorld"]
+
+STEP_S = 0.1
+
+
+class ScenarioWorld:
+    """The world of ``scenario``, advanced on the mission clock."""
+
+    def __init__(
+        self,
+        scenario: Scenario,
+        seed: int,
+        positions: Callable[[], Mapping[str, tuple[float, float]]],
+    ) -> None:
+        self.scenario = scenario
+        self.positions = positions
+        rng = np.random.default_rng(seed)
+        targets = resolve_targets(scenario, rng)
+        boat = scenario.boat
+        camera = Camera(
+            scenario.fleet.fov_radius_m, scenario.observer.camera_rate_hz, scenario.observer.r_m2
+        )
+        self.world = World(
+            [],
+            Boat(boat.x_m, boat.y_m, boat.heading_rad, boat.speed_m_s) if boat else None,
+            camera,
+            rng,
+        )
+        self._script: list[tuple[float, str, object]] = [(t.appear_s, "add", t) for t in targets]
+        for event in scenario.events:
+            if event.kind == "target_added" and event.target is not None:
+                self._script.append((event.t_s, "add", event.target))
+            elif event.kind == "target_removed" and event.target_id is not None:
+                self._script.append((event.t_s, "remove", event.target_id))
+        self._script.sort(key=lambda item: item[0])
+        self.t_s = 0.0
+        self.measurements = 0
+
+    def step_to(self, t_s: float) -> list[ev.Event]:
+        """Advance to ``t_s``; the core events that happened (targets, detections)."""
+        out: list[ev.Event] = []
+        positions = dict(self.positions())
+        while self.t_s < t_s - 1e-9:
+            dt = min(STEP_S, t_s - self.t_s)
+            while self._script and self._script[0][0] <= self.t_s + 1e-9:
+                _, action, payload = self._script.pop(0)
+                out += self._apply(action, payload)
+            self.world.step(dt)
+            self.t_s += dt
+            for m in self.world.observe(positions):
+                self.measurements += 1
+                out.append(ev.Detection(self.t_s, m.vehicle, m.target, m.x_m, m.y_m, m.r_m2))
+        return out
+
+    def _apply(self, action: str, payload: object) -> list[ev.Event]:
+        t = self.t_s
+        if action == "add":
+            spec = payload
+            from sitl.scenario import TargetSpec
+
+            assert isinstance(spec, TargetSpec)
+            if spec.id in self.world.icebergs:
+                return []
+            self.world.add_iceberg(
+                Iceberg(
+                    spec.id,
+                    spec.x_m,
+                    spec.y_m,
+                    spec.vx_m_s,
+                    spec.vy_m_s,
+                    self.scenario.observer.iceberg_q_per_s,
+                )
+            )
+            return [
+                ev.TargetAdded(
+                    t, spec.id, spec.x_m, spec.y_m, spec.vx_m_s, spec.vy_m_s, spec.sigma0
+                )
+            ]
+        target = str(payload)
+        if target in self.world.icebergs:
+            self.world.remove_iceberg(target)
+        return [ev.TargetRemoved(t, target)]
+
+    @property
+    def boat_xy_m(self) -> tuple[float, float] | None:
+        boat = self.world.boat
+        return (boat.x_m, boat.y_m) if boat is not None else None
+
+    def truth(self) -> dict[str, tuple[float, float]]:
+        return self.world.true_positions()

@@ -1,0 +1,126 @@
+"""``gcs run`` with vehicles that are *not* its own simulator: an external simulator (in
+this process, but reached like ArduPilot SITL or a radio) sharing one UDP link between two
+vehicles (told apart by system id), the scenario's icebergs seen by the daemon's virtual
+camera from the vehicles' telemetry (the 2015 field test's set-up), and the control
+surface: launching a vehicle on the ground, adding and refusing targets."""
+
+from __future__ import annotations
+
+import asyncio
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from groundstation.commands.run import build_config
+from groundstation.daemon.config import DaemonConfig
+from groundstation.daemon.control import DaemonController
+from groundstation.daemon.daemon import Daemon
+from groundstation.daemon.embedded_sim import build_embedded_sim
+from groundstation.daemon.journal import read_journal
+from groundstation.daemon.startup import run_daemon
+from sitl.scenario import load_scenario
+
+
+def events(journal: list[dict[str, Any]], name: str, **match: Any) -> list[dict[str, Any]]:
+    return [
+        e for e in journal if e["event"] == name and all(e.get(k) == v for k, v in match.items())
+    ]
+
+
+@pytest.mark.timeout(60)
+def test_two_vehicles_on_one_udp_link_with_a_virtual_camera(tmp_path: Path) -> None:
+    scenario = load_scenario("svalbard-2015")
+    sim = build_embedded_sim(
+        DaemonConfig(vehicles=["sim:2"], sim_airborne=True, speedup=40.0), scenario
+    )
+    server = sim.server
+    # the simulator's shared UDP socket also sends to a dead address (as `gcs sitl --out`)
+    server.options.out = ("127.0.0.1", 9)
+
+    async def main() -> Daemon:
+        await server.start()
+        runner = asyncio.create_task(server.run())
+        try:
+            config = build_config(
+                [
+                    "--vehicles", f"udpout:127.0.0.1:{server.udp_port}",
+                    "--scenario", "svalbard-2015", "--speedup", "40", "--duration", "260",
+                    "--run-dir", str(tmp_path), "--http", "off", "--detections", "off",
+                    "--status", "quiet",
+                ]
+            )  # fmt: skip
+            return await run_daemon(config, print_fn=lambda _: None, install_signals=False)
+        finally:
+            server.stop()
+            await runner
+            await server.close()
+
+    daemon = asyncio.run(asyncio.wait_for(main(), 50.0))
+    journal = read_journal(daemon.run_dir / "journal.jsonl")
+    assert not events(journal, "task_error")
+    assert {s.system_id for s in daemon.sessions.values()} == {1, 2}
+    assert daemon.router.link_for(1) is daemon.router.link_for(2)  # one link, two vehicles
+    for vid in ("1", "2"):
+        assert events(journal, "vehicle_joined", vehicle=vid)
+        assert events(journal, "upload", vehicle=vid, ok=True, purpose="target")
+    # the daemon's camera saw the icebergs from the vehicles' reported positions
+    seen = {e["target"] for e in events(journal, "detection", accepted=True)}
+    assert {"T1", "T2"} <= seen
+    # the monotonic mission clock x K agrees with the vehicles' time_boot_ms
+    checks = events(journal, "clock_check")
+    assert checks and all(c["ok"] for c in checks)
+
+
+@pytest.mark.timeout(60)
+def test_control_launch_and_targets(tmp_path: Path) -> None:
+    config = build_config(
+        [
+            "--vehicles", "sim:1", "--scenario", "none", "--no-launch", "--speedup", "50",
+            "--duration", "150",
+            "--operating-radius", "3000", "--run-dir", str(tmp_path), "--http", "off",
+            "--detections", "off", "--status", "quiet",
+        ]
+    )  # fmt: skip
+    replies: dict[str, Any] = {}
+
+    async def main() -> Daemon:
+        loop = asyncio.get_running_loop()
+        started: asyncio.Future[Daemon] = loop.create_future()
+        task = asyncio.create_task(
+            run_daemon(
+                config,
+                print_fn=lambda _: None,
+                install_signals=False,
+                on_started=started.set_result,
+            )
+        )
+        daemon = await started
+        control = DaemonController(daemon)
+        while not (daemon.sessions.get(1) and daemon.sessions[1].status == "on_ground"):
+            await asyncio.sleep(0.01)
+        replies["early"] = await control.vehicle_action("1", "resume")
+        replies["far"] = await control.add_target("F", x_m=5000.0, y_m=0.0)
+        replies["add"] = await control.add_target("A", x_m=800.0, y_m=300.0, sigma0=4.0)
+        replies["dup"] = await control.add_target("A", x_m=0.0, y_m=0.0)
+        replies["launch"] = await control.vehicle_action("1", "launch")
+        replies["state"] = control.state()
+        return await task
+
+    daemon = asyncio.run(asyncio.wait_for(main(), 50.0))
+    journal = read_journal(daemon.run_dir / "journal.jsonl")
+    assert replies["early"]["ok"] is False and "on_ground" in replies["early"]["error"]
+    assert replies["far"]["ok"] is False and "operating area" in replies["far"]["error"]
+    assert replies["add"] == {"ok": True, "error": None, "target": "A"}
+    assert replies["dup"]["ok"] is False
+    assert replies["launch"]["ok"] is True
+    state = replies["state"]
+    assert [t["id"] for t in state["targets"]] == ["A"]
+    assert state["vehicles"][0]["status"] == "on_ground"
+    # on the ground it was never armed until asked; then launched, joined and sent to A
+    t_launch = events(journal, "launch", vehicle="1")[0]["t"]
+    armed = events(journal, "armed", vehicle="1", armed=True)
+    assert armed and armed[0]["t"] >= t_launch
+    assert events(journal, "vehicle_joined", vehicle="1", how="launched")
+    assert events(journal, "upload", vehicle="1", ok=True, purpose="target", target="A")
+    assert events(journal, "target_added", target="A", source="api")
