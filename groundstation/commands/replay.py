@@ -15,26 +15,18 @@ import argparse
 import asyncio
 import collections
 import json
-import math
 import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from groundstation.commands.argtypes import positive_float
+from groundstation.commands.async_main import run_async
+
 __all__ = ["run"]
 
 _PROG = "gcs replay"
-
-
-def _positive(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
-    return value
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -54,7 +46,7 @@ def _parser() -> argparse.ArgumentParser:
     pace = parser.add_mutually_exclusive_group()
     pace.add_argument(
         "--speed",
-        type=_positive,
+        type=positive_float,
         default=None,
         metavar="K",
         help="pace inputs (or served frames) at K times the recorded pace "
@@ -298,7 +290,7 @@ def _serve_command(path: Path, url: str, speed: float, *, quiet: bool, as_json: 
             f"serving {len(vehicles)} vehicle(s) (system ids {', '.join(map(str, vehicles))}) "
             f"from {summary.path} to {spec.canonical}: {span:.1f} s recorded at {speed:g}x"
         )
-        stats = asyncio.run(serve_frames(spec, frames, say=say))
+        stats = run_async(lambda: serve_frames(spec, frames, say=say))
     except LinkError as exc:
         return _error(str(exc))
     except KeyboardInterrupt:

@@ -19,6 +19,8 @@ import sys
 import time
 from typing import Any
 
+from groundstation.commands.async_main import run_async
+
 __all__ = ["run"]
 
 DEFAULT_HOME = (78.93, 11.92)  # near Ny-Alesund, Svalbard
@@ -281,7 +283,7 @@ def run(argv: list[str]) -> int:
             from sitl.ardupilot import run_ardupilot
 
             return run_ardupilot(args)
-        return asyncio.run(_serve(args))
+        return run_async(lambda: _serve(args))
     except KeyboardInterrupt:
         return 130
     except UsageError as exc:
