@@ -26,6 +26,7 @@ from typing import Any
 
 from groundstation.mavlink.codec import mavlink2
 from groundstation.mavlink.geodesy import GeoOrigin, wrap_pi
+from groundstation.mavlink.telemetry_events import ARDUPLANE_MODES
 from sitl.airframe import Airframe, Guidance
 from sitl.mission_store import MissionItem, MissionStore
 from sitl.params import ParamStore
@@ -35,22 +36,9 @@ __all__ = ["MODE_NAMES", "RADIUS_FACTOR", "Autopilot", "NavTarget"]
 
 M = mavlink2
 RADIUS_FACTOR = 1.15
+# the modes the built-in vehicle flies (ArduPlane's numbers; no QuadPlane modes)
 MODE_NAMES: dict[int, str] = {
-    0: "MANUAL",
-    1: "CIRCLE",
-    2: "STABILIZE",
-    3: "TRAINING",
-    4: "ACRO",
-    5: "FBWA",
-    6: "FBWB",
-    7: "CRUISE",
-    8: "AUTOTUNE",
-    10: "AUTO",
-    11: "RTL",
-    12: "LOITER",
-    13: "TAKEOFF",
-    15: "GUIDED",
-    16: "INITIALISING",
+    number: name for number, name in ARDUPLANE_MODES.items() if number <= 16 and number != 14
 }
 MANUAL, STABILIZE, FBWA, AUTO, RTL, LOITER, GUIDED, INITIALISING = 0, 2, 5, 10, 11, 12, 15, 16
 FLYING_MODES = frozenset({AUTO, RTL, LOITER, GUIDED, 13})

@@ -11,11 +11,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 from pathlib import Path
 from typing import Any
 
+from groundstation.commands.argtypes import positive_float
 from sitl.scenario import ScenarioError, bundled_scenarios, load_scenario
 
 __all__ = ["run"]
@@ -33,16 +33,6 @@ def _fleet_sizes(text: str) -> list[int]:
     if len(set(sizes)) != len(sizes):
         raise argparse.ArgumentTypeError(f"--uavs lists a size twice: {text!r}")
     return sizes
-
-
-def _positive(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
-    return value
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -72,7 +62,7 @@ def _parser() -> argparse.ArgumentParser:
     )
     parser.add_argument(
         "--duration",
-        type=_positive,
+        type=positive_float,
         default=None,
         help="mission seconds to simulate (default: the scenario's)",
     )
