@@ -81,6 +81,7 @@ class DaemonController:
             "advisory": d.config.advisory,
             "origin": {"lat_deg": origin.lat_deg, "lon_deg": origin.lon_deg} if origin else None,
             "operating_radius_m": d.config.operating_radius_m,
+            "operating_center_m": list(d.area_center()),
             "vehicles": vehicles,
             "targets": targets,
             "boat": {"x_m": d.boat_xy_m[0], "y_m": d.boat_xy_m[1]} if d.boat_xy_m else None,

@@ -12,6 +12,7 @@ State snapshot (``state()``), JSON-able, the same document the live page draws::
     {
       "t": mission time (s), "unix_s": float, "speedup": float, "advisory": bool,
       "origin": {"lat_deg", "lon_deg"}, "operating_radius_m": float | None,
+      "operating_center_m": [x_m, y_m] (home or the boat),
       "vehicles": [{"id", "name", "system_id", "x_m", "y_m", "alt_m", "heading_rad",
                     "speed_m_s", "mode", "armed", "status" (active|overridden|lost|home|
                     on_ground|joining), "link" (ok|degraded|lost), "battery_pct",

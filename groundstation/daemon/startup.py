@@ -13,7 +13,6 @@ import asyncio
 import contextlib
 import dataclasses
 import datetime
-import importlib
 import json
 import logging
 import math
@@ -33,9 +32,11 @@ from groundstation.core.config import CoreConfig, ReplanPolicy
 from groundstation.daemon.clock import MissionClock
 from groundstation.daemon.config import DaemonConfig, parse_hostport, parse_latlon
 from groundstation.daemon.control import DaemonController
+from groundstation.daemon.control_server import ControlServer, binding_warning
 from groundstation.daemon.daemon import Daemon
 from groundstation.daemon.journal import Journal
 from groundstation.daemon.world import ScenarioWorld
+from groundstation.detection_feed import DetectionFeed
 from groundstation.link import LinkError, LinkUrlError, TlogWriter, open_link
 from groundstation.mavlink.geodesy import GeoOrigin
 
@@ -177,13 +178,6 @@ def _setup_logging(run_dir: Path) -> logging.Handler:
     if root.level > logging.INFO or root.level == logging.NOTSET:
         root.setLevel(logging.INFO)
     return handler
-
-
-def _optional(module: str, name: str) -> Any:
-    try:
-        return getattr(importlib.import_module(module), name)
-    except (ImportError, AttributeError):
-        return None
 
 
 def _print(text: str) -> None:
@@ -399,13 +393,9 @@ async def _start_control(
 ) -> None:
     if config.http == "off":
         return
-    server_cls = _optional("groundstation.daemon.control_server", "ControlServer")
-    if server_cls is None:
-        print_fn("gcs run: control API not available in this build (--http ignored)")
-        return
     host, port = parse_hostport(config.http, "http")
     token = secrets.token_urlsafe(16)
-    server = server_cls(controller, host, port, token)
+    server = ControlServer(controller, host, port, token)
     try:
         await server.start()
     except OSError as exc:
@@ -416,6 +406,9 @@ async def _start_control(
     (daemon.run_dir / "control.json").write_text(
         json.dumps({"url": daemon.control_url, "token": token}), encoding="utf-8"
     )
+    warning = binding_warning(host)
+    if warning is not None:
+        print_fn(f"gcs run: {warning}")
     print_fn(
         f"gcs run: control API {daemon.control_url} token {token} "
         f"(for gcs target/vehicle: export FLOE_API={daemon.control_url} "
@@ -428,15 +421,12 @@ async def _start_detection_feed(
 ) -> None:
     if config.detections == "off":
         return
-    feed_cls = _optional("groundstation.detection_feed", "DetectionFeed")
-    if feed_cls is None:
-        return
     host, port = parse_hostport(config.detections, "detections")
 
     def on_detection(item: Any) -> None:
         _feed_detection(daemon, item)
 
-    feed = feed_cls(host, port, on_detection)
+    feed = DetectionFeed(host, port, on_detection)
     try:
         await feed.start()
     except OSError as exc:
