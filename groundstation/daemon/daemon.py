@@ -434,6 +434,9 @@ class Daemon:
                     y_m=round(tr.y_m, 1),
                     lost=tr.lost or None,
                 )
+            if self.world is not None:  # simulated targets: the truth, for reports
+                for target, (x, y) in sorted(self.world.truth().items()):
+                    self.journal("truth", target=target, x_m=round(x, 1), y_m=round(y, 1))
 
     def _world_event(self, event: ev.Event) -> None:
         if isinstance(event, ev.Detection):
