@@ -19,6 +19,7 @@ from typing import Any
 
 from groundstation.mavlink.geodesy import GeoOrigin
 from sitl.detections import DetectionFeed
+from sitl.vehicle import VehicleConfig
 
 __all__ = ["SitlSetup", "scenario_setup"]
 
@@ -39,6 +40,28 @@ class SitlSetup:
     def make_feed(self, seed: int, anonymous: bool) -> DetectionFeed | None:
         """The detection feed (None without a scenario)."""
         return self.feed_factory(seed, anonymous) if self.feed_factory else None
+
+    def vehicle_config(
+        self, index: int, *, airborne: bool, airborne_alt_m: float, fast_boot: bool,
+        unix_time_at_zero_s: float,
+    ) -> VehicleConfig:
+        """The configuration of built-in vehicle ``index`` (0-based; system id index + 1)."""
+        x_m, y_m, heading_rad = self.launch[index]
+        return VehicleConfig(
+            system_id=index + 1,
+            origin=self.origin,
+            home_lat_deg=self.home[0],
+            home_lon_deg=self.home[1],
+            cruise_speed_m_s=self.speed_m_s,
+            min_turn_radius_m=self.turn_radius_m,
+            launch_x_m=x_m,
+            launch_y_m=y_m,
+            launch_heading_rad=heading_rad,
+            airborne=airborne,
+            airborne_alt_m=airborne_alt_m,
+            fast_boot=fast_boot,
+            unix_time_at_zero_s=unix_time_at_zero_s,
+        )
 
 
 def _event_faults(scenario: Any, count: int) -> tuple[list[str], list[str]]:

@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from daemon_run import after, events, run_gcs
 
 from groundstation.commands.run import build_config
 from groundstation.daemon.daemon import Daemon
@@ -19,37 +20,6 @@ from groundstation.daemon.startup import run_daemon
 from groundstation.mavlink.codec import MavlinkDecoder, MavlinkEncoder, mavlink2
 
 
-def run_gcs(tmp_path: Path, *args: str) -> tuple[Daemon, list[dict[str, Any]]]:
-    config = build_config(
-        [
-            *args,
-            "--run-dir",
-            str(tmp_path),
-            "--http",
-            "off",
-            "--detections",
-            "off",
-            "--status",
-            "quiet",
-        ]
-    )
-    daemon = asyncio.run(
-        asyncio.wait_for(run_daemon(config, print_fn=lambda _: None, install_signals=False), 70.0)
-    )
-    return daemon, read_journal(daemon.run_dir / "journal.jsonl")
-
-
-def events(journal: list[dict[str, Any]], name: str, **match: Any) -> list[dict[str, Any]]:
-    return [
-        e for e in journal if e["event"] == name and all(e.get(k) == v for k, v in match.items())
-    ]
-
-
-def after(items: list[dict[str, Any]], t: float) -> list[dict[str, Any]]:
-    return [e for e in items if e["t"] > t]
-
-
-@pytest.mark.timeout(100)
 def test_packet_loss_and_link_cut(tmp_path: Path) -> None:
     # replanning every 10 s without commitment: every plan covers every target with the
     # vehicles in it, and flying vehicles are redirected by verified re-uploads (through

@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from daemon_run import events
 
 from groundstation.commands.run import build_config
 from groundstation.daemon.config import DaemonConfig
@@ -20,12 +21,6 @@ from groundstation.daemon.embedded_sim import build_embedded_sim
 from groundstation.daemon.journal import read_journal
 from groundstation.daemon.startup import run_daemon
 from sitl.scenario import load_scenario
-
-
-def events(journal: list[dict[str, Any]], name: str, **match: Any) -> list[dict[str, Any]]:
-    return [
-        e for e in journal if e["event"] == name and all(e.get(k) == v for k, v in match.items())
-    ]
 
 
 @pytest.mark.timeout(60)

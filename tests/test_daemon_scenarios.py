@@ -5,48 +5,17 @@ and the test's own timeout."""
 
 from __future__ import annotations
 
-import asyncio
 import json
 import math
 from pathlib import Path
 from typing import Any
 
 import pytest
+from daemon_run import events, run_gcs
 
-from groundstation.commands.run import build_config
-from groundstation.daemon.daemon import Daemon
-from groundstation.daemon.journal import read_journal
-from groundstation.daemon.startup import run_daemon
 from groundstation.link import TlogReader
 from groundstation.runners.simulate import SimulationOptions, run_simulation
 from sitl.scenario import load_scenario
-
-
-def run_gcs(tmp_path: Path, *args: str) -> tuple[Daemon, list[dict[str, Any]]]:
-    """Run the daemon in this process; returns it and its journal."""
-    config = build_config(
-        [
-            *args,
-            "--run-dir",
-            str(tmp_path),
-            "--http",
-            "off",
-            "--detections",
-            "off",
-            "--status",
-            "quiet",
-        ]
-    )
-    daemon = asyncio.run(
-        asyncio.wait_for(run_daemon(config, print_fn=lambda _: None, install_signals=False), 60.0)
-    )
-    return daemon, read_journal(daemon.run_dir / "journal.jsonl")
-
-
-def events(journal: list[dict[str, Any]], name: str, **match: Any) -> list[dict[str, Any]]:
-    return [
-        e for e in journal if e["event"] == name and all(e.get(k) == v for k, v in match.items())
-    ]
 
 
 def visits(journal: list[dict[str, Any]]) -> dict[str, list[float]]:

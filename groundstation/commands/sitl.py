@@ -178,7 +178,6 @@ def build(args: argparse.Namespace) -> tuple[Any, ...]:
     from sitl.faults import FaultError, VehicleFaults, apply_fault, parse_fault_spec
     from sitl.server import ServerOptions
     from sitl.sitl_setup import scenario_setup
-    from sitl.vehicle import VehicleConfig
 
     _check(args)
     scenario = None
@@ -190,21 +189,8 @@ def build(args: argparse.Namespace) -> tuple[Any, ...]:
     home = parse_latlon(args.home) if args.home else None
     setup = scenario_setup(scenario, count, home or DEFAULT_HOME, home is not None)
     configs = [
-        VehicleConfig(
-            system_id=i + 1,
-            origin=setup.origin,
-            home_lat_deg=setup.home[0],
-            home_lon_deg=setup.home[1],
-            cruise_speed_m_s=setup.speed_m_s,
-            min_turn_radius_m=setup.turn_radius_m,
-            launch_x_m=setup.launch[i][0],
-            launch_y_m=setup.launch[i][1],
-            launch_heading_rad=setup.launch[i][2],
-            airborne=args.airborne,
-            airborne_alt_m=args.alt,
-            fast_boot=args.fast_boot,
-            unix_time_at_zero_s=time.time(),
-        )
+        setup.vehicle_config(i, airborne=args.airborne, airborne_alt_m=args.alt,
+                             fast_boot=args.fast_boot, unix_time_at_zero_s=time.time())
         for i in range(count)
     ]
     faults = {c.system_id: VehicleFaults(args.seed * 1000 + c.system_id) for c in configs}

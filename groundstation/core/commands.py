@@ -40,13 +40,18 @@ class CancelSolve:
 
 @dataclass(frozen=True)
 class PlanAdopted:
-    """A plan was accepted: ``routes`` is the solver's, ``assignments`` what vehicles fly."""
+    """A plan was accepted: ``routes`` is the solver's, ``assignments`` what vehicles fly.
+
+    ``hint`` and ``reason`` are the request's, so the journalled plan holds the planner's
+    exact input (problem + hint) next to its result."""
 
     t_s: float
     request_id: int
     problem: PlanningProblem
     result: PlanResult
     assignments: Mapping[str, str]
+    hint: Mapping[str, Sequence[str]] = field(default_factory=dict)
+    reason: str = ""
 
 
 @dataclass(frozen=True)

@@ -56,7 +56,7 @@ from groundstation.core.events import (
     VehicleRebooted,
     VehicleReturned,
 )
-from observer import Observer, boat_priority_q
+from observer import MeasurementOutcome, Observer, boat_priority_q
 from planner import (
     PlanningProblem,
     PlanResult,
@@ -107,6 +107,8 @@ class DecisionCore:
         self.counters: dict[str, int] = {}
         self.boat_xy_m: tuple[float, float] | None = None
         self._next_request_id = 1
+        # The observer's verdict on the last Detection (None: it added a new target).
+        self.last_measurement: MeasurementOutcome | None = None
         # Called with every input before it is applied (frontends journal it for replay).
         self.on_input: Callable[[Event], None] | None = None
         self._pending: SolveRequest | None = None
@@ -173,6 +175,7 @@ class DecisionCore:
 
     def _on_detection(self, event: Detection) -> list[Command]:
         out: list[Command] = []
+        self.last_measurement = None
         if event.target is not None and event.target not in self.observer.target_ids:
             if not (math.isfinite(event.x_m) and math.isfinite(event.y_m)):
                 self._count("detections_invalid")
@@ -184,6 +187,7 @@ class DecisionCore:
             return out
         outcome = self.observer.measure(event.t_s, event.x_m, event.y_m, event.target,
                                         r_m2=event.r_m2)
+        self.last_measurement = outcome
         self._count(f"detections_{outcome.reason}")
         return out
 
@@ -381,7 +385,8 @@ class DecisionCore:
             command = self._fly(event.t_s, record, target, tuple(route))
             if command is not None:
                 fly.append(command)
-        adopted = PlanAdopted(event.t_s, request.request_id, request.problem, result, assignments)
+        adopted = PlanAdopted(event.t_s, request.request_id, request.problem, result,
+                              assignments, request.hint, request.reason)
         return [adopted, *fly]
 
     def _fly(self, t_s: float, record: VehicleRecord, target: str,

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Mapping
-from typing import Any
+from typing import Any, get_args
 
 from groundstation.core.commands import (
     CancelSolve,
@@ -24,22 +24,7 @@ from groundstation.core.commands import (
     SolveRequest,
 )
 from groundstation.core.events import (
-    BatteryLow,
-    BoatPosition,
-    Detection,
     Event,
-    LoiterEnded,
-    OperatorOverride,
-    OperatorResume,
-    PlanSolved,
-    TargetAdded,
-    TargetRemoved,
-    Telemetry,
-    Tick,
-    VehicleJoined,
-    VehicleLost,
-    VehicleRebooted,
-    VehicleReturned,
 )
 from planner import PlanResult, problem_from_dict, problem_to_dict, result_to_dict
 
@@ -52,14 +37,7 @@ __all__ = [
     "result_to_record",
 ]
 
-_EVENT_TYPES: dict[str, type] = {
-    cls.__name__: cls
-    for cls in (
-        Tick, Telemetry, Detection, TargetAdded, TargetRemoved, LoiterEnded, VehicleJoined,
-        VehicleLost, VehicleReturned, VehicleRebooted, OperatorOverride, OperatorResume,
-        BatteryLow, BoatPosition, PlanSolved,
-    )
-}
+_EVENT_TYPES: dict[str, type] = {cls.__name__: cls for cls in get_args(Event)}
 
 
 class RecordError(ValueError):
@@ -133,7 +111,9 @@ def command_to_record(command: Command) -> dict[str, Any]:
             "routes": command.result.routes, "assignments": dict(command.assignments),
             "solve_time_s": command.result.solve_time_s, "status": command.result.status,
             "objective": command.result.objective,
+            "reason": command.reason,
             "problem": problem_to_dict(command.problem),
+            "hint": {k: list(v) for k, v in command.hint.items()},
             "result": result_to_record(command.result),
         }
     if isinstance(command, SolveRequest):

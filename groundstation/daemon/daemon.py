@@ -26,7 +26,6 @@ from groundstation.core.commands import (
     CancelSolve,
     Command,
     FlyToTarget,
-    Note,
     PlanAdopted,
     ReleaseVehicle,
     SendHome,
@@ -34,7 +33,7 @@ from groundstation.core.commands import (
 )
 from groundstation.core.config import CoreConfig
 from groundstation.core.decision import DecisionCore
-from groundstation.core.records import command_to_record, event_to_record, result_to_record
+from groundstation.core.records import command_to_record, event_to_record
 from groundstation.daemon.clock import MissionClock
 from groundstation.daemon.config import DaemonConfig
 from groundstation.daemon.journal import Journal
@@ -47,7 +46,7 @@ from groundstation.link.base import Link
 from groundstation.mavlink.codec import MavlinkEncoder, mavlink2
 from groundstation.mavlink.geodesy import GeoOrigin
 from groundstation.runners.metrics import MetricsRecorder
-from planner import PlanResult, problem_to_dict
+from planner import PlanResult
 
 __all__ = ["Daemon"]
 
@@ -110,7 +109,6 @@ class Daemon:
         self._stop = asyncio.Event()
         self._kick = asyncio.Event()
         self._finished = False
-        self._requests: dict[int, SolveRequest] = {}
         self._tg: asyncio.TaskGroup | None = None
         self._tasks: list[asyncio.Task[None]] = []
         self._next_tick_s = 0.0
@@ -174,68 +172,39 @@ class Daemon:
 
     # ------------------------------------------------------------------ core commands
     def _execute(self, command: Command) -> None:
+        """Journal the decision (the same records as ``gcs simulate``), then carry it out."""
         if isinstance(command, SolveRequest):
             self.journal_file.write_record(command_to_record(command))
-            self._requests[command.request_id] = command
-            if len(self._requests) > 50:
-                for key in sorted(self._requests)[:-50]:
-                    del self._requests[key]
             self.solver.submit(command)
-        elif isinstance(command, CancelSolve):
+            return
+        advisory = self.config.advisory or None
+        self._journal_command(command, advisory=advisory if isinstance(command, FlyToTarget)
+                              else None)
+        if isinstance(command, CancelSolve):
             self.solver.cancel(command.request_id)
-            self.journal("plan_cancelled", request=command.request_id)
         elif isinstance(command, PlanAdopted):
-            self._journal_plan(command)
+            result = command.result
+            self.metrics.plan(result.solve_time_s)
+            self.last_plan = {
+                "t": round(command.t_s, 3),
+                "routes": dict(result.routes),
+                "status": result.status,
+                "solve_time_s": result.solve_time_s,
+            }
         elif isinstance(command, FlyToTarget):
             session = self.by_name.get(command.vehicle)
-            self.journal(
-                "fly",
-                vehicle=command.vehicle,
-                target=command.target,
-                x_m=round(command.x_m, 1),
-                y_m=round(command.y_m, 1),
-                loiter_s=command.loiter_s,
-                route=list(command.route),
-                advisory=self.config.advisory or None,
-            )
             if session is not None and not self.config.advisory:
                 session.command_fly(command)
         elif isinstance(command, ReleaseVehicle | SendHome):
             session = self.by_name.get(command.vehicle)
             if session is not None:
                 session.release(command.reason, home=isinstance(command, SendHome))
-        elif isinstance(command, Note):
-            self.journal(
-                "note",
-                kind=command.kind,
-                vehicle=command.vehicle,
-                target=command.target,
-                detail=command.detail or None,
-            )
 
-    def _journal_plan(self, adopted: PlanAdopted) -> None:
-        request = self._requests.pop(adopted.request_id, None)
-        result = adopted.result
-        self.metrics.plan(result.solve_time_s)
-        self.last_plan = {
-            "t": round(adopted.t_s, 3),
-            "routes": dict(result.routes),
-            "status": result.status,
-            "solve_time_s": result.solve_time_s,
-        }
-        self.journal(
-            "plan",
-            request=adopted.request_id,
-            request_id=adopted.request_id,
-            reason=request.reason if request else None,
-            routes=result.routes,
-            assignments=dict(adopted.assignments),
-            status=result.status,
-            solve_time_s=round(result.solve_time_s, 4),
-            problem=problem_to_dict(adopted.problem),
-            hint={k: list(v) for k, v in request.hint.items()} if request else None,
-            result=result_to_record(result),
-        )
+    def _journal_command(self, command: Command, **extra: Any) -> None:
+        record = command_to_record(command)
+        event = record.pop("event")
+        record.pop("t")
+        self.journal(event, **record, **extra)
 
     def _on_solved(self, request: SolveRequest, result: PlanResult) -> None:
         self.core_event(ev.PlanSolved(self.clock.now_s(), request.request_id, result))
@@ -471,9 +440,9 @@ class Daemon:
         if not self.inside_area(event.x_m, event.y_m):
             self.detections_dropped += 1
             return
-        before = self.core.counters.get("detections_accepted", 0)
         self.core_event(event)
-        accepted = self.core.counters.get("detections_accepted", 0) > before
+        outcome = self.core.last_measurement
+        accepted = outcome is not None and outcome.accepted
         if accepted and event.target is not None:
             self.metrics.seen(event.t_s, event.vehicle, event.target)
         self.journal(
@@ -541,6 +510,8 @@ _LOGGED = frozenset(
         "task_error",
         "rtl",
         "release",
+        "released",
+        "send_home",
         "stop",
         "autopilot_mode",
         "on_ground",

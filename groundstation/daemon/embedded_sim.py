@@ -38,7 +38,6 @@ def build_embedded_sim(config: DaemonConfig, scenario: Scenario | None) -> Embed
     """The simulator for ``config.sim_count`` vehicles (not started)."""
     from sitl.faults import FaultError, VehicleFaults, apply_fault, parse_fault_spec
     from sitl.sitl_setup import scenario_setup
-    from sitl.vehicle import VehicleConfig
 
     count = config.sim_count
     assert count is not None
@@ -51,26 +50,12 @@ def build_embedded_sim(config: DaemonConfig, scenario: Scenario | None) -> Embed
     setup = scenario_setup(scenario, count, home, home_given)
     configs = []
     for i in range(count):
-        sysid = i + 1
-        settings = config.settings_for(sysid)
+        settings = config.settings_for(i + 1)
         alt = settings.altitude_m or config.altitude_m + config.altitude_step_m * i
-        configs.append(
-            VehicleConfig(
-                system_id=sysid,
-                origin=setup.origin,
-                home_lat_deg=setup.home[0],
-                home_lon_deg=setup.home[1],
-                cruise_speed_m_s=setup.speed_m_s,
-                min_turn_radius_m=setup.turn_radius_m,
-                launch_x_m=setup.launch[i][0],
-                launch_y_m=setup.launch[i][1],
-                launch_heading_rad=setup.launch[i][2],
-                airborne=config.sim_airborne,
-                airborne_alt_m=alt,
-                fast_boot=config.sim_fast_boot,
-                unix_time_at_zero_s=time.time(),
-            )
-        )
+        configs.append(setup.vehicle_config(
+            i, airborne=config.sim_airborne, airborne_alt_m=alt,
+            fast_boot=config.sim_fast_boot, unix_time_at_zero_s=time.time(),
+        ))
     faults = {c.system_id: VehicleFaults(config.seed * 1000 + c.system_id) for c in configs}
     specs = list(config.sim_fault)
     if config.sim_loss > 0:

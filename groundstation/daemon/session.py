@@ -331,7 +331,7 @@ class VehicleSession(FlightMixin):
             self.wake()
         elif self.status != "overridden":
             self.status = "overridden"
-        self._journal("release", reason=reason, home=home)
+        self._journal("released", reason=reason, home=home)
 
     def command_fly(self, command: FlyToTarget) -> None:
         """Core said: fly to a target (the newest command overtakes a pending one); it is

@@ -84,25 +84,21 @@ class FlightMixin:
     _loiter_end_pending_s: float | None
     _loiter_end_wall: float
 
-    @property
-    def snapshot(self) -> Any:
-        raise NotImplementedError
+    if TYPE_CHECKING:  # provided by VehicleSession; declared here for the type checker only
 
-    @property
-    def commanded(self) -> bool:
-        raise NotImplementedError
+        @property
+        def snapshot(self) -> Any: ...
 
-    def _journal(self, event: str, **fields: Any) -> None:
-        raise NotImplementedError
+        @property
+        def commanded(self) -> bool: ...
 
-    def _flying(self) -> bool:
-        raise NotImplementedError
+        def _journal(self, event: str, **fields: Any) -> None: ...
 
-    def _pose_event(self, t_s: float, joined: bool = False) -> ev.Event | None:
-        raise NotImplementedError
+        def _flying(self) -> bool: ...
 
-    def _on_event(self, event: Any) -> None:
-        raise NotImplementedError
+        def _pose_event(self, t_s: float, joined: bool = False) -> ev.Event | None: ...
+
+        def _on_event(self, event: Any) -> None: ...
 
     def _expect(self, mode: int) -> None:
         self._expected_modes[mode] = self.clock.now_s() + EXPECT_MODE_S

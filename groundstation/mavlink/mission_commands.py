@@ -52,26 +52,7 @@ def _command_result_name(result: int) -> str:
 class MissionClear(TransferBase):
     """Delete the vehicle's mission of ``mission_type``."""
 
-    def __init__(
-        self,
-        target_system: int,
-        target_component: int,
-        *,
-        mission_type: int = mavlink2.MAV_MISSION_TYPE_MISSION,
-        timeout_s: float = COMMAND_TIMEOUT_S,
-        retries: int = DEFAULT_RETRIES,
-        own_system: int | None = None,
-        own_component: int | None = None,
-    ) -> None:
-        super().__init__(
-            target_system,
-            target_component,
-            mission_type=mission_type,
-            timeout_s=timeout_s,
-            retries=retries,
-            own_system=own_system,
-            own_component=own_component,
-        )
+    default_timeout_s = COMMAND_TIMEOUT_S
 
     def start(self, now_s: float) -> list[Action]:
         """Begin: send MISSION_CLEAR_ALL."""

@@ -23,8 +23,6 @@ from __future__ import annotations
 from groundstation.mavlink.codec import MAVLinkMessage, mavlink2
 from groundstation.mavlink.mission_items import MissionItem
 from groundstation.mavlink.mission_transfer import (
-    DEFAULT_RETRIES,
-    DEFAULT_TIMEOUT_S,
     Action,
     Send,
     TransferBase,
@@ -40,28 +38,7 @@ _HANDLED = ("MISSION_COUNT", "MISSION_ITEM_INT", "MISSION_ITEM", "MISSION_ACK")
 class MissionDownload(TransferBase):
     """Read the vehicle's mission; ``result.items`` holds it on success."""
 
-    def __init__(
-        self,
-        target_system: int,
-        target_component: int,
-        *,
-        mission_type: int = mavlink2.MAV_MISSION_TYPE_MISSION,
-        timeout_s: float = DEFAULT_TIMEOUT_S,
-        retries: int = DEFAULT_RETRIES,
-        own_system: int | None = None,
-        own_component: int | None = None,
-    ) -> None:
-        super().__init__(
-            target_system,
-            target_component,
-            mission_type=mission_type,
-            timeout_s=timeout_s,
-            retries=retries,
-            own_system=own_system,
-            own_component=own_component,
-        )
-        self._count: int | None = None
-        self._items: list[MissionItem] = []
+    _count: int | None = None  # the vehicle's item count, once it has said it
 
     @property
     def count(self) -> int | None:
@@ -71,6 +48,7 @@ class MissionDownload(TransferBase):
     def start(self, now_s: float) -> list[Action]:
         """Begin: send MISSION_REQUEST_LIST."""
         self._begin(now_s)
+        self._items: list[MissionItem] = []
         return [Send(self._request_list())]
 
     def poll(self, now_s: float) -> list[Action]:

@@ -199,17 +199,22 @@ class TransferBase:
     should pass them, since with ``--out`` forwarding another GCS's transfer passes by.
     """
 
+    default_timeout_s: float = DEFAULT_TIMEOUT_S
+    """Timeout per attempt when none is given (subclasses set their own)."""
+
     def __init__(
         self,
         target_system: int,
         target_component: int,
         *,
-        mission_type: int,
-        timeout_s: float,
-        retries: int,
+        mission_type: int = mavlink2.MAV_MISSION_TYPE_MISSION,
+        timeout_s: float | None = None,
+        retries: int = DEFAULT_RETRIES,
         own_system: int | None = None,
         own_component: int | None = None,
     ) -> None:
+        if timeout_s is None:
+            timeout_s = self.default_timeout_s
         if not (0 < target_system < 256 and 0 <= target_component < 256):
             raise LocalProtocolError(
                 f"invalid target {target_system}/{target_component}: system 1..255, "

@@ -312,9 +312,9 @@ class _Simulation:
                     self.run.journal.append({"event": "detection", "t": m.t_s,
                                              "vehicle": m.vehicle, "target": m.target,
                                              "x_m": m.x_m, "y_m": m.y_m})
-                before = self.core.counters.get("detections_accepted", 0)
                 self.feed(Detection(m.t_s, m.vehicle, m.target, m.x_m, m.y_m, m.r_m2))
-                if self.core.counters.get("detections_accepted", 0) > before:
+                outcome = self.core.last_measurement
+                if outcome is not None and outcome.accepted:
                     self.metrics.seen(m.t_s, m.vehicle, m.target)
         wall = time.perf_counter() - wall_start
         metrics = self.metrics.to_dict(wall)
