@@ -30,9 +30,8 @@ import time
 from pathlib import Path
 from typing import Any
 
-from groundstation.commands.run import build_config
+from groundstation.commands.run import build_config, run_daemon
 from groundstation.daemon.journal import read_journal
-from groundstation.daemon.startup import run_daemon
 
 HERE = Path(__file__).resolve().parent
 

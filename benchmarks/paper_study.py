@@ -20,7 +20,7 @@ from concurrent.futures import ProcessPoolExecutor
 from typing import Any
 
 from groundstation.runners.simulate import SimulationOptions, run_simulation
-from sitl.scenario import load_scenario
+from world.scenario import load_scenario
 
 
 def _one(job: tuple[str, str, int, int, float | None]) -> dict[str, Any]:

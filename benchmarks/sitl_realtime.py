@@ -27,7 +27,7 @@ import sys
 import time
 from pathlib import Path
 
-from groundstation.mavlink.geodesy import GeoOrigin
+from domain.geodesy import GeoOrigin
 from sitl.server import ServerOptions, SitlServer
 from sitl.vehicle import VehicleConfig
 

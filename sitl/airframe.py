@@ -1,4 +1,4 @@
-"""Point-mass fixed-wing airframe: lateral motion by sitl.dynamics (eq. 1, exact arcs),
+"""Point-mass fixed-wing airframe: lateral motion by world.dynamics (eq. 1, exact arcs),
 altitude as a first-order climb at a bounded rate, airspeed as a bounded acceleration.
 
     h' = clamp(k_h (h_cmd - h), -sink_max, climb_max)      (k_h = 0.5 1/s)
@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from sitl.dynamics import (
+from world.dynamics import (
     LoiterCommand,
     UavState,
     step_kinematics,

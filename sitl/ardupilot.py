@@ -31,8 +31,7 @@ __all__ = [
     "CameraLink",
     "ardupilot_commands",
     "default_defaults_file",
-    "run_ardupilot",
-    "run_camera_only",
+    "launch",
     "supervise",
 ]
 
@@ -137,13 +136,15 @@ class CameraLink:
             await asyncio.sleep(1.0)
 
 
-async def _launch(
-    args: Any,
+async def launch(
     launches: list[ArduPilotLaunch],
     feed: Any,
     feed_address: tuple[str, int] | None,
     origin: Any,
+    speedup: float,
+    duration_s: float | None,
 ) -> int:
+    """Start every SITL instance, then :func:`supervise` them with their cameras."""
     procs = []
     for launch in launches:
         launch.cwd.mkdir(parents=True, exist_ok=True)
@@ -163,15 +164,16 @@ async def _launch(
             flush=True,
         )
     cameras = [CameraLink(x.system_id, "127.0.0.1", x.camera_port, origin) for x in launches]
-    return await supervise(args, procs, cameras, feed, feed_address)
+    return await supervise(procs, cameras, feed, feed_address, speedup, duration_s)
 
 
 async def supervise(
-    args: Any,
     procs: list[Any],
     cameras: list[CameraLink],
     feed: Any,
     feed_address: tuple[str, int] | None,
+    speedup: float,
+    duration_s: float | None,
 ) -> int:
     """Play the camera from the cameras' positions until Ctrl-C, ``--duration`` or a child's
     exit; then terminate the children (SIGTERM, then SIGKILL after 5 s)."""
@@ -192,7 +194,7 @@ async def supervise(
         while not stop.is_set():
             with contextlib.suppress(TimeoutError):
                 await asyncio.wait_for(stop.wait(), 0.05)
-            t_s = (time.monotonic() - wall0) * args.speedup
+            t_s = (time.monotonic() - wall0) * speedup
             if feed is not None:
                 positions = {
                     c.system_id: c.position
@@ -202,7 +204,7 @@ async def supervise(
                 for datagram in feed.step(t_s, positions):
                     if transport is not None:
                         transport.sendto(datagram)
-            if args.duration is not None and t_s >= args.duration:
+            if duration_s is not None and t_s >= duration_s:
                 break
             dead = [p for p in procs if p.returncode is not None]
             if dead:
@@ -227,76 +229,3 @@ async def supervise(
         if transport is not None:
             transport.close()
     return status
-
-
-def run_ardupilot(args: Any) -> int:
-    """``gcs sitl --ardupilot PATH``: start, supervise and stop N SITL instances."""
-    from groundstation.commands.sitl import (
-        DEFAULT_HOME,
-        UsageError,
-        _check,
-        parse_latlon,
-        parse_udp_url,
-    )
-    from sitl.sitl_setup import scenario_setup
-
-    _check(args)
-    binary = Path(args.ardupilot)
-    if not binary.is_file():
-        raise UsageError(f"--ardupilot: no such file {binary}")
-    defaults = (
-        Path(args.ardupilot_defaults)
-        if args.ardupilot_defaults
-        else (default_defaults_file(binary))
-    )
-    if not defaults.is_file():
-        raise UsageError(
-            f"--ardupilot-defaults: no such file {defaults} (give the plane "
-            "defaults file, Tools/autotest/models/plane.parm)"
-        )
-    scenario = None
-    if args.scenario is not None:
-        from sitl.scenario import load_scenario
-
-        scenario = load_scenario(args.scenario)
-    count = args.count or (scenario.fleet.count if scenario is not None else 1)
-    home = parse_latlon(args.home) if args.home else None
-    setup = scenario_setup(scenario, count, home or DEFAULT_HOME, home is not None)
-    launches = ardupilot_commands(
-        binary, count, args.speedup, setup.home, defaults, Path("sitl-ardupilot").resolve()
-    )
-    feed_address = (
-        None if args.detections == "none" else parse_udp_url(args.detections, "--detections")
-    )
-    feed = setup.make_feed(args.seed, args.anonymous_detections)
-    return asyncio.run(_launch(args, launches, feed, feed_address, setup.origin))
-
-
-def run_camera_only(args: Any) -> int:
-    """``gcs sitl --camera-of HOST:PORT,...``: only the world and its camera, reading the
-    positions of vehicles served elsewhere (e.g. the SITL containers of docker-compose.yml);
-    the k-th endpoint is taken to be system id k."""
-    from groundstation.commands.sitl import DEFAULT_HOME, UsageError, _check, parse_udp_url
-    from sitl.sitl_setup import scenario_setup
-
-    _check(args)
-    if args.scenario is None:
-        raise UsageError("--camera-of needs --scenario (the world to play)")
-    from sitl.scenario import load_scenario
-
-    scenario = load_scenario(args.scenario)
-    endpoints = []
-    for part in args.camera_of.split(","):
-        host, sep, port = part.strip().removeprefix("tcp:").rpartition(":")
-        if not sep or not host or not port.isdigit():
-            raise UsageError(f"--camera-of: expected HOST:PORT[,HOST:PORT...], got {part!r}")
-        endpoints.append((host, int(port)))
-    setup = scenario_setup(scenario, len(endpoints), DEFAULT_HOME, False)
-    cameras = [CameraLink(i + 1, h, p, setup.origin) for i, (h, p) in enumerate(endpoints)]
-    feed = setup.make_feed(args.seed, args.anonymous_detections)
-    feed_address = (
-        None if args.detections == "none" else parse_udp_url(args.detections, "--detections")
-    )
-    for cam in cameras:
-        print(f"camera of system id {cam.system_id}: tcp:{cam.host}:{cam.port}", flush=True)
-    return asyncio.run(supervise(args, [], cameras, feed, feed_address))

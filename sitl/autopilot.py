@@ -24,9 +24,9 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+from domain.geodesy import GeoOrigin, wrap_pi
+from domain.modes import ARDUPLANE_MODES, ArduPlaneMode
 from groundstation.mavlink.codec import mavlink2
-from groundstation.mavlink.geodesy import GeoOrigin, wrap_pi
-from groundstation.mavlink.telemetry_events import ARDUPLANE_MODES
 from sitl.airframe import Airframe, Guidance
 from sitl.mission_store import MissionItem, MissionStore
 from sitl.params import ParamStore
@@ -40,8 +40,10 @@ RADIUS_FACTOR = 1.15
 MODE_NAMES: dict[int, str] = {
     number: name for number, name in ARDUPLANE_MODES.items() if number <= 16 and number != 14
 }
-MANUAL, STABILIZE, FBWA, AUTO, RTL, LOITER, GUIDED, INITIALISING = 0, 2, 5, 10, 11, 12, 15, 16
-FLYING_MODES = frozenset({AUTO, RTL, LOITER, GUIDED, 13})
+_M = ArduPlaneMode
+MANUAL, STABILIZE, FBWA, AUTO, RTL = _M.MANUAL, _M.STABILIZE, _M.FBWA, _M.AUTO, _M.RTL
+LOITER, GUIDED, INITIALISING = _M.LOITER, _M.GUIDED, _M.INITIALISING
+FLYING_MODES = frozenset({AUTO, RTL, LOITER, GUIDED, _M.TAKEOFF})
 _ON_CIRCLE_FRACTION = 0.1
 _ON_CIRCLE_MIN_M = 10.0
 
@@ -87,7 +89,7 @@ class Autopilot:
         self.origin = origin
         self.home_xy_m = home_xy_m
         self.home_amsl_m = home_amsl_m
-        self.mode = INITIALISING
+        self.mode: int = INITIALISING
         self.armed = False
         self.current_seq = 0
         self.mission_complete = False

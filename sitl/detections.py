@@ -24,8 +24,8 @@ from typing import Any
 
 import numpy as np
 
-from groundstation.mavlink.geodesy import GeoOrigin
-from sitl.world import Boat, Camera, Iceberg, World
+from domain.geodesy import GeoOrigin
+from world.model import Boat, Camera, Iceberg, World
 
 __all__ = ["DetectionFeed", "scenario_targets", "world_from_scenario"]
 
@@ -38,7 +38,7 @@ Script = list[tuple[float, str, Any]]
 
 def scenario_targets(scenario: Any, rng: np.random.Generator) -> list[Any]:
     """The scenario's targets as every frontend draws them (see ``resolve_targets``)."""
-    from sitl.scenario import resolve_targets
+    from world.scenario import resolve_targets
 
     return resolve_targets(scenario, rng)
 

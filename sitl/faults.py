@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 from itertools import count
 from typing import Any
 
-from sitl.autopilot import MODE_NAMES
+from world.fault_spec import FaultError, fault_mode, parse_fault_spec
 
 __all__ = [
     "FaultError",
@@ -39,14 +39,6 @@ __all__ = [
     "apply_fault",
     "parse_fault_spec",
 ]
-
-_MODE_BY_NAME = {name: number for number, name in MODE_NAMES.items()}
-_KINDS = ("loss", "dup", "reorder", "delay", "drop", "reboot", "mode", "battery")
-
-
-class FaultError(ValueError):
-    """A fault spec that cannot be understood (the message names the bad part)."""
-
 
 @dataclass(frozen=True)
 class FaultEvent:
@@ -138,95 +130,6 @@ class VehicleFaults:
         return out
 
 
-def _number(key: str, text: str, spec: str) -> float:
-    try:
-        return float(text)
-    except ValueError:
-        raise FaultError(f"fault {spec!r}: {key}={text!r} is not a number") from None
-
-
-def _probability(key: str, text: str, spec: str) -> float:
-    p = _number(key, text, spec)
-    if not 0.0 <= p <= 1.0:
-        raise FaultError(f"fault {spec!r}: {key} must be in [0, 1], got {p}")
-    return p
-
-
-def parse_fault_spec(spec: str, count_: int) -> list[tuple[int, str, dict[str, str]]]:
-    """Split ``VEHICLES:KIND[:k=v,...]`` into (sysid, kind, options) per vehicle; validates."""
-    parts = spec.split(":")
-    if len(parts) not in (2, 3):
-        raise FaultError(f"fault {spec!r}: expected VEHICLES:KIND[:key=value,...]")
-    who, kind = parts[0].strip(), parts[1].strip()
-    if kind not in _KINDS:
-        raise FaultError(f"fault {spec!r}: unknown kind {kind!r} (one of {', '.join(_KINDS)})")
-    if who == "all":
-        sysids = list(range(1, count_ + 1))
-    else:
-        try:
-            sysids = [int(s) for s in who.split(",")]
-        except ValueError:
-            raise FaultError(f"fault {spec!r}: vehicles must be 'all' or system ids") from None
-        bad = [s for s in sysids if not 1 <= s <= count_]
-        if bad:
-            raise FaultError(f"fault {spec!r}: no vehicle with system id {bad[0]} (1..{count_})")
-    options: dict[str, str] = {}
-    if len(parts) == 3 and parts[2].strip():
-        for pair in parts[2].split(","):
-            key, sep, value = pair.partition("=")
-            if not sep:
-                raise FaultError(f"fault {spec!r}: option {pair!r} is not key=value")
-            options[key.strip()] = value.strip()
-    _validate(kind, options, spec)
-    return [(s, kind, options) for s in sysids]
-
-
-_ALLOWED = {
-    "loss": {"p", "dir"},
-    "dup": {"p", "dir"},
-    "reorder": {"p", "dir"},
-    "delay": {"s", "jitter", "dir"},
-    "drop": {"at", "for"},
-    "reboot": {"at"},
-    "mode": {"at", "mode"},
-    "battery": {"at", "pct"},
-}
-_REQUIRED = {
-    "loss": {"p"},
-    "dup": {"p"},
-    "reorder": {"p"},
-    "delay": {"s"},
-    "drop": {"at", "for"},
-    "reboot": {"at"},
-    "mode": {"at", "mode"},
-    "battery": {"at", "pct"},
-}
-
-
-def _validate(kind: str, options: dict[str, str], spec: str) -> None:
-    unknown = set(options) - _ALLOWED[kind]
-    if unknown:
-        raise FaultError(f"fault {spec!r}: unknown option {sorted(unknown)[0]!r} for {kind}")
-    missing = _REQUIRED[kind] - set(options)
-    if missing:
-        raise FaultError(f"fault {spec!r}: {kind} needs {sorted(missing)[0]}=...")
-    if options.get("dir", "both") not in ("up", "down", "both"):
-        raise FaultError(f"fault {spec!r}: dir must be up, down or both")
-    if "p" in options:
-        _probability("p", options["p"], spec)
-    for key in ("s", "jitter", "at", "for", "pct"):
-        if key in options and _number(key, options[key], spec) < 0:
-            raise FaultError(f"fault {spec!r}: {key} must be >= 0")
-    if "pct" in options and _number("pct", options["pct"], spec) > 100:
-        raise FaultError(f"fault {spec!r}: pct must be <= 100")
-    if (
-        kind == "mode"
-        and options["mode"].upper() not in _MODE_BY_NAME
-        and not (options["mode"].isdigit() and int(options["mode"]) in MODE_NAMES)
-    ):
-        raise FaultError(f"fault {spec!r}: unknown mode {options['mode']!r}")
-
-
 def apply_fault(faults: VehicleFaults, kind: str, options: dict[str, str]) -> None:
     """Add one parsed fault to a vehicle's faults."""
     directions = {"up": [faults.up], "down": [faults.down], "both": [faults.up, faults.down]}[
@@ -250,8 +153,6 @@ def apply_fault(faults: VehicleFaults, kind: str, options: dict[str, str]) -> No
     elif kind == "reboot":
         faults.add_event(FaultEvent(at, "reboot"))
     elif kind == "mode":
-        name = options["mode"].upper()
-        mode = int(name) if name.isdigit() else _MODE_BY_NAME[name]
-        faults.add_event(FaultEvent(at, "mode", mode=mode))
+        faults.add_event(FaultEvent(at, "mode", mode=fault_mode(options["mode"])))
     elif kind == "battery":
         faults.add_event(FaultEvent(at, "battery", fraction=float(options["pct"]) / 100.0))

@@ -17,7 +17,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from groundstation.mavlink.geodesy import GeoOrigin
+from domain.geodesy import GeoOrigin
 from sitl.detections import DetectionFeed
 from sitl.vehicle import VehicleConfig
 

@@ -20,8 +20,8 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+from domain.geodesy import GeoOrigin, compass_deg_from_enu_rad
 from groundstation.mavlink.codec import mavlink2
-from groundstation.mavlink.geodesy import GeoOrigin, compass_deg_from_enu_rad
 from sitl import command_handler
 from sitl.airframe import Airframe
 from sitl.autopilot import AUTO, INITIALISING, MANUAL, MODE_NAMES, Autopilot

@@ -6,10 +6,9 @@ import asyncio
 from pathlib import Path
 from typing import Any
 
-from groundstation.commands.run import build_config
+from groundstation.commands.run import build_config, run_daemon
 from groundstation.daemon.daemon import Daemon
 from groundstation.daemon.journal import read_journal
-from groundstation.daemon.startup import run_daemon
 
 Journal = list[dict[str, Any]]
 

@@ -13,10 +13,9 @@ from typing import Any
 import pytest
 from daemon_run import after, events, run_gcs
 
-from groundstation.commands.run import build_config
+from groundstation.commands.run import build_config, run_daemon
 from groundstation.daemon.daemon import Daemon
 from groundstation.daemon.journal import read_journal
-from groundstation.daemon.startup import run_daemon
 from groundstation.mavlink.codec import MavlinkDecoder, MavlinkEncoder, mavlink2
 
 

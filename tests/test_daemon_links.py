@@ -13,14 +13,13 @@ from typing import Any
 import pytest
 from daemon_run import events
 
-from groundstation.commands.run import build_config
+from groundstation.commands.embedded_sim import build_embedded_sim
+from groundstation.commands.run import build_config, run_daemon
 from groundstation.daemon.config import DaemonConfig
 from groundstation.daemon.control import DaemonController
 from groundstation.daemon.daemon import Daemon
-from groundstation.daemon.embedded_sim import build_embedded_sim
 from groundstation.daemon.journal import read_journal
-from groundstation.daemon.startup import run_daemon
-from sitl.scenario import load_scenario
+from world.scenario import load_scenario
 
 
 @pytest.mark.timeout(60)

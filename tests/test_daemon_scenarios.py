@@ -15,7 +15,7 @@ from daemon_run import events, run_gcs
 
 from groundstation.link import TlogReader
 from groundstation.runners.simulate import SimulationOptions, run_simulation
-from sitl.scenario import load_scenario
+from world.scenario import load_scenario
 
 
 def visits(journal: list[dict[str, Any]]) -> dict[str, list[float]]:

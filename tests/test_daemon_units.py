@@ -16,14 +16,14 @@ from typing import Any
 
 import pytest
 
+from domain.geodesy import GeoOrigin
 from groundstation.commands.run import build_config
 from groundstation.core.config import CoreConfig
 from groundstation.daemon.clock import MissionClock
 from groundstation.daemon.config import ConfigError, DaemonConfig
 from groundstation.daemon.journal import Journal, read_journal
 from groundstation.daemon.startup import StartError, core_config, load_targets
-from groundstation.mavlink.geodesy import GeoOrigin
-from sitl.scenario import load_scenario
+from world.scenario import load_scenario
 
 
 def write(path: Path, text: str) -> str:

@@ -125,9 +125,9 @@ def test_encode_round_trips_and_refuses_bad_values() -> None:
 
 
 def test_simulator_lines_are_accepted() -> None:
-    from groundstation.mavlink.geodesy import GeoOrigin
+    from domain.geodesy import GeoOrigin
     from sitl.detections import DetectionFeed as SimFeed
-    from sitl.world import Boat, Camera, Iceberg, World
+    from world.model import Boat, Camera, Iceberg, World
 
     world = World([Iceberg("A", 10.0, 0.0, 0.0, 0.0, 0.0)], Boat(0.0, 0.0, 0.0, 5.0),
                   Camera(150.0, 2.0, 5.0), np.random.default_rng(0))

@@ -14,8 +14,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import Any
 
+from domain.geodesy import GeoOrigin
 from groundstation.mavlink.codec import MavlinkDecoder, MavlinkEncoder, MAVLinkMessage, mavlink2
-from groundstation.mavlink.geodesy import GeoOrigin
 from groundstation.mavlink.mission_items import (
     LoiterTime,
     LoiterUnlimited,

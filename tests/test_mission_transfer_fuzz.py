@@ -7,8 +7,8 @@ from typing import Any
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from domain.geodesy import GeoOrigin
 from groundstation.mavlink.codec import MavlinkDecoder, MavlinkEncoder, MAVLinkMessage, mavlink2
-from groundstation.mavlink.geodesy import GeoOrigin
 from groundstation.mavlink.mission_commands import MissionClear, SetCurrent
 from groundstation.mavlink.mission_download import MissionDownload
 from groundstation.mavlink.mission_items import LoiterUnlimited, Waypoint, build_mission_items

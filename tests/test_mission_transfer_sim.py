@@ -11,7 +11,7 @@ from typing import Any
 
 import pytest
 
-from groundstation.mavlink.geodesy import GeoOrigin
+from domain.geodesy import GeoOrigin
 from groundstation.mavlink.mission_commands import SetCurrent
 from groundstation.mavlink.mission_download import MissionDownload
 from groundstation.mavlink.mission_items import (

@@ -1,4 +1,4 @@
-"""Statistical check: over a seeded run against sitl.world, the observer's position error is
+"""Statistical check: over a seeded run against world.model, the observer's position error is
 consistent with its covariance (NEES), and a mis-tuned filter fails the same check."""
 
 from __future__ import annotations
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from observer import Observer, ObserverConfig
-from sitl.world import Camera, Iceberg, World
+from world.model import Camera, Iceberg, World
 
 N_TARGETS = 40
 # chi-square quantiles (scipy.stats.chi2.ppf), hard-coded to keep scipy out of the tests:

@@ -292,8 +292,8 @@ def test_report_of_a_tlog(which: str, request: pytest.FixtureRequest, tmp_path: 
 def test_core_on_bare_tlog_with_detections(
     sim_tlog: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
+    from domain.geodesy import GeoOrigin
     from groundstation.link.tlog import TlogReader
-    from groundstation.mavlink.geodesy import GeoOrigin
 
     first = next(
         r.message for r in TlogReader(sim_tlog) if r.message.get_type() == "GLOBAL_POSITION_INT"

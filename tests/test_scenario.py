@@ -8,8 +8,8 @@ from pathlib import Path
 import pytest
 import yaml
 
-from sitl.scenario import ScenarioError, bundled_scenarios, load_scenario, parse_scenario
-from sitl.yaml_fields import FieldError
+from world.scenario import ScenarioError, bundled_scenarios, load_scenario, parse_scenario
+from world.yaml_fields import FieldError
 
 
 def test_bundled_scenarios_load_with_the_papers_parameters() -> None:
@@ -83,7 +83,7 @@ def test_a_copied_bundled_scenario_loads_from_a_file(tmp_path: Path) -> None:
     original = load_scenario("svalbard-2015")
     from importlib import resources
 
-    text = (resources.files("sitl") / "scenarios" / "svalbard-2015.yaml").read_text()
+    text = (resources.files("world") / "scenarios" / "svalbard-2015.yaml").read_text()
     copy = tmp_path / "mine.yaml"
     copy.write_text(text.replace("duration_s: 800", "duration_s: 100"))
     mine = load_scenario(str(copy))

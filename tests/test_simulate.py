@@ -10,9 +10,9 @@ from pathlib import Path
 import pytest
 
 from groundstation.cli import main
-from groundstation.runners.metrics import boundedness_ratio
+from groundstation.core.metrics import boundedness_ratio
 from groundstation.runners.simulate import SimulationOptions, run_simulation
-from sitl.scenario import ScriptedEvent, load_scenario
+from world.scenario import ScriptedEvent, load_scenario
 
 METRIC_KEYS = {
     "uncertainty_series", "mean_uncertainty", "max_uncertainty", "final_uncertainty",
@@ -148,7 +148,7 @@ def test_boat_priority_run_replays_identically(tmp_path: Path) -> None:
     """The boat's position is a recorded core input, so a priority run replays exactly."""
     from importlib import resources
 
-    text = (resources.files("sitl") / "scenarios" / "paper-boat.yaml").read_text()
+    text = (resources.files("world") / "scenarios" / "paper-boat.yaml").read_text()
     scenario = tmp_path / "priority.yaml"
     scenario.write_text(text.replace("  iceberg_q_per_s: 0.0",
                                      "  iceberg_q_per_s: 0.0\n  priority_gain: 4.0"))

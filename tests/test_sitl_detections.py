@@ -8,10 +8,10 @@ import json
 import numpy as np
 import pytest
 
-from groundstation.mavlink.geodesy import GeoOrigin
+from domain.geodesy import GeoOrigin
 from groundstation.runners.simulate import resolve_targets
 from sitl.detections import DetectionFeed, scenario_targets
-from sitl.scenario import load_scenario
+from world.scenario import load_scenario
 
 
 @pytest.mark.parametrize("seed", [0, 7])

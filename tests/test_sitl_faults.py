@@ -6,8 +6,8 @@ from typing import Any
 
 import pytest
 
+from domain.geodesy import GeoOrigin
 from groundstation.mavlink.codec import mavlink2 as M
-from groundstation.mavlink.geodesy import GeoOrigin
 from sitl.faults import (
     FaultError,
     FaultEvent,

@@ -9,9 +9,9 @@ from typing import Any
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from domain.geodesy import GeoOrigin
 from groundstation.mavlink.codec import MavlinkDecoder, MavlinkEncoder
 from groundstation.mavlink.codec import mavlink2 as M
-from groundstation.mavlink.geodesy import GeoOrigin
 from sitl.vehicle import SimVehicle, VehicleConfig
 
 ORIGIN = GeoOrigin(78.93, 11.92)

@@ -14,11 +14,11 @@ from typing import Any
 import pytest
 from pymavlink import mavutil
 
-from groundstation.mavlink.geodesy import GeoOrigin
+from domain.geodesy import GeoOrigin
 from sitl.detections import DetectionFeed
 from sitl.server import ServerOptions, SitlServer
 from sitl.vehicle import VehicleConfig
-from sitl.world import Boat, Camera, Iceberg, World
+from world.model import Boat, Camera, Iceberg, World
 
 ORIGIN = GeoOrigin(78.93, 11.92)
 

@@ -6,8 +6,8 @@ import math
 
 import pytest
 
+from domain.geodesy import GeoOrigin
 from groundstation.mavlink.codec import MavlinkDecoder, MavlinkEncoder, MAVLinkMessage, mavlink2
-from groundstation.mavlink.geodesy import GeoOrigin
 from groundstation.mavlink.telemetry import (
     Armed,
     BatteryLow,

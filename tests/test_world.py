@@ -1,4 +1,4 @@
-"""Tests for sitl/world.py: icebergs, boat, camera (seeded)."""
+"""Tests for world/model.py: icebergs, boat, camera (seeded)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from sitl.world import Boat, Camera, Iceberg, Measurement, World, random_icebergs
+from world.model import Boat, Camera, Iceberg, Measurement, World, random_icebergs
 
 
 def run(world: World, seconds: float, dt: float, uavs: dict[str, tuple[float, float]]) -> list:

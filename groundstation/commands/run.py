@@ -13,11 +13,15 @@ from __future__ import annotations
 
 import argparse
 import sys
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from groundstation.commands.async_main import run_async
 
-__all__ = ["build_config", "run"]
+if TYPE_CHECKING:
+    from groundstation.daemon.config import DaemonConfig
+    from groundstation.daemon.daemon import Daemon
+
+__all__ = ["build_config", "run", "run_daemon"]
 
 
 class _Parser(argparse.ArgumentParser):
@@ -142,10 +146,20 @@ def build_config(argv: list[str]) -> Any:
     return config
 
 
+async def run_daemon(config: DaemonConfig, **options: Any) -> Daemon:
+    """The daemon with the built-in simulator wired in for ``--vehicles sim:N`` (the
+    composition the daemon itself may not do); ``options`` go to
+    :func:`groundstation.daemon.startup.run_daemon`."""
+    from groundstation.commands.embedded_sim import build_embedded_sim
+    from groundstation.daemon.startup import run_daemon as run_bare
+
+    return await run_bare(config, embedded=build_embedded_sim, **options)
+
+
 def run(argv: list[str]) -> int:
     """Entry point of ``gcs run``; returns the exit status."""
     from groundstation.daemon.config import ConfigError
-    from groundstation.daemon.startup import StartError, run_daemon
+    from groundstation.daemon.startup import StartError
 
     try:
         config = build_config(argv)

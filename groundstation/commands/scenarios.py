@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from sitl.scenario import bundled_scenarios, load_scenario
+from world.scenario import bundled_scenarios, load_scenario
 
 
 def run(argv: list[str]) -> int:

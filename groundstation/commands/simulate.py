@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from groundstation.commands.argtypes import positive_float
-from sitl.scenario import ScenarioError, bundled_scenarios, load_scenario
+from world.scenario import ScenarioError, bundled_scenarios, load_scenario
 
 __all__ = ["run"]
 

@@ -21,6 +21,7 @@ from collections.abc import Awaitable, Callable
 from pathlib import Path
 from typing import Any
 
+from domain.geodesy import GeoOrigin
 from groundstation.core import events as ev
 from groundstation.core.commands import (
     CancelSolve,
@@ -33,6 +34,7 @@ from groundstation.core.commands import (
 )
 from groundstation.core.config import CoreConfig
 from groundstation.core.decision import DecisionCore
+from groundstation.core.metrics import MetricsRecorder
 from groundstation.core.records import command_to_record, event_to_record
 from groundstation.daemon.clock import MissionClock
 from groundstation.daemon.config import DaemonConfig
@@ -44,8 +46,6 @@ from groundstation.daemon.world import ScenarioWorld
 from groundstation.link import Received, Router, TlogWriter
 from groundstation.link.base import Link
 from groundstation.mavlink.codec import MavlinkEncoder, mavlink2
-from groundstation.mavlink.geodesy import GeoOrigin
-from groundstation.runners.metrics import MetricsRecorder
 from planner import PlanResult
 
 __all__ = ["Daemon"]

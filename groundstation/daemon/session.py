@@ -31,6 +31,7 @@ import math
 import time
 from typing import Any, Protocol
 
+from domain.geodesy import GeoOrigin
 from groundstation.core import events as ev
 from groundstation.core.commands import FlyToTarget
 from groundstation.daemon.clock import MissionClock
@@ -44,7 +45,6 @@ from groundstation.daemon.session_flight import (
 )
 from groundstation.daemon.vehicle_port import VehiclePort
 from groundstation.mavlink.codec import MAVLinkMessage
-from groundstation.mavlink.geodesy import GeoOrigin
 from groundstation.mavlink.telemetry import (
     Armed,
     BatteryLow,

@@ -27,18 +27,20 @@ from typing import Any
 
 import yaml
 
+from domain.geodesy import GeoOrigin
 from groundstation.core import events as ev
 from groundstation.core.config import CoreConfig, ReplanPolicy
+from groundstation.core.scenario_config import core_config_for
 from groundstation.daemon.clock import MissionClock
 from groundstation.daemon.config import DaemonConfig, parse_hostport, parse_latlon
 from groundstation.daemon.control import DaemonController
 from groundstation.daemon.control_server import ControlServer, binding_warning
 from groundstation.daemon.daemon import Daemon
+from groundstation.daemon.embedded import EmbeddedFactory, EmbeddedVehicles
 from groundstation.daemon.journal import Journal
 from groundstation.daemon.world import ScenarioWorld
 from groundstation.detection_feed import DetectionFeed
 from groundstation.link import LinkError, LinkUrlError, TlogWriter, open_link
-from groundstation.mavlink.geodesy import GeoOrigin
 
 __all__ = ["StartError", "core_config", "load_targets", "run_daemon"]
 
@@ -64,12 +66,7 @@ def core_config(config: DaemonConfig, scenario: Any, speedup: float) -> CoreConf
     """The core's settings: the scenario's (or the core's defaults), overridden by the
     config. The solver's wall budget is the time limit divided by the speed-up, so a plan
     takes the same mission time at any speed-up (floor 0.05 s)."""
-    if scenario is not None:
-        from groundstation.runners.simulate import core_config_for
-
-        base = core_config_for(scenario)
-    else:
-        base = CoreConfig()
+    base = core_config_for(scenario) if scenario is not None else CoreConfig()
     policy = base.policy
     if config.replan is not None or config.period_s is not None or config.commit is not None:
         replan = config.replan or (
@@ -190,23 +187,27 @@ async def run_daemon(
     print_fn: Callable[[str], None] = _print,
     on_started: Callable[[Daemon], None] | None = None,
     install_signals: bool = True,
+    embedded: EmbeddedFactory | None = None,
 ) -> Daemon:
-    """Run the daemon described by ``config`` until it stops; returns it (for its summary)."""
+    """Run the daemon described by ``config`` until it stops; returns it (for its summary).
+
+    ``embedded`` builds the vehicles of ``--vehicles sim:N`` (the command layer passes the
+    built-in simulator; the daemon itself never imports it)."""
     config.validate()
     config.resolve_defaults()
     scenario = None
     if config.scenario is not None:
-        from sitl.scenario import load_scenario
+        from world.scenario import load_scenario
 
         try:
             scenario = load_scenario(config.scenario)
         except (ValueError, OSError) as exc:
             raise StartError(f"scenario: {exc}") from None
-    sim = None
+    sim: EmbeddedVehicles | None = None
     if config.sim_count is not None:
-        from groundstation.daemon.embedded_sim import build_embedded_sim
-
-        sim = build_embedded_sim(config, scenario)
+        if embedded is None:
+            raise StartError("vehicles: sim:N needs the built-in simulator (run it with gcs run)")
+        sim = embedded(config, scenario)
     origin: GeoOrigin | None = None
     if scenario is not None:
         origin = scenario.origin
@@ -223,8 +224,7 @@ async def run_daemon(
         except LinkUrlError as exc:
             raise StartError(str(exc)) from None
     if sim is not None:
-        server = sim.server
-        clock = MissionClock(config.speedup, source=lambda: server.t_s)
+        clock = MissionClock(config.speedup, source=sim.now_s)
     else:
         clock = MissionClock(config.speedup)
     ccfg = core_config(config, scenario, clock.speedup)
@@ -246,25 +246,22 @@ async def run_daemon(
     try:
         if sim is not None:
             try:
-                await sim.server.start()
+                await sim.start()
             except OSError as exc:
                 raise StartError(f"simulator: cannot open a port: {exc}") from None
             server_started = True
-            urls = [f"tcp:127.0.0.1:{port}" for port in sim.server.tcp_ports]
-
-            async def simulator() -> None:
-                await sim.server.run()
-
-            daemon.extra_tasks.append(simulator)
-            daemon.on_finish.append(sim.server.stop)
+            urls = sim.link_urls()
+            daemon.extra_tasks.append(sim.run)
+            daemon.on_finish.append(sim.stop)
+            vehicles = sim
 
             def sim_positions() -> dict[str, tuple[float, float]]:
                 out: dict[str, tuple[float, float]] = {}
-                for v in sim.server.vehicles():
-                    session = daemon.sessions.get(v.system_id)
+                for sysid, xy in vehicles.airborne_positions().items():
+                    session = daemon.sessions.get(sysid)
                     # a vehicle whose link is down sends no camera data either
-                    if session is not None and not v.airframe.on_ground and session.link != "lost":
-                        out[session.id] = (v.airframe.x_m, v.airframe.y_m)
+                    if session is not None and session.link != "lost":
+                        out[session.id] = xy
                 return out
 
             positions: Callable[[], dict[str, tuple[float, float]]] = sim_positions
@@ -363,7 +360,7 @@ async def run_daemon(
             with contextlib.suppress(Exception):
                 await stop()
         if sim is not None and server_started:
-            await sim.server.close()
+            await sim.close()
         for cleanup in cleanups:
             cleanup()
         journal.close()

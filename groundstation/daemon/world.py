@@ -16,8 +16,8 @@ from collections.abc import Callable, Mapping
 import numpy as np
 
 from groundstation.core import events as ev
-from sitl.scenario import Scenario, resolve_targets
-from sitl.world import Boat, Camera, Iceberg, World
+from world.model import Boat, Camera, Iceberg, World
+from world.scenario import Scenario, resolve_targets
 
 __all__ = ["ScenarioWorld"]
 
@@ -77,7 +77,7 @@ class ScenarioWorld:
         t = self.t_s
         if action == "add":
             spec = payload
-            from sitl.scenario import TargetSpec
+            from world.scenario import TargetSpec
 
             assert isinstance(spec, TargetSpec)
             if spec.id in self.world.icebergs:

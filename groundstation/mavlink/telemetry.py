@@ -31,8 +31,8 @@ import math
 from dataclasses import replace
 from typing import Literal
 
+from domain.geodesy import GeoOrigin, enu_rad_from_compass_deg, wrap_pi
 from groundstation.mavlink.codec import MAVLinkMessage, mavlink2
-from groundstation.mavlink.geodesy import GeoOrigin, enu_rad_from_compass_deg, wrap_pi
 from groundstation.mavlink.telemetry_events import (
     ARDUPLANE_MODES,
     Armed,

@@ -9,6 +9,8 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+from domain.modes import ARDUPLANE_MODES, mode_name
+
 __all__ = [
     "ARDUPLANE_MODES",
     "Armed",
@@ -25,41 +27,6 @@ __all__ = [
     "VehicleSnapshot",
     "mode_name",
 ]
-
-ARDUPLANE_MODES: dict[int, str] = {
-    0: "MANUAL",
-    1: "CIRCLE",
-    2: "STABILIZE",
-    3: "TRAINING",
-    4: "ACRO",
-    5: "FBWA",
-    6: "FBWB",
-    7: "CRUISE",
-    8: "AUTOTUNE",
-    10: "AUTO",
-    11: "RTL",
-    12: "LOITER",
-    13: "TAKEOFF",
-    14: "AVOID_ADSB",
-    15: "GUIDED",
-    16: "INITIALISING",
-    17: "QSTABILIZE",
-    18: "QHOVER",
-    19: "QLOITER",
-    20: "QLAND",
-    21: "QRTL",
-    22: "QAUTOTUNE",
-    23: "QACRO",
-    24: "THERMAL",
-    25: "LOITER_ALT_QLAND",
-    26: "AUTOLAND",
-}
-
-
-def mode_name(custom_mode: int) -> str:
-    """ArduPlane mode name of ``custom_mode`` (``MODE_<n>`` if unknown)."""
-    return ARDUPLANE_MODES.get(custom_mode, f"MODE_{custom_mode}")
-
 
 # --------------------------------------------------------------------------- events
 

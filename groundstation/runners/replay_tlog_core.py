@@ -29,6 +29,7 @@ from typing import Any
 
 import pymap3d
 
+from domain.geodesy import enu_rad_from_compass_deg
 from groundstation.core.commands import Command, SolveRequest
 from groundstation.core.config import CoreConfig, ReplanPolicy
 from groundstation.core.decision import DecisionCore
@@ -36,7 +37,6 @@ from groundstation.core.events import Detection, Event, PlanSolved, Telemetry, T
 from groundstation.core.records import command_to_record
 from groundstation.detection_feed import FeedError, parse_line
 from groundstation.link.tlog import TlogReader
-from groundstation.mavlink.geodesy import enu_rad_from_compass_deg
 from groundstation.runners.replay_tlog import TlogError, tlog_of
 from planner import solve_plan
 

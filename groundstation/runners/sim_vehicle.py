@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from sitl.dynamics import (
+from world.dynamics import (
     LoiterCommand,
     UavState,
     distance_to_circle_m,

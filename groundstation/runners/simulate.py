@@ -33,7 +33,7 @@ from groundstation.core.commands import (
     SendHome,
     SolveRequest,
 )
-from groundstation.core.config import CoreConfig, ReplanPolicy, config_to_dict
+from groundstation.core.config import config_to_dict
 from groundstation.core.decision import DecisionCore
 from groundstation.core.events import (
     BatteryLow,
@@ -53,16 +53,16 @@ from groundstation.core.events import (
     VehicleRebooted,
     VehicleReturned,
 )
+from groundstation.core.metrics import MetricsRecorder
 from groundstation.core.records import command_to_record, event_to_record
-from groundstation.runners.metrics import MetricsRecorder
+from groundstation.core.scenario_config import core_config_for
 from groundstation.runners.sim_vehicle import OfflineVehicle
-from observer import ObserverConfig
 from planner import solve_plan
-from sitl.dynamics import UavState
-from sitl.scenario import Scenario, ScriptedEvent, resolve_targets
-from sitl.world import Boat, Camera, Iceberg, World
+from world.dynamics import UavState
+from world.model import Boat, Camera, Iceberg, World
+from world.scenario import Scenario, ScriptedEvent, resolve_targets
 
-__all__ = ["SimulationOptions", "SimulationRun", "core_config_for", "run_simulation"]
+__all__ = ["SimulationOptions", "SimulationRun", "run_simulation"]
 
 
 @dataclass(frozen=True)
@@ -104,35 +104,6 @@ class SimulationRun:
     snapshots: list[MapSnapshot] = field(default_factory=list)
     events: list[dict[str, Any]] = field(default_factory=list)
     journal: list[dict[str, Any]] = field(default_factory=list)
-
-
-def core_config_for(scenario: Scenario, objective: str | None = None) -> CoreConfig:
-    """The decision core's configuration as a scenario describes it."""
-    obs = scenario.observer
-    return CoreConfig(
-        policy=ReplanPolicy.from_names(
-            scenario.policy.replan, scenario.policy.period_s, scenario.policy.commit
-        ),
-        observer=ObserverConfig(
-            model=obs.model,
-            q_per_s=obs.q_per_s,
-            r_m2=obs.r_m2,
-            max_step_s=obs.step_s,
-            fov_radius_m=scenario.fleet.fov_radius_m,
-            linear_growth_per_s=obs.linear_growth_per_s,
-        ),
-        turn_radius_m=scenario.fleet.turn_radius_m,
-        speed_m_s=scenario.fleet.speed_m_s,
-        loiter_s=scenario.fleet.loiter_s,
-        loiter_radius_m=scenario.fleet.loiter_radius_m,
-        tau=scenario.planner.tau,
-        objective=objective or scenario.planner.objective,
-        time_limit_s=scenario.planner.time_limit_s,
-        min_sigma_fraction=scenario.planner.min_sigma_fraction,
-        priority_gain=obs.priority_gain,
-        priority_near_m=obs.priority_near_m,
-        priority_far_m=obs.priority_far_m,
-    )
 
 
 class _Simulation:

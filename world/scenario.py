@@ -1,7 +1,7 @@
 """Scenarios: the world, the fleet and the ground station's policy of one experiment.
 
 A scenario is a YAML file a user can copy and edit. The bundled ones live in
-``sitl/scenarios/`` and are addressed by name (``paper-boat``, ``svalbard-2015``, ...);
+``world/scenarios/`` and are addressed by name (``paper-boat``, ``svalbard-2015``, ...);
 anything else is a path. Unknown or invalid fields are errors naming the field.
 
 Frames: local ENU metres around ``origin``, headings in radians counter-clockwise from east.
@@ -18,8 +18,9 @@ from typing import Any
 import numpy as np
 import yaml
 
-from groundstation.mavlink.geodesy import GeoOrigin
-from sitl.yaml_fields import FieldError, Fields
+from domain.geodesy import GeoOrigin
+from world.fault_spec import FaultError, parse_fault_spec
+from world.yaml_fields import FieldError, Fields
 
 __all__ = [
     "BoatSpec",
@@ -177,14 +178,14 @@ class Scenario:
 
 def bundled_scenarios() -> list[str]:
     """Names of the scenarios shipped with floe."""
-    folder = resources.files("sitl") / "scenarios"
+    folder = resources.files("world") / "scenarios"
     return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".yaml"))
 
 
 def load_scenario(name_or_path: str) -> Scenario:
     """Load a bundled scenario by name, or a YAML file by path."""
     if name_or_path in bundled_scenarios():
-        resource = resources.files("sitl") / "scenarios" / f"{name_or_path}.yaml"
+        resource = resources.files("world") / "scenarios" / f"{name_or_path}.yaml"
         text = resource.read_text(encoding="utf-8")
         source = name_or_path
     else:
@@ -259,8 +260,6 @@ def parse_scenario(data: Any, *, source: str = "") -> Scenario:
 def _parse_faults(items: list[Any]) -> tuple[str, ...]:
     """``--fault`` specs (``VEHICLES:KIND[:key=value,...]``) applied by the MAVLink simulator
     (``gcs sitl``, ``gcs run --vehicles sim:N``); the offline simulator has no links."""
-    from sitl.faults import FaultError, parse_fault_spec
-
     specs: list[str] = []
     for i, item in enumerate(items):
         if not isinstance(item, str):
@@ -317,7 +316,7 @@ def _parse_fleet(f: Fields) -> FleetSpec:
         values = f.items("headings_rad")
         if not values:
             raise FieldError(f.path_of("headings_rad"), "must not be empty")
-        from sitl.yaml_fields import check_number
+        from world.yaml_fields import check_number
 
         headings = tuple(
             check_number(f"{f.path_of('headings_rad')}[{i}]", v) for i, v in enumerate(values)

@@ -1,5 +1,9 @@
 """``--vehicles sim:N``: the built-in simulator in the daemon's own event loop.
 
+This adapter lives in the command layer so that the daemon never imports the simulator:
+``gcs run`` hands the daemon :func:`build_embedded_sim` as its
+:data:`~groundstation.daemon.embedded.EmbeddedFactory`.
+
 The vehicles serve TCP on ephemeral 127.0.0.1 ports and the daemon connects to them with
 ordinary ``tcp:`` links, exactly as to ArduPilot SITL. Launch poses, origin and home come
 from the scenario (``sitl.sitl_setup.scenario_setup``), whose scripted vehicle events
@@ -16,10 +20,12 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
-from groundstation.daemon.config import ConfigError, DaemonConfig
-from groundstation.mavlink.geodesy import GeoOrigin
-from sitl.scenario import Scenario
+from domain.geodesy import GeoOrigin
+from groundstation.daemon.config import ConfigError, DaemonConfig, parse_latlon
+from sitl.faults import FaultError, VehicleFaults, apply_fault, parse_fault_spec
 from sitl.server import ServerOptions, SitlServer
+from sitl.sitl_setup import scenario_setup
+from world.scenario import Scenario
 
 __all__ = ["EmbeddedSim", "build_embedded_sim"]
 
@@ -29,23 +35,45 @@ SIM_TICK_S = 0.005
 
 @dataclass
 class EmbeddedSim:
+    """The built-in vehicles as the daemon's :class:`EmbeddedVehicles`."""
+
     server: SitlServer
     origin: GeoOrigin
     fault_specs: list[str]
 
+    def now_s(self) -> float:
+        return self.server.t_s
+
+    def link_urls(self) -> list[str]:
+        return [f"tcp:127.0.0.1:{port}" for port in self.server.tcp_ports]
+
+    def airborne_positions(self) -> dict[int, tuple[float, float]]:
+        return {
+            v.system_id: (v.airframe.x_m, v.airframe.y_m)
+            for v in self.server.vehicles()
+            if not v.airframe.on_ground
+        }
+
+    async def start(self) -> None:
+        await self.server.start()
+
+    async def run(self) -> None:
+        await self.server.run()
+
+    def stop(self) -> None:
+        self.server.stop()
+
+    async def close(self) -> None:
+        await self.server.close()
+
 
 def build_embedded_sim(config: DaemonConfig, scenario: Scenario | None) -> EmbeddedSim:
     """The simulator for ``config.sim_count`` vehicles (not started)."""
-    from sitl.faults import FaultError, VehicleFaults, apply_fault, parse_fault_spec
-    from sitl.sitl_setup import scenario_setup
-
     count = config.sim_count
     assert count is not None
     home_given = config.origin is not None
     home = DEFAULT_HOME
     if config.origin is not None:
-        from groundstation.daemon.config import parse_latlon
-
         home = parse_latlon(config.origin, "origin")
     setup = scenario_setup(scenario, count, home, home_given)
     configs = []
