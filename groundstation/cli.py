@@ -11,6 +11,8 @@ import importlib
 import sys
 from collections.abc import Sequence
 
+from domain.errors import FloeError, UsageError
+
 __all__ = ["main"]
 
 COMMANDS: dict[str, str] = {
@@ -54,6 +56,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"gcs {name}: interrupted", file=sys.stderr)
         return 130
+    except UsageError as exc:  # a mistake a subcommand did not turn into its own message
+        print(f"gcs {name}: error: {exc}", file=sys.stderr)
+        return 2
+    except FloeError as exc:
+        print(f"gcs {name}: error: {exc}", file=sys.stderr)
+        return 1
     return status
 
 

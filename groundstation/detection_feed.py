@@ -36,6 +36,8 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from typing import Any
 
+from domain.errors import DataError
+
 __all__ = [
     "DEFAULT_ADDRESS",
     "DetectionFeed",
@@ -54,7 +56,7 @@ MAX_LINE_BYTES = 4096
 KINDS = ("detection", "boat")
 
 
-class FeedError(ValueError):
+class FeedError(DataError):
     """A malformed feed line (the message names the field)."""
 
 

@@ -18,11 +18,13 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from domain.errors import PlanningError
+
 OBJECTIVES = ("sequence", "arrival")
 STATUSES = ("optimal", "feasible", "fallback")
 
 
-class ProblemError(ValueError):
+class ProblemError(PlanningError):
     """Malformed planning problem: `field` names the offending key (e.g. ``targets[2].sigma``)."""
 
     def __init__(self, field: str, message: str) -> None:

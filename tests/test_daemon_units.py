@@ -341,6 +341,7 @@ def test_solver_runner_stops_and_drops_overtaken_plans() -> None:
 
     async def main() -> float:
         runner = SolverRunner(lambda req, res: answers.append((req.request_id, res.status)))
+        service = asyncio.create_task(runner.run())
         start = time.perf_counter()
         runner.submit(_request(1, 25, 20.0))  # would take 20 s
         await asyncio.sleep(0.3)
@@ -350,6 +351,7 @@ def test_solver_runner_stops_and_drops_overtaken_plans() -> None:
             await asyncio.sleep(0.01)
         elapsed = time.perf_counter() - start
         runner.close()
+        service.cancel()
         return elapsed
 
     elapsed = asyncio.run(asyncio.wait_for(main(), 30.0))
@@ -364,12 +366,14 @@ def test_solver_runner_answers_within_the_deadline() -> None:
 
     async def main() -> float:
         runner = SolverRunner(lambda req, res: answers.append(res))
+        service = asyncio.create_task(runner.run())
         start = time.perf_counter()
         request = _request(1, 30, 0.3)
         runner.submit(request)
         while not answers:
             await asyncio.sleep(0.01)
         runner.close()
+        service.cancel()
         return time.perf_counter() - start
 
     elapsed = asyncio.run(asyncio.wait_for(main(), 30.0))

@@ -11,6 +11,7 @@ importing the simulator. See ``sitl/faults.py`` for what each kind does.
 
 from __future__ import annotations
 
+from domain.errors import ConfigError
 from domain.modes import ArduPlaneMode
 
 __all__ = ["FAULT_KINDS", "FaultError", "fault_mode", "parse_fault_spec"]
@@ -20,7 +21,7 @@ FAULT_KINDS = ("loss", "dup", "reorder", "delay", "drop", "reboot", "mode", "bat
 _SIM_MODES = {m.name: int(m) for m in ArduPlaneMode if m <= 16 and m != 14}
 
 
-class FaultError(ValueError):
+class FaultError(ConfigError):
     """A fault spec that cannot be understood (the message names the bad part)."""
 
 

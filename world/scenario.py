@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 import yaml
 
+from domain.errors import ConfigError
 from domain.geodesy import GeoOrigin
 from world.fault_spec import FaultError, parse_fault_spec
 from world.yaml_fields import FieldError, Fields
@@ -50,7 +51,7 @@ EVENT_KINDS = (
 )
 
 
-class ScenarioError(ValueError):
+class ScenarioError(ConfigError):
     """A scenario cannot be loaded; the message names the file and the field."""
 
 

@@ -11,10 +11,12 @@ import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+from domain.errors import ConfigError
+
 __all__ = ["FieldError", "Fields"]
 
 
-class FieldError(ValueError):
+class FieldError(ConfigError):
     """A field of a user file is missing, unknown or invalid."""
 
     def __init__(self, path: str, message: str) -> None:

@@ -15,10 +15,11 @@ import math
 import sys
 from typing import Any, NoReturn
 
+from domain.errors import UsageError
 from planner import ProblemError, problem_from_dict, result_to_dict, solve_plan
 
 
-class _UsageError(Exception):
+class _UsageError(UsageError):
     def __init__(self, field: str, message: str) -> None:
         super().__init__(f"{field}: {message}")
 

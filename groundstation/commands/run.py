@@ -173,6 +173,13 @@ def run(argv: list[str]) -> int:
         return 2
     except KeyboardInterrupt:
         return 130
+    if daemon.internal_error is not None:
+        print(
+            f"gcs run: error: {daemon.internal_error} (a bug: please report it with "
+            f"{daemon.run_dir}/gcs.log and journal.jsonl; the vehicles keep their last mission)",
+            file=sys.stderr,
+        )
+        return 70
     summary = daemon.summary()
     mean = summary.get("mean_uncertainty")
     mean_text = f"{mean:.0f} m^2" if isinstance(mean, (int, float)) else "n/a"

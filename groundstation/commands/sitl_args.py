@@ -6,6 +6,8 @@ from __future__ import annotations
 import argparse
 import math
 
+from domain import errors
+
 __all__ = [
     "DEFAULT_DETECTIONS",
     "DEFAULT_HOME",
@@ -18,7 +20,7 @@ DEFAULT_HOME = (78.93, 11.92)  # near Ny-Alesund, Svalbard
 DEFAULT_DETECTIONS = ("127.0.0.1", 14600)
 
 
-class UsageError(ValueError):
+class UsageError(errors.UsageError):
     """Bad command-line value (the message names the option)."""
 
 

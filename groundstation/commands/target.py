@@ -27,6 +27,8 @@ import urllib.parse
 import urllib.request
 from typing import Any
 
+from domain.errors import UsageError
+
 __all__ = ["ApiClient", "ApiError", "add_api_options", "run", "table"]
 
 DEFAULT_API = "http://127.0.0.1:8080"
@@ -34,7 +36,7 @@ EXIT_REFUSED = 1
 EXIT_USAGE = 2
 
 
-class ApiError(Exception):
+class ApiError(UsageError):
     """A failed call: one-line message and the exit status it maps to."""
 
     def __init__(self, message: str, status: int) -> None:

@@ -13,6 +13,7 @@ import dataclasses
 from collections.abc import Mapping
 from typing import Any, get_args
 
+from domain.errors import DataError
 from groundstation.core.commands import (
     CancelSolve,
     Command,
@@ -40,7 +41,7 @@ __all__ = [
 _EVENT_TYPES: dict[str, type] = {cls.__name__: cls for cls in get_args(Event)}
 
 
-class RecordError(ValueError):
+class RecordError(DataError):
     """A journal line cannot be turned back into an event."""
 
 

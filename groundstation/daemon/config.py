@@ -17,10 +17,12 @@ from typing import Any
 
 import yaml
 
+from domain import errors
+
 __all__ = ["ConfigError", "DaemonConfig", "VehicleSettings", "load_config_file", "parse_hostport"]
 
 
-class ConfigError(ValueError):
+class ConfigError(errors.ConfigError):
     """Bad configuration; the message names the key."""
 
 

@@ -18,6 +18,8 @@ import math
 from collections.abc import Iterable
 from typing import Any
 
+from domain.errors import UsageError
+
 __all__ = [
     "MAX_ID_CHARS",
     "RequestError",
@@ -30,7 +32,7 @@ __all__ = [
 MAX_ID_CHARS = 64
 
 
-class RequestError(ValueError):
+class RequestError(UsageError):
     """A malformed request: the message is the one-line reason sent back (HTTP 400)."""
 
 

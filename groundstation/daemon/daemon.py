@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import functools
 import logging
 import math
 import time
@@ -41,6 +42,7 @@ from groundstation.daemon.config import DaemonConfig
 from groundstation.daemon.journal import Journal
 from groundstation.daemon.planning import SolverRunner
 from groundstation.daemon.session import VehicleSession
+from groundstation.daemon.supervision import Supervisor
 from groundstation.daemon.vehicle_port import VehiclePort
 from groundstation.daemon.world import ScenarioWorld
 from groundstation.link import Received, Router, TlogWriter
@@ -117,6 +119,8 @@ class Daemon:
         self._wall_start = time.perf_counter()
         self._cpu_start = time.process_time()
         self.detections_dropped = 0
+        self.internal_error: str | None = None
+        self.supervisor = Supervisor(clock.now_s, self.journal, self._on_bug)
 
     # ------------------------------------------------------------------ SessionHost
     @property
@@ -261,7 +265,7 @@ class Daemon:
         self.by_name[name] = session
         self.journal("vehicle_seen", vehicle=name, system_id=sysid, altitude_m=session.alt_m)
         if self._tg is not None:
-            self._spawn(f"vehicle {name}", session.run)
+            self._spawn(f"vehicle {name}", session.run, lambda: self._gave_up(session))
         return session
 
     def _on_out_frame(self, rx: Received) -> None:
@@ -280,23 +284,27 @@ class Daemon:
                 )
 
     # ------------------------------------------------------------------ tasks
-    def _spawn(self, name: str, factory: Callable[[], Awaitable[None]]) -> None:
+    def _spawn(
+        self,
+        name: str,
+        factory: Callable[[], Awaitable[None]],
+        on_give_up: Callable[[], None] | None = None,
+    ) -> None:
         assert self._tg is not None
-        self._tasks.append(self._tg.create_task(self._supervise(name, factory), name=name))
+        coro = self.supervisor.supervise(name, factory, on_give_up)
+        self._tasks.append(self._tg.create_task(coro, name=name))
 
-    async def _supervise(self, name: str, factory: Callable[[], Awaitable[None]]) -> None:
-        failures = 0
-        while not self._finished:
-            try:
-                await factory()
-                return
-            except asyncio.CancelledError:
-                raise
-            except Exception as exc:
-                failures += 1
-                log.exception("task %s failed (restart %d)", name, failures)
-                self.journal("task_error", task=name, error=repr(exc), restarts=failures)
-                await asyncio.sleep(min(5.0, 0.2 * failures))
+    def _gave_up(self, session: VehicleSession) -> None:
+        """A vehicle's task failed past its restart limit: it leaves the plan (its targets go
+        to the others) and floe stops commanding it."""
+        if session.status == "active":
+            self.core_event(ev.VehicleLost(self.clock.now_s(), session.id))
+        session.stopping = True
+
+    def _on_bug(self, task: str, exc: BaseException) -> None:
+        """A bug stopped a task: stop the daemon cleanly; the vehicles keep their missions."""
+        self.internal_error = f"internal error in task {task}: {type(exc).__name__}: {exc}"
+        self.request_stop("internal error")
 
     def request_stop(self, reason: str) -> None:
         if not self._stop.is_set():
@@ -315,13 +323,16 @@ class Daemon:
                 self._tg = tg
                 self._spawn("ticker", self._tick_loop)
                 self._spawn("heartbeat", self._heartbeat_loop)
+                self._spawn("solver", self.solver.run)
                 for factory in self.extra_tasks:
                     self._spawn(getattr(factory, "__name__", "task"), factory)
                 for session in self.sessions.values():
-                    self._spawn(f"vehicle {session.id}", session.run)
+                    gave_up = functools.partial(self._gave_up, session)
+                    self._spawn(f"vehicle {session.id}", session.run, gave_up)
                 await self._stop.wait()
                 await self._shutdown()
                 self._finished = True
+                self.supervisor.stopped = True
                 for finish in self.on_finish:
                     finish()
                 for task in self._tasks:
@@ -342,7 +353,8 @@ class Daemon:
             if session.port.busy:
                 self.journal("stop_wait_timeout", vehicle=session.id)
             if (
-                self.config.on_exit == "rtl"
+                self.internal_error is None
+                and self.config.on_exit == "rtl"
                 and session.status == "active"
                 and not self.config.advisory
                 and session.link != "lost"

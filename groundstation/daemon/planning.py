@@ -8,6 +8,10 @@ best plan so far (status ``fallback`` when CP-SAT found none). If solving raises
 heuristic alone is tried; if that fails too, the request gets no answer and the next
 trigger asks again. ``cancel(id)`` stops an overtaken solve; its answer is dropped here
 (the core would drop it too).
+
+The runner is a service of the daemon's task tree: :meth:`SolverRunner.run` (supervised in
+the root task group) owns a child ``asyncio.TaskGroup`` in which every solve runs, so a
+stopped daemon cancels them all and no solve outlives it. ``submit`` only queues.
 """
 
 from __future__ import annotations
@@ -44,7 +48,7 @@ class SolverRunner:
             max_workers=2, thread_name_prefix="floe-solver"
         )
         self._solvers: dict[int, PlanSolver] = {}
-        self._tasks: set[asyncio.Task[None]] = set()
+        self._queue: asyncio.Queue[tuple[SolveRequest, PlanSolver]] = asyncio.Queue()
         self.cancelled = 0
         self.deadline_stops = 0
         self.solved = 0
@@ -57,9 +61,15 @@ class SolverRunner:
             random_seed=self.seed,
         )
         self._solvers[request.request_id] = solver
-        task = asyncio.get_running_loop().create_task(self._solve(request, solver))
-        self._tasks.add(task)
-        task.add_done_callback(self._tasks.discard)
+        self._queue.put_nowait((request, solver))
+
+    async def run(self) -> None:
+        """Serve submitted requests until cancelled (each solve a child task)."""
+        async with asyncio.TaskGroup() as solves:
+            while True:
+                request, solver = await self._queue.get()
+                if request.request_id in self._solvers:  # not cancelled while queued
+                    solves.create_task(self._solve(request, solver), name="solve")
 
     def cancel(self, request_id: int) -> None:
         solver = self._solvers.pop(request_id, None)
@@ -108,8 +118,6 @@ class SolverRunner:
         for solver in self._solvers.values():
             solver.stop()
         self._solvers.clear()
-        for task in list(self._tasks):
-            task.cancel()
         self._executor.shutdown(wait=False, cancel_futures=True)
 
 

@@ -27,6 +27,7 @@ from typing import Any
 
 import yaml
 
+from domain.errors import UsageError
 from domain.geodesy import GeoOrigin
 from groundstation.core import events as ev
 from groundstation.core.config import CoreConfig, ReplanPolicy
@@ -48,7 +49,7 @@ log = logging.getLogger(__name__)
 MIN_SOLVER_WALL_S = 0.05
 
 
-class StartError(Exception):
+class StartError(UsageError):
     """The daemon cannot start (bad input, port in use); one-line message."""
 
 

@@ -20,6 +20,7 @@ from collections.abc import AsyncIterator, Callable, Hashable
 from dataclasses import dataclass, field
 from typing import Any, TypeAlias
 
+from domain import errors
 from groundstation.link.url import LinkSpec
 from groundstation.mavlink.codec import MavlinkDecoder
 
@@ -45,7 +46,7 @@ Peer = Hashable
 """A transport address: a UDP ``(host, port)``, a TCP client number; None on 1:1 links."""
 
 
-class LinkError(RuntimeError):
+class LinkError(errors.LinkError):
     """A link could not start (e.g. its listening port is taken); one-line message."""
 
 

@@ -29,6 +29,8 @@ import ipaddress
 import re
 from dataclasses import dataclass
 
+from domain.errors import ConfigError
+
 __all__ = ["DEFAULT_SERIAL_BAUD", "LinkKind", "LinkSpec", "LinkUrlError", "parse_link_url"]
 
 DEFAULT_SERIAL_BAUD = 57600
@@ -42,7 +44,7 @@ _WINDOWS_PORT_RE = re.compile(r"^(\\\\\.\\)?COM[0-9]+$", re.IGNORECASE)
 _SUPPORTED = "udpin:, udp:, udpout:, tcp:, tcpin:, serial:, or DEVICE,BAUD"
 
 
-class LinkUrlError(ValueError):
+class LinkUrlError(ConfigError):
     """A link URL that cannot be used; ``str()`` is a one-line message for the user."""
 
 

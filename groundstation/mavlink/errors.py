@@ -14,14 +14,16 @@ from __future__ import annotations
 
 from typing import Any
 
+from domain import errors
+
 __all__ = ["LocalProtocolError", "RemoteProtocolError"]
 
 
-class LocalProtocolError(ValueError):
+class LocalProtocolError(errors.LocalProtocolError):
     """The local side broke the protocol or handed in invalid data."""
 
 
-class RemoteProtocolError(Exception):
+class RemoteProtocolError(errors.RemoteProtocolError):
     """The peer broke the protocol or refused; carries the transfer result that says how."""
 
     def __init__(self, message: str, result: Any = None) -> None:

@@ -22,6 +22,7 @@ from typing import Any
 
 import yaml
 
+from domain.errors import DataError
 from groundstation.core.config import CoreConfig, config_from_dict, config_to_dict
 
 __all__ = [
@@ -34,7 +35,7 @@ __all__ = [
 ]
 
 
-class JournalError(ValueError):
+class JournalError(DataError):
     """The journal cannot be used at all; ``str()`` is a one-line message."""
 
 

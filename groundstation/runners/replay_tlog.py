@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 import pymap3d
 
+from domain.errors import DataError
 from groundstation.link.tlog import TlogReader
 from groundstation.mavlink.telemetry_events import mode_name
 
@@ -32,7 +33,7 @@ _MAV_TYPE_GCS = 6
 _MAV_AUTOPILOT_INVALID = 8
 
 
-class TlogError(ValueError):
+class TlogError(DataError):
     """A tlog that cannot be used; one-line message."""
 
 

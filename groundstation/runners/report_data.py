@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from domain.errors import DataError
 from groundstation.runners.replay_journal import JournalError, LoadedJournal, load_journal
 from groundstation.runners.replay_tlog import TlogError, TlogSummary, read_tlog
 
@@ -35,7 +36,7 @@ __all__ = ["ReportError", "RunData", "load_run_data"]
 Row = tuple[float, ...]
 
 
-class ReportError(ValueError):
+class ReportError(DataError):
     """Nothing to report on; one-line message."""
 
 

@@ -1,0 +1,171 @@
+"""Supervision by error class: expected faults restart within a limit, bugs stop the daemon."""
+
+from __future__ import annotations
+
+import asyncio
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from domain.errors import (
+    ConfigError,
+    DataError,
+    FloeError,
+    LinkError,
+    LocalProtocolError,
+    PlanningError,
+    RemoteProtocolError,
+    UsageError,
+)
+from groundstation.daemon.daemon import Daemon
+from groundstation.daemon.supervision import RestartPolicy, Supervisor
+from tests.daemon_run import events, run_gcs
+
+
+class FakeTime:
+    def __init__(self) -> None:
+        self.t_s = 0.0
+
+    def __call__(self) -> float:
+        return self.t_s
+
+
+def make(policy: RestartPolicy | None = None) -> tuple[Supervisor, list[Any], list[Any], FakeTime]:
+    lines: list[Any] = []
+    bugs: list[Any] = []
+    now = FakeTime()
+    sup = Supervisor(
+        now,
+        lambda event, **fields: lines.append((event, fields)),
+        lambda task, exc: bugs.append((task, exc)),
+        policy or RestartPolicy(max_restarts=3, window_s=60.0, pause_step_s=0.0),
+    )
+    return sup, lines, bugs, now
+
+
+def test_every_error_floe_raises_has_one_root() -> None:
+    from groundstation.commands.sitl_args import UsageError as SitlUsage
+    from groundstation.core.records import RecordError
+    from groundstation.daemon.config import ConfigError as DaemonConfigError
+    from groundstation.daemon.control_requests import RequestError
+    from groundstation.daemon.startup import StartError
+    from groundstation.detection_feed import FeedError
+    from groundstation.link.base import LinkError as LinkLinkError
+    from groundstation.link.url import LinkUrlError
+    from groundstation.mavlink import errors as mav
+    from groundstation.runners.replay_journal import JournalError
+    from groundstation.runners.replay_tlog import TlogError
+    from groundstation.runners.report_data import ReportError
+    from planner.problem import ProblemError
+    from world.fault_spec import FaultError
+    from world.scenario import ScenarioError
+    from world.yaml_fields import FieldError
+
+    expected = {
+        SitlUsage: UsageError, RequestError: UsageError, StartError: UsageError,
+        DaemonConfigError: ConfigError, LinkUrlError: ConfigError, FaultError: ConfigError,
+        ScenarioError: ConfigError, FieldError: ConfigError,
+        RecordError: DataError, FeedError: DataError, JournalError: DataError,
+        TlogError: DataError, ReportError: DataError,
+        ProblemError: PlanningError, LinkLinkError: LinkError,
+        mav.LocalProtocolError: LocalProtocolError, mav.RemoteProtocolError: RemoteProtocolError,
+    }  # fmt: skip
+    for cls, parent in expected.items():
+        assert issubclass(cls, parent), cls
+        assert issubclass(cls, FloeError), cls
+    # user mistakes stay ValueErrors, so input validation can catch either
+    assert issubclass(ConfigError, ValueError) and issubclass(DataError, ValueError)
+
+
+def test_expected_errors_restart_then_give_up_past_the_limit() -> None:
+    sup, lines, bugs, now = make()
+    calls: list[int] = []
+    gave_up: list[bool] = []
+
+    async def flaky() -> None:
+        calls.append(1)
+        now.t_s += 1.0
+        raise LinkError("serial port vanished")
+
+    asyncio.run(sup.supervise("vehicle 1", flaky, lambda: gave_up.append(True)))
+    assert len(calls) == 4  # the first run and three restarts
+    assert [e for e, _ in lines] == ["task_error"] * 3 + ["task_gave_up"]
+    assert all(f["expected"] for e, f in lines if e == "task_error")
+    assert gave_up == [True] and not bugs and sup.given_up == ["vehicle 1"]
+
+
+def test_restarts_spread_beyond_the_window_never_give_up() -> None:
+    sup, lines, bugs, now = make()
+    runs = 0
+
+    async def sometimes() -> None:
+        nonlocal runs
+        runs += 1
+        now.t_s += 100.0  # one failure per 100 mission s: never 4 within 60 s
+        if runs < 8:
+            raise OSError("connection reset")
+
+    asyncio.run(sup.supervise("link", sometimes))
+    assert runs == 8
+    assert not [e for e, _ in lines if e == "task_gave_up"] and not bugs
+
+
+@pytest.mark.parametrize(
+    "bug", [ZeroDivisionError("division by zero"), LocalProtocolError("receive() after end"),
+            KeyError("x"), AssertionError("invariant")],
+)
+def test_a_bug_is_not_restarted_and_stops_the_daemon(bug: Exception) -> None:
+    sup, lines, bugs, _ = make()
+    calls = 0
+
+    async def buggy() -> None:
+        nonlocal calls
+        calls += 1
+        raise bug
+
+    asyncio.run(sup.supervise("ticker", buggy))
+    assert calls == 1
+    assert bugs == [("ticker", bug)]
+    assert lines[0][0] == "task_error" and lines[0][1]["bug"] is True
+    assert any(type(bug).__name__ in line for line in lines[0][1]["traceback"])
+
+
+def test_cancellation_is_not_an_error() -> None:
+    sup, lines, bugs, _ = make()
+
+    async def main() -> None:
+        task = asyncio.create_task(sup.supervise("forever", lambda: asyncio.sleep(3600)))
+        await asyncio.sleep(0.01)
+        task.cancel()
+        with pytest.raises(asyncio.CancelledError):
+            await task
+
+    asyncio.run(main())
+    assert not lines and not bugs
+
+
+@pytest.mark.timeout(90)
+def test_a_bug_in_the_daemon_stops_it_cleanly_and_the_vehicles_keep_their_missions(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    original = Daemon.tick
+
+    def tick(self: Daemon, now: float) -> None:
+        if now >= 60.0:
+            raise ZeroDivisionError("a bug in the ticker")
+        original(self, now)
+
+    monkeypatch.setattr(Daemon, "tick", tick)
+    daemon, journal = run_gcs(
+        tmp_path, "--vehicles", "sim:2", "--scenario", "paper-boat", "--duration", "300",
+        "--on-exit", "rtl",
+    )  # fmt: skip
+    assert daemon.internal_error is not None and "ZeroDivisionError" in daemon.internal_error
+    bug = events(journal, "task_error", task="ticker")
+    assert len(bug) == 1 and bug[0]["bug"] is True
+    stop = events(journal, "stop")
+    assert stop and stop[0]["reason"] == "internal error" and stop[0]["t"] < 120.0
+    # a bug is no reason to send the vehicles home: no on-exit RTL
+    assert not events(journal, "rtl")
+    assert events(journal, "upload", ok=True, purpose="target")  # they had missions to keep
