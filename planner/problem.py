@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from domain.errors import PlanningError
+from domain.limits import MAX_FLEET, MAX_TARGETS
 
 OBJECTIVES = ("sequence", "arrival")
 STATUSES = ("optimal", "feasible", "fallback")
@@ -149,6 +150,9 @@ def problem_from_dict(d: Mapping[str, Any]) -> PlanningProblem:
     for key in ("uavs", "targets", "turn_radius"):
         if key not in d:
             raise ProblemError(key, "missing")
+    for key, most in (("uavs", MAX_FLEET), ("targets", MAX_TARGETS)):
+        if isinstance(d[key], list) and len(d[key]) > most:
+            raise ProblemError(key, f"{len(d[key])} entries; floe's limit is {most}")
     uavs = []
     for k, u in enumerate(_items(d, "uavs", _UAV_KEYS)):
         where = f"uavs[{k}]"

@@ -16,12 +16,18 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from domain.errors import ConfigError
 from domain.geodesy import GeoOrigin
+from domain.limits import (
+    MAX_COORDINATE_M,
+    MAX_DURATION_S,
+    MAX_FLEET,
+    MAX_SPEED_M_S,
+    MAX_TARGETS,
+)
 from world.fault_spec import FaultError, parse_fault_spec
-from world.yaml_fields import FieldError, Fields
+from world.yaml_fields import FieldError, Fields, load_yaml_file, load_yaml_text
 
 __all__ = [
     "BoatSpec",
@@ -196,15 +202,20 @@ def load_scenario(name_or_path: str) -> Scenario:
             raise ScenarioError(
                 f"scenario {name_or_path!r}: no such file or bundled scenario (bundled: {known})"
             )
-        try:
-            text = path.read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError) as exc:
-            raise ScenarioError(f"scenario {name_or_path}: cannot read: {exc}") from exc
         source = str(path)
+        try:
+            data = load_yaml_file(path, f"scenario {source}")
+        except ConfigError as exc:
+            raise ScenarioError(str(exc)) from None
+        return _parse_loaded(data, source)
     try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise ScenarioError(f"scenario {source}: not valid YAML: {exc}".splitlines()[0]) from exc
+        data = load_yaml_text(text, f"scenario {source}")
+    except ConfigError as exc:
+        raise ScenarioError(str(exc)) from None
+    return _parse_loaded(data, source)
+
+
+def _parse_loaded(data: Any, source: str) -> Scenario:
     try:
         return parse_scenario(data, source=source)
     except FieldError as exc:
@@ -216,7 +227,9 @@ def parse_scenario(data: Any, *, source: str = "") -> Scenario:
     top = Fields(data)
     name = top.string("name", Path(source).stem if source else "scenario")
     description = top.string("description", "")
-    duration_s = top.number("duration_s", 200.0, minimum=0.0, exclusive_minimum=True)
+    duration_s = top.number(
+        "duration_s", 200.0, minimum=0.0, exclusive_minimum=True, maximum=MAX_DURATION_S
+    )
     origin_f = top.sub("origin")
     lat = origin_f.number("lat_deg", 78.93, minimum=-90.0, maximum=90.0)
     lon = origin_f.number("lon_deg", 11.92, minimum=-180.0, maximum=180.0)
@@ -297,20 +310,28 @@ def resolve_targets(scenario: Scenario, rng: np.random.Generator) -> list[Target
 
 
 def _parse_fleet(f: Fields) -> FleetSpec:
-    count = f.integer("count", 3, minimum=1)
-    speed = f.number("speed_m_s", 22.0, minimum=0.0, exclusive_minimum=True)
-    turn = f.number("turn_radius_m", 105.0, minimum=0.0, exclusive_minimum=True)
-    fov = f.number("fov_radius_m", 150.0, minimum=0.0, exclusive_minimum=True)
-    loiter_s = f.number("loiter_s", 0.0, minimum=0.0)
-    loiter_r = f.number("loiter_radius_m", 120.0, minimum=0.0, exclusive_minimum=True)
+    count = f.integer("count", 3, minimum=1, maximum=MAX_FLEET)
+    speed = f.number(
+        "speed_m_s", 22.0, minimum=0.0, exclusive_minimum=True, maximum=MAX_SPEED_M_S
+    )
+    turn = f.number(
+        "turn_radius_m", 105.0, minimum=0.0, exclusive_minimum=True, maximum=MAX_COORDINATE_M
+    )
+    fov = f.number(
+        "fov_radius_m", 150.0, minimum=0.0, exclusive_minimum=True, maximum=MAX_COORDINATE_M
+    )
+    loiter_s = f.number("loiter_s", 0.0, minimum=0.0, maximum=MAX_DURATION_S)
+    loiter_r = f.number(
+        "loiter_radius_m", 120.0, minimum=0.0, exclusive_minimum=True, maximum=MAX_COORDINATE_M
+    )
     arrival = f.number("arrival_radius_m", 30.0, minimum=0.0, exclusive_minimum=True)
     launch_x: float | None = None
     launch_y: float | None = None
     launch = f.raw("launch")
     if launch is not None and launch != "boat":
         lf = Fields(launch, f.path_of("launch"))
-        launch_x = lf.number("x_m")
-        launch_y = lf.number("y_m")
+        launch_x = lf.number("x_m", minimum=-MAX_COORDINATE_M, maximum=MAX_COORDINATE_M)
+        launch_y = lf.number("y_m", minimum=-MAX_COORDINATE_M, maximum=MAX_COORDINATE_M)
         lf.done()
     headings: tuple[float, ...] | None = None
     if f.has("headings_rad"):
@@ -331,10 +352,10 @@ def _parse_fleet(f: Fields) -> FleetSpec:
 
 def _parse_boat(f: Fields) -> BoatSpec:
     boat = BoatSpec(
-        x_m=f.number("x_m"),
-        y_m=f.number("y_m"),
+        x_m=f.number("x_m", minimum=-MAX_COORDINATE_M, maximum=MAX_COORDINATE_M),
+        y_m=f.number("y_m", minimum=-MAX_COORDINATE_M, maximum=MAX_COORDINATE_M),
         heading_rad=f.number("heading_rad", 0.0),
-        speed_m_s=f.number("speed_m_s", 0.0, minimum=0.0),
+        speed_m_s=f.number("speed_m_s", 0.0, minimum=0.0, maximum=MAX_SPEED_M_S),
     )
     f.done()
     return boat
@@ -343,12 +364,12 @@ def _parse_boat(f: Fields) -> BoatSpec:
 def _parse_target(f: Fields) -> TargetSpec:
     target = TargetSpec(
         id=f.string("id"),
-        x_m=f.number("x_m"),
-        y_m=f.number("y_m"),
-        vx_m_s=f.number("vx_m_s", 0.0),
-        vy_m_s=f.number("vy_m_s", 0.0),
+        x_m=f.number("x_m", minimum=-MAX_COORDINATE_M, maximum=MAX_COORDINATE_M),
+        y_m=f.number("y_m", minimum=-MAX_COORDINATE_M, maximum=MAX_COORDINATE_M),
+        vx_m_s=f.number("vx_m_s", 0.0, minimum=-MAX_SPEED_M_S, maximum=MAX_SPEED_M_S),
+        vy_m_s=f.number("vy_m_s", 0.0, minimum=-MAX_SPEED_M_S, maximum=MAX_SPEED_M_S),
         sigma0=f.optional_number("sigma0", minimum=0.0),
-        appear_s=f.number("appear_s", 0.0, minimum=0.0),
+        appear_s=f.number("appear_s", 0.0, minimum=0.0, maximum=MAX_DURATION_S),
     )
     if not target.id:
         raise FieldError(f.path_of("id"), "must not be empty")
@@ -365,15 +386,20 @@ def _parse_targets(f: Fields) -> tuple[list[TargetSpec], RandomTargets | None]:
     if f.has("random"):
         rf = f.sub("random")
         random_targets = RandomTargets(
-            count=rf.integer("count", minimum=0),
-            x_m=rf.range_pair("x_m", (0.0, 1500.0)),
-            y_m=rf.range_pair("y_m", (0.0, 1500.0)),
-            vx_m_s=rf.range_pair("vx_m_s", (-3.0, 3.0)),
-            vy_m_s=rf.range_pair("vy_m_s", (-3.0, 3.0)),
+            count=rf.integer("count", minimum=0, maximum=MAX_TARGETS),
+            x_m=rf.range_pair("x_m", (0.0, 1500.0), limit=MAX_COORDINATE_M),
+            y_m=rf.range_pair("y_m", (0.0, 1500.0), limit=MAX_COORDINATE_M),
+            vx_m_s=rf.range_pair("vx_m_s", (-3.0, 3.0), limit=MAX_SPEED_M_S),
+            vy_m_s=rf.range_pair("vy_m_s", (-3.0, 3.0), limit=MAX_SPEED_M_S),
         )
         rf.done()
     else:
         f.raw("random")
+    total = len(listed) + (random_targets.count if random_targets else 0)
+    if total > MAX_TARGETS:
+        raise FieldError(
+            f.path_of("list"), f"{total} targets in all; floe's limit is {MAX_TARGETS}"
+        )
     f.done()
     return listed, random_targets
 
@@ -419,7 +445,7 @@ def _parse_policy(f: Fields) -> PolicySpec:
 
 
 def _parse_event(f: Fields) -> ScriptedEvent:
-    t_s = f.number("t_s", minimum=0.0)
+    t_s = f.number("t_s", minimum=0.0, maximum=MAX_DURATION_S)
     kind = f.string("kind", choices=EVENT_KINDS)
     vehicle: str | None = None
     target: TargetSpec | None = None

@@ -8,12 +8,20 @@ traceback.
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Mapping, Sequence
+from pathlib import Path
 from typing import Any
 
-from domain.errors import ConfigError
+import yaml
 
-__all__ = ["FieldError", "Fields"]
+from domain.errors import ConfigError
+from domain.limits import MAX_FILE_BYTES, MAX_YAML_DEPTH, MAX_YAML_NODES
+
+__all__ = ["FieldError", "Fields", "load_yaml_file", "load_yaml_text"]
+
+
+_EXPONENT = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)[eE]\d+")
 
 
 class FieldError(ConfigError):
@@ -23,6 +31,59 @@ class FieldError(ConfigError):
         super().__init__(f"{path}: {message}" if path else message)
         self.path = path
         self.message = message
+
+
+def load_yaml_file(path: Path | str, what: str) -> Any:
+    """Read and parse a user's YAML file; every failure is a :class:`ConfigError` whose
+    message starts with ``what`` (e.g. ``--config ice.yaml``): missing or unreadable file,
+    larger than :data:`MAX_FILE_BYTES`, not UTF-8 text, not YAML, nested deeper than
+    :data:`MAX_YAML_DEPTH` or holding more than :data:`MAX_YAML_NODES` values."""
+    try:
+        with open(path, "rb") as f:
+            raw = f.read(MAX_FILE_BYTES + 1)
+    except OSError as exc:
+        raise ConfigError(f"{what}: cannot read {path}: {exc.strerror or exc}") from None
+    if len(raw) > MAX_FILE_BYTES:
+        raise ConfigError(f"{what}: larger than {MAX_FILE_BYTES // (1024 * 1024)} MiB")
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ConfigError(
+            f"{what}: not UTF-8 text (byte {exc.start} is 0x{raw[exc.start]:02x}); "
+            "is it a binary file?"
+        ) from None
+    return load_yaml_text(text, what)
+
+
+def load_yaml_text(text: str, what: str) -> Any:
+    """Parse YAML text with the limits of :func:`load_yaml_file`."""
+    if "\x00" in text:
+        raise ConfigError(f"{what}: holds NUL characters; is it a binary file?")
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise ConfigError(f"{what}: not valid YAML: {first}") from None
+    except RecursionError:
+        raise ConfigError(f"{what}: nested deeper than {MAX_YAML_DEPTH} levels") from None
+    _check_shape(data, what)
+    return data
+
+
+def _check_shape(data: Any, what: str) -> None:
+    """Depth and size limits, checked iteratively (no recursion, aliases counted per use)."""
+    stack: list[tuple[Any, int]] = [(data, 0)]
+    nodes = 0
+    while stack:
+        value, depth = stack.pop()
+        nodes += 1
+        if nodes > MAX_YAML_NODES:
+            raise ConfigError(f"{what}: more than {MAX_YAML_NODES} values")
+        if isinstance(value, Mapping | list | tuple):
+            if depth >= MAX_YAML_DEPTH:
+                raise ConfigError(f"{what}: nested deeper than {MAX_YAML_DEPTH} levels")
+            children = value.values() if isinstance(value, Mapping) else value
+            stack.extend((child, depth + 1) for child in children)
 
 
 class Fields:
@@ -84,7 +145,12 @@ class Fields:
         return self.number(key, minimum=minimum, exclusive_minimum=exclusive_minimum)
 
     def integer(
-        self, key: str, default: int | None = None, *, minimum: int | None = None
+        self,
+        key: str,
+        default: int | None = None,
+        *,
+        minimum: int | None = None,
+        maximum: int | None = None,
     ) -> int:
         value = self.raw(key)
         if value is None:
@@ -95,6 +161,10 @@ class Fields:
             raise FieldError(self._sub(key), f"must be an integer, got {value!r}")
         if minimum is not None and value < minimum:
             raise FieldError(self._sub(key), f"must be an integer >= {minimum}, got {value}")
+        if maximum is not None and value > maximum:
+            raise FieldError(
+                self._sub(key), f"must be an integer <= {maximum} (floe's limit), got {value}"
+            )
         return value
 
     def boolean(self, key: str, default: bool) -> bool:
@@ -130,14 +200,18 @@ class Fields:
             raise FieldError(self._sub(key), f"must be a list, got {type(value).__name__}")
         return value
 
-    def range_pair(self, key: str, default: tuple[float, float]) -> tuple[float, float]:
+    def range_pair(
+        self, key: str, default: tuple[float, float], *, limit: float | None = None
+    ) -> tuple[float, float]:
+        """A ``[low, high]`` pair, each within ``[-limit, limit]`` if given."""
         value = self.raw(key)
         if value is None:
             return default
         if not isinstance(value, list) or len(value) != 2:
             raise FieldError(self._sub(key), f"must be a [low, high] pair, got {value!r}")
-        low = check_number(f"{self._sub(key)}[0]", value[0])
-        high = check_number(f"{self._sub(key)}[1]", value[1])
+        lo = None if limit is None else -limit
+        low = check_number(f"{self._sub(key)}[0]", value[0], minimum=lo, maximum=limit)
+        high = check_number(f"{self._sub(key)}[1]", value[1], minimum=lo, maximum=limit)
         if high < low:
             raise FieldError(self._sub(key), f"low {low} is above high {high}")
         return low, high
@@ -156,7 +230,12 @@ def check_number(
     maximum: float | None = None,
     exclusive_minimum: bool = False,
 ) -> float:
-    """Return ``value`` as a finite float within bounds, or raise FieldError naming ``path``."""
+    """Return ``value`` as a finite float within bounds, or raise FieldError naming ``path``.
+
+    A string in exponent form without a sign (``1e12``, which YAML 1.1 reads as text) is
+    taken as the number it spells."""
+    if isinstance(value, str) and _EXPONENT.fullmatch(value.strip()):
+        value = float(value)
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise FieldError(path, f"must be a number, got {value!r}")
     number = float(value)

@@ -15,6 +15,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from domain.limits import MAX_FLEET
 from groundstation.commands.argtypes import positive_float
 from world.scenario import ScenarioError, bundled_scenarios, load_scenario
 
@@ -28,6 +29,10 @@ def _fleet_sizes(text: str) -> list[int]:
         if not part.isdigit() or int(part) < 1:
             raise argparse.ArgumentTypeError(
                 f"--uavs takes positive integers separated by commas, got {text!r}"
+            )
+        if int(part) > MAX_FLEET:
+            raise argparse.ArgumentTypeError(
+                f"{part} UAVs is above floe's limit of {MAX_FLEET}"
             )
         sizes.append(int(part))
     if len(set(sizes)) != len(sizes):

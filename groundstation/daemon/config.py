@@ -12,12 +12,10 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
-import yaml
-
 from domain import errors
+from world.yaml_fields import load_yaml_file
 
 __all__ = ["ConfigError", "DaemonConfig", "VehicleSettings", "load_config_file", "parse_hostport"]
 
@@ -296,13 +294,9 @@ def apply_mapping(config: DaemonConfig, data: dict[str, Any], where: str = "") -
 def load_config_file(path: str) -> dict[str, Any]:
     """Read a YAML mapping; errors name the file."""
     try:
-        text = Path(path).read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ConfigError(f"--config: cannot read {path}: {exc.strerror or exc}") from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise ConfigError(f"--config: {path} is not valid YAML: {exc}".splitlines()[0]) from None
+        data = load_yaml_file(path, f"--config {path}")
+    except errors.ConfigError as exc:
+        raise ConfigError(str(exc)) from None
     if data is None:
         return {}
     if not isinstance(data, dict):

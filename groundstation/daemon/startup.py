@@ -15,7 +15,6 @@ import dataclasses
 import datetime
 import json
 import logging
-import math
 import platform
 import secrets
 import signal
@@ -27,8 +26,9 @@ from typing import Any
 
 import yaml
 
-from domain.errors import UsageError
+from domain.errors import ConfigError, UsageError
 from domain.geodesy import GeoOrigin
+from domain.limits import MAX_COORDINATE_M, MAX_SPEED_M_S, MAX_TARGETS
 from groundstation.core import events as ev
 from groundstation.core.config import CoreConfig, ReplanPolicy
 from groundstation.core.scenario_config import core_config_for
@@ -42,6 +42,7 @@ from groundstation.daemon.journal import Journal
 from groundstation.daemon.world import ScenarioWorld
 from groundstation.detection_feed import DetectionFeed
 from groundstation.link import LinkError, LinkUrlError, TlogWriter, open_link
+from world.yaml_fields import check_number, load_yaml_file
 
 __all__ = ["StartError", "core_config", "load_targets", "run_daemon"]
 
@@ -96,18 +97,24 @@ def core_config(config: DaemonConfig, scenario: Any, speedup: float) -> CoreConf
     )
 
 
+_LIMITS = {
+    "x_m": MAX_COORDINATE_M, "y_m": MAX_COORDINATE_M, "lat_deg": 90.0, "lon_deg": 180.0,
+    "vx_m_s": MAX_SPEED_M_S, "vy_m_s": MAX_SPEED_M_S, "sigma0": 1e12,
+}  # fmt: skip
+
+
 def load_targets(path: str, origin: GeoOrigin | None) -> list[ev.TargetAdded]:
     """``--targets FILE``: a YAML list of {id, x_m, y_m | lat_deg, lon_deg, vx_m_s, vy_m_s,
     sigma0}; errors name the entry and key."""
     try:
-        data = yaml.safe_load(Path(path).read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise StartError(f"--targets: cannot read {path}: {exc.strerror or exc}") from None
-    except yaml.YAMLError:
-        raise StartError(f"--targets: {path} is not valid YAML") from None
+        data = load_yaml_file(path, f"--targets {path}")
+    except ConfigError as exc:
+        raise StartError(str(exc)) from None
     if not isinstance(data, list):
         raise StartError(f"--targets: {path} must hold a list of targets")
     keys = {"id", "x_m", "y_m", "lat_deg", "lon_deg", "vx_m_s", "vy_m_s", "sigma0"}
+    if len(data) > MAX_TARGETS:
+        raise StartError(f"--targets: {len(data)} targets; floe's limit is {MAX_TARGETS}")
     out: list[ev.TargetAdded] = []
     for i, item in enumerate(data):
         where = f"--targets: entry {i}"
@@ -123,9 +130,10 @@ def load_targets(path: str, origin: GeoOrigin | None) -> list[ev.TargetAdded]:
         for key in keys - {"id"}:
             if key in item:
                 v = item[key]
-                if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
-                    raise StartError(f"{where} ({tid}): {key} must be a finite number")
-                values[key] = float(v)
+                try:
+                    values[key] = check_number(key, v, minimum=-_LIMITS[key], maximum=_LIMITS[key])
+                except ConfigError as exc:
+                    raise StartError(f"{where} ({tid}): {exc}") from None
         if "x_m" in values and "y_m" in values:
             x, y = values["x_m"], values["y_m"]
         elif "lat_deg" in values and "lon_deg" in values:
