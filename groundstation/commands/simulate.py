@@ -140,9 +140,9 @@ def run(argv: list[str]) -> int:
         return 2
     try:
         rows = _run_sizes(args, scenario, sizes)
-    except StorageError as exc:
+    except StorageError as exc:  # a full disk, an unwritable folder: one line
         print(f"gcs simulate: error: {exc}", file=sys.stderr)
-        return 1
+        return 2
     _print_summary(rows)
     return 0
 
