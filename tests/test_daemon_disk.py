@@ -162,3 +162,43 @@ def test_run_dir_on_a_full_disk_is_refused_at_start(
     assert code == 2 and len(err) == 1
     assert str(runs) in err[0] and "No space left on device" in err[0]
     assert list(runs.iterdir()) == []
+
+
+def test_run_folder_files_are_whole_and_control_json_is_private(tmp_path: Path) -> None:
+    """config.yaml, control.json (0600 from creation) and metrics.json are written
+    atomically: whole, and no temporary file is left in the run folder."""
+    import stat
+
+    import yaml
+
+    created: list[tuple[str, int]] = []
+    real_open = os.open
+
+    def spy(path: Any, flags: int, mode: int = 0o777, *args: Any, **kwargs: Any) -> int:
+        fd = real_open(path, flags, mode, *args, **kwargs)
+        if flags & os.O_CREAT and "control.json" in str(path):
+            created.append((str(path), stat.S_IMODE(os.fstat(fd).st_mode)))
+        return fd
+
+    config = build_config(
+        ["--vehicles", "sim:1", "--scenario", "default", "--sim-airborne", "--speedup", "40",
+         "--duration", "20", "--run-dir", str(tmp_path), "--http", "127.0.0.1:0",
+         "--detections", "off", "--status", "quiet"]
+    )  # fmt: skip
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(storage.os, "open", spy)
+        daemon = asyncio.run(
+            asyncio.wait_for(
+                run_daemon(config, print_fn=lambda _: None, install_signals=False), 60.0
+            )
+        )
+    run_dir = daemon.run_dir
+    assert created and all(mode == 0o600 for _, mode in created)
+    assert stat.S_IMODE((run_dir / "control.json").stat().st_mode) == 0o600
+    control = json.loads((run_dir / "control.json").read_text())
+    assert control["token"] == daemon.control_token and control["url"] == daemon.control_url
+    assert yaml.safe_load((run_dir / "config.yaml").read_text())["duration"] == 20
+    assert json.loads((run_dir / "metrics.json").read_text())["summary"]["mission_s"] >= 20
+    assert sorted(p.name for p in run_dir.iterdir()) == [
+        "config.yaml", "control.json", "flight.tlog", "gcs.log", "journal.jsonl", "metrics.json"
+    ]  # fmt: skip
