@@ -338,3 +338,55 @@ def test_daemon_style_journal_replays(
     assert report["track_samples_compared"] > 10
     # and a changed setting still shows
     assert main(["replay", str(run), "--set", "tau=0.7", "--no-resolve"]) == 1
+
+
+def test_skipped_lines_are_counted_with_their_first_line_numbers(
+    event_run: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    run = _copy(event_run, tmp_path)
+    lines = (run / "journal.jsonl").read_bytes().split(b"\n")
+    damaged = list(range(30, 100, 7))  # ten damaged lines (0-based)
+    for k in damaged:
+        lines[k] = b"\x00\xff" + lines[k][:12]
+    (run / "journal.jsonl").write_bytes(b"\n".join(lines))
+    main(["replay", str(run), "--no-resolve"])
+    out = capsys.readouterr().out
+    first = ", ".join(str(k + 1) for k in damaged[:5])
+    total = len(lines) - 1 if lines[-1] == b"" else len(lines)
+    assert f"skipped 10 of {total} journal lines: {first} and 5 more" in out
+    assert out.count("(skipped)") == 5  # the first few, then only the count
+    with contextlib.redirect_stdout(io.StringIO()) as buf:
+        main(["replay", str(run), "--no-resolve", "--json"])
+    report = json.loads(buf.getvalue())
+    assert report["skipped_lines"] == [k + 1 for k in damaged]
+    assert report["lines_total"] == total
+
+
+def test_nothing_replayable_is_an_error_saying_where(
+    event_run: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    run = _copy(event_run, tmp_path)
+    records = _records(event_run)
+    for r in records:
+        if r["event"] == "input":
+            r["kind"] = "NoSuchEvent"
+    _write(run, records)
+    assert main(["replay", str(run)]) == 2
+    err = capsys.readouterr().err.strip()
+    bad = [n for n, r in enumerate(records, 1) if r["event"] == "input"]
+    assert err.startswith("gcs replay: error: ") and "nothing replayable" in err
+    assert f"skipped {len(bad)} of {len(records)} journal lines: {bad[0]}, {bad[1]}" in err
+    assert "\n" not in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize(
+    "content",
+    [bytes(range(256)) * 40, b'{"event": "start", "t": 0.0, "core": {"tau', b"\n \n"],
+)
+def test_binary_or_truncated_journal_is_one_line_error(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], content: bytes
+) -> None:
+    (tmp_path / "journal.jsonl").write_bytes(content)
+    assert main(["replay", str(tmp_path / "journal.jsonl")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("gcs replay: error: ") and "\n" not in err and "Traceback" not in err

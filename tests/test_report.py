@@ -230,3 +230,71 @@ def test_daemon_run_folder(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -
         assert status == 0, captured.out[-2000:]
     else:
         assert status == 2 and "no core inputs" in captured.err
+
+
+@pytest.mark.parametrize(
+    ("content", "message"),
+    [
+        (b"", "the journal is empty"),
+        (b"\n\n  \n", "the journal is empty"),
+        (bytes(range(256)) * 20, "no readable journal record"),
+        (b'{"event": "start", "t": 0.0, "con', "no readable journal record"),
+        (b'[1, 2]\n"text"\n', "no readable journal record"),
+        (b'{"event": "track", "t": 1.0, "target": "A", "x_m": 1, "y_m": 2, "sigma": 3}\n',
+         "no 'start' record"),
+    ],
+)  # fmt: skip
+def test_empty_or_garbage_journal_is_a_one_line_error(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], content: bytes, message: str
+) -> None:
+    for target in (tmp_path / "journal.jsonl", tmp_path):  # the file, and its run folder
+        (tmp_path / "journal.jsonl").write_bytes(content)
+        assert main(["report", str(target), "--out", str(tmp_path / "o"), "--quiet"]) == 2
+        err = capsys.readouterr().err.strip()
+        assert message in err and "\n" not in err and "Traceback" not in err
+        assert not (tmp_path / "o").exists()  # nothing written for nothing
+
+
+def test_damaged_lines_are_counted_with_their_numbers(
+    sim_run: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    lines = (sim_run / "journal.jsonl").read_bytes().split(b"\n")
+    for k in range(10, 40, 3):  # ten damaged lines
+        lines[k] = b"\x00\xff" + lines[k][:10]
+    (tmp_path / "journal.jsonl").write_bytes(b"\n".join(lines))
+    assert main(["report", str(tmp_path / "journal.jsonl"), "--out", str(tmp_path / "o")]) == 0
+    err = capsys.readouterr().err
+    assert "skipped 10 of" in err and "journal lines: 11, 14, 17, 20, 23 and 5 more" in err
+    assert err.count("(skipped)") == 5  # the first few, not one line per damaged line
+
+
+def test_unwritable_output_is_a_one_line_error_and_leaves_no_half_page(
+    sim_run: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:  # fmt: skip
+    import errno
+    import os
+
+    from groundstation import storage
+
+    out = tmp_path / "o"
+    out.mkdir()
+    (out / "report.html").write_text("old page\n")
+    real_fdopen = os.fdopen
+
+    class FullFile(io.BufferedWriter):
+        def write(self, data: object) -> int:
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    def fdopen(fd: int, mode: str = "r", *args: object, **kwargs: object) -> object:
+        if "w" in mode:
+            return FullFile(io.FileIO(fd, "w"))
+        return real_fdopen(fd, mode, *args, **kwargs)  # type: ignore[call-overload]
+
+    monkeypatch.setattr(storage.os, "fdopen", fdopen)
+    assert main(["report", str(sim_run), "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("gcs report: error: cannot write ") and "No space left" in err
+    assert "\n" not in err and "Traceback" not in err
+    assert (out / "report.html").read_text() == "old page\n"
+    assert sorted(p.name for p in out.iterdir()) == ["report.html"]  # no temporaries

@@ -160,3 +160,33 @@ def test_boat_priority_run_replays_identically(tmp_path: Path) -> None:
     assert main(["replay", str(out)]) == 0
     # and a changed priority gain is a difference
     assert main(["replay", str(out), "--set", "priority_gain=0.5"]) == 1
+
+
+def test_cli_full_disk_is_one_line_and_leaves_no_half_file(
+    tmp_path: Path, capsys: pytest.CaptureFixture, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import errno
+    import io
+    import os
+
+    from groundstation import storage
+
+    class FullFile(io.BufferedWriter):
+        def write(self, data: object) -> int:
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    real_fdopen = os.fdopen
+
+    def fdopen(fd: int, mode: str = "r", *args: object, **kwargs: object) -> object:
+        if mode == "wb":  # what storage's atomic writes open
+            return FullFile(io.FileIO(fd, "w"))
+        return real_fdopen(fd, mode, *args, **kwargs)  # type: ignore[call-overload]
+
+    monkeypatch.setattr(storage.os, "fdopen", fdopen)
+    status = main(["simulate", "--scenario", "default", "--duration", "10", "--no-plots",
+                   "--out", str(tmp_path), "--quiet"])
+    err = capsys.readouterr().err.strip()
+    assert status == 2 and "\n" not in err and "Traceback" not in err
+    assert err == f"gcs simulate: error: cannot write {tmp_path / 'metrics.json'}: " \
+        "No space left on device"
+    assert list(tmp_path.iterdir()) == []  # no empty metrics.json, no temporary file

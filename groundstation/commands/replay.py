@@ -176,11 +176,17 @@ def _journal_replay(args: argparse.Namespace) -> int:
         progress=progress,
         resolve=not args.no_resolve,
     )
+    skipped = report.skipped()
+    if report.inputs == 0:
+        where = f" ({skipped})" if skipped else ""
+        return _error(f"{journal.path}: nothing replayable: no input record could be read{where}")
     if args.json:
         print(json.dumps(report.as_dict(), indent=1))
     else:
         for warning in report.warnings:
             print(f"warning: {warning}")
+        if skipped:
+            print(f"warning: {journal.path}: {skipped}")
         for change in report.config_changes:
             print(f"setting changed: {change}")
         for diff in report.differences[: max(args.max_lines, 0)]:

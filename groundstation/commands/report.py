@@ -5,7 +5,9 @@
     gcs report flight.tlog --out report/              # any tool's tlog: map and modes
 
 Writes ``OUT/report.html`` (PNGs embedded) plus the PNGs and ``figures.json``.
-Exit status: 0 written, 2 bad input (nothing readable, output not writable).
+Exit status: 0 written, 2 bad input (an empty or garbage journal: no readable record or no
+``start`` record, and no tlog beside it; output not writable). Every file is written
+atomically.
 """
 
 from __future__ import annotations
@@ -44,6 +46,7 @@ def run(argv: list[str]) -> int:
     args = _parser().parse_args(argv)
     from groundstation.runners.report import build_report
     from groundstation.runners.report_data import ReportError
+    from groundstation.storage import StorageError
 
     def say(text: str) -> None:
         if not args.quiet:
@@ -54,8 +57,11 @@ def run(argv: list[str]) -> int:
     except ReportError as exc:
         print(f"{_PROG}: error: {exc}", file=sys.stderr)
         return 2
-    except OSError as exc:
-        print(f"{_PROG}: error: cannot write {args.out}: {exc.strerror or exc}", file=sys.stderr)
+    except StorageError as exc:
+        print(f"{_PROG}: error: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:  # reading the input failed half-way (it vanished, I/O error)
+        print(f"{_PROG}: error: {args.run}: {exc.strerror or exc}", file=sys.stderr)
         return 2
     data = result.data
     if data is not None:

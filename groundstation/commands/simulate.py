@@ -12,11 +12,18 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 from domain.limits import MAX_FLEET
 from groundstation.commands.argtypes import positive_float
+from groundstation.storage import (
+    StorageError,
+    atomic_write_bytes,
+    atomic_write_text,
+    describe_os_error,
+)
 from world.scenario import ScenarioError, bundled_scenarios, load_scenario
 
 __all__ = ["run"]
@@ -130,21 +137,40 @@ def run(argv: list[str]) -> int:
     except ScenarioError as exc:
         print(f"gcs simulate: error: {exc}", file=sys.stderr)
         return 2
-    # heavy imports only once the arguments are known to be good
-    from groundstation.runners.plots import plot_comparison, write_plots
-    from groundstation.runners.simulate import SimulationOptions, run_simulation
-
     sizes: list[int] = args.uavs or [scenario.fleet.count]
     try:
         args.out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         print(f"gcs simulate: error: cannot create {args.out}: {exc}", file=sys.stderr)
         return 2
+    try:
+        rows = _run_sizes(args, scenario, sizes)
+    except StorageError as exc:  # a full disk, an unwritable folder: one line
+        print(f"gcs simulate: error: {exc}", file=sys.stderr)
+        return 2
+    _print_summary(rows)
+    return 0
+
+
+def journal_lines(records: list[dict[str, Any]]) -> Iterator[bytes]:
+    """Each journal record as one UTF-8 JSON line."""
+    return ((json.dumps(record) + "\n").encode("utf-8") for record in records)
+
+
+def _run_sizes(args: argparse.Namespace, scenario: Any, sizes: list[int]) -> list[dict[str, Any]]:
+    """Simulate each fleet size; every file is written atomically (StorageError on failure).
+    The heavy imports happen only here, once the arguments are known to be good."""
+    from groundstation.runners.plots import plot_comparison, write_plots
+    from groundstation.runners.simulate import SimulationOptions, run_simulation
+
     curves: dict[int, list[list[float]]] = {}
     rows: list[dict[str, Any]] = []
     for uavs in sizes:
         out_dir = args.out / f"uavs-{uavs}" if len(sizes) > 1 else args.out
-        out_dir.mkdir(parents=True, exist_ok=True)
+        try:
+            out_dir.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise StorageError(f"cannot create {out_dir}: {describe_os_error(exc)}") from None
         options = SimulationOptions(
             seed=args.seed,
             uavs=uavs,
@@ -157,11 +183,9 @@ def run(argv: list[str]) -> int:
         )
         result = run_simulation(scenario, options)
         metrics = result.metrics
-        (out_dir / "metrics.json").write_text(json.dumps(metrics, indent=1) + "\n")
+        atomic_write_text(out_dir / "metrics.json", json.dumps(metrics, indent=1) + "\n")
         if result.journal:
-            with (out_dir / "journal.jsonl").open("w", encoding="utf-8") as handle:
-                for record in result.journal:
-                    handle.write(json.dumps(record) + "\n")
+            atomic_write_bytes(out_dir / "journal.jsonl", b"".join(journal_lines(result.journal)))
         if not args.no_plots:
             write_plots(result, out_dir)
         curves[uavs] = metrics["uncertainty_series"]
@@ -172,8 +196,7 @@ def run(argv: list[str]) -> int:
             f"{scenario.name}, seed {args.seed}: mean uncertainty",
             args.out / "comparison.png",
         )
-    _print_summary(rows)
-    return 0
+    return rows
 
 
 def _print_summary(rows: list[dict[str, Any]]) -> None:

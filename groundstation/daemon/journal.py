@@ -1,10 +1,16 @@
-"""The run's JSON-lines journal: one object a line, flushed per line.
+"""The run's JSON-lines journal: one object a line, in the OS as soon as it is written.
 
 Every line has ``t`` (mission seconds), ``unix_s`` (wall clock) and ``event``; ``vehicle``
-and ``target`` where they apply. Each line is written with one ``write`` + ``flush``, so a
-crash loses at most the line being written. Live subscribers (the control API's event
-stream) get every line through a bounded queue; a slow subscriber loses lines, never
-blocks the daemon.
+and ``target`` where they apply. Lines go through a :class:`groundstation.storage.AppendLog`
+(one ``os.write`` each), so a crash loses at most the line being written, and a full disk
+(ENOSPC, EIO, EDQUOT) never stops the daemon: one error line, the lines are held in memory
+(at most :data:`groundstation.storage.DEFAULT_CAP_BYTES`) and written in order when the
+disk has room again, with one line saying so. Over the cap, telemetry-type lines
+(:data:`TELEMETRY_EVENTS`, inputs of kind :data:`TELEMETRY_INPUTS`) are dropped first,
+oldest first; decisions last. The file never holds half a line in the middle.
+
+Live subscribers (the control API's event stream) get every line through a bounded queue;
+a slow subscriber loses lines, never blocks the daemon.
 """
 
 from __future__ import annotations
@@ -16,14 +22,28 @@ import logging
 import math
 from collections.abc import AsyncIterator, Callable
 from pathlib import Path
-from typing import Any, TextIO
+from typing import Any
 
-__all__ = ["Journal"]
+from groundstation.storage import DEFAULT_CAP_BYTES, DEFAULT_RETRY_S, AppendLog
+
+__all__ = ["TELEMETRY_EVENTS", "TELEMETRY_INPUTS", "Journal", "is_telemetry", "read_journal"]
 
 log = logging.getLogger(__name__)
 
 _RECENT = 200
 _SUBSCRIBER_QUEUE = 1000
+#: Journal events dropped first when held lines exceed the cap (periodic, re-derivable).
+TELEMETRY_EVENTS = frozenset({"track", "truth", "detection", "statustext"})
+#: Core inputs (``event: input``) of these kinds count as telemetry too.
+TELEMETRY_INPUTS = frozenset({"Telemetry", "Tick", "Detection", "BoatPosition"})
+
+
+def is_telemetry(line: dict[str, Any]) -> bool:
+    """True for a telemetry-type line (dropped first on a long disk outage)."""
+    event = line.get("event")
+    if event == "input":
+        return line.get("kind") in TELEMETRY_INPUTS
+    return event in TELEMETRY_EVENTS
 
 
 def _clean(value: Any) -> Any:
@@ -43,15 +63,21 @@ class Journal:
     """Append-only JSON-lines writer with live subscribers."""
 
     def __init__(
-        self, path: str | Path | None, now_s: Callable[[], float], unix_s: Callable[[], float]
+        self,
+        path: str | Path | None,
+        now_s: Callable[[], float],
+        unix_s: Callable[[], float],
+        *,
+        cap_bytes: int = DEFAULT_CAP_BYTES,
+        retry_s: float = DEFAULT_RETRY_S,
     ) -> None:
         self.path = Path(path) if path is not None else None
         self._now_s = now_s
         self._unix_s = unix_s
-        self._file: TextIO | None = None
+        self.file: AppendLog | None = None
         if self.path is not None:
             self.path.parent.mkdir(parents=True, exist_ok=True)
-            self._file = self.path.open("a", encoding="utf-8")
+            self.file = AppendLog(self.path, "journal", cap_bytes=cap_bytes, retry_s=retry_s)
         self.recent: collections.deque[dict[str, Any]] = collections.deque(maxlen=_RECENT)
         self.counts: collections.Counter[str] = collections.Counter()
         self._subscribers: list[asyncio.Queue[dict[str, Any] | None]] = []
@@ -69,12 +95,7 @@ class Journal:
                 line[key] = _clean(value)
         self.counts[event] += 1
         self.lines += 1
-        if self._file is not None:
-            try:
-                self._file.write(json.dumps(line, separators=(",", ":")) + "\n")
-                self._file.flush()
-            except (OSError, ValueError) as exc:  # full disk: logged, never fatal
-                log.error("journal write failed: %s", exc)
+        self._append(line)
         self.recent.append(line)
         for queue in self._subscribers:
             if not queue.full():
@@ -88,12 +109,22 @@ class Journal:
         line.update({k: _clean(v) for k, v in record.items() if k != "t"})
         self.counts[str(record.get("event"))] += 1
         self.lines += 1
-        if self._file is not None:
-            try:
-                self._file.write(json.dumps(line, separators=(",", ":")) + "\n")
-                self._file.flush()
-            except (OSError, ValueError) as exc:
-                log.error("journal write failed: %s", exc)
+        self._append(line)
+
+    def _append(self, line: dict[str, Any]) -> None:
+        if self.file is None:
+            return
+        try:
+            data = (json.dumps(line, separators=(",", ":")) + "\n").encode("utf-8")
+        except (TypeError, ValueError) as exc:  # cannot happen after _clean; never fatal
+            log.error("journal: line not written: %s", exc)
+            return
+        self.file.append(data, keep=not is_telemetry(line))
+
+    def retry(self) -> None:
+        """Try to write held lines now (the daemon may call it periodically)."""
+        if self.file is not None:
+            self.file.retry()
 
     async def subscribe(self) -> AsyncIterator[dict[str, Any]]:
         """Every line written from now on, until :meth:`close`."""
@@ -114,9 +145,8 @@ class Journal:
             if queue.full():
                 queue.get_nowait()
             queue.put_nowait(None)
-        if self._file is not None:
-            self._file.close()
-            self._file = None
+        if self.file is not None:
+            self.file.close()
 
 
 def read_journal(path: str | Path) -> list[dict[str, Any]]:

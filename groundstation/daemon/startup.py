@@ -5,6 +5,11 @@ Order: scenario, embedded simulator (``sim:N``), mission origin and clock, run f
 ``gcs.log``, ``metrics.json`` at the end), core configuration, links, optional control API
 and detection feed, then the daemon until it stops. Anything wrong with the input is a
 :class:`StartError` (one line, exit 2).
+
+The run's files are probed and opened by :mod:`groundstation.daemon.run_files` (a full disk
+or ``--journal /dev/full`` is refused at start; during the run a full disk is one line,
+never a stop). ``control.json`` (mode 0600 from creation) and ``metrics.json`` are written
+atomically; a failure there is one line, exit 2.
 """
 
 from __future__ import annotations
@@ -12,7 +17,6 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import dataclasses
-import datetime
 import json
 import logging
 import platform
@@ -21,10 +25,7 @@ import signal
 import sys
 from collections.abc import Callable
 from importlib.metadata import PackageNotFoundError, version
-from pathlib import Path
 from typing import Any
-
-import yaml
 
 from domain.errors import ConfigError, UsageError
 from domain.geodesy import GeoOrigin
@@ -38,10 +39,11 @@ from groundstation.daemon.control import DaemonController
 from groundstation.daemon.control_server import ControlServer, binding_warning
 from groundstation.daemon.daemon import Daemon
 from groundstation.daemon.embedded import EmbeddedFactory, EmbeddedVehicles
-from groundstation.daemon.journal import Journal
+from groundstation.daemon.run_files import open_run_files
 from groundstation.daemon.world import ScenarioWorld
 from groundstation.detection_feed import DetectionFeed
-from groundstation.link import LinkError, LinkUrlError, TlogWriter, open_link
+from groundstation.link import LinkError, LinkUrlError, open_link
+from groundstation.storage import StorageError, atomic_write_text
 from world.yaml_fields import check_number, load_yaml_file
 
 __all__ = ["StartError", "core_config", "load_targets", "run_daemon"]
@@ -160,32 +162,6 @@ def load_targets(path: str, origin: GeoOrigin | None) -> list[ev.TargetAdded]:
     return out
 
 
-def make_run_dir(base: str) -> Path:
-    stamp = datetime.datetime.now(datetime.UTC).strftime("%Y%m%dT%H%M%SZ")
-    root = Path(base)
-    path = root / stamp
-    k = 1
-    while path.exists():
-        k += 1
-        path = root / f"{stamp}-{k}"
-    try:
-        path.mkdir(parents=True)
-    except OSError as exc:
-        raise StartError(f"run_dir: cannot create {path}: {exc.strerror or exc}") from None
-    return path
-
-
-def _setup_logging(run_dir: Path) -> logging.Handler:
-    handler = logging.FileHandler(run_dir / "gcs.log", encoding="utf-8")
-    handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(name)s: %(message)s"))
-    handler.setLevel(logging.INFO)
-    root = logging.getLogger()
-    root.addHandler(handler)
-    if root.level > logging.INFO or root.level == logging.NOTSET:
-        root.setLevel(logging.INFO)
-    return handler
-
-
 def _print(text: str) -> None:
     print(text, flush=True)
 
@@ -237,18 +213,11 @@ async def run_daemon(
     else:
         clock = MissionClock(config.speedup)
     ccfg = core_config(config, scenario, clock.speedup)
-    run_dir = make_run_dir(config.run_dir)
-    handler = _setup_logging(run_dir)
-    journal = Journal(
-        Path(config.journal) if config.journal else run_dir / "journal.jsonl",
-        clock.now_s,
-        clock.unix_s,
-    )
-    tlog = TlogWriter(run_dir / "flight.tlog")
-    effective = config.to_dict()
-    (run_dir / "config.yaml").write_text(
-        yaml.safe_dump(effective, sort_keys=False), encoding="utf-8"
-    )
+    try:
+        files = open_run_files(config, clock)
+    except StorageError as exc:
+        raise StartError(str(exc)) from None
+    run_dir, journal, tlog, effective = files.run_dir, files.journal, files.tlog, files.effective
     daemon = Daemon(config, ccfg, clock, run_dir, origin, journal, tlog)
     server_started = False
     cleanups: list[Callable[[], None]] = []
@@ -360,9 +329,12 @@ async def run_daemon(
             await daemon.run(links, outs)
         except LinkError as exc:
             raise StartError(str(exc)) from None
-        (run_dir / "metrics.json").write_text(
-            json.dumps(daemon.metrics_dict(), indent=1), encoding="utf-8"
-        )
+        try:
+            atomic_write_text(
+                run_dir / "metrics.json", json.dumps(daemon.metrics_dict(), indent=1) + "\n"
+            )
+        except StorageError as exc:
+            raise StartError(f"metrics.json: {exc}") from None
         return daemon
     finally:
         for stop in daemon.extra_stops:
@@ -372,10 +344,7 @@ async def run_daemon(
             await sim.close()
         for cleanup in cleanups:
             cleanup()
-        journal.close()
-        tlog.close()
-        logging.getLogger().removeHandler(handler)
-        handler.close()
+        files.close()
 
 
 def _core_dict(ccfg: CoreConfig) -> dict[str, Any]:
@@ -409,9 +378,14 @@ async def _start_control(
     daemon.extra_stops.append(server.stop)
     daemon.control_url = str(getattr(server, "url", f"http://{host}:{port}"))
     daemon.control_token = token
-    (daemon.run_dir / "control.json").write_text(
-        json.dumps({"url": daemon.control_url, "token": token}), encoding="utf-8"
-    )
+    try:  # it holds the write token: 0600 from its creation on
+        atomic_write_text(
+            daemon.run_dir / "control.json",
+            json.dumps({"url": daemon.control_url, "token": token}),
+            mode=0o600,
+        )
+    except StorageError as exc:
+        raise StartError(f"control.json: {exc}") from None
     warning = binding_warning(host)
     if warning is not None:
         print_fn(f"gcs run: {warning}")

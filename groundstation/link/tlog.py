@@ -12,11 +12,15 @@ received on vehicle link 0, 1, 2 or later, 3 for frames sent towards the vehicle
 A frame's length is in its header: v1 ``6 + len + 2``, v2 ``10 + len + 2`` plus 13 if the
 signed flag (incompat_flags bit 0) is set.
 
-:class:`TlogWriter` writes each record with one unbuffered ``write`` call: once ``write``
-returns the record is in the operating system, so a crash of the process loses at most the
-record being written. A small write to the page cache takes microseconds, far below what
-the event loop notices at MAVLink rates (hundreds of frames per second); an I/O error (a
-full disk) is logged once and counted, never raised into the link layer.
+:class:`TlogWriter` writes each record with one unbuffered ``os.write`` call (through
+:class:`groundstation.storage.AppendLog`): once ``write`` returns True the record is in the
+operating system, so a crash of the process loses at most the record being written. A
+small write to the page cache takes microseconds, far below what the event loop notices at
+MAVLink rates (hundreds of frames per second). A full disk (ENOSPC, EIO, EDQUOT) is never
+raised into the link layer: one error line, records held in memory (at most
+:data:`groundstation.storage.DEFAULT_CAP_BYTES`, the oldest dropped and counted beyond it)
+and written in order once the disk has room, with one line saying so; a record cut short
+by the full disk is cut off the file, so the file stays a clean sequence of records.
 
 :class:`TlogReader` yields ``(t_unix_s, message, raw)`` records. It accepts a record only
 if its timestamp is plausible (years 2000 to 2100), its frame has a MAVLink start marker
@@ -35,10 +39,11 @@ import struct
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass
-from typing import Any, BinaryIO
+from typing import Any
 
 from groundstation.link.base import MavMessage
 from groundstation.mavlink.codec import mavlink2
+from groundstation.storage import DEFAULT_CAP_BYTES, DEFAULT_RETRY_S, AppendLog
 
 __all__ = ["TlogReader", "TlogRecord", "TlogWriter"]
 
@@ -54,17 +59,50 @@ _SIGNATURE_LEN = 13
 class TlogWriter:
     """Append-only tlog writer (see the module docstring for the guarantees)."""
 
-    def __init__(self, path: str | os.PathLike[str], *, append: bool = False) -> None:
+    def __init__(
+        self,
+        path: str | os.PathLike[str],
+        *,
+        append: bool = False,
+        cap_bytes: int = DEFAULT_CAP_BYTES,
+        retry_s: float = DEFAULT_RETRY_S,
+    ) -> None:
         self.path = os.fspath(path)
-        self._file: BinaryIO | None = open(self.path, "ab" if append else "wb", buffering=0)  # noqa: SIM115
-        self.records = 0
-        self.bytes_written = 0
-        self.write_errors = 0
+        self._file: AppendLog | None = AppendLog(
+            self.path, "tlog", truncate=not append, cap_bytes=cap_bytes, retry_s=retry_s
+        )
+
+    @property
+    def records(self) -> int:
+        """Records in the file."""
+        return self._file.records if self._file is not None else self._closed[0]
+
+    @property
+    def bytes_written(self) -> int:
+        return self._file.bytes_written if self._file is not None else self._closed[1]
+
+    @property
+    def write_errors(self) -> int:
+        """Failed write attempts (one per retry while the disk stays full)."""
+        return self._file.write_errors if self._file is not None else self._closed[2]
+
+    @property
+    def held(self) -> int:
+        """Records waiting in memory for the disk to have room."""
+        return self._file.held if self._file is not None else 0
+
+    @property
+    def dropped(self) -> int:
+        """Records dropped because the held records exceeded the cap."""
+        return self._file.dropped if self._file is not None else self._closed[3]
+
+    _closed: tuple[int, int, int, int] = (0, 0, 0, 0)
 
     def write(
         self, frame: bytes, t_unix_s: float | None = None, link_number: int | None = None
     ) -> bool:
-        """Append one record stamped ``t_unix_s`` (default: now). False if not written.
+        """Append one record stamped ``t_unix_s`` (default: now). False if not written now
+        (held in memory while the disk is full, or the writer is closed).
 
         ``link_number`` (0..3), if given, replaces the two lowest bits of the microsecond
         timestamp, as MAVProxy does (it marks the frames it sent with 3); pymavlink's reader
@@ -77,29 +115,27 @@ class TlogWriter:
         t_us = max(0, round(t_unix_s * 1e6))
         if link_number is not None:
             t_us = (t_us & ~3) | (link_number & 3)
-        record = _TS.pack(t_us) + bytes(frame)
-        try:
-            self._file.write(record)
-        except (OSError, ValueError) as exc:
-            self.write_errors += 1
-            if self.write_errors == 1:
-                log.error("tlog %s: cannot write (%s); records are being lost", self.path, exc)
-            return False
-        self.records += 1
-        self.bytes_written += len(record)
-        return True
+        return self._file.append(_TS.pack(t_us) + bytes(frame))
 
     def flush(self, *, durable: bool = False) -> None:
-        """Records are already in the OS; ``durable=True`` also asks the disk (fsync),
-        which may block: call it from a worker thread if at all."""
-        if self._file is not None and durable:
-            os.fsync(self._file.fileno())
+        """Records are already in the OS (held ones are retried here); ``durable=True``
+        also asks the disk (fsync), which may block: call it from a worker thread if at
+        all. Never raises."""
+        if self._file is None:
+            return
+        self._file.retry()
+        if durable and self._file.fd is not None:
+            try:
+                os.fsync(self._file.fd)
+            except OSError as exc:
+                log.error("tlog %s: fsync failed (%s)", self.path, exc)
 
     def close(self) -> None:
-        """Close the file. Idempotent."""
+        """Write what is held if possible, then close the file. Idempotent."""
         f, self._file = self._file, None
         if f is not None:
             f.close()
+            self._closed = (f.records, f.bytes_written, f.write_errors, f.dropped)
 
     def __enter__(self) -> TlogWriter:
         return self

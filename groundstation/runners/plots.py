@@ -16,6 +16,7 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Circle
 
 from groundstation.runners.simulate import MapSnapshot, SimulationRun
+from groundstation.storage import atomic_write_with
 
 __all__ = ["plot_comparison", "plot_map", "plot_uncertainty", "write_plots"]
 
@@ -24,8 +25,10 @@ _COLOURS = ["tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab
 
 
 def _save(fig: Figure, path: Path) -> Path:
+    """Write the PNG atomically (a temporary file then a rename): a full disk raises
+    :class:`groundstation.storage.StorageError` and leaves no half image."""
     FigureCanvasAgg(fig)
-    fig.savefig(path, dpi=110)
+    atomic_write_with(path, lambda fh: fig.savefig(fh, format="png", dpi=110))
     return path
 
 

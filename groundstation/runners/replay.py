@@ -48,8 +48,10 @@ from groundstation.runners.replay_compare import (
     decision_of_record,
     describe,
 )
-from groundstation.runners.replay_journal import LoadedJournal
+from groundstation.runners.replay_journal import LoadedJournal, skipped_summary
 from planner import problem_to_dict, solve_plan
+
+_WARN_LINES = 5  # per-line warnings shown for skipped lines; the rest are only counted
 
 __all__ = ["Difference", "ReplayReport", "config_changes", "replay_journal"]
 
@@ -105,6 +107,8 @@ class ReplayReport:
     differences: list[Difference] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
     config_changes: list[str] = field(default_factory=list)
+    lines_total: int = 0
+    skipped_lines: list[int] = field(default_factory=list)  # damaged or bad input lines
     first_t_s: float | None = None
     last_t_s: float | None = None
 
@@ -130,7 +134,13 @@ class ReplayReport:
             "warnings": self.warnings,
             "config_changes": self.config_changes,
             "mission_time_s": [self.first_t_s, self.last_t_s],
+            "lines_total": self.lines_total,
+            "skipped_lines": sorted(self.skipped_lines),
         }
+
+    def skipped(self) -> str | None:
+        """``skipped N of M journal lines: a, b, c...`` or None."""
+        return skipped_summary(self.lines_total, self.skipped_lines)
 
     def summary(self) -> str:
         span = ""
@@ -178,7 +188,10 @@ class _Replayer:
         self.progress = progress
         self.resolve = resolve
         self.report = ReplayReport(str(journal.path))
-        self.report.warnings += journal.warnings()
+        self.report.warnings += journal.warnings(first=_WARN_LINES)
+        self.report.lines_total = journal.lines_total
+        self.report.skipped_lines = [line for line, _ in journal.damaged]
+        self.bad_inputs = 0
         self.track_reported: set[str] = set()
         records = journal.records
         self.has_solve_records = any(r.get("event") == "solve_request" for r in records)
@@ -232,7 +245,10 @@ class _Replayer:
         try:
             event = record_to_event(_with_nones(record))
         except RecordError as exc:
-            self.report.warnings.append(f"line {line}: bad input record: {exc} (skipped)")
+            self.report.skipped_lines.append(line)
+            self.bad_inputs += 1
+            if self.bad_inputs <= _WARN_LINES:
+                self.report.warnings.append(f"line {line}: bad input record: {exc} (skipped)")
             return
         report = self.report
         report.inputs += 1

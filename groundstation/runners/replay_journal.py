@@ -32,6 +32,7 @@ __all__ = [
     "core_config_of",
     "find_journal",
     "load_journal",
+    "skipped_summary",
 ]
 
 
@@ -48,6 +49,7 @@ class LoadedJournal:
     line_numbers: list[int] = field(default_factory=list)
     damaged: list[tuple[int, str]] = field(default_factory=list)
     truncated_last_line: bool = False
+    lines_total: int = 0
 
     @property
     def start(self) -> dict[str, Any] | None:
@@ -57,12 +59,23 @@ class LoadedJournal:
                 return record
         return None
 
-    def warnings(self) -> list[str]:
-        """One line per problem found while reading (for the user)."""
+    def warnings(self, first: int | None = None) -> list[str]:
+        """One line per problem found while reading (for the user); with ``first``, only
+        that many (:func:`skipped_summary` says how many there are in all)."""
         out = []
-        for line, problem in self.damaged:
+        for line, problem in self.damaged[:first]:
             out.append(f"{self.path}: line {line}: {problem} (skipped)")
         return out
+
+
+def skipped_summary(lines_total: int, skipped: Sequence[int], first: int = 5) -> str | None:
+    """``skipped 3 of 2603 journal lines: 6, 11, 21`` (the first ``first`` line numbers,
+    then ``and N more``); None when nothing was skipped."""
+    if not skipped:
+        return None
+    shown = ", ".join(str(n) for n in sorted(skipped)[:first])
+    more = f" and {len(skipped) - first} more" if len(skipped) > first else ""
+    return f"skipped {len(skipped)} of {lines_total} journal lines: {shown}{more}"
 
 
 def find_journal(path: Path) -> Path:
@@ -91,6 +104,7 @@ def load_journal(path: Path) -> LoadedJournal:
     ends_with_newline = data.endswith(b"\n")
     if ends_with_newline:
         lines = lines[:-1]
+    out.lines_total = len(lines)
     for number, raw in enumerate(lines, start=1):
         if not raw.strip():
             continue

@@ -25,6 +25,12 @@ from groundstation.runners.report_plots import (
     plot_timeline,
     plot_uncertainty,
 )
+from groundstation.storage import (
+    StorageError,
+    atomic_write_bytes,
+    atomic_write_text,
+    describe_os_error,
+)
 
 __all__ = ["ReportResult", "build_report", "render_html"]
 
@@ -152,7 +158,9 @@ def build_report(
     """Write ``out_dir/report.html`` (and the PNGs) for the run at ``path``.
 
     Raises :class:`~groundstation.runners.report_data.ReportError` when there is nothing
-    to report, ``OSError`` when ``out_dir`` cannot be written.
+    to report, :class:`~groundstation.storage.StorageError` when ``out_dir`` cannot be
+    written. Every file is written atomically (temporary file, fsync, rename), the page
+    last, so a failure never leaves a half page.
     """
     note = say or (lambda text: None)
     data = load_run_data(path, note)
@@ -167,12 +175,15 @@ def build_report(
         fig = draw(data)
         if fig is not None:
             figures.append(fig)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise StorageError(f"cannot create {out_dir}: {describe_os_error(exc)}") from None
     for fig in figures:
-        (out_dir / f"{fig.name}.png").write_bytes(fig.png)
-    (out_dir / "figures.json").write_text(
-        json.dumps({f.name: f.info for f in figures}, indent=1) + "\n", encoding="utf-8"
+        atomic_write_bytes(out_dir / f"{fig.name}.png", fig.png)
+    atomic_write_text(
+        out_dir / "figures.json", json.dumps({f.name: f.info for f in figures}, indent=1) + "\n"
     )
     html_path = out_dir / "report.html"
-    html_path.write_text(render_html(data, figures), encoding="utf-8")
+    atomic_write_text(html_path, render_html(data, figures))
     return ReportResult(html_path, figures, data)

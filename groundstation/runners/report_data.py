@@ -28,7 +28,12 @@ from typing import Any
 import numpy as np
 
 from domain.errors import DataError
-from groundstation.runners.replay_journal import JournalError, LoadedJournal, load_journal
+from groundstation.runners.replay_journal import (
+    JournalError,
+    LoadedJournal,
+    load_journal,
+    skipped_summary,
+)
 from groundstation.runners.replay_tlog import TlogError, TlogSummary, read_tlog
 
 __all__ = ["ReportError", "RunData", "load_run_data"]
@@ -108,7 +113,10 @@ _OVERRIDE_EVENTS = (
 
 
 def _from_journal(data: RunData, journal: LoadedJournal) -> None:
-    data.warnings += journal.warnings()
+    data.warnings += journal.warnings(first=5)
+    skipped = skipped_summary(journal.lines_total, [line for line, _ in journal.damaged])
+    if skipped:
+        data.warnings.append(f"{journal.path}: {skipped}")
     data.start = journal.start
     seen_release: set[tuple[float, str, str]] = set()
     solved: dict[str, dict[str, Any]] = {}  # PlanSolved inputs: the full result
@@ -274,7 +282,10 @@ def load_run_data(path: Path, say: Callable[[str], None] | None = None) -> RunDa
         note(f"reading {journal_path}")
         try:
             journal = load_journal(journal_path)
+            if journal.start is None:
+                raise JournalError(f"{journal.path}: no 'start' record (is this a floe journal?)")
         except JournalError as exc:
+            journal = None
             if tlog_path is None:
                 raise ReportError(str(exc)) from None
             note(f"warning: {exc}; reporting the tlog only")

@@ -1,0 +1,85 @@
+"""A really full filesystem: a 256 KiB tmpfs mounted for the test (needs root and mount
+rights, as CI's container has; skipped elsewhere, where the fault-injection tests in
+test_storage.py and test_daemon_disk.py cover the same rules)."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from groundstation.daemon.journal import Journal, read_journal
+from groundstation.storage import StorageError, atomic_write_text, check_writable
+
+SIZE = 256 * 1024
+
+
+@pytest.fixture
+def small_fs(tmp_path: Path) -> Iterator[Path]:
+    mount = tmp_path / "fs"
+    mount.mkdir()
+    if os.geteuid() != 0 or shutil.which("mount") is None:
+        pytest.skip("mounting a tmpfs needs root")
+    done = subprocess.run(
+        ["mount", "-t", "tmpfs", "-o", f"size={SIZE}", "tmpfs", str(mount)],
+        capture_output=True,
+        timeout=10,
+        check=False,
+    )
+    if done.returncode != 0:
+        pytest.skip(f"cannot mount a tmpfs here: {done.stderr.decode().strip()}")
+    try:
+        yield mount
+    finally:
+        subprocess.run(["umount", "-l", str(mount)], capture_output=True, timeout=10, check=False)
+
+
+def fill(folder: Path) -> Path:
+    """Fill the filesystem to the last byte; returns the filler file."""
+    filler = folder / "filler"
+    with filler.open("wb", buffering=0) as fh:
+        chunk = b"\0" * 4096
+        try:
+            while True:
+                fh.write(chunk)
+        except OSError:
+            pass
+        try:
+            while True:
+                fh.write(b"\0")
+        except OSError:
+            pass
+    return filler
+
+
+def test_journal_on_a_really_full_filesystem(small_fs: Path) -> None:
+    t = [0.0]
+    journal = Journal(small_fs / "journal.jsonl", lambda: t[0], lambda: 1.7e9, retry_s=0.0)
+    journal.write("start")
+    filler = fill(small_fs)
+    assert journal.file is not None
+    for i in range(200):
+        t[0] = i * 0.1
+        journal.write("track", target="A", sigma=float(i), pad="x" * 50)
+    assert journal.file.failing and journal.file.held > 0
+    # every line in the file is whole, even with the disk full
+    text = (small_fs / "journal.jsonl").read_text()
+    assert text.endswith("\n")
+    assert all(json.loads(line) for line in text.splitlines())
+    with pytest.raises(StorageError, match="No space left on device"):
+        check_writable(small_fs, "run_dir", folder=True)
+    with pytest.raises(StorageError):
+        atomic_write_text(small_fs / "metrics.json", json.dumps({"x": "y" * 10_000}))
+    assert not (small_fs / "metrics.json").exists()
+    assert sorted(p.name for p in small_fs.iterdir()) == ["filler", "journal.jsonl"]
+    filler.unlink()
+    journal.write("stop")
+    journal.close()
+    got = read_journal(small_fs / "journal.jsonl")
+    assert [e["event"] for e in got] == ["start", *["track"] * 200, "stop"]
+    assert [e["sigma"] for e in got if e["event"] == "track"] == [float(i) for i in range(200)]
