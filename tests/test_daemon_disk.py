@@ -20,9 +20,8 @@ from daemon_run import events
 
 from groundstation import storage
 from groundstation.commands import run as run_cmd
-from groundstation.commands.run import build_config
+from groundstation.commands.run import build_config, run_daemon
 from groundstation.daemon.daemon import Daemon
-from groundstation.daemon.startup import run_daemon
 
 OUTAGE_S = (60.0, 110.0)
 
