@@ -34,8 +34,13 @@ class EmbeddedSim:
     fault_specs: list[str]
 
 
-def build_embedded_sim(config: DaemonConfig, scenario: Scenario | None) -> EmbeddedSim:
-    """The simulator for ``config.sim_count`` vehicles (not started)."""
+def build_embedded_sim(
+    config: DaemonConfig,
+    scenario: Scenario | None,
+    signing_keys: dict[int, bytes] | None = None,
+) -> EmbeddedSim:
+    """The simulator for ``config.sim_count`` vehicles (not started); ``signing_keys``:
+    the MAVLink 2 signing key each system id starts with."""
     from sitl.faults import FaultError, VehicleFaults, apply_fault, parse_fault_spec
     from sitl.sitl_setup import scenario_setup
 
@@ -76,5 +81,6 @@ def build_embedded_sim(config: DaemonConfig, scenario: Scenario | None) -> Embed
         tick_s=SIM_TICK_S,
         max_step_s=step_s,
         max_stall_s=SIM_TICK_S,
+        signing_keys=dict(signing_keys or {}),
     )
     return EmbeddedSim(SitlServer(configs, options, faults, None), setup.origin, specs)
