@@ -323,6 +323,9 @@ def run(argv: list[str]) -> int:
 
             return run_camera_only(args)
         if args.ardupilot is not None:
+            if args.signing_key or args.signing_passphrase_file:
+                raise UsageError("--signing-*: real ArduPilot SITL keeps its own key; "
+                                 "give it one with `gcs run --signing-setup`")
             from sitl.ardupilot import run_ardupilot
 
             return run_ardupilot(args)
