@@ -233,5 +233,5 @@ def test_config_carries_paths_never_keys(tmp_path: Path) -> None:
     assert data["vehicle_settings"][3] == {"signing_key_file": str(key_file)}
     assert KEY.hex() not in repr(data)
     yaml_file.write_text("vehicle_settings:\n  3: {signing_key_file: 5}\n")
-    with pytest.raises(ConfigError, match="vehicle_settings.3.signing_key_file"):
+    with pytest.raises(ConfigError, match=r"vehicle_settings\.3\.signing_key_file"):
         build_config(["--config", str(yaml_file), "--vehicles", "sim:1"])
