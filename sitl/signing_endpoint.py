@@ -2,13 +2,13 @@
 
 * The vehicle starts with a key (``gcs sitl --signing-key FILE`` / passphrase) or none.
 * SETUP_SIGNING addressed to it (target system its own or 0) installs the key and its
-  ``initial_timestamp`` at once on every link; an all-zero key disables signing. It is
-  ignored while the vehicle is armed (ArduPilot: "setting up signing key when armed
-  generally not useful"). The key is kept in memory for the life of the ``gcs sitl``
+  ``initial_timestamp`` at once on every link; an all-zero key with a zero timestamp
+  disables signing. It is ignored while the vehicle is armed (a key change in flight is a
+  mistake; recent ArduPilot refuses it too, older releases took it). The key is kept in memory for the life of the ``gcs sitl``
   process (it survives a simulated reboot, as ArduPilot keeps it in storage) and is never
   printed or logged.
 * With a key, every received frame goes through :meth:`SigningState.check`: unsigned
-  frames (except RADIO_STATUS), bad signatures, replayed or stale timestamps are dropped
+  frames (except RADIO_STATUS and RADIO), bad signatures, replayed or stale timestamps are dropped
   and counted (:attr:`VehicleSigning.rejected`); everything the vehicle sends is signed
   (link id 0; one timestamp counter per vehicle, so it never goes backwards).
 * Once a key is installed, a SETUP_SIGNING must itself pass the check (signed with the
@@ -71,7 +71,7 @@ class VehicleSigning:
         if len(key) != KEY_LEN:
             key = key.ljust(KEY_LEN, b"\0")[:KEY_LEN]
         self.setups += 1
-        if not any(key):
+        if not any(key) and int(msg.initial_timestamp) == 0:
             self.state = None
             return True
         self.state = SigningState(key, timestamp=int(msg.initial_timestamp))

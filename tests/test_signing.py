@@ -235,3 +235,25 @@ def test_config_carries_paths_never_keys(tmp_path: Path) -> None:
     yaml_file.write_text("vehicle_settings:\n  3: {signing_key_file: 5}\n")
     with pytest.raises(ConfigError, match=r"vehicle_settings\.3\.signing_key_file"):
         build_config(["--config", str(yaml_file), "--vehicles", "sim:1"])
+
+
+def test_unsigned_radio_reports_pass_like_on_ardupilot() -> None:
+    checker = SigningState(KEY)
+    radio = MavlinkEncoder(51, 68).encode(M.MAVLink_radio_message(200, 190, 90, 80, 5, 0, 0))
+    assert checker.check(radio, NOW_S) is Verdict.UNSIGNED_ALLOWED
+    command = MavlinkEncoder(255, 190).encode(
+        M.MAVLink_command_long_message(1, 1, 176, 0, 1, 12, 0, 0, 0, 0, 0))
+    assert checker.check(command, NOW_S) is Verdict.UNSIGNED
+
+
+def test_gcs_run_bad_key_file_is_one_line_exit_2(tmp_path: Path,
+                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    from groundstation.commands.run import run
+
+    bad = tmp_path / "bad.key"
+    bad.write_text("secret-words-wrong-size")
+    code = run(["--vehicles", "sim:1", "--signing-key", str(bad), "--run-dir", str(tmp_path),
+                "--http", "off", "--detections", "off", "--status", "quiet"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "signing_key_file" in err
+    assert "secret-words-wrong-size" not in err

@@ -15,6 +15,7 @@ from pymavlink import mavutil
 from test_sitl_server import ServerThread, configs
 
 from groundstation.commands import sitl as sitl_command
+from groundstation.mavlink.codec import mavlink2
 from groundstation.mavlink.signing import key_from_passphrase, signing_timestamp
 from sitl.server import ServerOptions, SitlServer
 
@@ -135,3 +136,17 @@ def test_gcs_sitl_signing_options(tmp_path: Path, capsys: pytest.CaptureFixture[
     env_args = sitl_command._parser().parse_args([])
     assert sitl_command.signing_key(
         env_args, environ={"FLOE_SIGNING_PASSPHRASE": "floe test passphrase"}) == KEY
+
+
+def test_setup_signing_with_zero_key_and_timestamp_turns_signing_off() -> None:
+    from sitl.signing_endpoint import VehicleSigning
+
+    vehicle = VehicleSigning.with_key(1, KEY, time.time())
+    assert vehicle.active
+    setup = mavlink2.MAVLink_setup_signing_message(1, 1, [0] * 32, 0)
+    assert vehicle.setup(setup, armed=False) and not vehicle.active
+    other = mavlink2.MAVLink_setup_signing_message(2, 1, list(KEY), 5)
+    assert not vehicle.setup(other, armed=False)  # addressed to another vehicle
+    assert not vehicle.active
+    assert vehicle.setup(mavlink2.MAVLink_setup_signing_message(1, 1, list(KEY), 5),
+                         armed=True) and not vehicle.active  # armed: ignored

@@ -16,9 +16,9 @@ The rules (MAVLink 2 signing specification; ArduPilot's GCS_Signing.cpp and pyma
   own signing timestamp (which follows its clock and every accepted timestamp); at most
   ``max_streams`` streams are tracked (MAVLink's 16), a frame of one more is rejected.
 * An unsigned frame is rejected unless ``accept_unsigned`` lets its message id through.
-  ArduPilot lets only RADIO_STATUS through unsigned (a SiK radio injects it and cannot sign;
-  it carries no command); :data:`UNSIGNED_ALLOWED` is that set.
-* A SETUP_SIGNING with an all-zero key disables signing (ArduPilot, MAVProxy).
+  ArduPilot lets RADIO_STATUS and RADIO through unsigned (a SiK radio injects them and
+  cannot sign; they carry no command); :data:`UNSIGNED_ALLOWED` is that set.
+* A SETUP_SIGNING with an all-zero key and a zero timestamp disables signing.
 
 Keys: MAVProxy's ``signing setup PASSPHRASE`` uses ``SHA-256(passphrase UTF-8)``
 (:func:`key_from_passphrase`). floe's key files hold either exactly 32 raw bytes or 64 hex
@@ -65,8 +65,8 @@ SIGNATURE_LEN = 13
 HEADER_LEN = 10
 IFLAG_SIGNED = 0x01
 STX_V2 = 0xFD
-UNSIGNED_ALLOWED = frozenset({mavlink2.MAVLINK_MSG_ID_RADIO_STATUS})
-"""Message ids accepted unsigned from a signed peer (ArduPilot: RADIO_STATUS only)."""
+UNSIGNED_ALLOWED = frozenset({mavlink2.MAVLINK_MSG_ID_RADIO_STATUS, mavlink2.MAVLINK_MSG_ID_RADIO})
+"""Message ids accepted unsigned from a signed peer (ArduPilot: RADIO_STATUS, RADIO)."""
 
 
 class SigningKeyError(ValueError):
