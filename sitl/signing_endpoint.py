@@ -4,9 +4,9 @@
 * SETUP_SIGNING addressed to it (target system its own or 0) installs the key and its
   ``initial_timestamp`` at once on every link; an all-zero key with a zero timestamp
   disables signing. It is ignored while the vehicle is armed (a key change in flight is a
-  mistake; recent ArduPilot refuses it too, older releases took it). The key is kept in memory for the life of the ``gcs sitl``
-  process (it survives a simulated reboot, as ArduPilot keeps it in storage) and is never
-  printed or logged.
+  mistake; recent ArduPilot refuses it too, older releases took it). The key is kept in
+  memory for the life of the ``gcs sitl`` process (it survives a simulated reboot, as
+  ArduPilot keeps it in storage) and is never printed or logged.
 * With a key, every received frame goes through :meth:`SigningState.check`: unsigned
   frames (except RADIO_STATUS and RADIO), bad signatures, replayed or stale timestamps are dropped
   and counted (:attr:`VehicleSigning.rejected`); everything the vehicle sends is signed

@@ -11,9 +11,9 @@ The :class:`SigningGate` sits in the router (``Router.admit`` / ``Router.sign``)
 * every frame heard on a vehicle link from a signed system id is checked
   (:class:`~groundstation.mavlink.signing.SigningState`, one per system id so each keeps its
   own streams); a refused frame is counted per ``(system id, link)`` and reason and never
-  reaches the tlog, the routing table, ``--out`` or the session. Unsigned RADIO_STATUS (and RADIO) is
-  let through (the local radio's own report, which a SiK radio cannot sign; ArduPilot does
-  the same). Frames of unsigned system ids pass unchanged.
+  reaches the tlog, the routing table, ``--out`` or the session. Unsigned RADIO_STATUS
+  (and RADIO) is let through (the local radio's own report, which a SiK radio cannot sign;
+  ArduPilot does the same). Frames of unsigned system ids pass unchanged.
 * every frame the daemon sends to a signed vehicle is signed with its key; a broadcast
   (the GCS heartbeat) is signed with the all-vehicles key if there is one. One timestamp
   counter (``max(last + 1, now)``) serves every key, so no receiver ever sees ours go back.
