@@ -84,15 +84,18 @@ def _external(keys: dict[int, bytes]) -> SitlServer:
     configs = [
         VehicleConfig(system_id=i, origin=origin, home_lat_deg=78.93, home_lon_deg=11.92,
                       fast_boot=True, airborne=True)
-        for i in (1, 2)
+        for i in (1, 2, 3)
     ]
     return SitlServer(configs, ServerOptions(speedup=20.0, base_port=0, signing_keys=keys))
 
 
 @pytest.mark.timeout(60)
 def test_wrong_key_and_unsigned_vehicles_are_refused_and_counted(tmp_path: Path) -> None:
+    """Vehicle 1 has another key, vehicle 2 none, vehicle 3 the daemon's: only 3 is used."""
     phrase = phrase_file(tmp_path)
-    server = _external({1: OTHER})  # vehicle 1 has another key, vehicle 2 none
+    targets = tmp_path / "targets.yaml"
+    targets.write_text("- {id: A, x_m: 900.0, y_m: 300.0, sigma0: 5.0}\n")
+    server = _external({1: OTHER, 3: KEY})
 
     async def main() -> Daemon:
         await server.start()
@@ -100,9 +103,9 @@ def test_wrong_key_and_unsigned_vehicles_are_refused_and_counted(tmp_path: Path)
         try:
             ports = server.tcp_ports
             config = build_config([
-                "--vehicles", f"tcp:127.0.0.1:{ports[0]}", f"tcp:127.0.0.1:{ports[1]}",
+                "--vehicles", *[f"tcp:127.0.0.1:{port}" for port in ports],
                 "--scenario", "none", "--origin", "78.93,11.92", "--speedup", "20",
-                "--duration", "40", "--signing-passphrase-file", str(phrase),
+                "--duration", "60", "--targets", str(targets), "--signing-passphrase-file", str(phrase),
                 "--run-dir", str(tmp_path / "runs"), "--http", "off", "--detections", "off",
                 "--status", "quiet",
             ])  # fmt: skip
@@ -114,12 +117,15 @@ def test_wrong_key_and_unsigned_vehicles_are_refused_and_counted(tmp_path: Path)
 
     daemon = asyncio.run(asyncio.wait_for(main(), 45.0))
     journal = read_journal(daemon.run_dir / "journal.jsonl")
-    assert daemon.sessions == {}  # nothing refused reached a session
-    assert not events(journal, "vehicle_seen")
-    rejected = daemon.summary()["signing"]["rejected"]
+    assert set(daemon.sessions) == {3}  # nothing refused reached a session
+    assert [e["system_id"] for e in events(journal, "vehicle_seen")] == [3]
+    assert events(journal, "upload", vehicle="3", ok=True, target="A")
+    signing = daemon.summary()["signing"]
+    assert signing["accepted"]["3"] > 20 and "3@vehicles2" not in signing["rejected"]
+    rejected = signing["rejected"]
     assert rejected["1@vehicles0"]["bad_signature"] > 10
     assert rejected["2@vehicles1"]["unsigned"] > 10
-    assert daemon.router.routes == {} and daemon.router.counters.refused > 20
+    assert set(daemon.router.routes) == {3} and daemon.router.counters.refused > 20
     lines = events(journal, "signing_rejected")
     assert {(e["system_id"], e["link"]) for e in lines} == {(1, "vehicles0"), (2, "vehicles1")}
     # rate-limited: one line per vehicle/link every 5 mission s at most
@@ -128,4 +134,5 @@ def test_wrong_key_and_unsigned_vehicles_are_refused_and_counted(tmp_path: Path)
         assert all(b - a >= 4.9 for a, b in itertools.pairwise(times))
     # the vehicle with the other key refused the daemon's signed heartbeats in turn
     assert server.signing_rejected()[1].get("bad_signature", 0) >= 1
+    assert server.signing_rejected()[3] == {}  # it took every signed frame the daemon sent
     no_key_in_run_folder(daemon, tmp_path)
