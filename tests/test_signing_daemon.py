@@ -105,7 +105,8 @@ def test_wrong_key_and_unsigned_vehicles_are_refused_and_counted(tmp_path: Path)
             config = build_config([
                 "--vehicles", *[f"tcp:127.0.0.1:{port}" for port in ports],
                 "--scenario", "none", "--origin", "78.93,11.92", "--speedup", "20",
-                "--duration", "60", "--targets", str(targets), "--signing-passphrase-file", str(phrase),
+                "--duration", "60", "--targets", str(targets),
+                "--signing-passphrase-file", str(phrase),
                 "--run-dir", str(tmp_path / "runs"), "--http", "off", "--detections", "off",
                 "--status", "quiet",
             ])  # fmt: skip
