@@ -173,6 +173,9 @@ def test_gate_sends_setup_signing_until_the_vehicle_signs() -> None:
     def rx(frame: bytes) -> Received:
         return Received(MavlinkDecoder().feed(frame)[0], frame, "vehicles0", now[0])
 
+    gcs_heartbeat = MavlinkEncoder(255, 190).encode(M.MAVLink_heartbeat_message(6, 8, 0, 0, 4, 3))
+    assert not gate.admit(FakeLink(), 0, rx(gcs_heartbeat))
+    assert sent == []  # another ground station is refused but never sent a key
     assert not gate.admit(FakeLink(), 0, rx(heartbeat()))
     assert not gate.admit(FakeLink(), 0, rx(heartbeat()))  # within 1 s: not again
     now[0] += 1.5

@@ -20,9 +20,10 @@ The :class:`SigningGate` sits in the router (``Router.admit`` / ``Router.sign``)
   The link id is the vehicle link's index. Frames passed through from ``--out`` links are
   forwarded unchanged (another ground station signs its own, or a signed vehicle drops
   them).
-* with ``signing_setup``, a signed vehicle heard sending anything but good signatures is
-  sent SETUP_SIGNING (its key, our current timestamp) at most every
-  ``SETUP_INTERVAL_S`` on the link it was heard on, until a good signature arrives from it.
+* with ``signing_setup``, a signed vehicle heard sending a HEARTBEAT of a vehicle (not of a
+  ground station) without a good signature is sent SETUP_SIGNING (its key, our current
+  timestamp) at most every ``SETUP_INTERVAL_S`` on the link it was heard on, until a good
+  signature arrives from it.
   The frame is itself signed with the new key: a vehicle without a key ignores the
   signature, one that already has the key accepts it, as MAVProxy's ``signing setup``.
 
@@ -194,7 +195,7 @@ class SigningGate:
         if verdict.accepted:
             return True
         self.rejected.setdefault((sysid, str(rx.link_id)), Counter())[verdict.value] += 1
-        if self.keys.setup and sysid not in self.confirmed and sysid != self.gcs_system_id:
+        if self.keys.setup and sysid not in self.confirmed and _is_vehicle_heartbeat(rx):
             self._maybe_setup(link, link_index, sysid, key)
         return False
 
@@ -234,3 +235,13 @@ class SigningGate:
                 )
                 self._reported[(sysid, link)] = Counter(counts)
         return out
+
+
+def _is_vehicle_heartbeat(rx: Any) -> bool:
+    """A HEARTBEAT of an autopilot (not another ground station's, not ours)."""
+    msg = rx.message
+    return (
+        msg.get_type() == "HEARTBEAT"
+        and msg.type != mavlink2.MAV_TYPE_GCS
+        and msg.autopilot != mavlink2.MAV_AUTOPILOT_INVALID
+    )
