@@ -19,6 +19,9 @@
   UDP address), as ArduPilot answers on the requesting channel; everything else (telemetry,
   STATUSTEXT, PARAM_VALUE, MISSION_CURRENT, the upload's timed re-requests) goes to every
   link of the vehicle.
+* Signing (:mod:`sitl.signing_endpoint`): ``signing_keys`` gives vehicles a key at start;
+  SETUP_SIGNING installs one. A vehicle with a key drops (and counts) what fails the
+  MAVLink 2 signature check before its faults and autopilot see it, and signs all it sends.
 * An optional feed (:class:`sitl.detections.DetectionFeed`-like: ``step(t_s, positions)``
   returning datagrams) is given each vehicle's local position and its datagrams are sent
   to ``feed_address``.
@@ -35,6 +38,7 @@ from typing import Any, Protocol
 
 from groundstation.mavlink.codec import MavlinkDecoder, MavlinkEncoder
 from sitl.faults import VehicleFaults
+from sitl.signing_endpoint import VehicleSigning
 from sitl.vehicle import SimVehicle, VehicleConfig
 
 __all__ = ["Feed", "ServerOptions", "SitlServer"]
@@ -63,6 +67,8 @@ class ServerOptions:
     max_step_s: float = 0.5
     max_stall_s: float = 0.1
     feed_address: tuple[str, int] | None = None
+    signing_keys: dict[int, bytes] = field(default_factory=dict, repr=False)
+    """Key per system id the vehicles start with (no entry: unsigned until SETUP_SIGNING)."""
 
 
 @dataclass
@@ -71,6 +77,7 @@ class _Slot:
     config: VehicleConfig
     faults: VehicleFaults
     encoder: MavlinkEncoder
+    signing: VehicleSigning
     vehicle: SimVehicle | None = None
     server: asyncio.Server | None = None
     port: int = 0
@@ -107,6 +114,9 @@ class SitlServer:
                 c,
                 faults.get(c.system_id) or VehicleFaults(c.system_id),
                 MavlinkEncoder(c.system_id, c.component_id),
+                VehicleSigning.with_key(
+                    c.system_id, options.signing_keys.get(c.system_id), time.time()
+                ),
             )
             for i, c in enumerate(configs)
         ]
@@ -234,7 +244,18 @@ class SitlServer:
 
     def _inbound(self, slot: _Slot, msg: Any, origin: Any) -> None:
         self.messages_in += 1
+        if not slot.signing.admit(bytes(msg.get_msgbuf()), time.time()):
+            return
+        if msg.get_type() == "SETUP_SIGNING":
+            vehicle = slot.vehicle
+            armed = vehicle is not None and bool(vehicle.autopilot.armed)
+            if slot.signing.setup(msg, armed):
+                return
         slot.faults.send_up((msg, origin), self.t_s)
+
+    def signing_rejected(self) -> dict[int, dict[str, int]]:
+        """Frames each vehicle dropped for failing the signature check, by reason."""
+        return {s.config.system_id: dict(s.signing.rejected) for s in self.slots}
 
     def _service(self, slot: _Slot) -> None:
         """Deliver due uplink messages, run due faults, flush due downlink messages."""
@@ -262,6 +283,8 @@ class SitlServer:
                 data = slot.encoder.encode(msg)
             except Exception:  # a message that cannot be packed is dropped, never fatal
                 continue
+            if slot.signing.active:
+                data = slot.signing.sign(data, time.time())
             self._send(slot, data, dest)
 
     def _send(self, slot: _Slot, data: bytes, dest: Any = None) -> None:

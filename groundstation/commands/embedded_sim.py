@@ -67,8 +67,13 @@ class EmbeddedSim:
         await self.server.close()
 
 
-def build_embedded_sim(config: DaemonConfig, scenario: Scenario | None) -> EmbeddedSim:
-    """The simulator for ``config.sim_count`` vehicles (not started)."""
+def build_embedded_sim(
+    config: DaemonConfig,
+    scenario: Scenario | None,
+    signing_keys: dict[int, bytes] | None = None,
+) -> EmbeddedSim:
+    """The simulator for ``config.sim_count`` vehicles (not started); ``signing_keys``:
+    the MAVLink 2 signing key each system id starts with."""
     count = config.sim_count
     assert count is not None
     home_given = config.origin is not None
@@ -104,5 +109,6 @@ def build_embedded_sim(config: DaemonConfig, scenario: Scenario | None) -> Embed
         tick_s=SIM_TICK_S,
         max_step_s=step_s,
         max_stall_s=SIM_TICK_S,
+        signing_keys=dict(signing_keys or {}),
     )
     return EmbeddedSim(SitlServer(configs, options, faults, None), setup.origin, specs)

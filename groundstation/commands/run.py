@@ -110,6 +110,24 @@ def _parser() -> argparse.ArgumentParser:
     a("--sim-loss", type=float, metavar="P", help="sim:N packet loss on every link")
     a("--sim-fault", action="append", metavar="SPEC", help="sim:N fault (gcs sitl --fault)")
     a(
+        "--signing-key",
+        dest="signing_key_file",
+        metavar="FILE",
+        help="sign and check MAVLink 2 frames with every vehicle using this key file "
+        "(32 raw bytes or 64 hex digits)",
+    )
+    a(
+        "--signing-passphrase-file",
+        metavar="FILE",
+        help="as --signing-key with key SHA-256(first line of FILE), as MAVProxy's "
+        "`signing setup PASSPHRASE` (or set FLOE_SIGNING_PASSPHRASE)",
+    )
+    a(
+        "--signing-setup",
+        action="store_true",
+        help="send each signed vehicle its key (SETUP_SIGNING) until it signs, as MAVProxy",
+    )
+    a(
         "--status",
         choices=("auto", "table", "log", "quiet"),
         help="live table (TTY), log lines, or nothing",

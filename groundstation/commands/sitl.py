@@ -129,7 +129,55 @@ def _parser() -> argparse.ArgumentParser:
         help="defaults file for --ardupilot (default: "
         "Tools/autotest/models/plane.parm of the ArduPilot tree)",
     )
+    p.add_argument(
+        "--signing-key",
+        default=None,
+        metavar="FILE",
+        help="vehicles start with this MAVLink 2 signing key (32 raw bytes or 64 hex digits); "
+        "without a key they accept SETUP_SIGNING from a ground station",
+    )
+    p.add_argument(
+        "--signing-passphrase-file",
+        default=None,
+        metavar="FILE",
+        help="vehicles start with key SHA-256(first line of FILE), as MAVProxy's "
+        "`signing setup PASSPHRASE` (or set FLOE_SIGNING_PASSPHRASE)",
+    )
     return p
+
+
+def signing_key(args: argparse.Namespace, environ: dict[str, str] | None = None) -> bytes | None:
+    """The key the vehicles start with (``--signing-key``, ``--signing-passphrase-file``,
+    else ``FLOE_SIGNING_PASSPHRASE``), None for none. Errors never quote the content."""
+    import os
+    from pathlib import Path
+
+    from groundstation.mavlink.signing import (
+        SigningKeyError,
+        key_from_passphrase,
+        parse_key_file_bytes,
+        parse_passphrase_file_bytes,
+    )
+
+    env = os.environ if environ is None else environ
+    key_file = getattr(args, "signing_key", None)
+    pass_file = getattr(args, "signing_passphrase_file", None)
+    if key_file and pass_file:
+        raise UsageError("--signing-key and --signing-passphrase-file: give one, not both")
+    option, path = ("--signing-key", key_file) if key_file else (
+        "--signing-passphrase-file", pass_file)
+    try:
+        if path:
+            try:
+                data = Path(path).expanduser().read_bytes()
+            except OSError as exc:
+                raise UsageError(f"{option}: cannot read {path}: {exc.strerror or exc}") from None
+            return parse_key_file_bytes(data) if key_file else parse_passphrase_file_bytes(data)
+        if env.get("FLOE_SIGNING_PASSPHRASE"):
+            return key_from_passphrase(env["FLOE_SIGNING_PASSPHRASE"])
+    except SigningKeyError as exc:
+        raise UsageError(f"{option}: {path}: {exc}") from None
+    return None
 
 
 def build(args: argparse.Namespace) -> tuple[Any, ...]:
@@ -184,6 +232,9 @@ def build(args: argparse.Namespace) -> tuple[Any, ...]:
         wait_for_client=args.wait_for_client,
         feed_address=feed_address,
     )
+    start_key = signing_key(args)
+    if start_key is not None:
+        options.signing_keys = {c.system_id: start_key for c in configs}
     return configs, faults, feed, options
 
 
@@ -204,10 +255,16 @@ async def _serve(args: argparse.Namespace) -> int:
             loop.add_signal_handler(sig, server.stop)
     for line in server.describe():
         print(line, flush=True)
+    if options.signing_keys:
+        print("signing: vehicles start with a key (MAVLink 2 signing on)", flush=True)
     try:
         await server.run(args.duration)
     finally:
         await server.close()
+    for sysid, counts in server.signing_rejected().items():
+        if counts:
+            print(f"gcs sitl: vehicle {sysid} refused frames failing the signature check: "
+                  + ", ".join(f"{k} {v}" for k, v in sorted(counts.items())), flush=True)
     print(
         f"gcs sitl: stopped after {server.t_s:.1f} simulated s "
         f"(real-time factor {server.realtime_factor:.1f})",
@@ -226,6 +283,9 @@ def run(argv: list[str]) -> int:
             return run_camera_only(args)
         if args.ardupilot is not None:
             from groundstation.commands.sitl_ardupilot import run_ardupilot
+            if args.signing_key or args.signing_passphrase_file:
+                raise UsageError("--signing-*: real ArduPilot SITL keeps its own key; "
+                                 "give it one with `gcs run --signing-setup`")
 
             return run_ardupilot(args)
         return run_async(lambda: _serve(args))

@@ -32,6 +32,10 @@ class VehicleSettings:
     altitude_m: float | None = None
     loiter_radius_m: float | None = None
     speed_m_s: float | None = None
+    signing_key_file: str | None = None
+    """This vehicle's MAVLink 2 signing key file (32 raw bytes or 64 hex digits)."""
+    signing_passphrase_file: str | None = None
+    """This vehicle's signing passphrase file (key = SHA-256 of its first line)."""
 
 
 @dataclass
@@ -78,6 +82,9 @@ class DaemonConfig:
     sim_loss: float = 0.0
     sim_fault: list[str] = field(default_factory=list)
     status: str = "auto"
+    signing_key_file: str | None = None
+    signing_passphrase_file: str | None = None
+    signing_setup: bool = False
     vehicle_settings: dict[int, VehicleSettings] = field(default_factory=dict)
 
     # ------------------------------------------------------------------ derived
@@ -262,9 +269,9 @@ def _vehicle_settings(value: Any) -> dict[int, VehicleSettings]:
         for k, v in settings.items():
             if k not in names:
                 raise ConfigError(f"{where}.{k}: unknown key (known: {', '.join(sorted(names))})")
-            if k == "name":
+            if k in ("name", "signing_key_file", "signing_passphrase_file"):
                 if not isinstance(v, str) or not v:
-                    raise ConfigError(f"{where}.name: expected a non-empty string")
+                    raise ConfigError(f"{where}.{k}: expected a non-empty string")
                 kwargs[k] = v
             else:
                 if (

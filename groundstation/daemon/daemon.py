@@ -42,6 +42,7 @@ from groundstation.daemon.config import DaemonConfig
 from groundstation.daemon.journal import Journal
 from groundstation.daemon.planning import SolverRunner
 from groundstation.daemon.session import VehicleSession
+from groundstation.daemon.signing_gate import SigningGate
 from groundstation.daemon.supervision import Supervisor
 from groundstation.daemon.vehicle_port import VehiclePort
 from groundstation.daemon.world import ScenarioWorld
@@ -57,6 +58,8 @@ M = mavlink2
 TICK_S = 0.1
 MIN_WAKE_WALL_S = 0.01
 MAX_TICKS_PER_WAKE = 100
+SIGNING_REPORT_S = 5.0
+"""Mission seconds between two ``signing_rejected`` journal lines of one vehicle/link."""
 MISSION_MESSAGES_FROM_GCS = frozenset(
     {"MISSION_COUNT", "MISSION_CLEAR_ALL", "MISSION_ITEM", "MISSION_ITEM_INT"}
 )
@@ -121,6 +124,14 @@ class Daemon:
         self.detections_dropped = 0
         self.internal_error: str | None = None
         self.supervisor = Supervisor(clock.now_s, self.journal, self._on_bug)
+        self.signing: SigningGate | None = None
+        self._next_signing_report_s = 0.0
+
+    def use_signing(self, gate: SigningGate) -> None:
+        """Sign frames to and check frames from the vehicles ``gate`` has keys for."""
+        self.signing = gate
+        self.router.admit = gate.admit
+        self.router.sign = gate.sign
 
     # ------------------------------------------------------------------ SessionHost
     @property
@@ -370,7 +381,12 @@ class Daemon:
             M.MAV_TYPE_GCS, M.MAV_AUTOPILOT_INVALID, 0, 0, M.MAV_STATE_ACTIVE, 3
         )
         while not self._finished:
-            self.router.broadcast(self.encoder.encode(msg))
+            frame = self.encoder.encode(msg)
+            self.router.broadcast(frame)
+            if self.signing is not None:  # vehicles with their own key: one by one
+                for sysid in self.signing.keyed_only():
+                    if self.router.link_for(sysid) is not None:
+                        self.router.send_to(sysid, frame)
             await asyncio.sleep(max(0.02, self.clock.wall_s(1.0)))
 
     async def _tick_loop(self) -> None:
@@ -404,6 +420,10 @@ class Daemon:
             self._next_tick_s = round(self._next_tick_s + TICK_S, 6)
         for session in self.sessions.values():
             session.check_link(now)
+        if self.signing is not None and now >= self._next_signing_report_s:
+            self._next_signing_report_s = now + SIGNING_REPORT_S
+            for entry in self.signing.take_report():
+                self.journal("signing_rejected", **entry)
         if now >= self._next_track_s:
             self._next_track_s = now + self.config.track_period_s
             for tr in self.core.observer.tracks():
@@ -495,6 +515,7 @@ class Daemon:
             "uploads_failed": sum(s.uploads_failed for s in self.sessions.values()),
             "loiter_to_upload_s": sorted(round(d, 3) for d in delays),
             "visits": len(metrics.get("visits", [])),
+            **({"signing": self.signing.summary()} if self.signing is not None else {}),
         }
 
     def metrics_dict(self) -> dict[str, Any]:
@@ -529,6 +550,7 @@ _LOGGED = frozenset(
         "on_ground",
         "waiting",
         "plan_failed",
+        "signing_rejected",
     }
 )
 

@@ -53,5 +53,6 @@ class EmbeddedVehicles(Protocol):
         """Close every port."""
 
 
-EmbeddedFactory = Callable[["DaemonConfig", "Scenario | None"], EmbeddedVehicles]
-"""Builds the vehicles for ``config.sim_count`` (raises ConfigError on a bad setting)."""
+EmbeddedFactory = Callable[["DaemonConfig", "Scenario | None", dict[int, bytes]], EmbeddedVehicles]
+"""Builds the vehicles for ``config.sim_count`` with the MAVLink 2 signing key each system
+id starts with (raises ConfigError on a bad setting)."""

@@ -40,6 +40,7 @@ from groundstation.daemon.control_server import ControlServer, binding_warning
 from groundstation.daemon.daemon import Daemon
 from groundstation.daemon.embedded import EmbeddedFactory, EmbeddedVehicles
 from groundstation.daemon.run_files import open_run_files
+from groundstation.daemon.signing_gate import SigningGate, load_signing_keys
 from groundstation.daemon.world import ScenarioWorld
 from groundstation.detection_feed import DetectionFeed
 from groundstation.link import LinkError, LinkUrlError, open_link
@@ -180,6 +181,7 @@ async def run_daemon(
     built-in simulator; the daemon itself never imports it)."""
     config.validate()
     config.resolve_defaults()
+    signing_keys = load_signing_keys(config)
     scenario = None
     if config.scenario is not None:
         from world.scenario import load_scenario
@@ -192,7 +194,13 @@ async def run_daemon(
     if config.sim_count is not None:
         if embedded is None:
             raise StartError("vehicles: sim:N needs the built-in simulator (run it with gcs run)")
-        sim = embedded(config, scenario)
+        sim_keys: dict[int, bytes] = {}
+        if not signing_keys.setup:  # with setup they start keyless and are sent the key
+            for sysid in range(1, (config.sim_count or 0) + 1):
+                key = signing_keys.key_for(sysid)
+                if key is not None:
+                    sim_keys[sysid] = key
+        sim = embedded(config, scenario, sim_keys)
     origin: GeoOrigin | None = None
     if scenario is not None:
         origin = scenario.origin
@@ -219,6 +227,8 @@ async def run_daemon(
         raise StartError(str(exc)) from None
     run_dir, journal, tlog, effective = files.run_dir, files.journal, files.tlog, files.effective
     daemon = Daemon(config, ccfg, clock, run_dir, origin, journal, tlog)
+    if signing_keys.enabled:
+        daemon.use_signing(SigningGate(signing_keys, config.gcs_system_id))
     server_started = False
     cleanups: list[Callable[[], None]] = []
     try:
@@ -277,6 +287,11 @@ async def run_daemon(
             origin=dataclasses.asdict(origin) if origin else None,
             sim_faults=sim.fault_specs if sim else None,
             scenario=scenario.name if scenario else None,
+            signing=(
+                {"keys": dict(signing_keys.sources), "setup": signing_keys.setup}
+                if signing_keys.enabled
+                else None
+            ),
         )
         for target in targets:
             if not daemon.inside_area(target.x_m, target.y_m):
@@ -304,6 +319,10 @@ async def run_daemon(
         )
         for url in urls:
             print_fn(f"gcs run: vehicles on {url}")
+        if signing_keys.enabled:
+            who = ", ".join(f"{k} from {v}" for k, v in signing_keys.sources.items())
+            print_fn(f"gcs run: MAVLink 2 signing on ({who})"
+                     + (", sending SETUP_SIGNING" if signing_keys.setup else ""))
         if install_signals:
             loop = asyncio.get_running_loop()
             for sig in (signal.SIGINT, signal.SIGTERM):

@@ -32,6 +32,7 @@ def render_table(daemon: Daemon) -> str:
         f"floe gcs run  t={t:8.1f} s  speed-up {daemon.clock.speedup:g}x"
         f"{'  ADVISORY' if daemon.config.advisory else ''}  run {daemon.run_dir}",
         "",
+        *_signing_line(daemon),
         f"{'vehicle':<10}{'sysid':>6} {'status':<11}{'mode':<13}{'armed':<6}{'alt m':>7}"
         f"  {'target':<8}{'batt %':>7}  {'link':<9}{'uploads':>8}",
     ]
@@ -64,6 +65,15 @@ def render_table(daemon: Daemon) -> str:
         )
         lines.append(f"  {line['t']:8.1f} {line['event']} {extra}"[:160])
     return "\n".join(lines)
+
+
+def _signing_line(daemon: Daemon) -> list[str]:
+    """``signing: refused ...`` per vehicle@link (nothing when signing is off)."""
+    if daemon.signing is None:
+        return []
+    refused = daemon.signing.summary()["rejected"]
+    text = ", ".join(f"{k} {sum(v.values())}" for k, v in refused.items()) or "none"
+    return [f"signing on; refused frames: {text}", ""]
 
 
 async def status_loop(daemon: Daemon, stream: TextIO | None = None) -> None:

@@ -13,13 +13,18 @@
 * The daemon's own frames: :meth:`Router.send_to` (one system id) and
   :meth:`Router.broadcast` (every vehicle link and peer: the GCS heartbeat); recorded too.
 
-The router decides nothing about the vehicles; it only moves frames.
+The router decides nothing about the vehicles; it only moves frames. Two optional hooks
+let MAVLink 2 signing sit at its edge (``groundstation.daemon.signing_gate``): ``admit``
+sees every vehicle frame first and may refuse it (then it is counted in ``refused`` and goes
+nowhere: not routed, recorded, forwarded or delivered), and ``sign`` rewrites each frame the
+daemon sends (``send_to``/``broadcast``) for the vehicle link it goes out on.
 """
 
 from __future__ import annotations
 
 import contextlib
 import logging
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from groundstation.link.base import Link, ReceiveCallback, Received
@@ -43,6 +48,7 @@ class RouterCounters:
     passed_to_vehicles: int = 0
     sent: int = 0
     no_route: int = 0
+    refused: int = 0
 
 
 def target_system_of(rx: Received) -> int:
@@ -67,6 +73,10 @@ class Router:
         self.out_links: list[Link] = []
         self.routes: dict[int, Link] = {}
         self.counters = RouterCounters()
+        self.admit: Callable[[Link, int, Received], bool] | None = None
+        """Signing check: (link, vehicle link index, frame) -> let it through?"""
+        self.sign: Callable[[int | None, int, bytes], bytes] | None = None
+        """Signing: (system id or None for broadcast, vehicle link index, frame) -> frame."""
 
     # -- set-up ----------------------------------------------------------------------
     def add_vehicle_link(self, link: Link) -> None:
@@ -121,6 +131,8 @@ class Router:
         if link is None:
             self.counters.no_route += 1
             return False
+        if self.sign is not None:
+            frame = self.sign(system_id, self._index(link), frame)
         self._record(frame, None, SENT_LINK_NUMBER)
         self.counters.sent += 1
         return link.send(frame, system_id)
@@ -128,9 +140,22 @@ class Router:
     def broadcast(self, frame: bytes) -> int:
         """Send the daemon's ``frame`` on every vehicle link to every peer; returns how
         many links took it (a listening link with no peer yet takes nothing)."""
-        self._record(frame, None, SENT_LINK_NUMBER)
+        sign = self.sign
+        if sign is None:
+            self._record(frame, None, SENT_LINK_NUMBER)
+            self.counters.sent += 1
+            return sum(1 for link in self.vehicle_links if link.send(frame, None))
+        taken = 0
+        for index, link in enumerate(self.vehicle_links):
+            signed = sign(None, index, frame)
+            if index == 0:  # one record per broadcast, as without signing
+                self._record(signed, None, SENT_LINK_NUMBER)
+            taken += link.send(signed, None)
         self.counters.sent += 1
-        return sum(1 for link in self.vehicle_links if link.send(frame, None))
+        return taken
+
+    def _index(self, link: Link) -> int:
+        return next((i for i, v in enumerate(self.vehicle_links) if v is link), 0)
 
     # -- receiving -------------------------------------------------------------------
     def _record(self, frame: bytes, t_unix_s: float | None, link_number: int) -> None:
@@ -138,6 +163,9 @@ class Router:
             self.tlog.write(frame, t_unix_s, link_number)
 
     def _from_vehicle(self, link: Link, rx: Received) -> None:
+        if self.admit is not None and not self.admit(link, self._index(link), rx):
+            self.counters.refused += 1
+            return
         self.counters.from_vehicles += 1
         previous = self.routes.get(rx.system_id)
         if previous is not link:

@@ -6,6 +6,10 @@ were set before its import.
 
 The decoder is robust: garbage bytes and frames with a bad CRC never raise; they are counted
 (``bad_frames``, ``bad_bytes``) and the parser resynchronises on the next start marker.
+
+Signed MAVLink 2 frames decode like any other (``get_msgbuf()`` keeps the 13 signature
+bytes); the decoder does not check signatures: ``groundstation.mavlink.signing`` does, at
+the edge that knows the keys (the daemon's signing gate, the simulator's vehicles).
 """
 
 from __future__ import annotations
