@@ -1,25 +1,33 @@
-"""Shared pieces of the sans-IO mission-transfer state machines.
+"""Shared pieces of the sans-IO transfer state machines.
 
-The state machines (``MissionUpload``, ``MissionDownload``, ``MissionClear``, ``SetCurrent``)
-follow h11's pattern: no sockets, no clock, no sleeping. The caller feeds them what arrived
-and the time (mission seconds), and they answer with :data:`Action` values:
+The state machines (``MissionUpload``, ``MissionDownload``, ``MissionClear``, ``SetCurrent``,
+and ``CommandLong``/``ParamSet`` in :mod:`groundstation.mavlink.vehicle_commands`) follow
+h11's pattern: no sockets, no clock, no sleeping. The caller feeds them what arrived and the
+time (mission seconds), and they answer with :data:`Action` values:
 
 * :class:`Send` -- a pymavlink message to encode (with the caller's ``MavlinkEncoder``) and
   send to the vehicle;
-* :class:`Finished` -- the transfer ended; ``result`` says how.
+* :class:`Finished` -- the transfer ended; ``result`` says how. Always the last action.
 
-Drive loop::
+Their common interface is :class:`TransferBase` (``start``, ``receive``, ``poll``,
+``cancel``, ``notify_vehicle_rebooted``, ``next_deadline_s``, ``done``, ``result``,
+``state``). Drive loop (one owner: only this loop calls the machine)::
 
     actions = sm.start(now_s)
-    while not sm.done:
-        perform(actions)
-        msg = await receive(timeout=sm.next_deadline_s() - now_s)
-        actions = sm.receive(msg, now_s) if msg else sm.poll(now_s)
+    while True:
+        perform(actions)                       # returns on Finished
+        if rebooted: actions = sm.notify_vehicle_rebooted(now_s)
+        elif msg := inbox.pop(): actions = sm.receive(msg, now_s)
+        elif now_s >= sm.next_deadline_s(): actions = sm.poll(now_s)
+        else: await wake-up or sm.next_deadline_s()
 
-Peer misbehaviour never raises: it ends the transfer with a failed :class:`TransferResult`
-(a :class:`~groundstation.mavlink.errors.RemoteProtocolError` *as data*). Local misuse
-(``receive`` before ``start`` or after ``done``, invalid items) raises
-:class:`~groundstation.mavlink.errors.LocalProtocolError`.
+Peer input never raises: misbehaviour ends the transfer with a failed
+:class:`TransferResult` (a :class:`~groundstation.mavlink.errors.RemoteProtocolError` *as
+data*), and unreadable messages (wrong field types, out-of-range values, other sources)
+are ignored. After the end every input (``receive``, ``poll``, ``cancel``,
+``notify_vehicle_rebooted``) returns ``[]``, as h11 answers input after DONE with a state.
+Local misuse raises :class:`~groundstation.mavlink.errors.LocalProtocolError`: ``receive``
+before ``start``, ``start`` twice, invalid constructor arguments (items, target, timeout).
 
 Timing defaults (mission seconds, i.e. on the vehicle's own clock under a speed-up):
 
