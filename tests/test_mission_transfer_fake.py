@@ -1,6 +1,7 @@
 """Scripted ArduPlane-like vehicle and virtual link for the mission-transfer case tests.
 
-Not a test module by itself (no tests); imported by ``test_mission_transfer_cases*.py``.
+Not a test module by itself (no tests); imported by ``test_mission_transfer_cases.py``
+and ``test_vehicle_port.py``.
 :class:`FakePlane` behaves as design.md records ArduPlane does (MISSION_REQUEST not _INT,
 re-request every 1 s, cancel after 8 s of silence, INVALID_SEQUENCE for an out-of-order
 item, DENIED to a second ground station, item 0 read back as home, items read back through

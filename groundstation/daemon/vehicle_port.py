@@ -1,70 +1,92 @@
 """Talking to one vehicle: the sans-IO transfer machines driven on the mission clock.
 
 A :class:`VehiclePort` sends the daemon's messages to one system id (through the router)
-and runs one exchange at a time: mission upload / download / set current
-(``groundstation.mavlink``'s state machines), COMMAND_LONG with its COMMAND_ACK, PARAM_SET
-with its PARAM_VALUE. Every timeout is in mission seconds (``MissionClock.wall_s`` turns a
-wait into wall time), so at a 50x speed-up the vehicle sees the same 1.5 s timeouts it
-would see at 1x. Messages of the vehicle reach the running exchange through
-:meth:`deliver`; nothing is queued while no exchange runs.
+and runs its exchanges: mission upload / download / set current, COMMAND_LONG with its
+COMMAND_ACK, PARAM_SET with its PARAM_VALUE, each one a
+:class:`~groundstation.mavlink.mission_transfer.TransferBase` machine. Every timeout is in
+mission seconds (``clock.wall_s`` turns a wait into wall time), so at a 50x speed-up the
+vehicle sees the same 1.5 s timeouts it would see at 1x.
+
+Rules (docs/protocol.md, "Driving transfers in the daemon"):
+
+* **One owner per exchange.** Only the driver (:meth:`VehiclePort.run`) calls the running
+  machine. :meth:`deliver` only queues a message and :meth:`notify_rebooted` only sets a
+  flag; both wake the driver, which handles them on its next turn. After every ``await``
+  the driver looks again at ``done``, the reboot flag, the queue and the deadline, in that
+  order, so nothing reaches a finished machine.
+* **A reboot is a flag.** The driver calls ``machine.notify_vehicle_rebooted``, sends what
+  it returns and returns the VEHICLE_REBOOTED result (``command()`` returns None,
+  ``param_set()`` False). A reboot seen while no exchange runs is forgotten: the next
+  exchange starts against the rebooted vehicle, which is what it must talk to.
+* **Exchanges are serialised** (an :class:`asyncio.Lock`, first come first served): a
+  COMMAND_LONG asked for during an upload waits for the upload's end; it never sees the
+  upload's messages. Messages delivered while no exchange runs are dropped.
+* The queue of the running exchange is bounded (``queue_size``); when full, the *oldest*
+  message is dropped and counted in :attr:`VehiclePort.dropped`: the newest is the one
+  that says where the vehicle is now.
+* Cancelling a caller's task cancels its exchange politely (the machine's ``cancel``
+  actions are sent, e.g. MISSION_ACK OPERATION_CANCELLED) and leaves the port reusable.
 """
 
 from __future__ import annotations
 
 import asyncio
+import collections
 import contextlib
-import math
-from collections.abc import Callable, Sequence
+from collections.abc import AsyncIterator, Callable, Sequence
 from typing import Any, Protocol
 
-from groundstation.daemon.clock import MissionClock
 from groundstation.mavlink.codec import MavlinkEncoder, MAVLinkMessage, mavlink2
 from groundstation.mavlink.mission_commands import SetCurrent
 from groundstation.mavlink.mission_download import MissionDownload
 from groundstation.mavlink.mission_items import MissionItem
-from groundstation.mavlink.mission_transfer import Finished, Send, TransferResult
+from groundstation.mavlink.mission_transfer import (
+    Action,
+    Finished,
+    Send,
+    TransferBase,
+    TransferResult,
+)
 from groundstation.mavlink.mission_upload import MissionUpload
+from groundstation.mavlink.vehicle_commands import CommandLong, ParamSet
 
-__all__ = ["VehiclePort"]
+__all__ = ["PortClock", "VehiclePort"]
 
 M = mavlink2
-_QUEUE = 512
+QUEUE_SIZE = 512
+"""Messages one exchange may have waiting (a few seconds of full-rate telemetry)."""
+_IDLE_WAIT_S = 0.5
+"""Mission seconds to wait when the machine has no deadline (it always has one while
+running; this only bounds a wait should a machine ever lack one)."""
+_MIN_WALL_WAIT_S = 0.001
+"""Shortest wall-clock wait, so a deadline a rounding error away never spins the loop."""
 
 
-class _Machine(Protocol):
-    @property
-    def done(self) -> bool: ...
+class PortClock(Protocol):
+    """What the port needs of :class:`~groundstation.daemon.clock.MissionClock`."""
 
-    @property
-    def result(self) -> TransferResult | None: ...
+    def now_s(self) -> float: ...
 
-    def start(self, now_s: float) -> list[Any]: ...
-
-    def receive(self, msg: MAVLinkMessage, now_s: float) -> list[Any]: ...
-
-    def poll(self, now_s: float) -> list[Any]: ...
-
-    def cancel(self, now_s: float) -> list[Any]: ...
-
-    def next_deadline_s(self) -> float | None: ...
-
-    def notify_vehicle_rebooted(self, now_s: float) -> list[Any]: ...
+    def wall_s(self, mission_s: float) -> float: ...
 
 
 class VehiclePort:
-    """One vehicle's outgoing messages and running exchange (see module docstring)."""
+    """One vehicle's outgoing messages and exchanges (see the module docstring)."""
 
     def __init__(
         self,
         system_id: int,
         send_frame: Callable[[int, bytes], bool],
         encoder: MavlinkEncoder,
-        clock: MissionClock,
+        clock: PortClock,
         *,
         timeout_s: float = 1.5,
         retries: int = 5,
         component_id: int = 1,
+        queue_size: int = QUEUE_SIZE,
     ) -> None:
+        if queue_size < 1:
+            raise ValueError(f"queue_size must be >= 1, got {queue_size}")
         self.system_id = system_id
         self.component_id = component_id
         self._send_frame = send_frame
@@ -72,10 +94,21 @@ class VehiclePort:
         self.clock = clock
         self.timeout_s = timeout_s
         self.retries = retries
-        self._queue: asyncio.Queue[MAVLinkMessage] | None = None
-        self._machine: _Machine | None = None
-        self.busy = False
+        self.queue_size = queue_size
+        self._lock = asyncio.Lock()
+        self._users = 0  # exchanges running or waiting for their turn
+        self._inbox: collections.deque[MAVLinkMessage] | None = None  # None: no exchange
+        self._reboot_pending = False
+        self._wake = asyncio.Event()
         self.sent = 0
+        """Frames sent to this vehicle."""
+        self.dropped = 0
+        """Messages dropped because the running exchange's queue was full (oldest first)."""
+
+    @property
+    def busy(self) -> bool:
+        """True while an exchange runs or waits for its turn."""
+        return self._users > 0
 
     # ------------------------------------------------------------------ plumbing
     def send(self, msg: MAVLinkMessage) -> bool:
@@ -88,60 +121,97 @@ class VehiclePort:
         return self._send_frame(self.system_id, frame)
 
     def deliver(self, msg: MAVLinkMessage) -> None:
-        """A message of this vehicle arrived (called by the session)."""
-        if self._queue is not None and not self._queue.full():
-            self._queue.put_nowait(msg)
+        """A message of this vehicle arrived (called by the session): queue it, wake the
+        driver. Dropped while no exchange runs; when the queue is full the oldest goes."""
+        inbox = self._inbox
+        if inbox is None:
+            return
+        if len(inbox) >= self.queue_size:
+            inbox.popleft()
+            self.dropped += 1
+        inbox.append(msg)
+        self._wake.set()
 
     def notify_rebooted(self) -> None:
-        """The vehicle rebooted: the running transfer ends with VEHICLE_REBOOTED."""
-        machine = self._machine
-        if machine is not None and not machine.done:
-            for action in machine.notify_vehicle_rebooted(self.clock.now_s()):
-                if isinstance(action, Send):
-                    self.send(action.msg)
+        """The vehicle rebooted: the running exchange ends with VEHICLE_REBOOTED on the
+        driver's next turn. Forgotten when no exchange runs."""
+        if self._inbox is None:
+            return
+        self._reboot_pending = True
+        self._wake.set()
 
-    async def _next(self, deadline_s: float | None) -> MAVLinkMessage | None:
-        assert self._queue is not None
-        if not self._queue.empty():
-            return self._queue.get_nowait()
-        now = self.clock.now_s()
-        wait_mission = 0.5 if deadline_s is None else max(0.0, deadline_s - now)
-        wall = max(0.002, self.clock.wall_s(wait_mission))
+    @contextlib.asynccontextmanager
+    async def _exchange(self) -> AsyncIterator[None]:
+        """Wait for our turn; own the queue and the reboot flag until the exchange ends."""
+        self._users += 1
         try:
-            async with asyncio.timeout(wall):
-                return await self._queue.get()
-        except TimeoutError:
-            return None
+            async with self._lock:
+                self._inbox = collections.deque()
+                self._reboot_pending = False
+                self._wake.clear()
+                try:
+                    yield
+                finally:
+                    self._inbox = None
+                    self._reboot_pending = False
+        finally:
+            self._users -= 1
 
-    async def run(self, machine: _Machine) -> TransferResult:
-        """Drive ``machine`` to its end; cancelling the task cancels the transfer politely."""
-        self._queue = asyncio.Queue(_QUEUE)
-        self._machine = machine
-        self.busy = True
+    def _perform(self, actions: list[Action]) -> TransferResult | None:
+        """Send the Send actions; the result of a Finished one, if any."""
+        for action in actions:
+            if isinstance(action, Send):
+                self.send(action.msg)
+            elif isinstance(action, Finished):
+                return action.result
+        return None
+
+    async def _wait(self, deadline_s: float | None) -> None:
+        """Sleep until a message or a reboot arrives, or until ``deadline_s`` (mission s)."""
+        self._wake.clear()
+        if self._inbox or self._reboot_pending:
+            return
+        wait_s = _IDLE_WAIT_S if deadline_s is None else deadline_s - self.clock.now_s()
+        wall_s = max(_MIN_WALL_WAIT_S, self.clock.wall_s(max(0.0, wait_s)))
+        with contextlib.suppress(TimeoutError):
+            async with asyncio.timeout(wall_s):
+                await self._wake.wait()
+
+    async def run(self, machine: TransferBase[Any]) -> TransferResult:
+        """Run ``machine`` to its end, after the exchanges before it (see module docstring).
+
+        Cancelling the calling task cancels the exchange politely and re-raises.
+        """
+        async with self._exchange():
+            return await self._drive(machine)
+
+    async def _drive(self, machine: TransferBase[Any]) -> TransferResult:
+        """The one owner of ``machine``: every call to it happens here."""
         try:
             actions = machine.start(self.clock.now_s())
             while True:
-                for action in actions:
-                    if isinstance(action, Send):
-                        self.send(action.msg)
-                    elif isinstance(action, Finished):
-                        return action.result
-                if machine.done:
+                result = self._perform(actions)
+                if result is not None:
+                    return result
+                if machine.done:  # (Finished is always the last action; belt and braces)
                     assert machine.result is not None
                     return machine.result
-                msg = await self._next(machine.next_deadline_s())
-                now = self.clock.now_s()
-                actions = machine.receive(msg, now) if msg is not None else machine.poll(now)
+                now_s = self.clock.now_s()
+                deadline_s = machine.next_deadline_s()
+                if self._reboot_pending:
+                    self._reboot_pending = False
+                    actions = machine.notify_vehicle_rebooted(now_s)
+                elif self._inbox:
+                    actions = machine.receive(self._inbox.popleft(), now_s)
+                elif deadline_s is not None and now_s >= deadline_s:
+                    actions = machine.poll(now_s)
+                else:
+                    await self._wait(deadline_s)
+                    actions = []
         except asyncio.CancelledError:
             with contextlib.suppress(Exception):
-                for action in machine.cancel(self.clock.now_s()):
-                    if isinstance(action, Send):
-                        self.send(action.msg)
+                self._perform(machine.cancel(self.clock.now_s()))
             raise
-        finally:
-            self._queue = None
-            self._machine = None
-            self.busy = False
 
     # ------------------------------------------------------------------ missions
     @property
@@ -195,32 +265,18 @@ class VehiclePort:
     async def command(
         self, command: int, params: Sequence[float], timeout_s: float = 1.0, retries: int = 5
     ) -> int | None:
-        """COMMAND_LONG until its COMMAND_ACK; the MAV_RESULT, or None on silence."""
-        p = [float(x) for x in params] + [0.0] * (7 - len(params))
-        self._queue = asyncio.Queue(_QUEUE)
-        self.busy = True
-        try:
-            for confirmation in range(retries + 1):
-                self.send(
-                    M.MAVLink_command_long_message(
-                        self.system_id, self.component_id, command, min(confirmation, 255), *p
-                    )
-                )
-                deadline = self.clock.now_s() + timeout_s
-                while self.clock.now_s() < deadline:
-                    msg = await self._next(deadline)
-                    if msg is None:
-                        continue
-                    if msg.get_type() == "COMMAND_ACK" and int(msg.command) == command:
-                        target = getattr(msg, "target_system", 0)
-                        if target in (0, self.encoder.system_id):
-                            result = int(msg.result)
-                            if result != M.MAV_RESULT_IN_PROGRESS:
-                                return result
-            return None
-        finally:
-            self._queue = None
-            self.busy = False
+        """COMMAND_LONG until its COMMAND_ACK: the MAV_RESULT, or None on silence or reboot."""
+        machine = CommandLong(
+            self.system_id,
+            self.component_id,
+            command,
+            params,
+            timeout_s=timeout_s,
+            retries=retries,
+            own_system=self._own_system,
+        )
+        await self.run(machine)
+        return machine.ack_result
 
     async def set_mode(self, mode: int) -> bool:
         result = await self.command(
@@ -234,36 +290,18 @@ class VehiclePort:
     async def param_set(
         self, name: str, value: float, timeout_s: float = 1.0, retries: int = 5
     ) -> bool:
-        """PARAM_SET until PARAM_VALUE echoes ``value``."""
-        self._queue = asyncio.Queue(_QUEUE)
-        self.busy = True
-        try:
-            for _ in range(retries + 1):
-                self.send(
-                    M.MAVLink_param_set_message(
-                        self.system_id,
-                        self.component_id,
-                        name.encode("ascii"),
-                        float(value),
-                        M.MAV_PARAM_TYPE_REAL32,
-                    )
-                )
-                deadline = self.clock.now_s() + timeout_s
-                while self.clock.now_s() < deadline:
-                    msg = await self._next(deadline)
-                    if msg is None or msg.get_type() != "PARAM_VALUE":
-                        continue
-                    pid = msg.param_id
-                    if isinstance(pid, bytes):
-                        pid = pid.decode("ascii", "replace")
-                    if str(pid).rstrip("\x00") == name and math.isclose(
-                        float(msg.param_value), float(value), rel_tol=1e-6, abs_tol=1e-6
-                    ):
-                        return True
-            return False
-        finally:
-            self._queue = None
-            self.busy = False
+        """PARAM_SET until PARAM_VALUE echoes ``value``; False on silence or reboot."""
+        result = await self.run(
+            ParamSet(
+                self.system_id,
+                self.component_id,
+                name,
+                value,
+                timeout_s=timeout_s,
+                retries=retries,
+            )
+        )
+        return result.ok
 
     def request_rates(self, position_hz: float) -> None:
         """Ask for the telemetry the daemon needs (fire and forget; repeated by the session).

@@ -13,9 +13,14 @@ when the ACK was lost, but only if it is news: the vehicle was known to be on an
 equal to ``seq`` must not count.) Silence before the ACK resends the command with
 ``confirmation`` + 1; after the ACK nothing is resent (a resend would restart the item).
 Defaults 1.0 s x 5: MISSION_CURRENT streams at ~1 Hz, so a 6 s window sees ~6 of them.
+
+Any other command (:class:`CommandLong`) and PARAM_SET (:class:`ParamSet`) are in
+:mod:`groundstation.mavlink.vehicle_commands`.
 """
 
 from __future__ import annotations
+
+import enum
 
 from groundstation.mavlink.codec import MAVLinkMessage, mavlink2
 from groundstation.mavlink.errors import LocalProtocolError
@@ -29,9 +34,18 @@ from groundstation.mavlink.mission_transfer import (
     int_field,
 )
 
-__all__ = ["MissionClear", "SetCurrent"]
+__all__ = [
+    "ClearState",
+    "MissionClear",
+    "SetCurrent",
+    "SetCurrentState",
+    "command_result_code",
+    "command_result_name",
+]
 
 SET_CURRENT_TIMEOUT_S = 1.0
+_UINT8_MAX = 255
+_UINT16_MAX = 65535
 
 _COMMAND_RESULT_CODES: dict[int, TransferCode] = {
     mavlink2.MAV_RESULT_TEMPORARILY_REJECTED: TransferCode.COMMAND_FAILED,
@@ -42,60 +56,64 @@ _COMMAND_RESULT_CODES: dict[int, TransferCode] = {
 }
 
 
-def _command_result_name(result: int) -> str:
+def command_result_name(result: int) -> str:
+    """``MAV_RESULT_*`` name of a COMMAND_ACK result (``"MAV_RESULT_<n>"`` if unknown)."""
     entry = mavlink2.enums["MAV_RESULT"].get(result)
     if entry is None or entry.name.endswith("ENUM_END"):
         return f"MAV_RESULT_{result}"
     return str(entry.name)
 
 
-class MissionClear(TransferBase):
+def command_result_code(result: int) -> TransferCode:
+    """The result code for a COMMAND_ACK result (ACCEPTED: SUCCESS; unknown: REMOTE_ERROR)."""
+    if result == mavlink2.MAV_RESULT_ACCEPTED:
+        return TransferCode.SUCCESS
+    return _COMMAND_RESULT_CODES.get(result, TransferCode.REMOTE_ERROR)
+
+
+class ClearState(enum.Enum):
+    """Where a clear is."""
+
+    IDLE = "idle"
+    WAITING_ACK = "waiting_ack"  # MISSION_CLEAR_ALL sent (silence resends it)
+    DONE = "done"
+
+
+class MissionClear(TransferBase[ClearState]):
     """Delete the vehicle's mission of ``mission_type``."""
 
     default_timeout_s = COMMAND_TIMEOUT_S
+    _IDLE = ClearState.IDLE
+    _DONE = ClearState.DONE
+    _HANDLED = frozenset({"MISSION_ACK"})
+    _WHAT = "clear"
 
     def start(self, now_s: float) -> list[Action]:
         """Begin: send MISSION_CLEAR_ALL."""
-        self._begin(now_s)
+        self._begin(now_s, ClearState.WAITING_ACK)
         return [Send(self._clear())]
 
-    def poll(self, now_s: float) -> list[Action]:
+    def _on_silence(self, now_s: float, *, give_up: bool) -> list[Action]:
         """Resend MISSION_CLEAR_ALL on silence, or give up (TIMEOUT)."""
-        due = self._timed_out(now_s)
-        if due is None:
-            return []
-        if due:
+        if give_up:
             return self._finish(
                 TransferCode.TIMEOUT,
                 f"no MISSION_ACK after {self.retries + 1} MISSION_CLEAR_ALL",
             )
         return [Send(self._clear())]
 
-    def receive(self, msg: MAVLinkMessage, now_s: float) -> list[Action]:
-        """Handle one message; only this vehicle's MISSION_ACK matters."""
-        self._check_receive()
-        if msg.get_type() != "MISSION_ACK" or not self._from_vehicle(msg):
-            return []
-        ack_type = int_field(msg, "type")
+    def _on_message(self, kind: str, msg: MAVLinkMessage, now_s: float) -> list[Action]:
+        ack_type = int_field(msg, "type", 0, _UINT8_MAX)
         if ack_type is None:
             return []
-        mission_type = int_field(msg, "mission_type")
-        if mission_type != self.mission_type:
-            return self._finish(
-                TransferCode.MISSION_TYPE_MISMATCH,
-                f"MISSION_ACK for mission type {mission_type}, clearing {self.mission_type}",
-            )
+        mismatch = self._mission_type_mismatch(kind, msg)
+        if mismatch is not None:
+            return mismatch
         if ack_type == mavlink2.MAV_MISSION_ACCEPTED:
             return self._finish(
                 TransferCode.SUCCESS, "mission cleared", remote_code="MAV_MISSION_ACCEPTED"
             )
         return self._finish_for_ack(ack_type, "to MISSION_CLEAR_ALL")
-
-    def cancel(self, now_s: float) -> list[Action]:
-        """Stop waiting (nothing to tell the vehicle)."""
-        if self.done or not self._started:
-            return []
-        return self._finish(TransferCode.CANCELLED, "clear cancelled by the ground station")
 
     def _clear(self) -> MAVLinkMessage:
         return mavlink2.MAVLink_mission_clear_all_message(
@@ -103,8 +121,22 @@ class MissionClear(TransferBase):
         )
 
 
-class SetCurrent(TransferBase):
+class SetCurrentState(enum.Enum):
+    """Where a set-current is."""
+
+    IDLE = "idle"
+    SENDING_COMMAND = "sending_command"  # no COMMAND_ACK ACCEPTED yet (silence resends)
+    CONFIRMING = "confirming"  # ACK ACCEPTED: waiting for MISSION_CURRENT (no resends)
+    DONE = "done"
+
+
+class SetCurrent(TransferBase[SetCurrentState]):
     """Make item ``seq`` the vehicle's current mission item, and confirm it."""
+
+    _IDLE = SetCurrentState.IDLE
+    _DONE = SetCurrentState.DONE
+    _HANDLED = frozenset({"COMMAND_ACK", "MISSION_CURRENT"})
+    _WHAT = "set-current"
 
     def __init__(
         self,
@@ -128,77 +160,66 @@ class SetCurrent(TransferBase):
             own_system=own_system,
             own_component=own_component,
         )
-        if not 0 <= seq <= 65535:
+        if not 0 <= seq <= _UINT16_MAX:
             raise LocalProtocolError(f"seq must be in 0..65535, got {seq}")
         self.seq = seq
         self.use_command = use_command
         self._confirmation = 0
-        self._ack_accepted = False
         self._seen_other_seq = known_current_seq is not None and known_current_seq != seq
 
     def start(self, now_s: float) -> list[Action]:
         """Begin: send the set-current command."""
-        self._begin(now_s)
+        self._begin(now_s, SetCurrentState.SENDING_COMMAND)
         return [Send(self._command())]
 
-    def poll(self, now_s: float) -> list[Action]:
+    def _on_silence(self, now_s: float, *, give_up: bool) -> list[Action]:
         """Resend the command while unacknowledged; give up after the retries (TIMEOUT)."""
-        due = self._timed_out(now_s)
-        if due is None:
-            return []
-        if due:
-            if self._ack_accepted:
+        acked = self._state is SetCurrentState.CONFIRMING
+        if give_up:
+            if acked:
                 message = f"COMMAND_ACK ACCEPTED but MISSION_CURRENT never showed {self.seq}"
             else:
                 message = f"no confirmation of current item {self.seq}"
             return self._finish(TransferCode.TIMEOUT, message)
-        if self._ack_accepted:
+        if acked:
             return []
-        self._confirmation = min(self._confirmation + 1, 255)
+        self._confirmation = min(self._confirmation + 1, _UINT8_MAX)
         return [Send(self._command())]
 
-    def receive(self, msg: MAVLinkMessage, now_s: float) -> list[Action]:
-        """Handle COMMAND_ACK for our command and MISSION_CURRENT; ignore the rest."""
-        self._check_receive()
-        kind = msg.get_type()
-        if kind not in ("COMMAND_ACK", "MISSION_CURRENT") or not self._from_vehicle(msg):
-            return []
+    def _on_message(self, kind: str, msg: MAVLinkMessage, now_s: float) -> list[Action]:
         if kind == "MISSION_CURRENT":
-            current = int_field(msg, "seq")
-            if current is None:
-                return []
-            if current != self.seq:
-                self._seen_other_seq = True
-                return []
-            if self._ack_accepted:
-                how = "COMMAND_ACK and MISSION_CURRENT"
-            elif self._seen_other_seq:
-                how = "MISSION_CURRENT moved to it; no ACK seen"
-            else:
-                return []  # possibly stale: the vehicle may have been on seq already
-            return self._finish(TransferCode.SUCCESS, f"current item {self.seq} ({how})")
+            return self._on_mission_current(msg)
         if int_field(msg, "command") != mavlink2.MAV_CMD_DO_SET_MISSION_CURRENT:
             return []
-        result = int_field(msg, "result")
+        result = int_field(msg, "result", 0, _UINT8_MAX)
         if result is None or result == mavlink2.MAV_RESULT_IN_PROGRESS:
             return []
         if result == mavlink2.MAV_RESULT_ACCEPTED:
-            if not self._ack_accepted:
-                self._ack_accepted = True
+            if self._state is SetCurrentState.SENDING_COMMAND:
+                self._state = SetCurrentState.CONFIRMING
                 self._arm(now_s)
             return []
-        name = _command_result_name(result)
+        name = command_result_name(result)
         return self._finish(
-            _COMMAND_RESULT_CODES.get(result, TransferCode.REMOTE_ERROR),
+            command_result_code(result),
             f"vehicle answered {name} to DO_SET_MISSION_CURRENT {self.seq}",
             remote_code=name,
         )
 
-    def cancel(self, now_s: float) -> list[Action]:
-        """Stop waiting (a command cannot be taken back)."""
-        if self.done or not self._started:
+    def _on_mission_current(self, msg: MAVLinkMessage) -> list[Action]:
+        current = int_field(msg, "seq", 0, _UINT16_MAX)
+        if current is None:
             return []
-        return self._finish(TransferCode.CANCELLED, "set-current cancelled by the ground station")
+        if current != self.seq:
+            self._seen_other_seq = True
+            return []
+        if self._state is SetCurrentState.CONFIRMING:
+            how = "COMMAND_ACK and MISSION_CURRENT"
+        elif self._seen_other_seq:
+            how = "MISSION_CURRENT moved to it; no ACK seen"
+        else:
+            return []  # possibly stale: the vehicle may have been on seq already
+        return self._finish(TransferCode.SUCCESS, f"current item {self.seq} ({how})")
 
     def _command(self) -> MAVLinkMessage:
         if not self.use_command:

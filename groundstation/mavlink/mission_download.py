@@ -20,6 +20,8 @@ ends at once (we still send the final ACK).
 
 from __future__ import annotations
 
+import enum
+
 from groundstation.mavlink.codec import MAVLinkMessage, mavlink2
 from groundstation.mavlink.mission_items import MissionItem
 from groundstation.mavlink.mission_transfer import (
@@ -30,14 +32,28 @@ from groundstation.mavlink.mission_transfer import (
     int_field,
 )
 
-__all__ = ["MissionDownload"]
+__all__ = ["DownloadState", "MissionDownload"]
 
-_HANDLED = ("MISSION_COUNT", "MISSION_ITEM_INT", "MISSION_ITEM", "MISSION_ACK")
+_UINT16_MAX = 65535
+_UINT8_MAX = 255
 
 
-class MissionDownload(TransferBase):
+class DownloadState(enum.Enum):
+    """Where a download is."""
+
+    IDLE = "idle"  # not started
+    REQUESTING_LIST = "requesting_list"  # MISSION_REQUEST_LIST sent, no MISSION_COUNT yet
+    REQUESTING_ITEMS = "requesting_items"  # MISSION_REQUEST_INT(k) sent for the next item
+    DONE = "done"
+
+
+class MissionDownload(TransferBase[DownloadState]):
     """Read the vehicle's mission; ``result.items`` holds it on success."""
 
+    _IDLE = DownloadState.IDLE
+    _DONE = DownloadState.DONE
+    _HANDLED = frozenset({"MISSION_COUNT", "MISSION_ITEM_INT", "MISSION_ITEM", "MISSION_ACK"})
+    _WHAT = "download"
     _count: int | None = None  # the vehicle's item count, once it has said it
 
     @property
@@ -47,17 +63,16 @@ class MissionDownload(TransferBase):
 
     def start(self, now_s: float) -> list[Action]:
         """Begin: send MISSION_REQUEST_LIST."""
-        self._begin(now_s)
+        self._begin(now_s, DownloadState.REQUESTING_LIST)
         self._items: list[MissionItem] = []
         return [Send(self._request_list())]
 
-    def poll(self, now_s: float) -> list[Action]:
-        """Handle timeouts: resend the pending request, or give up (TIMEOUT)."""
-        due = self._timed_out(now_s)
-        if due is None:
-            return []
-        if due:
-            if self._count is None:
+    # -- internals ------------------------------------------------------------------------
+
+    def _on_silence(self, now_s: float, *, give_up: bool) -> list[Action]:
+        """Resend the pending request, or give up (TIMEOUT, telling the vehicle)."""
+        if give_up:
+            if self._state is DownloadState.REQUESTING_LIST:
                 what = f"no MISSION_COUNT after {self.retries + 1} MISSION_REQUEST_LIST"
             else:
                 what = f"no MISSION_ITEM_INT {len(self._items)} of {self._count}"
@@ -66,42 +81,30 @@ class MissionDownload(TransferBase):
                 f"{what} ({self.timeout_s:g} s each)",
                 send=self._mission_ack(mavlink2.MAV_MISSION_OPERATION_CANCELLED),
             )
-        if self._count is None:
+        if self._state is DownloadState.REQUESTING_LIST:
             return [Send(self._request_list())]
         return [Send(self._request_item(len(self._items)))]
 
-    def receive(self, msg: MAVLinkMessage, now_s: float) -> list[Action]:
-        """Handle one message from the link; anything not for this download is ignored."""
-        self._check_receive()
-        kind = msg.get_type()
-        if kind not in _HANDLED or not self._from_vehicle(msg):
-            return []
-        mission_type = int_field(msg, "mission_type")
-        if mission_type != self.mission_type:
-            return self._finish(
-                TransferCode.MISSION_TYPE_MISMATCH,
-                f"{kind} for mission type {mission_type}, downloading type {self.mission_type}",
-            )
+    def _on_message(self, kind: str, msg: MAVLinkMessage, now_s: float) -> list[Action]:
+        mismatch = self._mission_type_mismatch(kind, msg)
+        if mismatch is not None:
+            return mismatch
         if kind == "MISSION_COUNT":
             return self._on_count(msg, now_s)
         if kind == "MISSION_ACK":
-            ack_type = int_field(msg, "type")
+            ack_type = int_field(msg, "type", 0, _UINT8_MAX)
             if ack_type is None or ack_type == mavlink2.MAV_MISSION_ACCEPTED:
                 return []
             return self._finish_for_ack(ack_type, "to the download")
         return self._on_item(msg, now_s)
 
-    def cancel(self, now_s: float) -> list[Action]:
+    def _cancel_actions(self, now_s: float) -> list[Action]:
         """Abandon the download, telling the vehicle (MISSION_ACK OPERATION_CANCELLED)."""
-        if self.done or not self._started:
-            return []
         return self._finish(
             TransferCode.CANCELLED,
             "download cancelled by the ground station",
             send=self._mission_ack(mavlink2.MAV_MISSION_OPERATION_CANCELLED),
         )
-
-    # -- internals ------------------------------------------------------------------------
 
     def _request_list(self) -> MAVLinkMessage:
         return mavlink2.MAVLink_mission_request_list_message(
@@ -114,8 +117,9 @@ class MissionDownload(TransferBase):
         )
 
     def _on_count(self, msg: MAVLinkMessage, now_s: float) -> list[Action]:
-        count = int_field(msg, "count")
-        if count is None or count < 0:
+        count = int_field(msg, "count", 0, _UINT16_MAX)
+        if count is None:
+            self._notes.append(f"unreadable MISSION_COUNT ignored at t={now_s:.3f}s")
             return []
         if self._count is not None:
             if count == self._count:
@@ -134,11 +138,12 @@ class MissionDownload(TransferBase):
                 items=(),
                 send=self._mission_ack(mavlink2.MAV_MISSION_ACCEPTED),
             )
+        self._state = DownloadState.REQUESTING_ITEMS
         self._arm(now_s)
         return [Send(self._request_item(0))]
 
     def _on_item(self, msg: MAVLinkMessage, now_s: float) -> list[Action]:
-        if self._count is None:
+        if self._state is not DownloadState.REQUESTING_ITEMS or self._count is None:
             return []
         expected = len(self._items)
         if int_field(msg, "seq") != expected:
@@ -147,7 +152,7 @@ class MissionDownload(TransferBase):
         if item is None:
             return self._finish(
                 TransferCode.PROTOCOL_ERROR,
-                f"item {expected} is unreadable ({msg.get_type()})",
+                f"item {expected} is unreadable",
                 send=self._mission_ack(mavlink2.MAV_MISSION_OPERATION_CANCELLED),
             )
         self._items.append(item)

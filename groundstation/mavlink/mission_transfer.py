@@ -1,25 +1,33 @@
-"""Shared pieces of the sans-IO mission-transfer state machines.
+"""Shared pieces of the sans-IO transfer state machines.
 
-The state machines (``MissionUpload``, ``MissionDownload``, ``MissionClear``, ``SetCurrent``)
-follow h11's pattern: no sockets, no clock, no sleeping. The caller feeds them what arrived
-and the time (mission seconds), and they answer with :data:`Action` values:
+The state machines (``MissionUpload``, ``MissionDownload``, ``MissionClear``, ``SetCurrent``,
+and ``CommandLong``/``ParamSet`` in :mod:`groundstation.mavlink.vehicle_commands`) follow
+h11's pattern: no sockets, no clock, no sleeping. The caller feeds them what arrived and the
+time (mission seconds), and they answer with :data:`Action` values:
 
 * :class:`Send` -- a pymavlink message to encode (with the caller's ``MavlinkEncoder``) and
   send to the vehicle;
-* :class:`Finished` -- the transfer ended; ``result`` says how.
+* :class:`Finished` -- the transfer ended; ``result`` says how. Always the last action.
 
-Drive loop::
+Their common interface is :class:`TransferBase` (``start``, ``receive``, ``poll``,
+``cancel``, ``notify_vehicle_rebooted``, ``next_deadline_s``, ``done``, ``result``,
+``state``). Drive loop (one owner: only this loop calls the machine)::
 
     actions = sm.start(now_s)
-    while not sm.done:
-        perform(actions)
-        msg = await receive(timeout=sm.next_deadline_s() - now_s)
-        actions = sm.receive(msg, now_s) if msg else sm.poll(now_s)
+    while True:
+        perform(actions)                       # returns on Finished
+        if rebooted: actions = sm.notify_vehicle_rebooted(now_s)
+        elif msg := inbox.pop(): actions = sm.receive(msg, now_s)
+        elif now_s >= sm.next_deadline_s(): actions = sm.poll(now_s)
+        else: await wake-up or sm.next_deadline_s()
 
-Peer misbehaviour never raises: it ends the transfer with a failed :class:`TransferResult`
-(a :class:`~groundstation.mavlink.errors.RemoteProtocolError` *as data*). Local misuse
-(``receive`` before ``start`` or after ``done``, invalid items) raises
-:class:`~groundstation.mavlink.errors.LocalProtocolError`.
+Peer input never raises: misbehaviour ends the transfer with a failed
+:class:`TransferResult` (a :class:`~groundstation.mavlink.errors.RemoteProtocolError` *as
+data*), and unreadable messages (wrong field types, out-of-range values, other sources)
+are ignored. After the end every input (``receive``, ``poll``, ``cancel``,
+``notify_vehicle_rebooted``) returns ``[]``, as h11 answers input after DONE with a state.
+Local misuse raises :class:`~groundstation.mavlink.errors.LocalProtocolError`: ``receive``
+before ``start``, ``start`` twice, invalid constructor arguments (items, target, timeout).
 
 Timing defaults (mission seconds, i.e. on the vehicle's own clock under a speed-up):
 
@@ -34,9 +42,11 @@ Timing defaults (mission seconds, i.e. on the vehicle's own clock under a speed-
 
 from __future__ import annotations
 
+import abc
 import enum
+import math
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Generic, TypeVar
 
 from groundstation.mavlink.codec import MAVLinkMessage, mavlink2
 from groundstation.mavlink.errors import LocalProtocolError, RemoteProtocolError
@@ -51,9 +61,13 @@ __all__ = [
     "Action",
     "Finished",
     "Send",
+    "TransferBase",
     "TransferCode",
     "TransferResult",
     "code_for_mission_ack",
+    "float_field",
+    "int_field",
+    "message_type",
 ]
 
 DEFAULT_TIMEOUT_S = 1.5
@@ -181,16 +195,67 @@ def code_for_mission_ack(ack_type: int) -> TransferCode:
     return _ACK_CODES.get(ack_type, TransferCode.REMOTE_ERROR)
 
 
-def int_field(msg: MAVLinkMessage, name: str) -> int | None:
-    """An integer field of a decoded message, or None if it is missing or not an integer."""
+def int_field(
+    msg: object, name: str, low: int | None = None, high: int | None = None
+) -> int | None:
+    """An integer field of a decoded message, or None if missing, not an int, or out of range.
+
+    ``low``/``high`` (inclusive) state the field's wire range: a frame with a wrong length
+    but a valid CRC decodes with truncated or zero-filled fields, and a message built by
+    hand may carry anything, so every field a machine reads goes through this (or
+    :func:`float_field`) and out-of-range values read as "unreadable".
+    """
     value = getattr(msg, name, None)
     if isinstance(value, bool) or not isinstance(value, int):
+        return None
+    if (low is not None and value < low) or (high is not None and value > high):
         return None
     return value
 
 
-class TransferBase:
-    """Retry timer, addressing and bookkeeping shared by the transfer state machines.
+def float_field(msg: object, name: str) -> float | None:
+    """A finite numeric field of a decoded message, or None (missing, not a number, NaN, inf)."""
+    value = getattr(msg, name, None)
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return None
+    result = float(value)
+    return result if math.isfinite(result) else None
+
+
+def message_type(msg: object) -> str | None:
+    """``msg.get_type()``, or None for anything that is not a readable MAVLink message."""
+    try:
+        kind = msg.get_type()  # type: ignore[attr-defined]
+    except Exception:  # peer input never raises: an unreadable object is ignored
+        return None
+    return kind if isinstance(kind, str) else None
+
+
+S = TypeVar("S", bound=enum.Enum)
+
+
+class TransferBase(abc.ABC, Generic[S]):
+    """The transfer-machine interface, its retry timer, addressing and bookkeeping.
+
+    Every machine declares its own state enum ``S`` with at least ``IDLE`` (before
+    :meth:`start`) and ``DONE`` (after the end) and exposes it as :attr:`state`. The public
+    interface, the same for every machine:
+
+    * :meth:`start` (abstract): begin, return the first sends. Raises
+      :class:`LocalProtocolError` when called twice.
+    * :meth:`receive`: one message from the link. Before :meth:`start` it raises
+      :class:`LocalProtocolError` (a programming error). Otherwise it **never raises**:
+      anything not for this transfer (other systems, other components, other ground
+      stations, unhandled types, unreadable fields) is ignored, and after the end every
+      input returns ``[]``, as h11 answers input after DONE with a state, not an exception.
+    * :meth:`poll`: the time passed; resends or gives up. ``[]`` before start and after end.
+    * :meth:`cancel`: we abandon the transfer; ``[]`` before start and after end.
+    * :meth:`notify_vehicle_rebooted`: the vehicle rebooted; ``[]`` before start and after end.
+    * :meth:`next_deadline_s`, :attr:`done`, :attr:`result`.
+
+    Subclasses implement ``start``, ``_on_message`` (a message of a ``_HANDLED`` type from
+    our vehicle, addressed to us), ``_on_silence`` (the timer expired; ``give_up`` when the
+    retries are spent) and may override ``_cancel_actions``.
 
     ``target_system``/``target_component`` identify the vehicle; messages from any other
     source are ignored (component 0 accepts any component of that system). When
@@ -201,6 +266,15 @@ class TransferBase:
 
     default_timeout_s: float = DEFAULT_TIMEOUT_S
     """Timeout per attempt when none is given (subclasses set their own)."""
+
+    _IDLE: S
+    """The subclass's state before start."""
+    _DONE: S
+    """The subclass's state after the end."""
+    _HANDLED: frozenset[str] = frozenset()
+    """Message types the subclass reads; every other type is ignored."""
+    _WHAT: str = "transfer"
+    """What the machine does, for messages (``"upload"``)."""
 
     def __init__(
         self,
@@ -222,7 +296,7 @@ class TransferBase:
             )
         if not 0 <= mission_type <= 255:
             raise LocalProtocolError(f"invalid mission_type {mission_type}")
-        if not timeout_s > 0.0:
+        if not (timeout_s > 0.0 and math.isfinite(timeout_s)):
             raise LocalProtocolError(f"timeout_s must be > 0, got {timeout_s}")
         if retries < 0:
             raise LocalProtocolError(f"retries must be >= 0, got {retries}")
@@ -233,19 +307,24 @@ class TransferBase:
         self.retries = retries
         self.own_system = own_system
         self.own_component = own_component
-        self._started = False
+        self._state: S = self._IDLE
         self._result: TransferResult | None = None
         self._deadline_s: float | None = None
         self._retries_left = retries
         self._retries_used = 0
         self._notes: list[str] = []
 
-    # -- public state ---------------------------------------------------------------------
+    # -- public interface -----------------------------------------------------------------
+
+    @property
+    def state(self) -> S:
+        """Where the transfer is (the subclass's state enum)."""
+        return self._state
 
     @property
     def done(self) -> bool:
         """True once the transfer has finished (successfully or not)."""
-        return self._result is not None
+        return self._state is self._DONE
 
     @property
     def result(self) -> TransferResult | None:
@@ -253,31 +332,66 @@ class TransferBase:
         return self._result
 
     def next_deadline_s(self) -> float | None:
-        """Mission time at which :meth:`poll` must be called next (None when done)."""
-        return None if self.done else self._deadline_s
+        """Mission time at which :meth:`poll` must be called next (None when idle or done)."""
+        return None if self._state in (self._IDLE, self._DONE) else self._deadline_s
+
+    @abc.abstractmethod
+    def start(self, now_s: float) -> list[Action]:
+        """Begin the transfer: the first messages to send."""
+
+    def receive(self, msg: MAVLinkMessage, now_s: float) -> list[Action]:
+        """Handle one message from the link (see the class docstring: never raises on it)."""
+        if self._state is self._IDLE:
+            raise LocalProtocolError(f"{type(self).__name__}.receive() before start()")
+        if self.done:
+            return []
+        kind = message_type(msg)
+        if kind is None or kind not in self._HANDLED or not self._from_vehicle(msg):
+            return []
+        return self._on_message(kind, msg, now_s)
+
+    def poll(self, now_s: float) -> list[Action]:
+        """Handle the timer: resend, or give up (TIMEOUT) once the retries are spent."""
+        due = self._timed_out(now_s)
+        if due is None:
+            return []
+        return self._on_silence(now_s, give_up=due)
+
+    def cancel(self, now_s: float) -> list[Action]:
+        """Abandon the transfer (CANCELLED), telling the vehicle where the protocol says so."""
+        if self._state in (self._IDLE, self._DONE):
+            return []
+        return self._cancel_actions(now_s)
 
     def notify_vehicle_rebooted(self, now_s: float) -> list[Action]:
         """The caller saw the vehicle reboot (time_boot_ms went back): fail the transfer.
 
         A rebooted autopilot has forgotten the transfer; whatever it stored is suspect.
+        Nothing is sent: the rebooted vehicle has no transfer to cancel.
         """
-        if self.done:
+        if self._state in (self._IDLE, self._DONE):
             return []
-        return self._finish(TransferCode.VEHICLE_REBOOTED, "vehicle rebooted mid-transfer")
+        return self._finish(TransferCode.VEHICLE_REBOOTED, f"vehicle rebooted mid-{self._WHAT}")
 
-    # -- helpers for subclasses -----------------------------------------------------------
+    # -- for subclasses -------------------------------------------------------------------
 
-    def _begin(self, now_s: float) -> None:
-        if self._started:
+    @abc.abstractmethod
+    def _on_message(self, kind: str, msg: MAVLinkMessage, now_s: float) -> list[Action]:
+        """A ``kind`` message (one of ``_HANDLED``) from our vehicle, addressed to us."""
+
+    @abc.abstractmethod
+    def _on_silence(self, now_s: float, *, give_up: bool) -> list[Action]:
+        """The timer expired: retry (``give_up`` False) or finish with TIMEOUT."""
+
+    def _cancel_actions(self, now_s: float) -> list[Action]:
+        """Default cancel: stop waiting, nothing to tell the vehicle."""
+        return self._finish(TransferCode.CANCELLED, f"{self._WHAT} cancelled by the ground station")
+
+    def _begin(self, now_s: float, state: S) -> None:
+        if self._state is not self._IDLE:
             raise LocalProtocolError(f"{type(self).__name__}.start() called twice")
-        self._started = True
+        self._state = state
         self._arm(now_s)
-
-    def _check_receive(self) -> None:
-        if not self._started:
-            raise LocalProtocolError(f"{type(self).__name__}.receive() before start()")
-        if self.done:
-            raise LocalProtocolError(f"{type(self).__name__}.receive() after it finished")
 
     def _arm(self, now_s: float, *, reset_retries: bool = True) -> None:
         """(Re)start the silence timer; progress resets the retry budget."""
@@ -286,8 +400,8 @@ class TransferBase:
             self._retries_left = self.retries
 
     def _timed_out(self, now_s: float) -> bool | None:
-        """None: not yet due. True: due and retries exhausted. False: due, retry now."""
-        if self.done or not self._started or self._deadline_s is None:
+        """None: not yet due (or idle/done). True: due, retries spent. False: due, retry."""
+        if self._state in (self._IDLE, self._DONE) or self._deadline_s is None:
             return None
         if now_s < self._deadline_s:
             return None
@@ -301,11 +415,13 @@ class TransferBase:
     def _from_vehicle(self, msg: MAVLinkMessage) -> bool:
         """True if ``msg`` comes from our vehicle and is addressed to us (or to everyone)."""
         try:
-            if msg.get_srcSystem() != self.target_system:
-                return False
-            if self.target_component not in (0, msg.get_srcComponent()):
-                return False
-        except AttributeError:
+            src_system = msg.get_srcSystem()
+            src_component = msg.get_srcComponent()
+        except Exception:  # not a decoded message: not from our vehicle
+            return False
+        if src_system != self.target_system:
+            return False
+        if self.target_component not in (0, src_component):
             return False
         if self.own_system is not None:
             target_system = int_field(msg, "target_system")
@@ -319,6 +435,16 @@ class TransferBase:
             ):
                 return False
         return True
+
+    def _mission_type_mismatch(self, kind: str, msg: MAVLinkMessage) -> list[Action] | None:
+        """Finish with MISSION_TYPE_MISMATCH unless ``msg`` is for our mission type."""
+        mission_type = int_field(msg, "mission_type")
+        if mission_type == self.mission_type:
+            return None
+        return self._finish(
+            TransferCode.MISSION_TYPE_MISMATCH,
+            f"{kind} for mission type {mission_type}, {self._WHAT} of type {self.mission_type}",
+        )
 
     def _mission_ack(self, ack_type: int) -> MAVLinkMessage:
         return mavlink2.MAVLink_mission_ack_message(
@@ -345,6 +471,7 @@ class TransferBase:
             notes=tuple(self._notes),
             maybe_stored=maybe_stored,
         )
+        self._state = self._DONE
         self._deadline_s = None
         actions: list[Action] = [] if send is None else [Send(send)]
         actions.append(Finished(self._result))

@@ -32,6 +32,7 @@ arrives, so a failed upload leaves a partial mission; retry until verified by do
 
 from __future__ import annotations
 
+import enum
 from collections.abc import Sequence
 
 from groundstation.mavlink.codec import MAVLinkMessage, mavlink2
@@ -47,13 +48,29 @@ from groundstation.mavlink.mission_transfer import (
     mission_result_name,
 )
 
-__all__ = ["MissionUpload"]
+__all__ = ["MissionUpload", "UploadState"]
 
-_REQUESTS = ("MISSION_REQUEST", "MISSION_REQUEST_INT")
+_UINT16_MAX = 65535
+_UINT8_MAX = 255
 
 
-class MissionUpload(TransferBase):
+class UploadState(enum.Enum):
+    """Where an upload is."""
+
+    IDLE = "idle"  # not started
+    SENDING_COUNT = "sending_count"  # MISSION_COUNT sent, no request yet (silence resends it)
+    SENDING_ITEMS = "sending_items"  # the vehicle is requesting items
+    WAITING_ACK = "waiting_ack"  # every item was requested: only the final ACK is missing
+    DONE = "done"
+
+
+class MissionUpload(TransferBase[UploadState]):
     """Upload ``items`` (already numbered 0..n-1; item 0 is home for ArduPilot)."""
+
+    _IDLE = UploadState.IDLE
+    _DONE = UploadState.DONE
+    _HANDLED = frozenset({"MISSION_REQUEST", "MISSION_REQUEST_INT", "MISSION_ACK"})
+    _WHAT = "upload"
 
     def __init__(
         self,
@@ -88,51 +105,38 @@ class MissionUpload(TransferBase):
 
     def start(self, now_s: float) -> list[Action]:
         """Begin: send MISSION_COUNT."""
-        self._begin(now_s)
+        self._begin(now_s, UploadState.SENDING_COUNT)
         return [Send(self._count_message())]
 
-    def poll(self, now_s: float) -> list[Action]:
-        """Handle timeouts: resend MISSION_COUNT before the first request, else just wait."""
-        due = self._timed_out(now_s)
-        if due is None:
-            return []
-        if due:
+    # -- internals ------------------------------------------------------------------------
+
+    def _on_silence(self, now_s: float, *, give_up: bool) -> list[Action]:
+        """Resend MISSION_COUNT before the first request; after it just wait (or give up)."""
+        if give_up:
             return self._finish(
                 TransferCode.TIMEOUT,
                 self._silence_message(),
-                maybe_stored=len(self._requested) == len(self.items),
+                maybe_stored=self._state is UploadState.WAITING_ACK,
             )
-        if not self._requested:
+        if self._state is UploadState.SENDING_COUNT:
             return [Send(self._count_message())]
         return []
 
-    def receive(self, msg: MAVLinkMessage, now_s: float) -> list[Action]:
-        """Handle one message from the link; anything not for this upload is ignored."""
-        self._check_receive()
-        kind = msg.get_type()
-        if kind not in (*_REQUESTS, "MISSION_ACK") or not self._from_vehicle(msg):
-            return []
-        mission_type = int_field(msg, "mission_type")
-        if mission_type != self.mission_type:
-            return self._finish(
-                TransferCode.MISSION_TYPE_MISMATCH,
-                f"{kind} for mission type {mission_type}, uploading type {self.mission_type}",
-            )
+    def _on_message(self, kind: str, msg: MAVLinkMessage, now_s: float) -> list[Action]:
+        mismatch = self._mission_type_mismatch(kind, msg)
+        if mismatch is not None:
+            return mismatch
         if kind == "MISSION_ACK":
             return self._on_ack(msg, now_s)
         return self._on_request(msg, kind, now_s)
 
-    def cancel(self, now_s: float) -> list[Action]:
+    def _cancel_actions(self, now_s: float) -> list[Action]:
         """Abandon the upload, telling the vehicle (MISSION_ACK OPERATION_CANCELLED)."""
-        if self.done or not self._started:
-            return []
         return self._finish(
             TransferCode.CANCELLED,
             "upload cancelled by the ground station",
             send=self._mission_ack(mavlink2.MAV_MISSION_OPERATION_CANCELLED),
         )
-
-    # -- internals ------------------------------------------------------------------------
 
     def _count_message(self) -> MAVLinkMessage:
         return mavlink2.MAVLink_mission_count_message(
@@ -140,23 +144,33 @@ class MissionUpload(TransferBase):
         )
 
     def _on_request(self, msg: MAVLinkMessage, kind: str, now_s: float) -> list[Action]:
-        seq = int_field(msg, "seq")
-        if seq is None or not 0 <= seq < len(self.items):
+        if int_field(msg, "seq") is None:
+            self._notes.append(f"unreadable {kind} ignored at t={now_s:.3f}s")
+            return []
+        seq = int_field(msg, "seq", 0, len(self.items) - 1)
+        if seq is None:
             return self._finish(
                 TransferCode.PROTOCOL_ERROR,
-                f"vehicle requested item {seq} of a {len(self.items)}-item mission",
+                f"vehicle requested item {getattr(msg, 'seq', None)} of a "
+                f"{len(self.items)}-item mission",
                 send=self._mission_ack(mavlink2.MAV_MISSION_OPERATION_CANCELLED),
             )
         if seq in self._requested:
             self._notes.append(f"duplicate {kind} for item {seq} at t={now_s:.3f}s")
         self._requested.add(seq)
+        self._state = (
+            UploadState.WAITING_ACK
+            if len(self._requested) == len(self.items)
+            else UploadState.SENDING_ITEMS
+        )
         self._arm(now_s)
         self.items_sent += 1
         return [Send(self.items[seq].to_message(self.target_system, self.target_component))]
 
     def _on_ack(self, msg: MAVLinkMessage, now_s: float) -> list[Action]:
-        ack_type = int_field(msg, "type")
+        ack_type = int_field(msg, "type", 0, _UINT8_MAX)
         if ack_type is None:
+            self._notes.append(f"unreadable MISSION_ACK ignored at t={now_s:.3f}s")
             return []
         if ack_type == mavlink2.MAV_MISSION_ACCEPTED:
             missing = len(self.items) - len(self._requested)
@@ -181,9 +195,9 @@ class MissionUpload(TransferBase):
 
     def _silence_message(self) -> str:
         tries = self.retries + 1
-        if not self._requested:
+        if self._state is UploadState.SENDING_COUNT:
             return f"no MISSION_REQUEST after {tries} MISSION_COUNT ({self.timeout_s:g} s each)"
-        if len(self._requested) == len(self.items):
+        if self._state is UploadState.WAITING_ACK:
             return (
                 "no MISSION_ACK after every item was sent; the vehicle may have stored the "
                 "mission (verify by download)"

@@ -1,0 +1,212 @@
+"""Sans-IO COMMAND_LONG and PARAM_SET exchanges (the ones that are not about the mission).
+
+:class:`CommandLong`: send ``COMMAND_LONG(command, params)`` until a ``COMMAND_ACK`` for
+that command, addressed to us, carries a final result (anything but IN_PROGRESS). Silence
+for ``timeout_s`` resends it with ``confirmation`` + 1, at most ``retries`` times (defaults
+1.0 s x 5, what the daemon used). The ACK's ``MAV_RESULT`` is kept in :attr:`ack_result`;
+ACCEPTED ends with SUCCESS, any other final result with its code (FAILED /
+TEMPORARILY_REJECTED: COMMAND_FAILED, DENIED, UNSUPPORTED, ...).
+
+:class:`ParamSet`: send ``PARAM_SET(name, value, REAL32)`` until a ``PARAM_VALUE`` of that
+name echoes the value (relative and absolute tolerance 1e-6, float32 on the wire). A
+``PARAM_VALUE`` of that name with another value (the vehicle clamped or refused it) is
+noted and waited past: silence resends, and the retries end it with TIMEOUT.
+
+Both follow :class:`~groundstation.mavlink.mission_transfer.TransferBase`: peer input never
+raises, input after the end returns ``[]``; bad arguments raise ``LocalProtocolError``.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from collections.abc import Sequence
+
+from groundstation.mavlink.codec import MAVLinkMessage, mavlink2
+from groundstation.mavlink.errors import LocalProtocolError
+from groundstation.mavlink.mission_commands import command_result_code, command_result_name
+from groundstation.mavlink.mission_items import f32
+from groundstation.mavlink.mission_transfer import (
+    DEFAULT_RETRIES,
+    Action,
+    Send,
+    TransferBase,
+    TransferCode,
+    float_field,
+    int_field,
+)
+
+__all__ = ["CommandLong", "CommandState", "ParamSet", "ParamSetState"]
+
+COMMAND_LONG_TIMEOUT_S = 1.0
+_UINT8_MAX = 255
+_UINT16_MAX = 65535
+_PARAM_ID_LEN = 16
+
+
+class CommandState(enum.Enum):
+    """Where a command is."""
+
+    IDLE = "idle"
+    WAITING_ACK = "waiting_ack"  # COMMAND_LONG sent (silence resends it)
+    DONE = "done"
+
+
+class CommandLong(TransferBase[CommandState]):
+    """One COMMAND_LONG and its final COMMAND_ACK."""
+
+    default_timeout_s = COMMAND_LONG_TIMEOUT_S
+    _IDLE = CommandState.IDLE
+    _DONE = CommandState.DONE
+    _HANDLED = frozenset({"COMMAND_ACK"})
+    _WHAT = "command"
+
+    def __init__(
+        self,
+        target_system: int,
+        target_component: int,
+        command: int,
+        params: Sequence[float] = (),
+        *,
+        timeout_s: float = COMMAND_LONG_TIMEOUT_S,
+        retries: int = DEFAULT_RETRIES,
+        own_system: int | None = None,
+        own_component: int | None = None,
+    ) -> None:
+        super().__init__(
+            target_system,
+            target_component,
+            timeout_s=timeout_s,
+            retries=retries,
+            own_system=own_system,
+            own_component=own_component,
+        )
+        if not 0 <= command <= _UINT16_MAX:
+            raise LocalProtocolError(f"command must be in 0..65535, got {command}")
+        if len(params) > 7:
+            raise LocalProtocolError(f"COMMAND_LONG has 7 params, got {len(params)}")
+        self.command = command
+        self.params: tuple[float, ...] = tuple(float(p) for p in params) + (0.0,) * (
+            7 - len(params)
+        )
+        self._confirmation = 0
+        self.ack_result: int | None = None
+        """The MAV_RESULT of the final COMMAND_ACK, once one arrived."""
+
+    def start(self, now_s: float) -> list[Action]:
+        """Begin: send the COMMAND_LONG."""
+        self._begin(now_s, CommandState.WAITING_ACK)
+        return [Send(self._message())]
+
+    def _on_silence(self, now_s: float, *, give_up: bool) -> list[Action]:
+        if give_up:
+            return self._finish(
+                TransferCode.TIMEOUT,
+                f"no COMMAND_ACK for command {self.command} after {self.retries + 1} tries",
+            )
+        self._confirmation = min(self._confirmation + 1, _UINT8_MAX)
+        return [Send(self._message())]
+
+    def _on_message(self, kind: str, msg: MAVLinkMessage, now_s: float) -> list[Action]:
+        if int_field(msg, "command") != self.command:
+            return []
+        result = int_field(msg, "result", 0, _UINT8_MAX)
+        if result is None or result == mavlink2.MAV_RESULT_IN_PROGRESS:
+            return []
+        self.ack_result = result
+        name = command_result_name(result)
+        return self._finish(
+            command_result_code(result),
+            f"vehicle answered {name} to command {self.command}",
+            remote_code=name,
+        )
+
+    def _message(self) -> MAVLinkMessage:
+        return mavlink2.MAVLink_command_long_message(
+            self.target_system,
+            self.target_component,
+            self.command,
+            self._confirmation,
+            *self.params,
+        )
+
+
+class ParamSetState(enum.Enum):
+    """Where a parameter set is."""
+
+    IDLE = "idle"
+    WAITING_VALUE = "waiting_value"  # PARAM_SET sent (silence resends it)
+    DONE = "done"
+
+
+class ParamSet(TransferBase[ParamSetState]):
+    """Set parameter ``name`` to ``value`` (REAL32) and confirm it by PARAM_VALUE."""
+
+    default_timeout_s = COMMAND_LONG_TIMEOUT_S
+    _IDLE = ParamSetState.IDLE
+    _DONE = ParamSetState.DONE
+    _HANDLED = frozenset({"PARAM_VALUE"})
+    _WHAT = "parameter set"
+
+    def __init__(
+        self,
+        target_system: int,
+        target_component: int,
+        name: str,
+        value: float,
+        *,
+        timeout_s: float = COMMAND_LONG_TIMEOUT_S,
+        retries: int = DEFAULT_RETRIES,
+        own_system: int | None = None,
+        own_component: int | None = None,
+    ) -> None:
+        super().__init__(
+            target_system,
+            target_component,
+            timeout_s=timeout_s,
+            retries=retries,
+            own_system=own_system,
+            own_component=own_component,
+        )
+        if not (name and name.isascii() and len(name) <= _PARAM_ID_LEN and "\x00" not in name):
+            raise LocalProtocolError(f"parameter name must be 1..16 ASCII characters: {name!r}")
+        if not math.isfinite(f32(float(value))):
+            raise LocalProtocolError(f"parameter {name} value must fit a float32: {value!r}")
+        self.name = name
+        self.value = float(value)
+
+    def start(self, now_s: float) -> list[Action]:
+        """Begin: send PARAM_SET."""
+        self._begin(now_s, ParamSetState.WAITING_VALUE)
+        return [Send(self._message())]
+
+    def _on_silence(self, now_s: float, *, give_up: bool) -> list[Action]:
+        if give_up:
+            return self._finish(
+                TransferCode.TIMEOUT,
+                f"no PARAM_VALUE {self.name}={self.value:g} after {self.retries + 1} PARAM_SET",
+            )
+        return [Send(self._message())]
+
+    def _on_message(self, kind: str, msg: MAVLinkMessage, now_s: float) -> list[Action]:
+        raw = getattr(msg, "param_id", None)
+        if isinstance(raw, bytes):
+            raw = raw.decode("ascii", "replace")
+        if not isinstance(raw, str) or raw.rstrip("\x00") != self.name:
+            return []
+        value = float_field(msg, "param_value")
+        if value is None:
+            return []
+        if not math.isclose(value, self.value, rel_tol=1e-6, abs_tol=1e-6):
+            self._notes.append(f"PARAM_VALUE {self.name}={value:g} at t={now_s:.3f}s (not ours)")
+            return []
+        return self._finish(TransferCode.SUCCESS, f"{self.name} = {value:g}")
+
+    def _message(self) -> MAVLinkMessage:
+        return mavlink2.MAVLink_param_set_message(
+            self.target_system,
+            self.target_component,
+            self.name.encode("ascii"),
+            self.value,
+            mavlink2.MAV_PARAM_TYPE_REAL32,
+        )
