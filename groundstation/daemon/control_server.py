@@ -199,9 +199,11 @@ class ControlServer:
         r.add_get("/api/events", self._get_events)
         r.add_get("/ws", self.pages.handle)
         # aiohttp's keep-alive timer also runs from the connection's start until a whole
-        # request has arrived: headers sent byte by byte are cut off after this (slowloris).
+        # request has arrived: headers sent byte by byte are cut off after this (slowloris);
+        # the rest of a body not read (408, 413) is awaited as long, then the socket closed.
+        timeout_s = self.limits.header_timeout_s
         self._runner = web.AppRunner(app, access_log=None, handle_signals=False,
-                                     keepalive_timeout=self.limits.header_timeout_s)
+                                     keepalive_timeout=timeout_s, lingering_time=timeout_s)
         await self._runner.setup()
         site = web.TCPSite(self._runner, self.host, self.port)
         try:
