@@ -370,3 +370,32 @@ def test_websocket_page_that_never_reads_is_bounded_and_dropped() -> None:
             sock.close()
 
     serve(scenario, limit_s=40.0)
+
+
+# ------------------------------------------------------------------ gcs run settings
+
+
+def test_gcs_run_flags_and_config_keys(tmp_path: Any) -> None:
+    from groundstation.commands.run import build_config
+    from groundstation.daemon.config import ConfigError
+
+    path = tmp_path / "run.yaml"
+    path.write_text("vehicles: [sim:1]\nhttp_allow_origins: [https://ops.example]\n"
+                    "http_max_targets: 50\nhttp_header_timeout_s: 2.5\n", encoding="utf-8")
+    config = build_config(["--config", str(path), "--http-max-ws-clients", "4",
+                           "--http-max-writes-per-s", "5"])
+    assert config.http_allow_origins == ["https://ops.example"]
+    assert (config.http_max_targets, config.http_max_ws_clients) == (50, 4)
+    assert (config.http_max_writes_per_s, config.http_header_timeout_s) == (5.0, 2.5)
+    config = build_config(["--vehicles", "sim:1", "--http-allow-origin", "http://a.example:81",
+                           "--http-allow-origin", "http://b.example"])
+    assert config.http_allow_origins == ["http://a.example:81", "http://b.example"]
+    defaults = build_config(["--vehicles", "sim:1"])
+    assert ControlLimits().max_targets == defaults.http_max_targets == 100
+    assert ControlLimits().max_ws_clients == defaults.http_max_ws_clients == 16
+    for bad, key in ((["--http-allow-origin", "ops.example"], "http_allow_origins"),
+                     (["--http-max-targets", "0"], "http_max_targets"),
+                     (["--http-max-ws-clients", "-1"], "http_max_ws_clients"),
+                     (["--http-header-timeout", "inf"], "http_header_timeout_s")):
+        with pytest.raises(ConfigError, match=key):
+            build_config(["--vehicles", "sim:1", *bad])

@@ -7,6 +7,13 @@ Messages (server -> page), one JSON object each::
     {"type": "state", "state": {...}, "seq": last event sequence number}
     {"type": "events", "events": [{"seq": n, "line": {journal line}}, ...], "dropped": k}
 
+Pages get every journal event except the frequent ``detection`` and ``track`` lines (their
+effect is in the state); ``dropped`` counts events a page will never see (too many in one
+batch, or evicted from the buffer before a reconnect). A page connecting with
+``/ws?since=N&instance=I`` first gets the buffered events after N (catch-up after a
+reconnect); without ``since``, or when ``I`` names another run of the daemon, the last
+``CATCH_UP_EVENTS``.
+
 Bounds: at most ``max_clients`` pages at once (more: HTTP 503 before the upgrade); each page
 has a bounded queue (``control_pages.PageClient``); a page whose queue overflows, or that
 takes more than ``WS_SEND_TIMEOUT_S`` to accept one message, is closed with 1013 (try again

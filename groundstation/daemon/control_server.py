@@ -27,21 +27,7 @@ the WebSocket upgrade are refused 403 from a foreign ``Origin`` (``control_guard
 limits (``ControlLimits``) answer 409 (targets), 413 (body), 408 (slow body), 429 (write
 rate) and 503 (WebSocket pages); headers must arrive within ``header_timeout_s``.
 
-WebSocket messages (server -> page), one JSON object each::
-
-    {"type": "hello", "version": 1, "push_hz": 4.0, "tile_url": str | null,
-     "instance": str (changes when the daemon restarts)}
-    {"type": "state", "state": {...}, "seq": last event sequence number}
-    {"type": "events", "events": [{"seq": n, "line": {journal line}}, ...], "dropped": k}
-
-Pages get every journal event except the frequent ``detection`` and ``track`` lines (their
-effect is in the state); ``dropped`` counts events a page will never see (too many in one
-batch, or evicted from the buffer before a reconnect).
-
-A page connecting with ``/ws?since=N&instance=I`` first gets the buffered events after N
-(catch-up after a reconnect); without ``since``, or when ``I`` names another run of the
-daemon, the last ``CATCH_UP_EVENTS``. A client that cannot
-keep up (queue full) is disconnected with code 1013 and reconnects to catch up.
+The WebSocket pages (messages, catch-up, bounds) are ``control_push.PageHub``'s.
 """
 
 from __future__ import annotations
