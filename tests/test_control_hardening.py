@@ -319,6 +319,15 @@ def test_garbage_tokens_and_bodies_are_4xx_without_tracebacks(
         assert status == 400 and "body" in reply["error"]
         status, _ = await call(http, "GET", "/api/events?since=" + "9" * 5000)
         assert status == 400
+        for garbage in (b"GET /api/vehicles/" + b"x" * 10_000 + b" HTTP/1.1\r\n\r\n",
+                        b"POST /api/targets HTTP/1.1\r\nContent-Length: abc\r\n\r\n"):
+            reader, writer = await asyncio.open_connection("127.0.0.1", server.port)
+            writer.write(garbage)
+            answer = await asyncio.wait_for(reader.read(), 5.0)  # aiohttp answers and closes
+            writer.close()
+            assert answer.split()[1] == b"400"
+        status, info = await call(http, "GET", "/api/server")
+        assert info["counters"]["bad_http"] == 2 and info["counters"]["unauthorized"] == 4
 
     with caplog.at_level(logging.DEBUG):
         fake = serve(scenario)

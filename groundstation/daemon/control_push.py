@@ -93,13 +93,8 @@ class PageHub:
             with contextlib.suppress(asyncio.CancelledError, Exception):
                 await task
         self._tasks = []
-        for client in list(self.clients):
-            try:
-                async with asyncio.timeout(WS_CLOSE_TIMEOUT_S):
-                    await client.ws.close(code=WSCloseCode.GOING_AWAY,
-                                          message=b"daemon stopping")
-            except Exception:
-                client.abort()
+        await asyncio.gather(*(self._close_client(c, WSCloseCode.GOING_AWAY, b"daemon stopping")
+                               for c in list(self.clients)))
 
     # ----------------------------------------------------------------- events & pushes
 
@@ -176,11 +171,12 @@ class PageHub:
         task.add_done_callback(self._closing.discard)
 
     @staticmethod
-    async def _close_client(client: PageClient) -> None:
+    async def _close_client(client: PageClient, code: int = WSCloseCode.TRY_AGAIN_LATER,
+                            message: bytes = b"too slow, reconnect") -> None:
+        """Close politely within ``WS_CLOSE_TIMEOUT_S``, then abort what is left."""
         try:
             async with asyncio.timeout(WS_CLOSE_TIMEOUT_S):
-                await client.ws.close(code=WSCloseCode.TRY_AGAIN_LATER,
-                                      message=b"too slow, reconnect")
+                await client.ws.close(code=code, message=message)
         except Exception:  # timed out or the connection is gone
             pass
         finally:
@@ -239,6 +235,9 @@ class PageHub:
             sender.cancel()
             with contextlib.suppress(asyncio.CancelledError, Exception):
                 await sender
+            # Closed (the page's close was answered) or dead (heartbeat missed): drop what a
+            # page that never reads would otherwise keep in the socket's buffer forever.
+            client.abort()
         return ws
 
     async def _send_loop(self, client: PageClient) -> None:

@@ -44,6 +44,7 @@ from pathlib import Path
 from typing import Any
 
 from aiohttp import web
+from aiohttp.http_exceptions import HttpProcessingError
 
 from groundstation.daemon.control_contract import VEHICLE_ACTIONS, DaemonControl
 from groundstation.daemon.control_guard import (
@@ -115,6 +116,32 @@ class Refused(Exception):
         super().__init__(message)
         self.status = status
         self.headers = headers
+
+
+class _ProtocolLog(logging.LoggerAdapter[logging.Logger]):
+    """aiohttp's own log of requests it could not parse (a line too long, a bad header):
+    a client's mistake is counted and logged as one rate-limited line, without traceback;
+    anything else keeps its traceback."""
+
+    def __init__(self, rejects: RejectLog) -> None:
+        super().__init__(logging.getLogger("aiohttp.server"), {})
+        self.rejects = rejects
+
+    def _client_fault(self, exc_info: Any) -> bool:
+        if not isinstance(exc_info, HttpProcessingError):
+            return False
+        lines = str(exc_info.message or "").strip().splitlines() or [""]
+        self.rejects.note("bad_http", f"{type(exc_info).__name__}: {lines[0][:100]}",
+                          time.monotonic())
+        return True
+
+    def exception(self, msg: object, *args: Any, exc_info: Any = True, **kw: Any) -> None:
+        if not self._client_fault(exc_info):
+            self.logger.exception(msg, *args, exc_info=exc_info, **kw)
+
+    def debug(self, msg: object, *args: Any, **kw: Any) -> None:
+        if not self._client_fault(kw.get("exc_info")):
+            self.logger.debug(msg, *args, **kw)
 
 
 class ControlServer:
@@ -189,7 +216,8 @@ class ControlServer:
         # the rest of a body not read (408, 413) is awaited as long, then the socket closed.
         timeout_s = self.limits.header_timeout_s
         self._runner = web.AppRunner(app, access_log=None, handle_signals=False,
-                                     keepalive_timeout=timeout_s, lingering_time=timeout_s)
+                                     keepalive_timeout=timeout_s, lingering_time=timeout_s,
+                                     logger=_ProtocolLog(self.rejects))
         await self._runner.setup()
         site = web.TCPSite(self._runner, self.host, self.port)
         try:
