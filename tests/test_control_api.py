@@ -393,7 +393,7 @@ def test_a_page_that_cannot_keep_up_is_dropped_and_can_reconnect() -> None:
             for _ in range(3):
                 await ws.receive_json()
             for i in range(200):  # faster than any sender: no await in between
-                server._broadcast(json.dumps({"type": "noise", "i": i}))
+                server.pages.broadcast(json.dumps({"type": "noise", "i": i}))
             closing = (aiohttp.WSMsgType.CLOSE, aiohttp.WSMsgType.CLOSED)
             while (msg := await asyncio.wait_for(ws.receive(), 5.0)).type not in closing:
                 pass

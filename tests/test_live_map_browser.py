@@ -364,7 +364,7 @@ def check_reconnect(drv: Any, backend: FakeBackend) -> None:
     connections = drv.execute_script("return window.floe.connections")
 
     async def cut() -> None:
-        for client in list(server.server._clients):
+        for client in list(server.server.pages.clients):
             await client.ws.close()
         server.control.emit("while_away", vehicle="uav1")  # before the page is back
 

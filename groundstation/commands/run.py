@@ -72,6 +72,23 @@ def _parser() -> argparse.ArgumentParser:
         help="what vehicles do when floe stops (default loiter)",
     )
     a("--http", metavar="HOST:PORT|off", help="control API (default 127.0.0.1:0)")
+    a(
+        "--http-allow-origin",
+        dest="http_allow_origins",
+        action="append",
+        metavar="URL",
+        help="also accept live pages/writes from this origin (scheme://host:port; repeatable)",
+    )
+    a("--http-max-targets", type=int, metavar="N", help="targets the API may add up to (100)")
+    a("--http-max-ws-clients", type=int, metavar="N", help="live pages at once (default 16)")
+    a("--http-max-writes-per-s", type=float, metavar="R", help="API write rate (default 20)")
+    a(
+        "--http-header-timeout",
+        dest="http_header_timeout_s",
+        type=float,
+        metavar="S",
+        help="a request's headers (then its body) must arrive within S seconds (default 5)",
+    )
     a("--detections", metavar="HOST:PORT|off", help="detection feed UDP (default 127.0.0.1:14600)")
     a("--run-dir", metavar="DIR", help="parent of the run folders (default runs)")
     a("--journal", metavar="FILE", help="journal path (default RUN/journal.jsonl)")

@@ -51,6 +51,11 @@ class DaemonConfig:
     advisory: bool = False
     on_exit: str = "loiter"
     http: str = "127.0.0.1:0"
+    http_allow_origins: list[str] = field(default_factory=list)
+    http_max_targets: int = 100
+    http_max_ws_clients: int = 16
+    http_max_writes_per_s: float = 20.0
+    http_header_timeout_s: float = 5.0
     detections: str = "127.0.0.1:14600"
     run_dir: str = "runs"
     journal: str | None = None
@@ -188,9 +193,28 @@ class DaemonConfig:
                 parse_hostport(value, key)
         if self.origin is not None:
             parse_latlon(self.origin, "origin")
+        self._validate_http()
         alts = [s.altitude_m for s in self.vehicle_settings.values() if s.altitude_m is not None]
         if len(alts) != len(set(alts)):
             raise ConfigError("vehicle_settings: two vehicles share an altitude_m")
+
+
+    def _validate_http(self) -> None:
+        from groundstation.daemon.control_guard import parse_origin  # pure, no aiohttp
+
+        for text in self.http_allow_origins:
+            try:
+                parse_origin(text)
+            except ValueError as exc:
+                raise ConfigError(f"http_allow_origins: {exc}") from None
+        if not 1 <= self.http_max_targets <= 100_000:
+            raise ConfigError(f"http_max_targets: expected 1..100000, got {self.http_max_targets}")
+        if not 1 <= self.http_max_ws_clients <= 10_000:
+            raise ConfigError(
+                f"http_max_ws_clients: expected 1..10000, got {self.http_max_ws_clients}"
+            )
+        _positive("http_max_writes_per_s", self.http_max_writes_per_s, high=10_000.0)
+        _positive("http_header_timeout_s", self.http_header_timeout_s, high=300.0)
 
 
 def _positive(name: str, value: float, high: float = math.inf) -> None:

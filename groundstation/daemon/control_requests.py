@@ -7,8 +7,10 @@ Each parser returns the keyword arguments of the matching
     POST /api/targets       {id?, x_m, y_m | lat_deg, lon_deg, vx_m_s?, vy_m_s?, sigma0?}
     PUT  /api/targets/ID    {x_m, y_m | lat_deg, lon_deg}
 
-Numbers must be finite JSON numbers (not strings, not booleans); positions come in pairs,
-local metres or WGS-84 degrees, never both; unknown fields are errors.
+Numbers must be finite JSON numbers (not strings, not booleans) within sane bounds
+(``MAX_LOCAL_M`` for x_m/y_m, ``MAX_SPEED_M_S`` for vx_m_s/vy_m_s, ``MAX_SIGMA0`` for sigma0,
+the globe for degrees); positions come in pairs, local metres or WGS-84 degrees, never both;
+unknown fields are errors.
 """
 
 from __future__ import annotations
@@ -30,6 +32,9 @@ __all__ = [
 ]
 
 MAX_ID_CHARS = 64
+MAX_LOCAL_M = 1.0e6  # 1000 km from the mission origin: far beyond any operating area
+MAX_SPEED_M_S = 100.0  # icebergs drift at a few m/s, boats at ~10 m/s
+MAX_SIGMA0 = 1.0e9  # m^2; a track is lost at (150 m)^2 already
 
 
 class RequestError(UsageError):
@@ -55,7 +60,10 @@ def _number(body: dict[str, Any], key: str, *, minimum: float | None = None,
     value = body[key]
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise RequestError(f"{key}: expected a number, got {json.dumps(value)[:40]}")
-    number = float(value)
+    try:
+        number = float(value)
+    except OverflowError:  # a JSON integer of hundreds of digits
+        raise RequestError(f"{key}: number too large") from None
     if not math.isfinite(number):
         raise RequestError(f"{key}: must be finite")
     if minimum is not None and number < minimum:
@@ -71,7 +79,8 @@ def _position(body: dict[str, Any]) -> dict[str, float]:
     if local and geo:
         raise RequestError("position: give either x_m, y_m or lat_deg, lon_deg, not both")
     if len(local) == 2:
-        x, y = _number(body, "x_m"), _number(body, "y_m")
+        x = _number(body, "x_m", minimum=-MAX_LOCAL_M, maximum=MAX_LOCAL_M)
+        y = _number(body, "y_m", minimum=-MAX_LOCAL_M, maximum=MAX_LOCAL_M)
         assert x is not None and y is not None
         return {"x_m": x, "y_m": y}
     if len(geo) == 2:
@@ -111,9 +120,9 @@ def parse_target_body(body: Any) -> tuple[str | None, dict[str, Any]]:
                               "sigma0"))
     target_id = None if body.get("id") is None else check_id(body["id"])
     kwargs: dict[str, Any] = _position(body)
-    kwargs["vx_m_s"] = _number(body, "vx_m_s") or 0.0
-    kwargs["vy_m_s"] = _number(body, "vy_m_s") or 0.0
-    kwargs["sigma0"] = _number(body, "sigma0", minimum=0.0)
+    for key in ("vx_m_s", "vy_m_s"):
+        kwargs[key] = _number(body, key, minimum=-MAX_SPEED_M_S, maximum=MAX_SPEED_M_S) or 0.0
+    kwargs["sigma0"] = _number(body, "sigma0", minimum=0.0, maximum=MAX_SIGMA0)
     return target_id, kwargs
 
 

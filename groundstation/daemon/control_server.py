@@ -15,49 +15,46 @@ the daemon owns the state. Endpoints (all JSON; docs/control.md has curl example
                                           journal events with sequence number > N
                                           (notable=1: without detection/track lines)
     GET    /api/session                   {"write": bool, ...} for the presented token
+    GET    /api/server                    limits, allowed origins, refusal counters
     GET    /ws                            WebSocket: hello, full state at once, then the
                                           state at ``push_hz`` and event batches
     GET    /                              the live page (web/), no CDN, no build step
 
 Reads need no token. Every write needs ``Authorization: Bearer <token>`` (or ``?token=``)
 and is answered 401 without it, 400 with a one-line reason for a malformed body, 404 for an
-unknown id and 409 when the daemon refuses it (``{"ok": false, "error": ...}``).
+unknown id and 409 when the daemon refuses it (``{"ok": false, "error": ...}``). Writes and
+the WebSocket upgrade are refused 403 from a foreign ``Origin`` (``control_guard.py``);
+limits (``ControlLimits``) answer 409 (targets), 413 (body), 408 (slow body), 429 (write
+rate) and 503 (WebSocket pages); headers must arrive within ``header_timeout_s``.
 
-WebSocket messages (server -> page), one JSON object each::
-
-    {"type": "hello", "version": 1, "push_hz": 4.0, "tile_url": str | null,
-     "instance": str (changes when the daemon restarts)}
-    {"type": "state", "state": {...}, "seq": last event sequence number}
-    {"type": "events", "events": [{"seq": n, "line": {journal line}}, ...], "dropped": k}
-
-Pages get every journal event except the frequent ``detection`` and ``track`` lines (their
-effect is in the state); ``dropped`` counts events a page will never see (too many in one
-batch, or evicted from the buffer before a reconnect).
-
-A page connecting with ``/ws?since=N&instance=I`` first gets the buffered events after N
-(catch-up after a reconnect); without ``since``, or when ``I`` names another run of the
-daemon, the last ``CATCH_UP_EVENTS``. A client that cannot
-keep up (queue full) is disconnected with code 1013 and reconnects to catch up.
+The WebSocket pages (messages, catch-up, bounds) are ``control_push.PageHub``'s.
 """
 
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import hmac
-import ipaddress
 import json
 import logging
 import math
 import secrets
-from collections import deque
-from collections.abc import Awaitable, Callable
+import time
+from collections.abc import Awaitable, Callable, Iterable
 from pathlib import Path
 from typing import Any
 
-from aiohttp import WSCloseCode, WSMsgType, web
+from aiohttp import web
+from aiohttp.http_exceptions import HttpProcessingError
 
 from groundstation.daemon.control_contract import VEHICLE_ACTIONS, DaemonControl
+from groundstation.daemon.control_guard import (
+    ControlLimits,
+    OriginPolicy,
+    RejectLog,
+    WriteRateLimiter,
+    is_loopback,
+)
+from groundstation.daemon.control_push import PageHub
 from groundstation.daemon.control_requests import (
     RequestError,
     jsonable,
@@ -66,6 +63,7 @@ from groundstation.daemon.control_requests import (
 )
 
 __all__ = [
+    "ControlLimits",
     "ControlServer",
     "RequestError",
     "binding_warning",
@@ -80,14 +78,7 @@ log = logging.getLogger(__name__)
 
 WEB_DIR = Path(__file__).with_name("web")
 STATIC_FILES = {"app.js": "text/javascript", "style.css": "text/css"}
-EVENT_BUFFER = 5000
-NOTABLE_BUFFER = 2000
-QUIET_EVENTS = frozenset({"detection", "track"})  # many per second: not pushed to pages
-CATCH_UP_EVENTS = 200
-EVENT_FLUSH_S = 0.1
-EVENT_BATCH_MAX = 200
-CLIENT_QUEUE = 64
-MAX_BODY_BYTES = 64 * 1024
+WRITE_METHODS = frozenset({"POST", "PUT", "PATCH", "DELETE"})
 CSP = ("default-src 'self'; script-src 'self'; style-src 'self'; img-src 'self' data: http: "
        "https:; connect-src 'self' ws: wss:; frame-ancestors 'none'")
 
@@ -95,18 +86,6 @@ CSP = ("default-src 'self'; script-src 'self'; style-src 'self'; img-src 'self' 
 def new_token() -> str:
     """A fresh random write token (URL-safe, 24 characters, 144 bits)."""
     return secrets.token_urlsafe(18)
-
-
-def is_loopback(host: str) -> bool:
-    """True when ``host`` only accepts connections from this machine (127.0.0.0/8, ::1,
-    ``localhost``). Unknown host names and wildcard addresses (0.0.0.0, ::) are not."""
-    name = host.strip().strip("[]").lower()
-    if name == "localhost" or name.endswith(".localhost"):
-        return True
-    try:
-        return ipaddress.ip_address(name).is_loopback
-    except ValueError:
-        return False
 
 
 def binding_warning(host: str) -> str | None:
@@ -130,19 +109,39 @@ def _error(status: int, message: str, **headers: str) -> web.Response:
 Handler = Callable[[web.Request], Awaitable[web.StreamResponse]]
 
 
-class _Client:
-    """One WebSocket page: a bounded queue of serialised messages and its sender task."""
+class Refused(Exception):
+    """A request refused at the edge: HTTP ``status`` with the one-line ``message``."""
 
-    def __init__(self, ws: web.WebSocketResponse) -> None:
-        self.ws = ws
-        self.queue: asyncio.Queue[str] = asyncio.Queue(CLIENT_QUEUE)
-        self.overflowed = False
+    def __init__(self, status: int, message: str, **headers: str) -> None:
+        super().__init__(message)
+        self.status = status
+        self.headers = headers
 
-    def offer(self, text: str) -> None:
-        try:
-            self.queue.put_nowait(text)
-        except asyncio.QueueFull:
-            self.overflowed = True
+
+class _ProtocolLog(logging.LoggerAdapter[logging.Logger]):
+    """aiohttp's own log of requests it could not parse (a line too long, a bad header):
+    a client's mistake is counted and logged as one rate-limited line, without traceback;
+    anything else keeps its traceback."""
+
+    def __init__(self, rejects: RejectLog) -> None:
+        super().__init__(logging.getLogger("aiohttp.server"), {})
+        self.rejects = rejects
+
+    def _client_fault(self, exc_info: Any) -> bool:
+        if not isinstance(exc_info, HttpProcessingError):
+            return False
+        lines = str(exc_info.message or "").strip().splitlines() or [""]
+        self.rejects.note("bad_http", f"{type(exc_info).__name__}: {lines[0][:100]}",
+                          time.monotonic())
+        return True
+
+    def exception(self, msg: object, *args: Any, exc_info: Any = True, **kw: Any) -> None:
+        if not self._client_fault(exc_info):
+            self.logger.exception(msg, *args, exc_info=exc_info, **kw)
+
+    def debug(self, msg: object, *args: Any, **kw: Any) -> None:
+        if not self._client_fault(kw.get("exc_info")):
+            self.logger.debug(msg, *args, **kw)
 
 
 class ControlServer:
@@ -150,11 +149,14 @@ class ControlServer:
 
     ``port`` 0 binds an ephemeral port; :attr:`url` is the bound address after ``start()``.
     ``push_hz`` is the rate of full-state pushes to pages; ``tile_url`` an optional map tile
-    URL template (``https://.../{z}/{x}/{y}.png``) handed to pages (no default: offline)."""
+    URL template (``https://.../{z}/{x}/{y}.png``) handed to pages (no default: offline).
+    ``allow_origins``: origins (``scheme://host[:port]``) allowed besides the page's own;
+    ``limits``: see :class:`ControlLimits`."""
 
     def __init__(self, control: DaemonControl, host: str = "127.0.0.1", port: int = 8080,
                  token: str | None = None, *, push_hz: float = 4.0,
-                 tile_url: str | None = None) -> None:
+                 tile_url: str | None = None, allow_origins: Iterable[str] = (),
+                 limits: ControlLimits | None = None) -> None:
         if token is not None and not token:
             raise ValueError("token must not be empty")
         if not (math.isfinite(push_hz) and 0.1 <= push_hz <= 50.0):
@@ -165,19 +167,15 @@ class ControlServer:
         self.token = token if token is not None else new_token()
         self.push_hz = push_hz
         self.tile_url = tile_url
+        self.origins = OriginPolicy(host, allow_origins)  # ValueError on a bad origin
+        self.limits = limits or ControlLimits()
+        self.rejects = RejectLog(log)
+        self._writes = WriteRateLimiter(self.limits.max_writes_per_s)
         self._runner: web.AppRunner | None = None
         self._url: str | None = None
-        self._clients: set[_Client] = set()
-        self._events: deque[dict[str, Any]] = deque(maxlen=EVENT_BUFFER)
-        self._notable: deque[dict[str, Any]] = deque(maxlen=NOTABLE_BUFFER)
-        self._notable_evicted = 0  # seq of the newest notable event no longer buffered
-        self._seq = 0
-        self._pending: list[dict[str, Any]] = []
-        self._pending_dropped = 0
-        self._tasks: list[asyncio.Task[None]] = []
-        self._stopping = False
-        self._closing: set[asyncio.Task[bool]] = set()
         self.instance = secrets.token_hex(4)  # tells a page its daemon was restarted
+        self.pages = PageHub(control, self.rejects, push_hz=push_hz, tile_url=tile_url,
+                             instance=self.instance, max_clients=self.limits.max_ws_clients)
 
     # ----------------------------------------------------------------- lifecycle
 
@@ -193,14 +191,15 @@ class ControlServer:
         warning = binding_warning(self.host)
         if warning:
             log.warning(warning)
-        self._seed_events()
-        app = web.Application(client_max_size=MAX_BODY_BYTES, middlewares=[self._middleware])
+        app = web.Application(client_max_size=self.limits.max_body_bytes,
+                              middlewares=[self._middleware])
         r = app.router
         r.add_get("/", self._index)
         r.add_get("/index.html", self._index)
         r.add_get("/static/{name}", self._static)
         r.add_get("/api/state", self._get_state)
         r.add_get("/api/session", self._get_session)
+        r.add_get("/api/server", self._get_server)
         r.add_get("/api/targets", self._get_targets)
         r.add_get("/api/targets/{id}", self._get_target)
         r.add_post("/api/targets", self._post_target)
@@ -211,8 +210,14 @@ class ControlServer:
         r.add_get("/api/vehicles/{id}", self._get_vehicle)
         r.add_post("/api/vehicles/{id}/{action}", self._vehicle_action)
         r.add_get("/api/events", self._get_events)
-        r.add_get("/ws", self._websocket)
-        self._runner = web.AppRunner(app, access_log=None, handle_signals=False)
+        r.add_get("/ws", self.pages.handle)
+        # aiohttp's keep-alive timer also runs from the connection's start until a whole
+        # request has arrived: headers sent byte by byte are cut off after this (slowloris);
+        # the rest of a body not read (408, 413) is awaited as long, then the socket closed.
+        timeout_s = self.limits.header_timeout_s
+        self._runner = web.AppRunner(app, access_log=None, handle_signals=False,
+                                     keepalive_timeout=timeout_s, lingering_time=timeout_s,
+                                     logger=_ProtocolLog(self.rejects))
         await self._runner.setup()
         site = web.TCPSite(self._runner, self.host, self.port)
         try:
@@ -225,21 +230,11 @@ class ControlServer:
         self.port = int(addresses[0][1]) if addresses else self.port
         shown = f"[{self.host}]" if ":" in self.host else self.host
         self._url = f"http://{shown}:{self.port}"
-        self._tasks = [asyncio.create_task(self._pump_events(), name="control-events"),
-                       asyncio.create_task(self._push_states(), name="control-push")]
+        self.pages.start()
 
     async def stop(self) -> None:
         """Close every page's WebSocket, stop the pushes and unbind."""
-        self._stopping = True
-        for task in self._tasks:
-            task.cancel()
-        for task in self._tasks:
-            with contextlib.suppress(asyncio.CancelledError, Exception):
-                await task
-        self._tasks = []
-        for client in list(self._clients):
-            with contextlib.suppress(Exception):
-                await client.ws.close(code=WSCloseCode.GOING_AWAY, message=b"daemon stopping")
+        await self.pages.stop()
         if self._runner is not None:
             await self._runner.cleanup()
             self._runner = None
@@ -250,91 +245,6 @@ class ControlServer:
 
     async def __aexit__(self, *exc: object) -> None:
         await self.stop()
-
-    # ----------------------------------------------------------------- events & pushes
-
-    def _seed_events(self) -> None:
-        try:
-            recent = self.control.state().get("events") or []
-        except Exception:  # the daemon's state is its business; start anyway
-            log.exception("control state() failed while seeding events")
-            recent = []
-        for line in recent:
-            if isinstance(line, dict):
-                self._record(line)
-
-    def _record(self, line: dict[str, Any]) -> dict[str, Any]:
-        self._seq += 1
-        entry = {"seq": self._seq, "line": jsonable(line)}
-        self._events.append(entry)
-        if line.get("event") not in QUIET_EVENTS:
-            if len(self._notable) == NOTABLE_BUFFER:
-                self._notable_evicted = self._notable[0]["seq"]
-            self._notable.append(entry)
-        return entry
-
-    async def _pump_events(self) -> None:
-        """Buffer the daemon's journal events and fan them out in batches every 0.1 s."""
-        flusher = asyncio.create_task(self._flush_events(), name="control-flush")
-        try:
-            async for line in self.control.subscribe():
-                if not isinstance(line, dict):
-                    continue
-                entry = self._record(line)
-                if self._clients and line.get("event") not in QUIET_EVENTS:
-                    self._pending.append(entry)
-                    if len(self._pending) > EVENT_BATCH_MAX:
-                        self._pending_dropped += len(self._pending) - EVENT_BATCH_MAX
-                        del self._pending[:-EVENT_BATCH_MAX]
-        except asyncio.CancelledError:
-            raise
-        except Exception:
-            log.exception("daemon event subscription failed; live pages get states only")
-        finally:
-            await asyncio.sleep(EVENT_FLUSH_S)  # let the last batch go out
-            flusher.cancel()
-            with contextlib.suppress(asyncio.CancelledError):
-                await flusher
-
-    async def _flush_events(self) -> None:
-        while True:
-            await asyncio.sleep(EVENT_FLUSH_S)
-            if self._pending:
-                msg = json.dumps({"type": "events", "events": self._pending,
-                                  "dropped": self._pending_dropped})
-                self._pending, self._pending_dropped = [], 0
-                self._broadcast(msg)
-
-    async def _push_states(self) -> None:
-        period_s = 1.0 / self.push_hz
-        failed = False
-        while True:
-            await asyncio.sleep(period_s)
-            if not self._clients:
-                continue
-            try:
-                msg = self._state_message()
-                failed = False
-            except Exception:
-                if not failed:
-                    log.exception("control state() failed; pages keep their last state")
-                failed = True
-                continue
-            self._broadcast(msg)
-
-    def _state_message(self) -> str:
-        return json.dumps({"type": "state", "state": jsonable(self.control.state()),
-                           "seq": self._seq})
-
-    def _broadcast(self, text: str) -> None:
-        for client in list(self._clients):
-            client.offer(text)
-            if client.overflowed:
-                self._clients.discard(client)
-                task = asyncio.create_task(client.ws.close(
-                    code=WSCloseCode.TRY_AGAIN_LATER, message=b"too slow, reconnect"))
-                self._closing.add(task)
-                task.add_done_callback(self._closing.discard)
 
     # ----------------------------------------------------------------- plumbing
 
@@ -349,20 +259,42 @@ class ControlServer:
             name = host[1:].split("]", 1)[0]
         return is_loopback(name)
 
+    def _origin_refusal(self, request: web.Request) -> web.Response | None:
+        """403 for a WebSocket upgrade or a write from an origin the rule does not allow."""
+        if request.method not in WRITE_METHODS and request.path != "/ws":
+            return None
+        origin = request.headers.get("Origin")
+        if self.origins.allowed(origin, request.headers.get("Host"), self.port):
+            return None
+        shown = (origin or "")[:80]
+        self.rejects.note("origin_refused", f"{request.method} {request.path} from Origin "
+                          f"{shown!r}", time.monotonic())
+        return _error(403, f"Origin {shown} is not allowed here (the page's own origin is; "
+                      "add others with --http-allow-origin)")
+
     @web.middleware
     async def _middleware(self, request: web.Request, handler: Handler) -> web.StreamResponse:
         if not self._host_allowed(request):
+            self.rejects.note("host_refused", "Host header is not a loopback address",
+                              time.monotonic())
             return _error(403, "Host header is not a loopback address (DNS rebinding?)")
+        if (refused := self._origin_refusal(request)) is not None:
+            return refused
         try:
             response = await handler(request)
         except web.HTTPException as exc:
             if not request.path.startswith("/api/"):
                 raise
             if isinstance(exc, web.HTTPRequestEntityTooLarge):
-                return _error(413, f"body: larger than {MAX_BODY_BYTES} bytes")
+                self.rejects.note("body_too_large", request.path, time.monotonic())
+                return _error(413, f"body: larger than {self.limits.max_body_bytes} bytes")
             return _error(exc.status, exc.reason or "error")
         except RequestError as exc:
+            self.rejects.note("bad_request", f"{request.method} {request.path}: {exc}",
+                              time.monotonic())
             return _error(400, str(exc))
+        except Refused as exc:
+            return _error(exc.status, str(exc), **exc.headers)
         except Exception as exc:
             log.exception("control request %s %s failed", request.method, request.path)
             return _error(500, f"daemon error: {type(exc).__name__}: {exc}"[:200])
@@ -370,31 +302,53 @@ class ControlServer:
         return response
 
     def authorized(self, request: web.Request) -> bool:
-        """The request carries the write token (Bearer header or ``?token=``)."""
-        header = request.headers.get("Authorization", "")
-        presented = None
-        if header[:7].lower() == "bearer ":
-            presented = header[7:].strip()
-        elif "token" in request.query:
-            presented = request.query["token"]
-        if not presented:
+        """The request carries the write token (Bearer header or ``?token=``). A token that
+        is not valid UTF-8 (or any other garbage) is simply not the token."""
+        try:
+            header = request.headers.get("Authorization", "")
+            presented = None
+            if header[:7].lower() == "bearer ":
+                presented = header[7:].strip()
+            elif "token" in request.query:
+                presented = request.query["token"]
+            if not presented:
+                return False
+            return hmac.compare_digest(presented.encode("utf-8"), self.token.encode("utf-8"))
+        except (UnicodeError, ValueError):
             return False
-        return hmac.compare_digest(presented.encode(), self.token.encode())
 
     def _require_token(self, request: web.Request) -> web.Response | None:
-        if self.authorized(request):
-            return None
-        return _error(401, "missing or wrong token (send Authorization: Bearer <token>)",
-                      **{"WWW-Authenticate": 'Bearer realm="floe"'})
+        """401 without the token; 429 beyond the write rate (tokens of the bucket are spent
+        by authorised writes only)."""
+        if not self.authorized(request):
+            self.rejects.note("unauthorized", f"{request.method} {request.path}",
+                              time.monotonic())
+            return _error(401, "missing or wrong token (send Authorization: Bearer <token>)",
+                          **{"WWW-Authenticate": 'Bearer realm="floe"'})
+        if not self._writes.allow(time.monotonic()):
+            self.rejects.note("rate_limited", f"{request.method} {request.path}",
+                              time.monotonic())
+            return _error(429, f"too many writes (limit {self.limits.max_writes_per_s:g} per "
+                          "second); slow down", **{"Retry-After": "1"})
+        return None
 
     async def _body(self, request: web.Request) -> Any:
-        raw = await request.read()
+        """The JSON body, read within ``header_timeout_s`` (408 otherwise); a body that is
+        not JSON (bad UTF-8, nested too deep, an integer of thousands of digits) is 400."""
+        try:
+            async with asyncio.timeout(self.limits.header_timeout_s):
+                raw = await request.read()
+        except TimeoutError:
+            self.rejects.note("body_timeout", request.path, time.monotonic())
+            raise Refused(408, f"body: not received within {self.limits.header_timeout_s:g} s",
+                          Connection="close") from None
         if not raw.strip():
             raise RequestError("body: empty (expected a JSON object)")
         try:
             return json.loads(raw)
-        except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-            raise RequestError(f"body: malformed JSON ({exc})") from None
+        except (ValueError, RecursionError) as exc:  # JSON, UTF-8 and int-size errors
+            reason = str(exc).splitlines()[0][:120] if str(exc) else type(exc).__name__
+            raise RequestError(f"body: malformed JSON ({reason})") from None
 
     def _state(self) -> dict[str, Any]:
         state = self.control.state()
@@ -445,6 +399,12 @@ class ControlServer:
         return _json({"write": self.authorized(request), "push_hz": self.push_hz,
                       "tile_url": self.tile_url, "version": 1})
 
+    async def _get_server(self, request: web.Request) -> web.Response:
+        allow = sorted(f"{s}://{h if ':' not in h else f'[{h}]'}:{p}"
+                       for s, h, p in self.origins.allow)
+        return _json({"limits": self.limits.to_dict(), "allow_origins": allow,
+                      "ws_clients": self.pages.open, "counters": dict(self.rejects.counts)})
+
     async def _get_targets(self, request: web.Request) -> web.Response:
         state = self._state()
         return _json({"t": state.get("t"), "targets": state.get("targets") or []})
@@ -470,20 +430,13 @@ class ControlServer:
     async def _get_events(self, request: web.Request) -> web.Response:
         try:
             since = int(request.query.get("since", "0"))
-            limit = int(request.query.get("limit", str(EVENT_BUFFER)))
+            limit = int(request.query.get("limit", "5000"))
         except ValueError:
             raise RequestError("since/limit: expected integers") from None
         if limit < 1:
             raise RequestError("limit: must be >= 1")
         notable = request.query.get("notable", "0") not in ("0", "false", "")
-        buffer = self._notable if notable else self._events
-        events = [e for e in buffer if e["seq"] > since][:limit]
-        if notable:
-            missed = max(0, self._notable_evicted - since)
-        else:
-            oldest = self._events[0]["seq"] if self._events else self._seq + 1
-            missed = max(0, oldest - since - 1)
-        return _json({"events": events, "last": self._seq, "missed": missed})
+        return _json(self.pages.buffer.since(since, limit, notable))
 
     # ----------------------------------------------------------------- writes
 
@@ -491,6 +444,11 @@ class ControlServer:
         if (denied := self._require_token(request)) is not None:
             return denied
         target_id, kwargs = parse_target_body(await self._body(request))
+        count = len(self._state().get("targets") or [])
+        if count >= self.limits.max_targets:
+            self.rejects.note("target_limit", f"{count} targets", time.monotonic())
+            return _error(409, f"targets: limit of {self.limits.max_targets} reached "
+                          "(--http-max-targets); remove one first")
         reply = await self.control.add_target(target_id, **kwargs)
         return self._reply(reply, 201)
 
@@ -522,53 +480,3 @@ class ControlServer:
         if vehicle is None:
             return _error(404, f"unknown vehicle {wanted!r}")
         return self._reply(await self.control.vehicle_action(str(vehicle["id"]), action))
-
-    # ----------------------------------------------------------------- websocket
-
-    async def _websocket(self, request: web.Request) -> web.StreamResponse:
-        ws = web.WebSocketResponse(heartbeat=20.0, max_msg_size=4096)
-        await ws.prepare(request)
-        client = _Client(ws)
-        try:
-            since_text = request.query.get("since")
-            since = int(since_text) if since_text is not None else None
-        except ValueError:
-            since = None
-        if request.query.get("instance", self.instance) != self.instance:
-            since = None  # sequence numbers of another daemon run: start afresh
-        await ws.send_str(json.dumps({"type": "hello", "version": 1, "push_hz": self.push_hz,
-                                      "tile_url": self.tile_url, "instance": self.instance}))
-        with contextlib.suppress(Exception):
-            await ws.send_str(self._state_message())
-        backlog = list(self._notable)
-        backlog = ([e for e in backlog if e["seq"] > since] if since is not None
-                   else backlog[-CATCH_UP_EVENTS:])
-        missed = max(0, self._notable_evicted - since) if since is not None else 0
-        for start in range(0, len(backlog), EVENT_BATCH_MAX):
-            await ws.send_str(json.dumps({"type": "events",
-                                          "events": backlog[start:start + EVENT_BATCH_MAX],
-                                          "dropped": missed if start == 0 else 0}))
-        if self._stopping:
-            await ws.close(code=WSCloseCode.GOING_AWAY)
-            return ws
-        self._clients.add(client)
-        sender = asyncio.create_task(self._send_loop(client), name="control-ws-send")
-        try:
-            async for msg in ws:  # pages send nothing we act on; this detects the close
-                if msg.type == WSMsgType.ERROR:
-                    break
-        finally:
-            self._clients.discard(client)
-            sender.cancel()
-            with contextlib.suppress(asyncio.CancelledError, Exception):
-                await sender
-        return ws
-
-    async def _send_loop(self, client: _Client) -> None:
-        while not client.ws.closed:
-            text = await client.queue.get()
-            try:
-                await asyncio.wait_for(client.ws.send_str(text), 5.0)
-            except (ConnectionError, TimeoutError, RuntimeError):
-                await client.ws.close(code=WSCloseCode.TRY_AGAIN_LATER)
-                return

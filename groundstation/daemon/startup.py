@@ -36,7 +36,7 @@ from groundstation.core.scenario_config import core_config_for
 from groundstation.daemon.clock import MissionClock
 from groundstation.daemon.config import DaemonConfig, parse_hostport, parse_latlon
 from groundstation.daemon.control import DaemonController
-from groundstation.daemon.control_server import ControlServer, binding_warning
+from groundstation.daemon.control_server import ControlLimits, ControlServer, binding_warning
 from groundstation.daemon.daemon import Daemon
 from groundstation.daemon.embedded import EmbeddedFactory, EmbeddedVehicles
 from groundstation.daemon.run_files import open_run_files
@@ -389,7 +389,15 @@ async def _start_control(
         return
     host, port = parse_hostport(config.http, "http")
     token = secrets.token_urlsafe(16)
-    server = ControlServer(controller, host, port, token)
+    limits = ControlLimits(
+        max_targets=config.http_max_targets,
+        max_ws_clients=config.http_max_ws_clients,
+        max_writes_per_s=config.http_max_writes_per_s,
+        header_timeout_s=config.http_header_timeout_s,
+    )
+    server = ControlServer(
+        controller, host, port, token, allow_origins=config.http_allow_origins, limits=limits
+    )
     try:
         await server.start()
     except OSError as exc:
