@@ -80,6 +80,7 @@ class ReceivedCommand:
     armed: bool = False
     on_ground: bool = True
     mode: int = 0
+    params: tuple[float, ...] = ()
 
 
 class SimVehicle:
@@ -420,8 +421,13 @@ class SimVehicle:
 
     def _log_command(self, msg: Any, kind: str, t_s: float) -> None:
         command = int(getattr(msg, "command", 0) or 0)
+        params: tuple[float, ...] = ()
         if kind == "SET_MODE":
             command = int(msg.custom_mode)
+        elif kind in ("COMMAND_LONG", "COMMAND_INT"):
+            params = tuple(float(getattr(msg, f"param{i}")) for i in range(1, 5))
+            if kind == "COMMAND_LONG":
+                params += tuple(float(getattr(msg, f"param{i}")) for i in range(5, 8))
         self.received.append(
             ReceivedCommand(
                 t_s,
@@ -432,6 +438,7 @@ class SimVehicle:
                 self.autopilot.armed,
                 self.airframe.on_ground,
                 self.autopilot.mode,
+                params,
             )
         )
 
