@@ -233,8 +233,7 @@ def test_single_forged_frames_change_nothing(tmp_path: Path, how: str) -> None:
         [(t, _inject(how, peer, seed=i)) for i, t in enumerate(injections)],
         before=before,
     )  # fmt: skip
-    if peer.transport is not None:
-        peer.transport.close()
+    sock.close()  # its transport died with the event loop
     assert not events(journal, "task_error")
     # nothing really happened to any vehicle: every such line would be caused by a forgery
     for name in FALSE_STATE_EVENTS:
@@ -256,7 +255,9 @@ def test_single_forged_frames_change_nothing(tmp_path: Path, how: str) -> None:
     assert uploads, "vehicle 1 got no new mission after the first forgery"
     counts = [c.t_s for c in to_v1 if c.kind == "MISSION_COUNT"]
     for up in uploads:
-        assert [t for t in counts if up["t"] - 15.0 <= t <= up["t"]], f"not via its link: {up}"
+        assert [t for t in counts if up["t"] - 15.0 <= t <= up["t"] + 1.0], (
+            f"not via its link: {up}; {[(c.t_s, c.kind, c.command) for c in to_v1]}"
+        )
     # and not to the other link (which is only a forwarding peer)
     commands = {"MISSION_COUNT", "COMMAND_LONG", "COMMAND_INT", "SET_MODE", "MISSION_ITEM_INT"}
     to_peer = [
