@@ -291,22 +291,22 @@ def test_flood_on_one_link_does_not_starve_the_others(tmp_path: Path) -> None:
     gcs = str(Path(sys.executable).parent / "gcs")
     sim, lines = _start(
         [gcs, "sitl", "--count", "3", "--base-port", "0", "--scenario", "default",
-         "--airborne", "--speedup", "5", "--detections", "none", "--duration", "400"],
+         "--airborne", "--speedup", "10", "--detections", "none", "--duration", "2000"],
         "system id", 3, 30.0,
     )  # fmt: skip
     ports = [int(x.rsplit(":", 1)[1]) for x in lines if "system id" in x]
     assert len(ports) == 3, lines
     proxy, plines = _start(
         [sys.executable, "-m", "sitl.flood_proxy", "--upstream", str(ports[0]),
-         "--rate", "20000", "--at", "8", "--for", "4", "--sysid", "1"],
+         "--rate", "22000", "--at", "8", "--for", "4", "--sysid", "1"],
         "listening", 1, 30.0,
     )  # fmt: skip
     try:
         proxy_port = int(plines[-1].split()[1])
         config = build_config(
             ["--vehicles", f"tcp:127.0.0.1:{proxy_port}", f"tcp:127.0.0.1:{ports[1]}",
-             f"tcp:127.0.0.1:{ports[2]}", "--scenario", "default", "--speedup", "5",
-             "--duration", "90", "--run-dir", str(tmp_path), "--http", "off",
+             f"tcp:127.0.0.1:{ports[2]}", "--scenario", "default", "--speedup", "10",
+             "--duration", "180", "--run-dir", str(tmp_path), "--http", "off",
              "--detections", "off", "--status", "quiet"]
         )  # fmt: skip
         daemon = asyncio.run(
@@ -326,18 +326,25 @@ def test_flood_on_one_link_does_not_starve_the_others(tmp_path: Path) -> None:
     assert not events(journal, "task_error")
     assert not [e for e in events(journal, "link_lost") if e["vehicle"] != "1"]
     # the other vehicles' worst gap between frames received by the daemon (tlog
-    # reception times), from 1 s before the flood to 1 s after it
-    lo, hi = float(start_unix) - 1.0, float(end_unix) + 1.0
-    times: dict[int, list[float]] = {2: [], 3: []}
+    # reception times), from 1 s before the flood to 1 s after it, against the same
+    # measure over the 4 s before that (the baseline, reported)
+    start, end = float(start_unix), float(end_unix)
+    windows = {"flood": (start - 1.0, end + 1.0), "baseline": (start - 5.0, start - 1.0)}
+    times: dict[tuple[str, int], list[float]] = {(w, v): [] for w in windows for v in (2, 3)}
     flood_frames = 0
     for record in TlogReader(daemon.run_dir / "flight.tlog"):
         msg, t_unix = record.message, record.t_unix_s
-        if msg.get_srcSystem() in times and lo <= t_unix <= hi:
-            times[msg.get_srcSystem()].append(t_unix)
-        elif msg.get_type() == "DEBUG_VECT":
+        if msg.get_type() == "DEBUG_VECT":
             flood_frames += 1
+            continue
+        for w, (lo, hi) in windows.items():
+            if (w, msg.get_srcSystem()) in times and lo <= t_unix <= hi:
+                times[(w, msg.get_srcSystem())].append(t_unix)
     assert flood_frames > 0  # the flood reached the daemon
-    for sysid, ts in times.items():
-        assert len(ts) > 10, f"vehicle {sysid} silent during the flood"
-        worst = max(b - a for a, b in itertools.pairwise(ts))
-        assert worst < 0.1, f"vehicle {sysid}: worst telemetry gap {worst * 1000:.0f} ms"
+    worst = {
+        key: max((b - a for a, b in itertools.pairwise(ts)), default=math.inf)
+        for key, ts in times.items()
+    }
+    report = {f"{w} {v}": f"{g * 1000:.0f} ms" for (w, v), g in worst.items()}
+    for sysid in (2, 3):
+        assert worst[("flood", sysid)] < 0.1, f"worst telemetry gaps: {report}"
