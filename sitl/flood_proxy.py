@@ -4,8 +4,11 @@
 127.0.0.1 (``--port``, default ephemeral), prints ``listening PORT`` and, for each client
 (a ground station), connects to the vehicle at ``--upstream`` and relays both ways. From
 ``--at`` wall seconds after the first client connected, for ``--for`` seconds, it also
-writes ``--rate`` benign frames per second (:func:`sitl.forge.flood_chunk`, system id
-``--sysid``, component ``--compid``) towards the client, in bursts every 10 ms. On exit
+writes ``--rate`` frames per second towards the client, in bursts every 10 ms: with
+``--mix flood`` benign ones (:func:`sitl.forge.flood_chunk`, system id ``--sysid``,
+component ``--compid``); with ``--mix fuzz`` a seeded mixture of random bytes (20 %),
+wrong-length frames with a valid CRC (20 %), random valid frames (40 %, from component
+``--compid`` or other system ids) and forged state frames (20 %, ``--compid``). On exit
 (stdin closed, or ``--exit-after`` seconds) it prints ``flood FRAMES SECONDS START_UNIX
 END_UNIX``. A client that cannot keep up is not waited for beyond 1 MiB of backlog: the
 excess is dropped and counted as not sent (the kernel and the link decide, as with radio).
@@ -16,12 +19,19 @@ from __future__ import annotations
 import argparse
 import asyncio
 import contextlib
+import random
 import sys
 import time
 
-from sitl.forge import flood_chunk
+from sitl.forge import (
+    flood_chunk,
+    forged_frames,
+    random_bytes,
+    random_valid_frame,
+    wrong_length_frame,
+)
 
-__all__ = ["main", "split_frames"]
+__all__ = ["fuzz_pool", "main", "split_frames"]
 
 _BURST_S = 0.01
 _MAX_BACKLOG = 1 << 20
@@ -47,6 +57,25 @@ def split_frames(buf: bytes) -> tuple[bytes, bytes]:
             break
         i += size
     return buf[:i], buf[i:]
+
+
+def fuzz_pool(sysid: int, compid: int, seed: int, size: int = 4000) -> list[bytes]:
+    """Pieces (one frame, or a few noise bytes, each) for ``--mix fuzz``."""
+    rng = random.Random(seed)
+    pool: list[bytes] = []
+    forged = forged_frames(sysid, compid, seed=seed)
+    while len(pool) < size:
+        r = rng.random()
+        if r < 0.2:
+            pool.append(random_bytes(rng, rng.randrange(1, 60)))
+        elif r < 0.4:
+            pool.append(wrong_length_frame(rng, sysid, compid))
+        elif r < 0.8:
+            who = (sysid, compid) if rng.random() < 0.5 else (rng.randrange(2, 250), 1)
+            pool.append(random_valid_frame(rng, *who))
+        else:
+            pool.append(rng.choice(forged))
+    return pool
 
 
 class _Proxy:
@@ -88,7 +117,15 @@ class _Proxy:
         t0 = await self.first_client
         await asyncio.sleep(max(0.0, t0 + args.at - time.monotonic()))
         per_burst = max(1, round(args.rate * _BURST_S))
-        chunk = flood_chunk(args.sysid, args.compid, per_burst)
+        if args.mix == "fuzz":
+            pool = fuzz_pool(args.sysid, args.compid, args.seed)
+            chunks = [
+                b"".join(pool[(k * per_burst + i) % len(pool)] for i in range(per_burst))
+                for k in range(max(1, len(pool) // per_burst))
+            ]
+        else:
+            chunks = [flood_chunk(args.sysid, args.compid, per_burst)]
+        burst = 0
         start = time.monotonic()
         self.start_unix = time.time()
         next_t = start
@@ -97,8 +134,9 @@ class _Proxy:
                 if w.is_closing():
                     continue
                 if w.transport.get_write_buffer_size() < _MAX_BACKLOG:
-                    w.write(chunk)
+                    w.write(chunks[burst % len(chunks)])
                     self.sent += per_burst
+            burst += 1
             next_t += _BURST_S
             await asyncio.sleep(max(0.0, next_t - time.monotonic()))
         self.end_unix = time.time()
@@ -130,6 +168,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--for", dest="duration", type=float, default=3.0, help="flood seconds")
     p.add_argument("--sysid", type=int, default=1)
     p.add_argument("--compid", type=int, default=191)
+    p.add_argument("--mix", choices=("flood", "fuzz"), default="flood")
+    p.add_argument("--seed", type=int, default=0)
     p.add_argument("--exit-after", type=float, default=0.0, help="seconds (0: stdin EOF)")
     args = p.parse_args(argv)
     with contextlib.suppress(KeyboardInterrupt):
