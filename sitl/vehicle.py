@@ -12,6 +12,11 @@ Battery: a 3S pack; consumption ``I`` = 15 A flying, 0.5 A on the ground;
 ``remaining = 1 - used_mAh / BATT_CAPACITY``; ``voltage = 10.2 + 2.4 remaining`` V (12.6 V
 full, BATT_LOW_VOLT 10.5 V at 12.5 %). Below BATT_LOW_VOLT: "Battery 1 is low ..." and the
 BATT_FS_LOW_ACT action (1 or 2: RTL).
+
+Kill/restart (:meth:`SimVehicle.kill`): the autopilot process is dead for a while (sends
+and hears nothing), then powers up on the ground where the aircraft came down: disarmed,
+``time_boot_ms`` from 0, INITIALISING then MANUAL, mission and parameters from storage.
+Every command-like message received is logged in :attr:`SimVehicle.received`.
 """
 
 from __future__ import annotations
