@@ -4,6 +4,12 @@ altitude as a first-order climb at a bounded rate, airspeed as a bounded acceler
     h' = clamp(k_h (h_cmd - h), -sink_max, climb_max)      (k_h = 0.5 1/s)
     V' = clamp(k_v (V_cmd - V), -a_max, a_max)
 
+A glide (a pilot mode with the throttle closed and the sticks centred: no RC input) flies
+wings level at the commanded airspeed and sinks at ``V / GLIDE_RATIO`` (about 2.2 m/s for
+an X8 at 22 m/s). Ground contact: when the altitude (above home; flat ground, no terrain)
+reaches 0 while descending, the aircraft stops there (``on_ground``, speed 0) and
+``touchdown_sink_m_s`` records the sink rate at impact.
+
 Roll for ATTITUDE is the coordinated-turn bank angle ``phi = atan(-V u / g)`` (right wing
 down positive; u is counter-clockwise positive).
 """
@@ -28,12 +34,14 @@ CLIMB_MAX_M_S = 5.0
 SINK_MAX_M_S = 5.0
 _ALT_GAIN_PER_S = 0.5
 _ACCEL_MAX_M_S2 = 2.0
+GLIDE_RATIO = 10.0
 
 
 @dataclass(frozen=True)
 class Guidance:
     """What the autopilot asks the airframe to do: ``kind`` is 'ground', 'straight',
-    'point' or 'loiter' (then ``radius_m`` is the flown radius, ``clockwise`` its sense)."""
+    'glide', 'point' or 'loiter' (then ``radius_m`` is the flown radius, ``clockwise`` its
+    sense)."""
 
     kind: str
     x_m: float = 0.0
@@ -55,6 +63,7 @@ class Airframe:
     on_ground: bool = True
     climb_m_s: float = 0.0
     turn_rate_rad_s: float = 0.0
+    touchdown_sink_m_s: float | None = None
 
     def step(self, guidance: Guidance, alt_cmd_m: float, speed_cmd_m_s: float, dt_s: float) -> None:
         """Advance by ``dt_s`` following ``guidance``."""
@@ -79,9 +88,21 @@ class Airframe:
         new = step_kinematics(state, u, dt_s)
         self.x_m, self.y_m, self.heading_rad = new.x_m, new.y_m, new.heading_rad
         self.turn_rate_rad_s = u
-        climb = max(-SINK_MAX_M_S, min(CLIMB_MAX_M_S, _ALT_GAIN_PER_S * (alt_cmd_m - self.alt_m)))
+        if guidance.kind == "glide":
+            climb = -self.speed_m_s / GLIDE_RATIO
+        else:
+            climb = max(
+                -SINK_MAX_M_S, min(CLIMB_MAX_M_S, _ALT_GAIN_PER_S * (alt_cmd_m - self.alt_m))
+            )
         self.alt_m += climb * dt_s
         self.climb_m_s = climb
+        if self.alt_m <= 0.0 and climb < 0.0:  # ground contact: the aircraft stops there
+            self.touchdown_sink_m_s = -climb
+            self.alt_m = 0.0
+            self.on_ground = True
+            self.speed_m_s = 0.0
+            self.climb_m_s = 0.0
+            self.turn_rate_rad_s = 0.0
 
     @property
     def roll_rad(self) -> float:

@@ -15,7 +15,12 @@ Facts reproduced (design.md, "MAVLink facts"; ArduPlane's commands_logic.cpp):
   switches to RTL; RTL loiters over home at ALT_HOLD_RTL (cm) and RTL_RADIUS/WP_LOITER_RAD;
 * a re-uploaded mission does not stop the active item (it is a copy); set-current to any
   seq, the same one included, restarts there at once;
-* GUIDED loiters at the guided point; MISSION_ITEM_REACHED 0 on arrival.
+* GUIDED loiters at the guided point; MISSION_ITEM_REACHED 0 on arrival;
+* MANUAL, STABILIZE, TRAINING, ACRO and FBWA with no RC input (SITL's default: throttle
+  closed, sticks centred) glide wings level until they hit the ground;
+* on the ground nothing flies except AUTO on a NAV_TAKEOFF item while armed (ArduPlane
+  suppresses the throttle on the ground otherwise): a plane that came down stays put in
+  AUTO, RTL, LOITER or GUIDED.
 """
 
 from __future__ import annotations
@@ -32,7 +37,7 @@ from sitl.mission_store import MissionItem, MissionStore
 from sitl.params import ParamStore
 from sitl.statustext import StatusTextFactory
 
-__all__ = ["MODE_NAMES", "RADIUS_FACTOR", "Autopilot", "NavTarget"]
+__all__ = ["GLIDE_MODES", "MODE_NAMES", "RADIUS_FACTOR", "Autopilot", "NavTarget"]
 
 M = mavlink2
 RADIUS_FACTOR = 1.15
@@ -44,6 +49,8 @@ _M = ArduPlaneMode
 MANUAL, STABILIZE, FBWA, AUTO, RTL = _M.MANUAL, _M.STABILIZE, _M.FBWA, _M.AUTO, _M.RTL
 LOITER, GUIDED, INITIALISING = _M.LOITER, _M.GUIDED, _M.INITIALISING
 FLYING_MODES = frozenset({AUTO, RTL, LOITER, GUIDED, _M.TAKEOFF})
+# pilot modes: with no RC input (throttle closed, sticks centred) the plane glides down
+GLIDE_MODES = frozenset({MANUAL, STABILIZE, _M.TRAINING, _M.ACRO, FBWA})
 _ON_CIRCLE_FRACTION = 0.1
 _ON_CIRCLE_MIN_M = 10.0
 
@@ -339,12 +346,12 @@ class Autopilot:
     def guidance(self, af: Airframe) -> tuple[Guidance, float]:
         """(lateral guidance, altitude command) for the current mode and command."""
         if af.on_ground and not (
-            self.armed
-            and self.mode in FLYING_MODES
-            and (self.nav is not None and self.nav.kind not in ("landing",))
+            self.armed and self.mode == AUTO and self.nav is not None and self.nav.kind == "takeoff"
         ):
             return Guidance("ground"), 0.0
         nav = self.nav
+        if self.mode in GLIDE_MODES:
+            return Guidance("glide"), 0.0
         if self.mode not in FLYING_MODES or nav is None:
             return Guidance("straight"), self.alt_hold_m
         if nav.kind in ("hold", "loiter_unlim", "loiter_time", "loiter_turns"):

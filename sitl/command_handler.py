@@ -19,15 +19,13 @@ COMMAND_ACK (UNSUPPORTED for unknown ones, FAILED/DENIED where ArduPlane refuses
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from groundstation.mavlink.codec import mavlink2
 from sitl.autopilot import AUTO, GUIDED, INITIALISING, LOITER, MODE_NAMES, RTL
 from sitl.telemetry import STREAMABLE
 from sitl.vehicle_messages import autopilot_version, build_message
-
-if TYPE_CHECKING:
-    from sitl.vehicle import SimVehicle
+from sitl.vehicle_state import VehicleView
 
 __all__ = ["guided_item", "handle"]
 
@@ -53,7 +51,7 @@ def _param_name(raw: Any) -> str:
     return str(raw).rstrip("\x00")
 
 
-def handle(v: SimVehicle, msg: Any, t_s: float) -> list[Any]:
+def handle(v: VehicleView, msg: Any, t_s: float) -> list[Any]:
     """Answer a non-mission message (unknown types are ignored)."""
     kind = msg.get_type()
     if kind == "COMMAND_LONG":
@@ -111,7 +109,7 @@ def handle(v: SimVehicle, msg: Any, t_s: float) -> list[Any]:
     return []
 
 
-def _set_mode(v: SimVehicle, mode: int) -> tuple[int, list[Any]]:
+def _set_mode(v: VehicleView, mode: int) -> tuple[int, list[Any]]:
     if mode not in MODE_NAMES or mode == INITIALISING:
         return M.MAV_RESULT_FAILED, v.text.make(f"No such mode {mode}", M.MAV_SEVERITY_WARNING)
     if not v.ready_flags["init"]:
@@ -122,7 +120,7 @@ def _set_mode(v: SimVehicle, mode: int) -> tuple[int, list[Any]]:
     return M.MAV_RESULT_ACCEPTED, out
 
 
-def _arm(v: SimVehicle, msg: Any, p: list[float]) -> list[Any]:
+def _arm(v: VehicleView, msg: Any, p: list[float]) -> list[Any]:
     cmd = M.MAV_CMD_COMPONENT_ARM_DISARM
     ap = v.autopilot
     if p[0] == 1.0:
@@ -146,7 +144,7 @@ def _arm(v: SimVehicle, msg: Any, p: list[float]) -> list[Any]:
     return [_ack(msg, cmd, M.MAV_RESULT_DENIED)]
 
 
-def _request_message(v: SimVehicle, msg_id: int) -> Any:
+def _request_message(v: VehicleView, msg_id: int) -> Any:
     if msg_id == M.MAVLINK_MSG_ID_AUTOPILOT_VERSION:
         return autopilot_version(v)
     if msg_id in STREAMABLE or msg_id in (M.MAVLINK_MSG_ID_HOME_POSITION,):
@@ -166,7 +164,7 @@ _REPOSITION_FRAMES = frozenset(
 )
 
 
-def _reposition(v: SimVehicle, msg: Any, p: list[float], frame: int | None) -> list[Any]:
+def _reposition(v: VehicleView, msg: Any, p: list[float], frame: int | None) -> list[Any]:
     """ArduPlane's handle_command_int_do_reposition: param3 > 0 sets the loiter radius,
     param4 != 0 loiters counter-clockwise; accepted only with the change-mode flag in
     param2 or when already in GUIDED."""
@@ -200,7 +198,7 @@ def _reposition(v: SimVehicle, msg: Any, p: list[float], frame: int | None) -> l
 
 
 def _command(
-    v: SimVehicle, msg: Any, cmd: int, p: list[float], frame: int | None, t_s: float
+    v: VehicleView, msg: Any, cmd: int, p: list[float], frame: int | None, t_s: float
 ) -> list[Any]:
     ap, af = v.autopilot, v.airframe
     if cmd == M.MAV_CMD_COMPONENT_ARM_DISARM:
@@ -262,7 +260,7 @@ def _command(
     return [_ack(msg, cmd, M.MAV_RESULT_UNSUPPORTED)]
 
 
-def guided_item(v: SimVehicle, msg: Any) -> list[Any]:
+def guided_item(v: VehicleView, msg: Any) -> list[Any]:
     """A guided MISSION_ITEM(_INT) (current = 2: go to, 3: change altitude)."""
     peer = (msg.get_srcSystem(), msg.get_srcComponent())
     ap = v.autopilot

@@ -9,7 +9,10 @@ ground station -> vehicle, "down": vehicle -> ground station):
 * ``delay_s`` d and ``jitter_s`` j: delivered after d + U(0, j) seconds.
 
 Scheduled events (simulated seconds since the start): ``drop`` (the link is down in both
-directions for ``for_s``), ``reboot``, ``mode`` (the operator switches mode, e.g. to FBWA
+directions for ``for_s``), ``kill`` (the autopilot process dies for ``for_s``: it stops
+sending, its connections drop, then it comes back rebooted on the ground where it came
+down, disarmed, ``time_boot_ms`` from 0, INITIALISING then MANUAL, the mission reloaded
+from storage), ``reboot``, ``mode`` (the operator switches mode, e.g. to FBWA
 or RTL, as with the RC transmitter) and ``battery`` (the pack suddenly reads ``pct``
 percent). Events come from ``--fault`` specs or a scenario's scripted events.
 
@@ -18,6 +21,7 @@ Spec grammar (command line)::
     VEHICLES:KIND[:key=value,...]      VEHICLES = sysid | a,b,c | all
     1:loss:p=0.2,dir=up       all:delay:s=0.3,jitter=0.1       2:dup:p=0.05
     3:reorder:p=0.1           1:drop:at=60,for=20              2:reboot:at=120
+    2:kill:at=60,for=30
     1:mode:at=90,mode=FBWA    3:battery:at=200,pct=10
 """
 
@@ -42,7 +46,7 @@ __all__ = [
 
 @dataclass(frozen=True)
 class FaultEvent:
-    """A scheduled fault: ``kind`` reboot | mode | battery | drop."""
+    """A scheduled fault: ``kind`` kill | reboot | mode | battery | drop."""
 
     t_s: float
     kind: str
@@ -120,7 +124,7 @@ class VehicleFaults:
             self.down.push(item, t_s, self.rng)
 
     def due_events(self, t_s: float) -> list[FaultEvent]:
-        """Autopilot events (reboot, mode, battery) whose time has come, each once."""
+        """Autopilot events (kill, reboot, mode, battery) whose time has come, each once."""
         out = []
         while self._next_event < len(self.events) and self.events[self._next_event].t_s <= t_s:
             event = self.events[self._next_event]
@@ -150,6 +154,8 @@ def apply_fault(faults: VehicleFaults, kind: str, options: dict[str, str]) -> No
     at = float(options["at"])
     if kind == "drop":
         faults.add_event(FaultEvent(at, "drop", duration_s=float(options["for"])))
+    elif kind == "kill":
+        faults.add_event(FaultEvent(at, "kill", duration_s=float(options["for"])))
     elif kind == "reboot":
         faults.add_event(FaultEvent(at, "reboot"))
     elif kind == "mode":

@@ -13,7 +13,9 @@
   (the achieved real-time factor is :attr:`SitlServer.realtime_factor`).
 * ``wait_for_client``: a vehicle boots only when its first TCP client connects (as
   ArduPilot SITL does); otherwise all boot at once.
-* Faults (:mod:`sitl.faults`) sit between the sockets and each vehicle.
+* Faults (:mod:`sitl.faults`) sit between the sockets and each vehicle. While a vehicle is
+  dead (a ``kill`` fault) its TCP clients are disconnected and new ones closed at once, as
+  when an ArduPilot SITL process dies.
 * Answers addressed to the requester (a non-zero ``target_system``: COMMAND_ACK, mission
   protocol replies) go back only on the link the request came from (the TCP client, or the
   UDP address), as ArduPilot answers on the requesting channel; everything else (telemetry,
@@ -212,6 +214,9 @@ class SitlServer:
     async def _serve_client(
         self, slot: _Slot, reader: asyncio.StreamReader, writer: asyncio.StreamWriter
     ) -> None:
+        if slot.vehicle is not None and not slot.vehicle.alive:
+            writer.close()  # the autopilot process is dead: nobody answers
+            return
         slot.clients.add(writer)
         self._boot(slot)
         decoder = MavlinkDecoder()
@@ -325,6 +330,10 @@ class SitlServer:
                 continue
             self._service(slot)
             self._downlink(slot, slot.vehicle.step(self.t_s))
+            if not slot.vehicle.alive:
+                for writer in list(slot.clients):
+                    writer.close()
+                slot.clients.clear()
         if self.feed is not None:
             positions = {
                 s.config.system_id: (s.vehicle.airframe.x_m, s.vehicle.airframe.y_m)

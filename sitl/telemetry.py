@@ -3,9 +3,10 @@
 Rates: every stream runs at 1 Hz of simulated time unrequested (ArduPlane's SR0_* defaults
 in SITL give ~1 Hz to a new ground station). REQUEST_DATA_STREAM sets the rate of a group
 (ArduPilot's grouping: EXTENDED_STATUS = SYS_STATUS, GPS_RAW_INT, MISSION_CURRENT,
-NAV_CONTROLLER_OUTPUT; POSITION = GLOBAL_POSITION_INT; EXTRA1 = ATTITUDE; EXTRA2 = VFR_HUD;
-EXTRA3 = SYSTEM_TIME, BATTERY_STATUS; ALL = every group); SET_MESSAGE_INTERVAL sets one
-message (interval -1 disables, 0 restores the default). HEARTBEAT is always 1 Hz.
+NAV_CONTROLLER_OUTPUT, EXTENDED_SYS_STATE; POSITION = GLOBAL_POSITION_INT; EXTRA1 =
+ATTITUDE; EXTRA2 = VFR_HUD; EXTRA3 = SYSTEM_TIME, BATTERY_STATUS; ALL = every group);
+SET_MESSAGE_INTERVAL sets one message (interval -1 disables, 0 restores the default).
+HEARTBEAT is always 1 Hz.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ STREAM_GROUPS: dict[int, tuple[int, ...]] = {
         M.MAVLINK_MSG_ID_GPS_RAW_INT,
         M.MAVLINK_MSG_ID_MISSION_CURRENT,
         M.MAVLINK_MSG_ID_NAV_CONTROLLER_OUTPUT,
+        M.MAVLINK_MSG_ID_EXTENDED_SYS_STATE,
     ),
     M.MAV_DATA_STREAM_POSITION: (M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,),
     M.MAV_DATA_STREAM_EXTRA1: (M.MAVLINK_MSG_ID_ATTITUDE,),
@@ -32,7 +34,6 @@ DEFAULT_INTERVALS_S: dict[int, float] = {HEARTBEAT: 1.0, M.MAVLINK_MSG_ID_HOME_P
 for _group in STREAM_GROUPS.values():
     for _msg_id in _group:
         DEFAULT_INTERVALS_S[_msg_id] = 1.0
-DEFAULT_INTERVALS_S[M.MAVLINK_MSG_ID_EXTENDED_SYS_STATE] = 1.0
 STREAMABLE = frozenset(DEFAULT_INTERVALS_S)
 """Message ids the simulator can stream (SET_MESSAGE_INTERVAL accepts these)."""
 

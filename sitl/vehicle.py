@@ -12,15 +12,21 @@ Battery: a 3S pack; consumption ``I`` = 15 A flying, 0.5 A on the ground;
 ``remaining = 1 - used_mAh / BATT_CAPACITY``; ``voltage = 10.2 + 2.4 remaining`` V (12.6 V
 full, BATT_LOW_VOLT 10.5 V at 12.5 %). Below BATT_LOW_VOLT: "Battery 1 is low ..." and the
 BATT_FS_LOW_ACT action (1 or 2: RTL).
+
+Kill/restart (:meth:`SimVehicle.kill`): the autopilot process is dead for a while (sends
+and hears nothing), then powers up on the ground where the aircraft came down: disarmed,
+``time_boot_ms`` from 0, INITIALISING then MANUAL, mission and parameters from storage.
+Every command-like message received is logged in :attr:`SimVehicle.received`.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from collections import deque
+from dataclasses import dataclass
 from typing import Any
 
-from domain.geodesy import GeoOrigin, compass_deg_from_enu_rad
+from domain.geodesy import compass_deg_from_enu_rad
 from groundstation.mavlink.codec import mavlink2
 from sitl import command_handler
 from sitl.airframe import Airframe
@@ -32,8 +38,9 @@ from sitl.params import ParamStore, default_param_specs
 from sitl.statustext import StatusTextFactory
 from sitl.telemetry import StreamScheduler
 from sitl.vehicle_messages import build_message
+from sitl.vehicle_state import VehicleConfig
 
-__all__ = ["SimVehicle", "VehicleConfig"]
+__all__ = ["ReceivedCommand", "SimVehicle", "VehicleConfig"]
 
 M = mavlink2
 PHYSICS_DT_S = 0.1
@@ -50,33 +57,35 @@ MISSION_MESSAGES = frozenset(
         "MISSION_ACK",
     }
 )
+# what a ground station asks the vehicle to do (kept in SimVehicle.received for tests)
+COMMAND_MESSAGES = frozenset(
+    {
+        "COMMAND_LONG",
+        "COMMAND_INT",
+        "SET_MODE",
+        "MISSION_COUNT",
+        "MISSION_CLEAR_ALL",
+        "MISSION_SET_CURRENT",
+        "PARAM_SET",
+    }
+)
+RECEIVED_LOG_SIZE = 10_000
 
 
 @dataclass(frozen=True)
-class VehicleConfig:
-    """Everything that defines one simulated vehicle."""
+class ReceivedCommand:
+    """One command-like message the vehicle received (time in the vehicle's simulated
+    seconds since the simulator started, not since boot)."""
 
-    system_id: int
-    origin: GeoOrigin
-    home_lat_deg: float
-    home_lon_deg: float
-    home_amsl_m: float = 0.0
-    cruise_speed_m_s: float = 22.0
-    min_turn_radius_m: float = 105.0
-    launch_x_m: float | None = None
-    launch_y_m: float | None = None
-    launch_heading_rad: float = 0.0
-    airborne: bool = False
-    airborne_alt_m: float = 100.0
-    fast_boot: bool = False
-    unix_time_at_zero_s: float = 1.7e9
-    component_id: int = 1
-    params: dict[str, float] = field(default_factory=dict)
-
-    @property
-    def boot_times_s(self) -> tuple[float, float, float]:
-        """(init, GPS fix, EKF ready) seconds after boot."""
-        return (0.5, 1.0, 2.0) if self.fast_boot else (2.0, 10.0, 20.0)
+    t_s: float
+    kind: str
+    src_system: int
+    src_component: int
+    command: int = 0
+    armed: bool = False
+    on_ground: bool = True
+    mode: int = 0
+    params: tuple[float, ...] = ()
 
 
 class SimVehicle:
@@ -93,6 +102,9 @@ class SimVehicle:
         self.store = MissionStore(self._home_item())
         self.battery_used_mah = 0.0
         self.reboots = 0
+        self.kills = 0
+        self.received: deque[ReceivedCommand] = deque(maxlen=RECEIVED_LOG_SIZE)
+        self._dead_until_s: float | None = None
         self.handler_errors = 0
         self.last_handler_error = ""
         self._geodetic_cache: tuple[tuple[float, float], tuple[float, float]] = (
@@ -112,7 +124,7 @@ class SimVehicle:
             z=c.home_amsl_m,
         )
 
-    def _boot(self, t_s: float) -> None:
+    def _boot(self, t_s: float, airborne: bool | None = None) -> None:
         c = self.config
         self.t_boot_s = t_s
         self.t_s = t_s
@@ -137,7 +149,7 @@ class SimVehicle:
         self.battery_low_sent = False
         self._next_prearm_report_s = t_s + PREARM_REPORT_S
         self._pending: list[Any] = []
-        if c.airborne:
+        if c.airborne if airborne is None else airborne:
             self._start_airborne()
 
     def _start_airborne(self) -> None:
@@ -177,9 +189,39 @@ class SimVehicle:
             af.alt_m, af.speed_m_s = flying.alt_m, flying.speed_m_s
         return self._drain()
 
+    # ------------------------------------------------------------ kill/restart
+    @property
+    def alive(self) -> bool:
+        """False while the autopilot process is dead (a ``kill`` fault)."""
+        return self._dead_until_s is None
+
+    def kill(self, t_s: float, for_s: float) -> None:
+        """The autopilot process dies at ``t_s``: it sends nothing and hears nothing for
+        ``for_s`` seconds, then restarts (see :meth:`_restart`)."""
+        self.kills += 1
+        self._pending = []
+        self._dead_until_s = t_s + max(0.0, for_s)
+
+    def _restart(self, t_s: float) -> None:
+        """Power-on after a kill: on the ground where the aircraft came down, disarmed,
+        ``time_boot_ms`` from 0, INITIALISING then MANUAL, the mission reloaded from
+        storage (EEPROM), parameters kept, the same battery pack."""
+        where = self.airframe
+        self._dead_until_s = None
+        self.reboots += 1
+        self.store.capacity = 0
+        self._boot(t_s, airborne=False)
+        af = self.airframe
+        af.x_m, af.y_m, af.heading_rad = where.x_m, where.y_m, where.heading_rad
+
     def apply_fault(self, event: FaultEvent, t_s: float) -> list[Any]:
-        """Apply a scheduled fault: reboot, operator mode switch or low battery."""
+        """Apply a scheduled fault: kill, reboot, operator mode switch or low battery."""
         out = self.step(t_s)
+        if not self.alive:
+            return out
+        if event.kind == "kill":
+            self.kill(t_s, event.duration_s)
+            return []
         if event.kind == "reboot":
             return out + self.reboot(t_s)
         if event.kind == "mode" and self.ready_flags["init"] and event.mode in MODE_NAMES:
@@ -220,6 +262,11 @@ class SimVehicle:
         return 10.2 + 2.4 * self.battery_remaining
 
     @property
+    def failsafe_active(self) -> bool:
+        """A failsafe (here: the low-battery one) has triggered."""
+        return self.battery_low_sent
+
+    @property
     def battery_current_a(self) -> float:
         """Pack current."""
         return 0.5 if self.airframe.on_ground else 15.0
@@ -242,6 +289,11 @@ class SimVehicle:
     # ------------------------------------------------------------------ step
     def step(self, t_s: float) -> list[Any]:
         """Advance to ``t_s`` (simulated seconds) and return what the vehicle sends."""
+        if self._dead_until_s is not None:
+            if t_s < self._dead_until_s:
+                self.t_s = max(self.t_s, t_s)
+                return []
+            self._restart(self._dead_until_s)
         out = self._drain()
         while self.t_s < t_s - 1e-9:  # telemetry per physics step: rates hold at any tick
             dt = min(PHYSICS_DT_S, t_s - self.t_s)
@@ -268,9 +320,15 @@ class SimVehicle:
     def _physics(self, dt_s: float) -> list[Any]:
         ap, af = self.autopilot, self.airframe
         guidance, alt_cmd = ap.guidance(af)
+        was_on_ground = af.on_ground
         af.step(guidance, alt_cmd, ap.speed_cmd_m_s, dt_s)
         self.battery_used_mah += self.battery_current_a * dt_s / 3.6
         out = ap.update(self.t_s, af)
+        if af.on_ground and not was_on_ground and af.touchdown_sink_m_s is not None:
+            # ArduPilot SITL prints this on its console; the built-in one sends it too
+            out += self.text.make(
+                f"SIM Hit ground at {af.touchdown_sink_m_s:.1f} m/s", M.MAV_SEVERITY_CRITICAL
+            )
         if not self.battery_low_sent and self.battery_voltage_v < self.params.get("BATT_LOW_VOLT"):
             out += self.battery_low()
         return out
@@ -336,7 +394,10 @@ class SimVehicle:
 
     # --------------------------------------------------------------- receive
     def receive(self, msg: Any, t_s: float) -> list[Any]:
-        """Handle one message from a ground station; returns the answers. Never raises."""
+        """Handle one message from a ground station; returns the answers. Never raises.
+        A dead vehicle (``kill``) hears nothing."""
+        if self._dead_until_s is not None:
+            return []
         try:
             return self._receive(msg, max(t_s, self.t_s))
         except Exception as exc:  # defensive: bad peer input must never take the vehicle down
@@ -351,6 +412,8 @@ class SimVehicle:
             return []
         if msg.get_srcSystem() == self.system_id and kind == "HEARTBEAT":
             return []
+        if kind in COMMAND_MESSAGES:
+            self._log_command(msg, kind, t_s)
         if kind in ("MISSION_ITEM", "MISSION_ITEM_INT") and int(msg.current) in (2, 3):
             return command_handler.guided_item(self, msg)
         if kind in MISSION_MESSAGES:
@@ -360,6 +423,29 @@ class SimVehicle:
             _ok, out = self.autopilot.set_current_item(int(msg.seq), self.airframe)
             return [*out, build_message(self, M.MAVLINK_MSG_ID_MISSION_CURRENT)]
         return command_handler.handle(self, msg, t_s)
+
+    def _log_command(self, msg: Any, kind: str, t_s: float) -> None:
+        command = int(getattr(msg, "command", 0) or 0)
+        params: tuple[float, ...] = ()
+        if kind == "SET_MODE":
+            command = int(msg.custom_mode)
+        elif kind in ("COMMAND_LONG", "COMMAND_INT"):
+            params = tuple(float(getattr(msg, f"param{i}")) for i in range(1, 5))
+            if kind == "COMMAND_LONG":
+                params += tuple(float(getattr(msg, f"param{i}")) for i in range(5, 8))
+        self.received.append(
+            ReceivedCommand(
+                t_s,
+                kind,
+                msg.get_srcSystem(),
+                msg.get_srcComponent(),
+                command,
+                self.autopilot.armed,
+                self.airframe.on_ground,
+                self.autopilot.mode,
+                params,
+            )
+        )
 
     def mode_of_custom(self) -> tuple[int, int]:
         """(base_mode, custom_mode) for HEARTBEAT."""

@@ -1,16 +1,15 @@
-"""Builds the telemetry messages of a :class:`sitl.vehicle.SimVehicle` from its state."""
+"""Builds the telemetry messages of a simulated vehicle (:class:`sitl.vehicle_state.VehicleView`)
+from its state."""
 
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from groundstation.mavlink.codec import mavlink2
+from sitl.vehicle_state import VehicleView
 
-if TYPE_CHECKING:
-    from sitl.vehicle import SimVehicle
-
-__all__ = ["autopilot_version", "build_message"]
+__all__ = ["autopilot_version", "build_message", "landed_state", "system_status"]
 
 M = mavlink2
 PREARM_BIT = M.MAV_SYS_STATUS_PREARM_CHECK
@@ -36,7 +35,7 @@ CAPABILITIES = (
 FLIGHT_SW_VERSION = (4 << 24) | (7 << 16) | (0 << 8) | M.FIRMWARE_VERSION_TYPE_DEV
 
 
-def autopilot_version(v: SimVehicle) -> Any:
+def autopilot_version(v: VehicleView) -> Any:
     """AUTOPILOT_VERSION: ArduPlane 4.7.0-dev with the MISSION_INT capability."""
     return M.MAVLink_autopilot_version_message(
         CAPABILITIES,
@@ -53,7 +52,7 @@ def autopilot_version(v: SimVehicle) -> Any:
     )
 
 
-def _sys_status(v: SimVehicle) -> Any:
+def _sys_status(v: VehicleView) -> Any:
     flags = v.ready_flags
     health = _SENSORS & ~(M.MAV_SYS_STATUS_SENSOR_GPS | M.MAV_SYS_STATUS_AHRS | PREARM_BIT)
     if flags["gps"]:
@@ -79,7 +78,7 @@ def _sys_status(v: SimVehicle) -> Any:
     )
 
 
-def _battery(v: SimVehicle) -> Any:
+def _battery(v: VehicleView) -> Any:
     cells = int(v.battery_voltage_v * 1000 / 3)
     return M.MAVLink_battery_status_message(
         0,
@@ -94,7 +93,7 @@ def _battery(v: SimVehicle) -> Any:
     )
 
 
-def _gps(v: SimVehicle) -> Any:
+def _gps(v: VehicleView) -> Any:
     t_us = int(v.t_s * 1e6)
     if not v.ready_flags["gps"]:
         return M.MAVLink_gps_raw_int_message(t_us, 1, 0, 0, 0, 9999, 9999, 0, 0, 0)
@@ -114,7 +113,7 @@ def _gps(v: SimVehicle) -> Any:
     )
 
 
-def _global_position(v: SimVehicle) -> Any:
+def _global_position(v: VehicleView) -> Any:
     if not v.ready_flags["ekf"]:
         return M.MAVLink_global_position_int_message(v.time_boot_ms, 0, 0, 0, 0, 0, 0, 0, 0)
     lat, lon, alt = v.position_geodetic()
@@ -132,7 +131,7 @@ def _global_position(v: SimVehicle) -> Any:
     )
 
 
-def _attitude(v: SimVehicle) -> Any:
+def _attitude(v: VehicleView) -> Any:
     af = v.airframe
     yaw = math.radians(v.heading_deg())
     yaw = yaw - 2 * math.pi if yaw > math.pi else yaw
@@ -142,7 +141,7 @@ def _attitude(v: SimVehicle) -> Any:
     )
 
 
-def _vfr_hud(v: SimVehicle) -> Any:
+def _vfr_hud(v: VehicleView) -> Any:
     af = v.airframe
     throttle = 0 if af.on_ground else 60
     return M.MAVLink_vfr_hud_message(
@@ -155,7 +154,7 @@ def _vfr_hud(v: SimVehicle) -> Any:
     )
 
 
-def _home(v: SimVehicle) -> Any:
+def _home(v: VehicleView) -> Any:
     c = v.config
     if not v.home_set:
         return None
@@ -174,7 +173,7 @@ def _home(v: SimVehicle) -> Any:
     )
 
 
-def _mission_current(v: SimVehicle) -> Any:
+def _mission_current(v: VehicleView) -> Any:
     ap = v.autopilot
     total = max(0, len(v.store) - 1)
     if total == 0:
@@ -188,7 +187,7 @@ def _mission_current(v: SimVehicle) -> Any:
     return M.MAVLink_mission_current_message(ap.current_seq, total, state, int(ap.mode == 10))
 
 
-def _nav_controller(v: SimVehicle) -> Any:
+def _nav_controller(v: VehicleView) -> Any:
     nav = v.autopilot.nav
     af = v.airframe
     if nav is None:
@@ -206,18 +205,40 @@ def _nav_controller(v: SimVehicle) -> Any:
     )
 
 
-def build_message(v: SimVehicle, msg_id: int) -> Any:
+def system_status(v: VehicleView) -> int:
+    """HEARTBEAT ``system_status`` as ArduPlane's ``vehicle_system_status()``: CALIBRATING
+    while INITIALISING, CRITICAL while a failsafe is active, ACTIVE while flying, else
+    STANDBY (armed or not: a plane armed on the ground, or one that came down, is STANDBY).
+    ArduPlane's EMERGENCY (crash detected) needs CRASH_DETECT, 0 by default: never here."""
+    if not v.ready_flags["init"]:
+        return int(M.MAV_STATE_CALIBRATING)
+    if v.failsafe_active:
+        return int(M.MAV_STATE_CRITICAL)
+    if not v.airframe.on_ground:
+        return int(M.MAV_STATE_ACTIVE)
+    return int(M.MAV_STATE_STANDBY)
+
+
+def landed_state(v: VehicleView) -> int:
+    """EXTENDED_SYS_STATE ``landed_state`` as ArduPlane's ``landed_state()``: ON_GROUND
+    unless flying; flying: TAKEOFF on a NAV_TAKEOFF item, LANDING on a NAV_LAND item,
+    else IN_AIR."""
+    if v.airframe.on_ground:
+        return int(M.MAV_LANDED_STATE_ON_GROUND)
+    nav = v.autopilot.nav
+    if nav is not None and v.autopilot.mode == 10 and nav.kind == "takeoff":
+        return int(M.MAV_LANDED_STATE_TAKEOFF)
+    if nav is not None and v.autopilot.mode == 10 and nav.kind in ("land", "landing"):
+        return int(M.MAV_LANDED_STATE_LANDING)
+    return int(M.MAV_LANDED_STATE_IN_AIR)
+
+
+def build_message(v: VehicleView, msg_id: int) -> Any:
     """The message ``msg_id`` as the vehicle would send it now (None if it has none)."""
     if msg_id == M.MAVLINK_MSG_ID_HEARTBEAT:
         base, custom = v.mode_of_custom()
-        if not v.ready_flags["init"]:
-            status = M.MAV_STATE_BOOT
-        elif v.autopilot.armed:
-            status = M.MAV_STATE_CRITICAL if v.battery_low_sent else M.MAV_STATE_ACTIVE
-        else:
-            status = M.MAV_STATE_STANDBY
         return M.MAVLink_heartbeat_message(
-            M.MAV_TYPE_FIXED_WING, M.MAV_AUTOPILOT_ARDUPILOTMEGA, base, custom, status, 3
+            M.MAV_TYPE_FIXED_WING, M.MAV_AUTOPILOT_ARDUPILOTMEGA, base, custom, system_status(v), 3
         )
     builders = {
         M.MAVLINK_MSG_ID_SYS_STATUS: _sys_status,
@@ -235,9 +256,6 @@ def build_message(v: SimVehicle, msg_id: int) -> Any:
         unix_us = int((v.config.unix_time_at_zero_s + v.t_s) * 1e6)
         return M.MAVLink_system_time_message(unix_us, v.time_boot_ms)
     if msg_id == M.MAVLINK_MSG_ID_EXTENDED_SYS_STATE:
-        landed = (
-            M.MAV_LANDED_STATE_ON_GROUND if v.airframe.on_ground else (M.MAV_LANDED_STATE_IN_AIR)
-        )
-        return M.MAVLink_extended_sys_state_message(M.MAV_VTOL_STATE_UNDEFINED, landed)
+        return M.MAVLink_extended_sys_state_message(M.MAV_VTOL_STATE_UNDEFINED, landed_state(v))
     builder = builders.get(msg_id)
     return builder(v) if builder is not None else None

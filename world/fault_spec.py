@@ -16,7 +16,7 @@ from domain.modes import ArduPlaneMode
 
 __all__ = ["FAULT_KINDS", "FaultError", "fault_mode", "parse_fault_spec"]
 
-FAULT_KINDS = ("loss", "dup", "reorder", "delay", "drop", "reboot", "mode", "battery")
+FAULT_KINDS = ("loss", "dup", "reorder", "delay", "drop", "kill", "reboot", "mode", "battery")
 # the modes the built-in vehicle flies (ArduPlane's numbers up to INITIALISING, no AVOID_ADSB)
 _SIM_MODES = {m.name: int(m) for m in ArduPlaneMode if m <= 16 and m != 14}
 
@@ -80,6 +80,7 @@ _ALLOWED = {
     "reorder": {"p", "dir"},
     "delay": {"s", "jitter", "dir"},
     "drop": {"at", "for"},
+    "kill": {"at", "for"},
     "reboot": {"at"},
     "mode": {"at", "mode"},
     "battery": {"at", "pct"},
@@ -90,6 +91,7 @@ _REQUIRED = {
     "reorder": {"p"},
     "delay": {"s"},
     "drop": {"at", "for"},
+    "kill": {"at", "for"},
     "reboot": {"at"},
     "mode": {"at", "mode"},
     "battery": {"at", "pct"},

@@ -102,7 +102,7 @@ def _parser() -> argparse.ArgumentParser:
         default=[],
         metavar="SPEC",
         help="VEHICLES:KIND[:key=value,...], e.g. 1:loss:p=0.2,dir=up, "
-        "all:delay:s=0.2,jitter=0.1, 2:drop:at=60,for=20, 1:reboot:at=90, "
+        "all:delay:s=0.2,jitter=0.1, 2:drop:at=60,for=20, 2:kill:at=60,for=30, 1:reboot:at=90, "
         "3:mode:at=120,mode=FBWA, 2:battery:at=100,pct=10 (repeatable)",
     )
     p.add_argument("--loss", type=float, default=None, help="packet loss, all links (0-1)")

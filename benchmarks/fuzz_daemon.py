@@ -1,0 +1,258 @@
+"""Fuzz benchmark of ``gcs run``: hostile MAVLink on one vehicle's link and from another link.
+
+Processes (all on 127.0.0.1, ephemeral ports): ``gcs sitl --airborne`` with N vehicles; a
+proxy in front of vehicle 1 (``python -m sitl.flood_proxy --mix fuzz``) that, for
+``--seconds``, writes ``--rate`` frames per second into that vehicle's link: random bytes,
+wrong-length frames with a valid CRC, valid frames with random field values and forged
+battery / boot time / mode / item reached / current frames from another component; and
+``gcs run`` connected to the proxy and to the other vehicles, with an ``--out udpin:``
+link on which this script sends ``--udp-rate`` frames per second of forged frames with
+vehicle 1's own system and component ids plus random valid frames (the other link).
+
+Printed (and written as JSON with ``--json FILE``):
+
+* frames sent (link fuzz, other link);
+* task errors in the journal (``task_error``, ``core_error``): must be 0;
+* false state changes: journal lines ``reboot``, ``battery_low``, ``override``,
+  ``link_lost`` (the simulator has no fault scheduled, so none is real; a ``battery_low``
+  after the vehicle's own "Battery 1 is low" STATUSTEXT would be), and ``loiter_end``
+  without the vehicle's own "Loiter time complete" STATUSTEXT in the 3 s before: must be 0;
+* the worst gap between frames the daemon received (tlog reception times) from each of
+  the other vehicles during the fuzz window, and in the same length of time before it;
+* the daemon's resident memory (VmRSS) just before the fuzz and at the end;
+* the system ids the daemon journalled that the simulator never served (phantom vehicles
+  made up from fuzzed frames; their lines count among the false state changes).
+
+Exit status 1 if task errors or false state changes were found.
+
+    python benchmarks/fuzz_daemon.py                 # 3 vehicles, 20 000 frames/s for 10 s
+    python benchmarks/fuzz_daemon.py --quick         # 2 vehicles, 2 s: a smoke test
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import json
+import math
+import random
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+from groundstation.daemon.journal import read_journal
+from groundstation.link.tlog import TlogReader
+from sitl.forge import forged_frames, random_valid_frame
+
+FALSE_EVENTS = ("reboot", "battery_low", "override", "link_lost")
+GCS = str(Path(sys.executable).parent / "gcs")
+
+
+def _start(cmd: list[str], pattern: str, count: int, timeout_s: float) -> tuple[Any, list[str]]:
+    proc = subprocess.Popen(
+        cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True
+    )
+    lines: list[str] = []
+    end = time.monotonic() + timeout_s
+    assert proc.stdout is not None
+    while sum(pattern in x for x in lines) < count and time.monotonic() < end:
+        line = proc.stdout.readline()
+        if not line:
+            break
+        lines.append(line.strip())
+    if sum(pattern in x for x in lines) < count:
+        proc.kill()
+        raise SystemExit(f"fuzz_daemon: {cmd[1]} did not start: {lines}")
+    return proc, lines
+
+
+def _free_udp_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def _rss_kib(pid: int) -> int | None:
+    try:
+        for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1])
+    except OSError:
+        return None
+    return None
+
+
+def _send_other_link(port: int, rate: float, seconds: float, seed: int) -> int:
+    """Forged frames with vehicle 1's ids plus random valid frames, to the daemon's
+    ``udpin`` link, ``rate`` per second for ``seconds``; returns how many were sent."""
+    rng = random.Random(seed)
+    pool = forged_frames(1, 1, seed=seed) * 10
+    pool += [random_valid_frame(rng, rng.choice((1, 2, 3, 77)), 1) for _ in range(400)]
+    sent = 0
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        start = time.monotonic()
+        burst = max(1, round(rate * 0.01))
+        next_t = start
+        while time.monotonic() - start < seconds:
+            for _ in range(burst):
+                sock.sendto(pool[sent % len(pool)], ("127.0.0.1", port))
+                sent += 1
+            next_t += 0.01
+            time.sleep(max(0.0, next_t - time.monotonic()))
+    return sent
+
+
+def _false_changes(journal: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    texts: dict[str, list[tuple[float, str]]] = {}
+    for e in journal:
+        if e["event"] == "statustext":
+            texts.setdefault(str(e.get("vehicle")), []).append((e["t"], e["text"]))
+
+    def said(vehicle: str, t: float, words: str, before_s: float) -> bool:
+        return any(t - before_s <= tt <= t and words in x for tt, x in texts.get(vehicle, []))
+
+    explained = {"loiter_end": ("Loiter time complete", 3.0), "battery_low": ("Battery 1", 10.0)}
+    out = []
+    for e in journal:
+        name, vehicle = e["event"], str(e.get("vehicle"))
+        if name not in (*FALSE_EVENTS, "loiter_end"):
+            continue
+        words, before_s = explained.get(name, ("", -1.0))
+        if not said(vehicle, e["t"], words, before_s):
+            out.append(e)
+    return out
+
+
+def run(args: argparse.Namespace) -> dict[str, Any]:
+    """Run the benchmark; returns the measurements."""
+    k = args.speedup
+    mission_s = (args.at + args.seconds + 4.0) * k
+    sim, lines = _start(
+        [GCS, "sitl", "--count", str(args.vehicles), "--base-port", "0", "--scenario",
+         "default", "--airborne", "--speedup", f"{k:g}", "--detections", "none",
+         "--duration", f"{mission_s * 3:g}"],
+        "system id", args.vehicles, 60.0,
+    )  # fmt: skip
+    ports = [int(x.rsplit(":", 1)[1]) for x in lines if "system id" in x]
+    proxy, plines = _start(
+        [sys.executable, "-m", "sitl.flood_proxy", "--upstream", str(ports[0]), "--mix",
+         "fuzz", "--rate", f"{args.rate:g}", "--at", f"{args.at:g}", "--for",
+         f"{args.seconds:g}", "--sysid", "1", "--compid", "191", "--seed", str(args.seed)],
+        "listening", 1, 30.0,
+    )  # fmt: skip
+    proxy_port = int(plines[-1].split()[1])
+    out_port = _free_udp_port()
+    run_dir = Path(tempfile.mkdtemp(prefix="fuzz-daemon-"))
+    vehicles = [f"tcp:127.0.0.1:{proxy_port}"] + [f"tcp:127.0.0.1:{p}" for p in ports[1:]]
+    daemon = subprocess.Popen(
+        [GCS, "run", "--vehicles", *vehicles, "--out", f"udpin:127.0.0.1:{out_port}",
+         "--scenario", "default", "--speedup", f"{k:g}", "--duration", f"{mission_s:g}",
+         "--run-dir", str(run_dir), "--http", "off", "--detections", "off",
+         "--status", "quiet"],
+        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+    )  # fmt: skip
+    rss: list[int] = []
+    rss_before = None
+    udp_sent = 0
+    try:
+        t0 = time.monotonic()
+        while time.monotonic() - t0 < args.at:
+            value = _rss_kib(daemon.pid)
+            if value is not None:
+                rss.append(value)
+            time.sleep(0.2)
+        rss_before = rss[-1] if rss else None
+        udp_sent = _send_other_link(out_port, args.udp_rate, args.seconds, args.seed)
+        while daemon.poll() is None:
+            value = _rss_kib(daemon.pid)
+            if value is not None:
+                rss.append(value)
+            time.sleep(0.2)
+            if time.monotonic() - t0 > mission_s / k + 60.0:
+                daemon.terminate()
+                break
+        daemon.wait(timeout=30)
+    finally:
+        out, _ = proxy.communicate(input="", timeout=30)
+        sim.kill()
+        sim.wait(timeout=10)
+    flood = [x for x in out.splitlines() if x.startswith("flood")]
+    _, link_sent, _span, start_unix, end_unix = (flood[-1] if flood else "flood 0 0 0 0").split()
+    journals = sorted(run_dir.rglob("journal.jsonl"))
+    journal = read_journal(journals[0]) if journals else []
+    start, end = float(start_unix), float(end_unix)
+    windows = {"fuzz": (start, end), "before": (start - (end - start), start)}
+    times: dict[tuple[str, int], list[float]] = {
+        (w, v): [] for w in windows for v in range(2, args.vehicles + 1)
+    }
+    tlogs = sorted(run_dir.rglob("flight.tlog"))
+    for record in TlogReader(tlogs[0]) if tlogs else []:
+        sysid = record.message.get_srcSystem()
+        for w, (lo, hi) in windows.items():
+            if (w, sysid) in times and lo <= record.t_unix_s <= hi:
+                times[(w, sysid)].append(record.t_unix_s)
+    gaps_ms = {
+        f"{w} vehicle {v}": round(
+            1000 * max((b - a for a, b in itertools.pairwise(ts)), default=math.inf), 1
+        )
+        for (w, v), ts in times.items()
+    }
+    false = _false_changes(journal)
+    served = {str(v) for v in range(1, args.vehicles + 1)}
+    by_kind: dict[str, int] = {}
+    for e in false:
+        by_kind[e["event"]] = by_kind.get(e["event"], 0) + 1
+    return {
+        "frames_sent": int(link_sent) + udp_sent,
+        "frames_on_link": int(link_sent),
+        "frames_other_link": udp_sent,
+        "task_errors": len([e for e in journal if e["event"] in ("task_error", "core_error")]),
+        "false_state_changes": len(false),
+        "false_state_changes_by_event": by_kind,
+        "false_on_served_vehicles": [
+            {k2: e.get(k2) for k2 in ("t", "event", "vehicle")}
+            for e in false
+            if str(e.get("vehicle")) in served
+        ],
+        "phantom_vehicles": sorted(
+            {str(e["vehicle"]) for e in journal if e.get("vehicle") is not None} - served,
+            key=lambda v: int(v) if v.isdigit() else 0,
+        ),
+        "worst_telemetry_gap_ms": gaps_ms,
+        "daemon_rss_kib": {"before_fuzz": rss_before, "end": rss[-1] if rss else None},
+        "daemon_exit": daemon.returncode,
+        "run_dir": str(run_dir),
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Parse options, run, print; exit status 1 on task errors or false state changes."""
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--vehicles", type=int, default=3, help="simulated vehicles (>= 2)")
+    p.add_argument("--rate", type=float, default=20_000.0, help="fuzz frames/s on vehicle 1")
+    p.add_argument("--udp-rate", type=float, default=1_000.0, help="frames/s, other link")
+    p.add_argument("--seconds", type=float, default=10.0, help="fuzz duration (wall s)")
+    p.add_argument("--at", type=float, default=6.0, help="fuzz start after connect (wall s)")
+    p.add_argument("--speedup", type=float, default=10.0)
+    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--quick", action="store_true", help="2 vehicles, 5000 frames/s for 2 s")
+    p.add_argument("--json", type=Path, help="also write the results to this file")
+    args = p.parse_args(argv)
+    if args.quick:
+        args.vehicles, args.rate, args.udp_rate, args.seconds, args.at = 2, 5000.0, 500.0, 2.0, 3.0
+    if args.vehicles < 2 or args.rate <= 0 or args.seconds <= 0:
+        p.error("need --vehicles >= 2, --rate > 0 and --seconds > 0")
+    result = run(args)
+    for key, value in result.items():
+        print(f"{key}: {value}")
+    if args.json is not None:
+        args.json.write_text(json.dumps(result, indent=2) + "\n", encoding="utf-8")
+    return 1 if result["task_errors"] or result["false_state_changes"] else 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
