@@ -1,0 +1,743 @@
+"""One vehicle's policy, sans-IO: inputs (:mod:`.io`) in, outputs out.
+
+States (:class:`VehicleState`, spelt as in the journal and the status table):
+``connecting`` (not assessed yet), ``on_ground`` (not flying; launched only when asked),
+``launching``, ``joining`` (being parked), ``manual`` (flying in a mode floe does not
+take: waits for AUTO/GUIDED), ``active`` (in the plan, commanded), ``overridden`` (someone
+else has it), ``home`` (sent home). The link (``ok``/``degraded``/``lost``) is apart.
+
+Rules (each decision needs evidence over several frames, :mod:`.evidence`):
+
+* Join / rejoin / resume only a *flying* vehicle: armed, above ``flying_alt_m``, faster
+  than ``flying_speed_m_s``, not landed (EXTENDED_SYS_STATE), sustained. Flying in GUIDED
+  (or advisory) joins at once; in AUTO it is parked first (:func:`~.jobs.park_job`); on the
+  ground it is launched only when asked.
+* An active vehicle leaves the plan when it is on the ground (``landed``), when it makes no
+  progress to its aim point for ``progress_timeout_s`` (``no_progress``: core VehicleLost,
+  re-assessed after that long again), on a confirmed reboot, a lost link, a sustained mode
+  change out of AUTO/GUIDED that is not floe's (after ``override_grace_s``: the autopilot's
+  battery failsafe or mission end, else an override), or a confirmed low battery.
+* After a link restore nothing is commanded until the vehicle was watched for
+  ``restore_settle_s`` (a reboot during the silence shows then).
+* Guard: no set-mode or upload goes to a vehicle that is not armed, unless it is being
+  launched at the operator's request.
+* One exchange at a time; a newer FlyToTarget overtakes a pending one; the mission owed when
+  the link went is sent again when it is back.
+"""
+
+from __future__ import annotations
+
+import collections
+import enum
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+from groundstation.core import events as ev
+from groundstation.mavlink.telemetry_events import (
+    Armed,
+    Disarmed,
+    MissionCurrentChanged,
+    MissionItemReached,
+    ModeChanged,
+    PrearmChanged,
+    Rebooted,
+    StatusText,
+    TelemetryEvent,
+    VehicleSnapshot,
+)
+from groundstation.vehicle import io
+from groundstation.vehicle.evidence import (
+    MAV_STATE_CRITICAL,
+    MAV_STATE_EMERGENCY,
+    BatteryEvidence,
+    LoiterEndEvidence,
+    Sustained,
+)
+from groundstation.vehicle.jobs import Job, Pause, home_job, launch_job, park_job, target_job
+from groundstation.vehicle.modes import TAKEN_MODES, PlaneMode
+from groundstation.vehicle.settings import ControllerSettings
+
+__all__ = ["FlyRecord", "VehicleController", "VehicleState"]
+
+MAV_LANDED_STATE_ON_GROUND = 1
+LAUNCHED_MARGIN_M = 15.0
+
+
+class VehicleState(enum.Enum):
+    CONNECTING = "connecting"
+    ON_GROUND = "on_ground"
+    LAUNCHING = "launching"
+    JOINING = "joining"
+    MANUAL = "manual"
+    ACTIVE = "active"
+    OVERRIDDEN = "overridden"
+    HOME = "home"
+
+
+S = VehicleState
+IN_HAND = (S.ACTIVE, S.JOINING, S.LAUNCHING)
+ASSESSED = (S.CONNECTING, S.ON_GROUND, S.MANUAL)
+
+
+@dataclass
+class FlyRecord:
+    """The mission a vehicle was last given (for the status table and the benchmark)."""
+
+    target: str
+    x_m: float
+    y_m: float
+    route: tuple[str, ...] = field(default=())
+    verified_t_s: float | None = None
+
+
+class VehicleController:
+    """See the module docstring. ``handle(input) -> outputs``; never raises on telemetry."""
+
+    def __init__(self, vehicle: str, system_id: int, settings: ControllerSettings) -> None:
+        self.vehicle = vehicle
+        self.system_id = system_id
+        self.s = settings
+        self.state = S.CONNECTING
+        self.link = "ok"
+        self.launch_requested = settings.launch
+        self.stopping = False
+        self.snap = VehicleSnapshot(system_id=system_id)
+        self.t_s = 0.0
+        self.alt_m = settings.altitude_m
+        self.retry_pause_s = settings.retry_pause_s
+        self.wp_loiter_rad_m: float | None = None
+        self.fly: FlyRecord | None = None
+        self.uploads_ok = 0
+        self.uploads_failed = 0
+        self.upload_delays_s: list[float] = []
+        self.last_loiter_end_s: float | None = None
+        self.foreign_frames = 0
+        self._out: list[io.Output] = []
+        self._job: Job | None = None
+        self._running: io.Exchange | None = None
+        self._pause_until_s: float | None = None
+        self._pending_fly: io.Fly | None = None
+        self._wanted: io.Fly | None = None
+        self._pending_home = False
+        self._loiter: LoiterEndEvidence | None = None
+        self._loiter_end_pending_s: float | None = None
+        self._expected: dict[int, float] = {}
+        self._mode_change: tuple[float, int, str] | None = None
+        self._own_mode: int | None = None
+        frames, span = settings.evidence_frames, settings.evidence_span_s
+        self._mode_ev = Sustained(frames, span)
+        self._taken_ev = Sustained(frames, span)
+        self._flying_ev = Sustained(frames, span)
+        self._ground_ev = Sustained(frames, span)
+        self._battery = BatteryEvidence(
+            settings.battery_low_pct, frames, span, settings.battery_alone_span_s
+        )
+        self._battery_reported = False
+        self._texts: collections.deque[tuple[float, str]] = collections.deque(maxlen=20)
+        self._rates_at_s = -math.inf
+        self._retry_at_s = 0.0
+        self._launch_deadline_s: float | None = None
+        self._restore: list[float] | None = None  # [since_s, heartbeats] after a link restore
+        self._progress: tuple[float, float] | None = None  # (best distance m, since_s)
+        self._clock_ref: tuple[float, int] | None = None
+        self._clock_checked = False
+
+    # ------------------------------------------------------------------ reading
+    @property
+    def status(self) -> str:
+        return self.state.value
+
+    @property
+    def commanded(self) -> bool:
+        return self.state is S.ACTIVE and not self.s.advisory and not self.stopping
+
+    @property
+    def busy(self) -> bool:
+        return self._running is not None or self._job is not None
+
+    def flying(self) -> bool:
+        """Sustained evidence that it flies (see ControllerSettings)."""
+        return self._flying_ev.confirmed
+
+    def may_command(self) -> bool:
+        """The guard on every set-mode and upload: armed, or being launched on request."""
+        if self.state is S.LAUNCHING and self.launch_requested and not self.s.advisory:
+            return True
+        return self.snap.armed is True and not self.snap.reboot_suspected
+
+    # ------------------------------------------------------------------ the entry point
+    def handle(self, inp: io.Input) -> list[io.Output]:
+        self.t_s = max(self.t_s, inp.t_s)
+        if isinstance(inp, io.Frame):
+            self._on_frame(inp)
+        elif isinstance(inp, io.ForeignFrame):
+            self.foreign_frames += 1
+        elif isinstance(inp, io.Tick):
+            self._on_tick(inp.t_s)
+        elif isinstance(inp, io.ExchangeDone):
+            self._on_done(inp)
+        elif isinstance(inp, io.Fly):
+            self._pending_fly = self._wanted = inp
+        elif isinstance(inp, io.Release):
+            self._release(inp.reason, inp.home)
+        elif isinstance(inp, io.Launch):
+            self._launch_request()
+        elif isinstance(inp, io.Resume):
+            self.resume(inp.t_s, inp.reason)
+        elif isinstance(inp, io.Override):
+            self.override(inp.t_s, inp.reason)
+        elif isinstance(inp, io.Stop):
+            self.stopping = True
+        self._advance()
+        out, self._out = self._out, []
+        return out
+
+    def take_outputs(self) -> list[io.Output]:
+        """Outputs of direct calls (:meth:`resume`, :meth:`override`, :meth:`launch`)."""
+        self._advance()
+        out, self._out = self._out, []
+        return out
+
+    # ------------------------------------------------------------------ outputs
+    def journal(self, event: str, **fields: Any) -> None:
+        self._out.append(io.JournalLine(event, fields))
+
+    def _core(self, event: ev.Event) -> None:
+        self._out.append(io.CoreEvent(event))
+
+    def _pose(self, joined: bool = False) -> ev.Event | None:
+        s = self.snap
+        if s.x_m is None or s.y_m is None:
+            return None
+        heading = s.heading_rad if s.heading_rad is not None else 0.0
+        speed = s.airspeed_m_s or s.speed_m_s or self.s.speed_m_s or 22.0
+        cls = ev.VehicleJoined if joined else ev.Telemetry
+        return cls(self.t_s, self.vehicle, s.x_m, s.y_m, heading, speed)
+
+    def _core_pose(self) -> None:
+        pose = self._pose()
+        if pose is not None:
+            self._core(pose)
+
+    # ------------------------------------------------------------------ telemetry
+    def _on_frame(self, frame: io.Frame) -> None:
+        self.snap = s = frame.snapshot
+        t = frame.t_s
+        if self.link == "lost":
+            self.link = "ok"
+            self.journal("link_restored")
+            self._restore = [t, 0.0]
+        for event in frame.events:
+            self._on_event(event)
+        kind = frame.kind
+        if kind in ("HEARTBEAT", "GLOBAL_POSITION_INT", "EXTENDED_SYS_STATE"):
+            self._flight_evidence(t)
+        if kind == "HEARTBEAT":
+            self._on_heartbeat(t)
+        elif kind in ("SYS_STATUS", "BATTERY_STATUS"):
+            self._battery.reading(s.battery_remaining_pct, t)
+            if self._battery.confirmed(t):
+                self._battery_low(t)
+        elif kind == "MISSION_CURRENT" and s.mission_current_seq is not None:
+            loiter = self._loiter
+            if loiter is not None and loiter.observe_current(s.mission_current_seq):
+                self._loiter_ended(t, loiter)
+        elif kind == "GLOBAL_POSITION_INT" and self.state is S.ACTIVE and self._restore is None:
+            self._core_pose()
+            self._check_progress(t)
+        if self.state is S.LAUNCHING and self._launch_deadline_s is not None:
+            if s.alt_m is not None and s.alt_m >= self.alt_m - LAUNCHED_MARGIN_M:
+                self._launch_deadline_s = None
+                self.joined("launched")
+
+    def _on_event(self, event: TelemetryEvent) -> None:
+        t = event.t_s
+        if isinstance(event, ModeChanged):
+            expected = self._expected.pop(event.new, None)
+            ours = expected is not None and expected >= t
+            cause = "floe" if ours else ("initial" if event.old is None else "vehicle")
+            self.journal("mode", old=event.old_name, mode=event.new_name, cause=cause)
+            self._own_mode = event.new if ours else None
+        elif isinstance(event, MissionItemReached):
+            if self._loiter is not None:
+                self._loiter.observe_reached(event.seq)
+        elif isinstance(event, MissionCurrentChanged):
+            self._progress = None  # a mission item advance is progress
+        elif isinstance(event, StatusText):
+            self._texts.append((t, event.text))
+            self.journal("statustext", severity=event.severity, text=event.text)
+        elif isinstance(event, Rebooted):
+            self._on_reboot(event)
+        elif isinstance(event, Armed | Disarmed):
+            self.journal("armed", armed=isinstance(event, Armed))
+        elif isinstance(event, PrearmChanged):
+            self._retry_at_s = min(self._retry_at_s, t)
+
+    def _flight_evidence(self, t: float) -> None:
+        s = self.snap
+        on_ground_reported = s.landed_state == MAV_LANDED_STATE_ON_GROUND
+        fast = s.speed_m_s is not None and s.speed_m_s > self.s.flying_speed_m_s
+        high = s.alt_m is not None and s.alt_m > self.s.flying_alt_m
+        self._flying_ev.observe(s.armed is True and high and fast and not on_ground_reported, t)
+        grounded = s.armed is False or on_ground_reported or (
+            s.alt_m is not None and not high and not fast
+        )
+        if self._ground_ev.observe(grounded, t) and self.state is S.ACTIVE:
+            self._leave("landed", t, S.ON_GROUND, alt_m=s.alt_m, armed=s.armed)
+
+    def _on_heartbeat(self, t: float) -> None:
+        s = self.snap
+        if s.system_status in (MAV_STATE_CRITICAL, MAV_STATE_EMERGENCY):
+            self._battery.autopilot_agrees()
+        if self._restore is not None:
+            self._restore[1] += 1
+            since, beats = self._restore
+            if (
+                t - since >= self.s.restore_settle_s
+                and beats >= self.s.evidence_frames
+                and not s.reboot_suspected
+            ):
+                self._restored(t)
+        mode = s.mode
+        if mode is None:
+            return
+        ours = self._own_mode == mode
+        taken = mode in TAKEN_MODES
+        if mode == PlaneMode.RTL and not ours:
+            self._battery.autopilot_agrees()
+        if self.state in IN_HAND and not taken and not ours:
+            if self._mode_change is None or self._mode_change[1] != mode:
+                self._mode_change = (t, mode, s.mode_name or str(mode))
+                self._mode_ev.reset()
+            self._mode_ev.observe(True, t)
+            self._resolve_mode_change(t)
+        else:
+            self._mode_change = None
+            self._mode_ev.reset()
+        if self._taken_ev.observe(taken and not ours, t):
+            if self.state is S.OVERRIDDEN and mode == PlaneMode.AUTO:
+                self.resume(t, "mode AUTO")
+        if taken and self.state in (S.MANUAL, S.CONNECTING):
+            self._retry_at_s = min(self._retry_at_s, t)
+
+    def _resolve_mode_change(self, t: float) -> None:
+        """A sustained mode change out of AUTO/GUIDED, ``override_grace_s`` after it began:
+        the autopilot's battery failsafe (RTL with the autopilot CRITICAL or low readings),
+        its RTL at a mission's end (mission state; a STATUSTEXT only as a hint), else an
+        override (``failsafe`` when the autopilot is CRITICAL)."""
+        change = self._mode_change
+        if change is None or not self._mode_ev.confirmed or t - change[0] < self.s.override_grace_s:
+            return
+        self._mode_change = None
+        self._mode_ev.reset()
+        if self.state not in IN_HAND:
+            return
+        since, mode, name = change
+        texts = " | ".join(text.lower() for tt, text in self._texts if tt >= since - 3.0)
+        s = self.snap
+        critical = s.system_status in (MAV_STATE_CRITICAL, MAV_STATE_EMERGENCY)
+        if mode == PlaneMode.RTL and (self._battery.low_readings or (critical and "batt" in texts)):
+            self.journal("autopilot_mode", mode=name, reason="battery failsafe")
+            self._battery_low(t)
+            return
+        seq, total = s.mission_current_seq, s.mission_total
+        at_end = seq is not None and total is not None and seq >= total - 1
+        if mode == PlaneMode.RTL and self.state is S.ACTIVE and (at_end or "mission complete" in texts):
+            # our missions end in an unlimited loiter: one that ran off its end is taken
+            # back with a fresh mission (the core replans it as idle)
+            self.journal("autopilot_mode", mode=name, reason="mission end")
+            self._core(ev.VehicleRebooted(t, self.vehicle))
+            return
+        self.override(t, "failsafe" if critical or "failsafe" in texts else f"mode {name}")
+
+    def _battery_low(self, t: float) -> None:
+        if self._battery_reported:
+            return
+        self._battery_reported = True
+        self.journal("battery_low", remaining_pct=self.snap.battery_remaining_pct)
+        if self.state is S.ACTIVE:
+            self._core(ev.BatteryLow(t, self.vehicle))
+
+    def _on_reboot(self, event: Rebooted) -> None:
+        self.journal(
+            "reboot", previous_time_boot_ms=event.previous_time_boot_ms,
+            time_boot_ms=event.time_boot_ms,
+        )  # fmt: skip
+        self._out.append(io.NotifyRebooted())
+        self._abort_job()
+        self._loiter = None
+        self.wp_loiter_rad_m = None
+        self._rates_at_s = -math.inf
+        self._clock_ref = None
+        if self.state in IN_HAND:
+            self._core(ev.VehicleLost(event.t_s, self.vehicle))
+        if self.state not in (S.OVERRIDDEN, S.HOME):
+            self.state = S.CONNECTING
+            self._retry_at_s = event.t_s
+
+    def _loiter_ended(self, t: float, loiter: LoiterEndEvidence) -> None:
+        self._loiter = None
+        self.last_loiter_end_s = t
+        self._loiter_end_pending_s = t
+        self.journal("loiter_end", target=self.fly.target if self.fly else None, how=loiter.ended_by)
+        if self.state is S.ACTIVE:
+            self._core(ev.LoiterEnded(t, self.vehicle))
+
+    def _check_progress(self, t: float) -> None:
+        fly, s = self.fly, self.snap
+        if fly is None or fly.verified_t_s is None or s.x_m is None or s.y_m is None:
+            return
+        d = math.hypot(s.x_m - fly.x_m, s.y_m - fly.y_m)
+        near = d <= self.loiter_radius_m() + self.s.progress_margin_m
+        if self._progress is None or near or d < self._progress[0] - self.s.progress_min_m:
+            self._progress = (d, t)
+
+    # ------------------------------------------------------------------ time
+    def _on_tick(self, t: float) -> None:
+        last = self.snap.last_heard_s
+        if last is None:
+            return
+        self._check_clock(t)
+        silent_s = t - last
+        if silent_s > self.s.lost_after_s:
+            if self.link != "lost":
+                self.link = "lost"
+                self.journal("link_lost", silent_s=round(silent_s, 2))
+                self._pending_fly = None
+                self._restore = None
+                self._abort_job(cancel=True)
+                if self.state is S.ACTIVE:
+                    self._core(ev.VehicleLost(t, self.vehicle))
+                elif self.state in (S.JOINING, S.LAUNCHING):
+                    self.state = S.CONNECTING
+        else:
+            self.link = "degraded" if silent_s > min(2.5, self.s.lost_after_s / 2.0) else "ok"
+        self._resolve_mode_change(t)
+        progress = self._progress
+        if (
+            self.state is S.ACTIVE
+            and progress is not None
+            and self._restore is None
+            and self.link != "lost"
+            and t - progress[1] > self.s.progress_timeout_s
+        ):
+            self._leave(
+                "no_progress", t, S.CONNECTING, target=self.fly.target if self.fly else None,
+                distance_m=round(progress[0], 1), since_s=round(progress[1], 2),
+            )  # fmt: skip
+            self._retry_at_s = t + self.s.progress_timeout_s
+            self._out.append(
+                io.Warn(
+                    f"vehicle {self.vehicle}: no progress towards its aim point for "
+                    f"{self.s.progress_timeout_s:g} s: taken out of the plan"
+                )
+            )
+        if (
+            self.state is S.LAUNCHING
+            and self._launch_deadline_s is not None
+            and t >= self._launch_deadline_s
+        ):
+            self._launch_deadline_s = None
+            self.journal("launch_timeout", altitude_m=self.snap.alt_m)
+            self.state = S.CONNECTING
+
+    def _check_clock(self, t: float) -> None:
+        """The mission clock must run at the rate of the vehicle's ``time_boot_ms``
+        (design.md); a rate that does not match within 20 % is reported once."""
+        boot_ms = self.snap.time_boot_ms
+        if boot_ms is None or self._clock_checked:
+            return
+        if self._clock_ref is None or boot_ms < self._clock_ref[1]:
+            self._clock_ref = (t, boot_ms)
+            return
+        dt = t - self._clock_ref[0]
+        if dt < self.s.clock_check_s:
+            return
+        ratio = (boot_ms - self._clock_ref[1]) / 1000.0 / dt
+        self._clock_checked = True
+        ok = abs(ratio - 1.0) <= 0.2
+        self.journal("clock_check", vehicle_s_per_mission_s=round(ratio, 3), ok=ok)
+        if not ok:
+            self._out.append(
+                io.Warn(
+                    f"vehicle {self.vehicle}: its clock runs {ratio:.2f} x the mission clock: "
+                    "is --speedup right?"
+                )
+            )
+
+    # ------------------------------------------------------------------ decisions
+    def _leave(self, event: str, t: float, state: VehicleState, **fields: Any) -> None:
+        """Take an active vehicle out of the plan (the core hands its targets to others)."""
+        self.journal(event, **fields)
+        self._core(ev.VehicleLost(t, self.vehicle))
+        self.state = state
+        self._pending_fly = self._wanted = None
+        self._loiter = None
+        self._progress = None
+        self._abort_job(cancel=True)
+
+    def _restored(self, t: float) -> None:
+        """The vehicle was watched long enough after a link restore: carry on, or not."""
+        self._restore = None
+        if self.state is not S.ACTIVE:
+            return
+        if not self.flying():
+            self._leave("landed", t, S.ON_GROUND, alt_m=self.snap.alt_m, armed=self.snap.armed)
+            return
+        if self._wanted is not None and self._pending_fly is None:
+            self._pending_fly = self._wanted  # owed: the core will not send it again
+        self._progress = None
+        self._core_pose()
+        self._core(ev.VehicleReturned(t, self.vehicle))
+
+    def override(self, t: float, reason: str) -> None:
+        """Someone else took the vehicle: stop commanding it, replan the others."""
+        if self.state is S.OVERRIDDEN:
+            return
+        was_planned = self.state is S.ACTIVE
+        self.state = S.OVERRIDDEN
+        self._pending_fly = self._wanted = None
+        self._loiter = None
+        self._progress = None
+        self._abort_job(cancel=True)
+        self.journal("override", reason=reason)
+        if was_planned:
+            self._core(ev.OperatorOverride(t, self.vehicle))
+
+    def resume(self, t: float, reason: str) -> bool:
+        """An operator gave the vehicle back: taken back only if it flies (else it is on
+        the ground, and joins again once it flies)."""
+        if self.state not in (S.OVERRIDDEN, S.HOME):
+            return False
+        if not self.flying():
+            self.journal("resume_refused", reason=reason, why="not flying")
+            self.state = S.ON_GROUND
+            self._retry_at_s = t
+            return False
+        self.journal("resume", reason=reason)
+        if self.state is S.HOME:
+            self._battery_reported = False
+            self._battery.reset()
+        self.state = S.ACTIVE
+        self._progress = None
+        self._core_pose()
+        self._core(ev.OperatorResume(t, self.vehicle))
+        return True
+
+    def _release(self, reason: str, home: bool) -> None:
+        """Core said: stop commanding (ReleaseVehicle) or go home (SendHome)."""
+        self._pending_fly = self._wanted = None
+        self._loiter = None
+        self._progress = None
+        self._abort_job()
+        if home:
+            self.state = S.HOME
+            self._pending_home = True
+        elif self.state is not S.OVERRIDDEN:
+            self.state = S.OVERRIDDEN
+        self.journal("released", reason=reason, home=home)
+
+    def _launch_request(self) -> None:
+        self.launch_requested = True
+        self._retry_at_s = min(self._retry_at_s, self.t_s)
+
+    def launch(self) -> tuple[bool, str]:
+        """An operator asks for a launch (only of a vehicle on the ground)."""
+        if self.state not in (S.ON_GROUND, S.CONNECTING):
+            return False, f"vehicle {self.vehicle} is {self.status}, not on the ground"
+        self._launch_request()
+        return True, ""
+
+    def _assess(self) -> None:
+        s = self.snap
+        if s.mode is None or s.armed is None or s.reboot_suspected:
+            return
+        if self.flying():
+            if s.mode not in TAKEN_MODES:
+                if self.state is not S.MANUAL:
+                    self.state = S.MANUAL
+                    self.journal(
+                        "waiting", reason=f"flying in {s.mode_name}: waiting for AUTO or GUIDED"
+                    )
+                return
+            if s.x_m is None:
+                return
+            if s.mode == PlaneMode.GUIDED or self.s.advisory:
+                self.joined("guided" if s.mode == PlaneMode.GUIDED else "advisory")
+                return
+            self.state = S.JOINING
+            self._start(park_job(self))
+            return
+        if self._flying_ev.holding:
+            return  # may be flying: wait for the evidence either way
+        if self.state is not S.ON_GROUND:
+            self.state = S.ON_GROUND
+            self.journal("on_ground", prearm_ok=s.prearm_ok)
+        if self.launch_requested and s.prearm_ok and not self.s.advisory:
+            self.state = S.LAUNCHING
+            self.journal("launch", altitude_m=self.alt_m)
+            self._start(launch_job(self, s.heading_rad or 0.0))
+
+    # ------------------------------------------------------------------ jobs
+    def _advance(self) -> None:
+        """Start or step the job, one exchange at a time."""
+        for _ in range(8):  # a job that finishes may let another start
+            if self._running is not None or self.stopping:
+                return
+            if self._job is not None:
+                if self._pause_until_s is not None and self.t_s < self._pause_until_s:
+                    return
+                self._pause_until_s = None
+                self._step(None)
+                continue
+            if not self._pick():
+                return
+
+    def _pick(self) -> bool:
+        t = self.t_s
+        if self.link == "lost" or self.snap.last_heartbeat_s is None or self._restore is not None:
+            return False
+        if not self.s.advisory and t - self._rates_at_s >= self.s.rates_every_s:
+            self._rates_at_s = t
+            self._out.append(io.RequestRates(self.s.telemetry_rate_hz))
+        if self.state in ASSESSED and t >= self._retry_at_s:
+            self._assess()
+            if self._job is not None:
+                return True
+        if self._pending_home and not self.s.advisory:
+            self._pending_home = False
+            self._start(home_job(self))
+            return True
+        fly = self._pending_fly
+        if fly is not None and self.commanded:
+            self._pending_fly = None
+            self.fly = FlyRecord(fly.command.target, fly.x_m, fly.y_m, fly.command.route)
+            self._start(target_job(self, fly))
+            return True
+        if fly is not None and self.s.advisory:
+            self._pending_fly = None
+        return False
+
+    def _start(self, job: Job) -> None:
+        self._abort_job()
+        self._job = job
+        self._pause_until_s = None
+
+    def _step(self, value: Any) -> None:
+        job = self._job
+        assert job is not None
+        try:
+            request = job.send(value)
+        except StopIteration:
+            self._job = None
+            return
+        if isinstance(request, Pause):
+            self._pause_until_s = request.until_s
+            return
+        if isinstance(request, io.SetMode | io.UploadMission) and not self.may_command():
+            self._job = None
+            job.close()
+            self.journal(
+                "command_refused", request=type(request).__name__, state=self.status,
+                armed=self.snap.armed, reason="not armed",
+            )  # fmt: skip
+            if self.state in (S.JOINING, S.LAUNCHING):
+                self.state = S.CONNECTING
+            self._retry_at_s = self.t_s + self.s.retry_assess_s
+            return
+        self._running = request
+        self._out.append(request)
+
+    def _on_done(self, done: io.ExchangeDone) -> None:
+        if done.request is not self._running:
+            return  # an exchange of an aborted job
+        self._running = None
+        if self._job is None:
+            return
+        if self.stopping:
+            self._abort_job()
+            return
+        self._step(done.result)
+
+    def _abort_job(self, cancel: bool = False) -> None:
+        if self._job is not None:
+            self._job.close()
+            self._job = None
+        self._pause_until_s = None
+        if cancel and self._running is not None:
+            self._out.append(io.CancelExchange())
+
+    # ------------------------------------------------------------------ JobHost
+    def mission_seq(self) -> int | None:
+        return self.snap.mission_current_seq
+
+    def mode(self) -> int | None:
+        return self.snap.mode
+
+    def position(self) -> tuple[float, float, float]:
+        s = self.snap
+        return s.x_m or 0.0, s.y_m or 0.0, s.heading_rad or 0.0
+
+    def loiter_radius_m(self, fallback_m: float | None = None) -> float:
+        return self.s.loiter_radius_m or fallback_m or self.s.default_loiter_radius_m
+
+    def expect_mode(self, mode: int) -> None:
+        self._expected[mode] = self.t_s + self.s.expect_mode_s
+
+    def arm_loiter_end(self, seq: int) -> None:
+        current = self.snap.mission_current_seq
+        loiter = LoiterEndEvidence(seq, current_seq=current)
+        if current is not None and current > seq:
+            loiter.ended_by = "mission_current"  # ended while the set-current was confirmed
+            self._loiter_ended(self.t_s, loiter)
+            return
+        self._loiter = loiter
+
+    def disarm_loiter_end(self) -> None:
+        self._loiter = None
+
+    def joined(self, how: str) -> None:
+        self.state = S.ACTIVE
+        self._progress = None
+        self.journal("vehicle_joined", how=how, system_id=self.system_id, altitude_m=self.alt_m)
+        pose = self._pose(joined=True)
+        if pose is not None:
+            self._core(pose)
+
+    def park_failed(self) -> None:
+        if self.state is S.JOINING:
+            self.state = S.CONNECTING
+        self._retry_at_s = self.t_s + self.s.retry_assess_s
+
+    def launch_failed(self) -> None:
+        if self.state is S.LAUNCHING:
+            self.state = S.ON_GROUND
+        self._retry_at_s = self.t_s + self.s.retry_assess_s
+
+    def launched(self) -> None:
+        self._launch_deadline_s = self.t_s + self.s.launch_timeout_s
+
+    def target_verified(self, fly: io.Fly) -> bool:
+        if self.fly is not None:
+            self.fly.verified_t_s = self.t_s
+        self.uploads_ok += 1
+        self._progress = None
+        if self._wanted is fly:
+            self._wanted = None
+        if self._loiter_end_pending_s is not None:
+            self.upload_delays_s.append(self.t_s - self._loiter_end_pending_s)
+            self._loiter_end_pending_s = None
+        if fly.clipped:
+            self.journal("clipped", target=fly.command.target, x_m=fly.x_m, y_m=fly.y_m)
+        return True
+
+    def target_failed(self, fly: io.Fly) -> bool:
+        """Whether to try again: not when overtaken, out of the plan or link lost."""
+        self.uploads_failed += 1
+        return self.commanded and self._pending_fly is None and self.link != "lost"
+
+    def home_done(self, ok: bool) -> None:
+        self.journal("rtl", ok=ok)
+        if not ok:
+            self._pending_home = True
