@@ -238,13 +238,13 @@ class Daemon:
                 or self.stopping
             ):
                 return
-            session = self._new_session(sysid)
+            session = self._new_session(sysid, rx.component_id)
         try:
             session.on_message(msg)
         except Exception:
             log.exception("vehicle %s: message handling failed", session.id)
 
-    def _new_session(self, sysid: int) -> VehicleSession:
+    def _new_session(self, sysid: int, component_id: int = 1) -> VehicleSession:
         settings = self.config.settings_for(sysid)
         name = settings.name or str(sysid)
         port = VehiclePort(
@@ -256,7 +256,9 @@ class Daemon:
             retries=self.config.transfer_retries,
         )
         index = sysid - 1 if self.config.sim_count else len(self.sessions)
-        session = VehicleSession(sysid, name, index, self, self.config, settings, port, self.clock)
+        session = VehicleSession(
+            sysid, name, index, self, self.config, settings, port, self.clock, component_id
+        )
         self.sessions[sysid] = session
         self.by_name[name] = session
         self.journal("vehicle_seen", vehicle=name, system_id=sysid, altitude_m=session.alt_m)
@@ -517,6 +519,10 @@ _LOGGED = frozenset(
         "on_ground",
         "waiting",
         "plan_failed",
+        "no_progress",
+        "landed",
+        "resume_refused",
+        "command_refused",
     }
 )
 

@@ -246,10 +246,10 @@ class VehicleController:
         elif kind == "GLOBAL_POSITION_INT" and self.state is S.ACTIVE and self._restore is None:
             self._core_pose()
             self._check_progress(t)
-        if self.state is S.LAUNCHING and self._launch_deadline_s is not None:
-            if s.alt_m is not None and s.alt_m >= self.alt_m - LAUNCHED_MARGIN_M:
-                self._launch_deadline_s = None
-                self.joined("launched")
+        up = s.alt_m is not None and s.alt_m >= self.alt_m - LAUNCHED_MARGIN_M
+        if self.state is S.LAUNCHING and self._launch_deadline_s is not None and up:
+            self._launch_deadline_s = None
+            self.joined("launched")
 
     def _on_event(self, event: TelemetryEvent) -> None:
         t = event.t_s
@@ -315,9 +315,9 @@ class VehicleController:
         else:
             self._mode_change = None
             self._mode_ev.reset()
-        if self._taken_ev.observe(taken and not ours, t):
-            if self.state is S.OVERRIDDEN and mode == PlaneMode.AUTO:
-                self.resume(t, "mode AUTO")
+        given_back = self._taken_ev.observe(taken and not ours, t)
+        if given_back and self.state is S.OVERRIDDEN and mode == PlaneMode.AUTO:
+            self.resume(t, "mode AUTO")
         if taken and self.state in (S.MANUAL, S.CONNECTING):
             self._retry_at_s = min(self._retry_at_s, t)
 
@@ -343,7 +343,8 @@ class VehicleController:
             return
         seq, total = s.mission_current_seq, s.mission_total
         at_end = seq is not None and total is not None and seq >= total - 1
-        if mode == PlaneMode.RTL and self.state is S.ACTIVE and (at_end or "mission complete" in texts):
+        mission_end = at_end or "mission complete" in texts
+        if mode == PlaneMode.RTL and self.state is S.ACTIVE and mission_end:
             # our missions end in an unlimited loiter: one that ran off its end is taken
             # back with a fresh mission (the core replans it as idle)
             self.journal("autopilot_mode", mode=name, reason="mission end")
@@ -380,7 +381,8 @@ class VehicleController:
         self._loiter = None
         self.last_loiter_end_s = t
         self._loiter_end_pending_s = t
-        self.journal("loiter_end", target=self.fly.target if self.fly else None, how=loiter.ended_by)
+        target = self.fly.target if self.fly else None
+        self.journal("loiter_end", target=target, how=loiter.ended_by)
         if self.state is S.ACTIVE:
             self._core(ev.LoiterEnded(t, self.vehicle))
 

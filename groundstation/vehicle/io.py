@@ -132,8 +132,8 @@ class UploadOutcome:
 @dataclass(frozen=True)
 class ExchangeDone:
     """The answer to ``request``: an :class:`UploadOutcome` (UploadMission), a
-    :class:`~groundstation.mavlink.mission_transfer.TransferResult` (Download, SetCurrent), a MAV_RESULT or None on silence
-    (SetMode, Arm) or a bool (ParamSet)."""
+    ``TransferResult`` (Download, SetCurrent), a MAV_RESULT or None on silence (SetMode,
+    Arm) or a bool (ParamSet)."""
 
     t_s: float
     request: Exchange
