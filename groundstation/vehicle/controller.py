@@ -37,7 +37,6 @@ from groundstation.core import events as ev
 from groundstation.mavlink.telemetry_events import (
     Armed,
     Disarmed,
-    MissionCurrentChanged,
     MissionItemReached,
     ModeChanged,
     PrearmChanged,
@@ -137,6 +136,8 @@ class VehicleController:
         self._texts: collections.deque[tuple[float, str]] = collections.deque(maxlen=20)
         self._rates_at_s = -math.inf
         self._retry_at_s = 0.0
+        self._hold_until_s = 0.0  # no re-assessment before (after no_progress)
+        self._last_seq: int | None = None
         self._launch_deadline_s: float | None = None
         self._restore: list[float] | None = None  # [since_s, heartbeats] after a link restore
         self._progress: tuple[float, float] | None = None  # (best distance m, since_s)
@@ -240,6 +241,9 @@ class VehicleController:
             if self._battery.confirmed(t):
                 self._battery_low(t)
         elif kind == "MISSION_CURRENT" and s.mission_current_seq is not None:
+            if self._last_seq is not None and s.mission_current_seq > self._last_seq:
+                self._progress = None  # a mission item advance is progress
+            self._last_seq = s.mission_current_seq
             loiter = self._loiter
             if loiter is not None and loiter.observe_current(s.mission_current_seq):
                 self._loiter_ended(t, loiter)
@@ -262,8 +266,6 @@ class VehicleController:
         elif isinstance(event, MissionItemReached):
             if self._loiter is not None:
                 self._loiter.observe_reached(event.seq)
-        elif isinstance(event, MissionCurrentChanged):
-            self._progress = None  # a mission item advance is progress
         elif isinstance(event, StatusText):
             self._texts.append((t, event.text))
             self.journal("statustext", severity=event.severity, text=event.text)
@@ -428,7 +430,7 @@ class VehicleController:
                 "no_progress", t, S.CONNECTING, target=self.fly.target if self.fly else None,
                 distance_m=round(progress[0], 1), since_s=round(progress[1], 2),
             )  # fmt: skip
-            self._retry_at_s = t + self.s.progress_timeout_s
+            self._hold_until_s = t + self.s.progress_timeout_s
             self._out.append(
                 io.Warn(
                     f"vehicle {self.vehicle}: no progress towards its aim point for "
@@ -603,7 +605,7 @@ class VehicleController:
         if not self.s.advisory and t - self._rates_at_s >= self.s.rates_every_s:
             self._rates_at_s = t
             self._out.append(io.RequestRates(self.s.telemetry_rate_hz))
-        if self.state in ASSESSED and t >= self._retry_at_s:
+        if self.state in ASSESSED and t >= max(self._retry_at_s, self._hold_until_s):
             self._assess()
             if self._job is not None:
                 return True
