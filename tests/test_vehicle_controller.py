@@ -32,12 +32,12 @@ from groundstation.vehicle.settings import ControllerSettings
 M = mavlink2
 S = VehicleState
 ACCEPTED = M.MAV_RESULT_ACCEPTED
-FLYING = dict(
+FLYING: dict[str, Any] = dict(
     x_m=0.0, y_m=0.0, alt_m=100.0, speed_m_s=22.0, heading_rad=0.0, armed=True,
     mode=PlaneMode.AUTO, mode_name="AUTO", mission_current_seq=1, mission_total=3,
     battery_remaining_pct=80.0, prearm_ok=True, time_boot_ms=100_000, system_status=4,
 )  # fmt: skip
-ON_GROUND = dict(FLYING, alt_m=0.0, speed_m_s=0.0, armed=False, system_status=3, landed_state=1)
+ON_GROUND: dict[str, Any] = dict(FLYING, alt_m=0.0, speed_m_s=0.0, armed=False, system_status=3, landed_state=1)
 
 
 def ok_transfer(items: tuple[MissionItem, ...] | None = None) -> TransferResult:
