@@ -147,10 +147,12 @@ class SetCurrent(TransferBase):
         if due is None:
             return []
         if due:
-            if self._ack_accepted:
+            if self._ack_accepted:  # remote_code: callers decide on it, never on the message
                 message = f"COMMAND_ACK ACCEPTED but MISSION_CURRENT never showed {self.seq}"
-            else:
-                message = f"no confirmation of current item {self.seq}"
+                return self._finish(
+                    TransferCode.TIMEOUT, message, remote_code="MAV_RESULT_ACCEPTED"
+                )
+            message = f"no confirmation of current item {self.seq}"
             return self._finish(TransferCode.TIMEOUT, message)
         if self._ack_accepted:
             return []
