@@ -27,7 +27,6 @@ Rules (each decision needs evidence over several frames, :mod:`.evidence`):
 
 from __future__ import annotations
 
-import collections
 import enum
 import math
 from dataclasses import dataclass, field
@@ -46,20 +45,21 @@ from groundstation.mavlink.telemetry_events import (
     VehicleSnapshot,
 )
 from groundstation.vehicle import io
-from groundstation.vehicle.evidence import (
-    MAV_STATE_CRITICAL,
-    MAV_STATE_EMERGENCY,
-    BatteryEvidence,
-    LoiterEndEvidence,
-    Sustained,
+from groundstation.vehicle.evidence import LoiterEndEvidence
+from groundstation.vehicle.jobs import (
+    Job,
+    JobRunner,
+    home_job,
+    launch_job,
+    park_job,
+    target_job,
 )
-from groundstation.vehicle.jobs import Job, Pause, home_job, launch_job, park_job, target_job
 from groundstation.vehicle.modes import TAKEN_MODES, PlaneMode
 from groundstation.vehicle.settings import ControllerSettings
+from groundstation.vehicle.watch import Watch
 
 __all__ = ["FlyRecord", "VehicleController", "VehicleState"]
 
-MAV_LANDED_STATE_ON_GROUND = 1
 LAUNCHED_MARGIN_M = 15.0
 
 
@@ -113,36 +113,21 @@ class VehicleController:
         self.last_loiter_end_s: float | None = None
         self.foreign_frames = 0
         self._out: list[io.Output] = []
-        self._job: Job | None = None
-        self._running: io.Exchange | None = None
-        self._pause_until_s: float | None = None
+        self.watch = Watch(settings)
+        self._jobs = JobRunner(self.may_command_request, self._refused)
         self._pending_fly: io.Fly | None = None
         self._wanted: io.Fly | None = None
         self._pending_home = False
         self._loiter: LoiterEndEvidence | None = None
         self._loiter_end_pending_s: float | None = None
         self._expected: dict[int, float] = {}
-        self._mode_change: tuple[float, int, str] | None = None
         self._own_mode: int | None = None
-        frames, span = settings.evidence_frames, settings.evidence_span_s
-        self._mode_ev = Sustained(frames, span)
-        self._taken_ev = Sustained(frames, span)
-        self._flying_ev = Sustained(frames, span)
-        self._ground_ev = Sustained(frames, span)
-        self._battery = BatteryEvidence(
-            settings.battery_low_pct, frames, span, settings.battery_alone_span_s
-        )
         self._battery_reported = False
-        self._texts: collections.deque[tuple[float, str]] = collections.deque(maxlen=20)
         self._rates_at_s = -math.inf
         self._retry_at_s = 0.0
         self._hold_until_s = 0.0  # no re-assessment before (after no_progress)
-        self._last_seq: int | None = None
         self._launch_deadline_s: float | None = None
         self._restore: list[float] | None = None  # [since_s, heartbeats] after a link restore
-        self._progress: tuple[float, float] | None = None  # (best distance m, since_s)
-        self._clock_ref: tuple[float, int] | None = None
-        self._clock_checked = False
 
     # ------------------------------------------------------------------ reading
     @property
@@ -155,17 +140,20 @@ class VehicleController:
 
     @property
     def busy(self) -> bool:
-        return self._running is not None or self._job is not None
+        return self._jobs.busy
 
     def flying(self) -> bool:
         """Sustained evidence that it flies (see ControllerSettings)."""
-        return self._flying_ev.confirmed
+        return self.watch.flying.confirmed
 
     def may_command(self) -> bool:
         """The guard on every set-mode and upload: armed, or being launched on request."""
         if self.state is S.LAUNCHING and self.launch_requested and not self.s.advisory:
             return True
         return self.snap.armed is True and not self.snap.reboot_suspected
+
+    def may_command_request(self, request: io.Exchange) -> bool:
+        return not isinstance(request, io.SetMode | io.UploadMission) or self.may_command()
 
     # ------------------------------------------------------------------ the entry point
     def handle(self, inp: io.Input) -> list[io.Output]:
@@ -232,24 +220,28 @@ class VehicleController:
         for event in frame.events:
             self._on_event(event)
         kind = frame.kind
+        grounded = False
         if kind in ("HEARTBEAT", "GLOBAL_POSITION_INT", "EXTENDED_SYS_STATE"):
-            self._flight_evidence(t)
+            grounded = self.watch.flight(s, t)
+        if grounded and self.state is S.ACTIVE:
+            self._leave("landed", t, S.ON_GROUND, alt_m=s.alt_m, armed=s.armed)
         if kind == "HEARTBEAT":
             self._on_heartbeat(t)
         elif kind in ("SYS_STATUS", "BATTERY_STATUS"):
-            self._battery.reading(s.battery_remaining_pct, t)
-            if self._battery.confirmed(t):
+            self.watch.battery.reading(s.battery_remaining_pct, t)
+            if self.watch.battery.confirmed(t):
                 self._battery_low(t)
         elif kind == "MISSION_CURRENT" and s.mission_current_seq is not None:
-            if self._last_seq is not None and s.mission_current_seq > self._last_seq:
-                self._progress = None  # a mission item advance is progress
-            self._last_seq = s.mission_current_seq
+            self.watch.mission_seq(s.mission_current_seq)
             loiter = self._loiter
             if loiter is not None and loiter.observe_current(s.mission_current_seq):
                 self._loiter_ended(t, loiter)
         elif kind == "GLOBAL_POSITION_INT" and self.state is S.ACTIVE and self._restore is None:
             self._core_pose()
-            self._check_progress(t)
+            fly = self.fly
+            if fly is not None and fly.verified_t_s is not None:
+                near_m = self.loiter_radius_m() + self.s.progress_margin_m
+                self.watch.position(s, (fly.x_m, fly.y_m), near_m, t)
         up = s.alt_m is not None and s.alt_m >= self.alt_m - LAUNCHED_MARGIN_M
         if self.state is S.LAUNCHING and self._launch_deadline_s is not None and up:
             self._launch_deadline_s = None
@@ -267,7 +259,7 @@ class VehicleController:
             if self._loiter is not None:
                 self._loiter.observe_reached(event.seq)
         elif isinstance(event, StatusText):
-            self._texts.append((t, event.text))
+            self.watch.texts.append((t, event.text))
             self.journal("statustext", severity=event.severity, text=event.text)
         elif isinstance(event, Rebooted):
             self._on_reboot(event)
@@ -276,22 +268,8 @@ class VehicleController:
         elif isinstance(event, PrearmChanged):
             self._retry_at_s = min(self._retry_at_s, t)
 
-    def _flight_evidence(self, t: float) -> None:
-        s = self.snap
-        on_ground_reported = s.landed_state == MAV_LANDED_STATE_ON_GROUND
-        fast = s.speed_m_s is not None and s.speed_m_s > self.s.flying_speed_m_s
-        high = s.alt_m is not None and s.alt_m > self.s.flying_alt_m
-        self._flying_ev.observe(s.armed is True and high and fast and not on_ground_reported, t)
-        grounded = s.armed is False or on_ground_reported or (
-            s.alt_m is not None and not high and not fast
-        )
-        if self._ground_ev.observe(grounded, t) and self.state is S.ACTIVE:
-            self._leave("landed", t, S.ON_GROUND, alt_m=s.alt_m, armed=s.armed)
-
     def _on_heartbeat(self, t: float) -> None:
         s = self.snap
-        if s.system_status in (MAV_STATE_CRITICAL, MAV_STATE_EMERGENCY):
-            self._battery.autopilot_agrees()
         if self._restore is not None:
             self._restore[1] += 1
             since, beats = self._restore
@@ -302,57 +280,30 @@ class VehicleController:
             ):
                 self._restored(t)
         mode = s.mode
-        if mode is None:
-            return
-        ours = self._own_mode == mode
-        taken = mode in TAKEN_MODES
-        if mode == PlaneMode.RTL and not ours:
-            self._battery.autopilot_agrees()
-        if self.state in IN_HAND and not taken and not ours:
-            if self._mode_change is None or self._mode_change[1] != mode:
-                self._mode_change = (t, mode, s.mode_name or str(mode))
-                self._mode_ev.reset()
-            self._mode_ev.observe(True, t)
-            self._resolve_mode_change(t)
-        else:
-            self._mode_change = None
-            self._mode_ev.reset()
-        given_back = self._taken_ev.observe(taken and not ours, t)
+        ours = mode is not None and self._own_mode == mode
+        given_back = self.watch.heartbeat(s, t, ours, self.state in IN_HAND)
+        self._resolve_mode_change(t)
         if given_back and self.state is S.OVERRIDDEN and mode == PlaneMode.AUTO:
             self.resume(t, "mode AUTO")
-        if taken and self.state in (S.MANUAL, S.CONNECTING):
+        if mode in TAKEN_MODES and self.state in (S.MANUAL, S.CONNECTING):
             self._retry_at_s = min(self._retry_at_s, t)
 
     def _resolve_mode_change(self, t: float) -> None:
-        """A sustained mode change out of AUTO/GUIDED, ``override_grace_s`` after it began:
-        the autopilot's battery failsafe (RTL with the autopilot CRITICAL or low readings),
-        its RTL at a mission's end (mission state; a STATUSTEXT only as a hint), else an
-        override (``failsafe`` when the autopilot is CRITICAL)."""
-        change = self._mode_change
-        if change is None or not self._mode_ev.confirmed or t - change[0] < self.s.override_grace_s:
+        """A mode change out of AUTO/GUIDED that lasted ``override_grace_s``
+        (:meth:`Watch.mode_change` says whose it was)."""
+        change = self.watch.mode_change(self.snap, t, self.state is S.ACTIVE)
+        if change is None or self.state not in IN_HAND:
             return
-        self._mode_change = None
-        self._mode_ev.reset()
-        if self.state not in IN_HAND:
-            return
-        since, mode, name = change
-        texts = " | ".join(text.lower() for tt, text in self._texts if tt >= since - 3.0)
-        s = self.snap
-        critical = s.system_status in (MAV_STATE_CRITICAL, MAV_STATE_EMERGENCY)
-        if mode == PlaneMode.RTL and (self._battery.low_readings or (critical and "batt" in texts)):
-            self.journal("autopilot_mode", mode=name, reason="battery failsafe")
+        if change.kind == "battery":
+            self.journal("autopilot_mode", mode=change.name, reason=change.reason)
             self._battery_low(t)
-            return
-        seq, total = s.mission_current_seq, s.mission_total
-        at_end = seq is not None and total is not None and seq >= total - 1
-        mission_end = at_end or "mission complete" in texts
-        if mode == PlaneMode.RTL and self.state is S.ACTIVE and mission_end:
+        elif change.kind == "mission_end":
             # our missions end in an unlimited loiter: one that ran off its end is taken
             # back with a fresh mission (the core replans it as idle)
-            self.journal("autopilot_mode", mode=name, reason="mission end")
+            self.journal("autopilot_mode", mode=change.name, reason=change.reason)
             self._core(ev.VehicleRebooted(t, self.vehicle))
-            return
-        self.override(t, "failsafe" if critical or "failsafe" in texts else f"mode {name}")
+        else:
+            self.override(t, change.reason)
 
     def _battery_low(self, t: float) -> None:
         if self._battery_reported:
@@ -372,7 +323,7 @@ class VehicleController:
         self._loiter = None
         self.wp_loiter_rad_m = None
         self._rates_at_s = -math.inf
-        self._clock_ref = None
+        self.watch.reset_clock()
         if self.state in IN_HAND:
             self._core(ev.VehicleLost(event.t_s, self.vehicle))
         if self.state not in (S.OVERRIDDEN, S.HOME):
@@ -387,15 +338,6 @@ class VehicleController:
         self.journal("loiter_end", target=target, how=loiter.ended_by)
         if self.state is S.ACTIVE:
             self._core(ev.LoiterEnded(t, self.vehicle))
-
-    def _check_progress(self, t: float) -> None:
-        fly, s = self.fly, self.snap
-        if fly is None or fly.verified_t_s is None or s.x_m is None or s.y_m is None:
-            return
-        d = math.hypot(s.x_m - fly.x_m, s.y_m - fly.y_m)
-        near = d <= self.loiter_radius_m() + self.s.progress_margin_m
-        if self._progress is None or near or d < self._progress[0] - self.s.progress_min_m:
-            self._progress = (d, t)
 
     # ------------------------------------------------------------------ time
     def _on_tick(self, t: float) -> None:
@@ -418,13 +360,12 @@ class VehicleController:
         else:
             self.link = "degraded" if silent_s > min(2.5, self.s.lost_after_s / 2.0) else "ok"
         self._resolve_mode_change(t)
-        progress = self._progress
+        progress = self.watch.stalled(t)
         if (
             self.state is S.ACTIVE
             and progress is not None
             and self._restore is None
             and self.link != "lost"
-            and t - progress[1] > self.s.progress_timeout_s
         ):
             self._leave(
                 "no_progress", t, S.CONNECTING, target=self.fly.target if self.fly else None,
@@ -447,20 +388,10 @@ class VehicleController:
             self.state = S.CONNECTING
 
     def _check_clock(self, t: float) -> None:
-        """The mission clock must run at the rate of the vehicle's ``time_boot_ms``
-        (design.md); a rate that does not match within 20 % is reported once."""
-        boot_ms = self.snap.time_boot_ms
-        if boot_ms is None or self._clock_checked:
+        checked = self.watch.clock(self.snap, t)
+        if checked is None:
             return
-        if self._clock_ref is None or boot_ms < self._clock_ref[1]:
-            self._clock_ref = (t, boot_ms)
-            return
-        dt = t - self._clock_ref[0]
-        if dt < self.s.clock_check_s:
-            return
-        ratio = (boot_ms - self._clock_ref[1]) / 1000.0 / dt
-        self._clock_checked = True
-        ok = abs(ratio - 1.0) <= 0.2
+        ratio, ok = checked
         self.journal("clock_check", vehicle_s_per_mission_s=round(ratio, 3), ok=ok)
         if not ok:
             self._out.append(
@@ -478,7 +409,7 @@ class VehicleController:
         self.state = state
         self._pending_fly = self._wanted = None
         self._loiter = None
-        self._progress = None
+        self.watch.reset_progress()
         self._abort_job(cancel=True)
 
     def _restored(self, t: float) -> None:
@@ -491,7 +422,7 @@ class VehicleController:
             return
         if self._wanted is not None and self._pending_fly is None:
             self._pending_fly = self._wanted  # owed: the core will not send it again
-        self._progress = None
+        self.watch.reset_progress()
         self._core_pose()
         self._core(ev.VehicleReturned(t, self.vehicle))
 
@@ -503,7 +434,7 @@ class VehicleController:
         self.state = S.OVERRIDDEN
         self._pending_fly = self._wanted = None
         self._loiter = None
-        self._progress = None
+        self.watch.reset_progress()
         self._abort_job(cancel=True)
         self.journal("override", reason=reason)
         if was_planned:
@@ -522,9 +453,9 @@ class VehicleController:
         self.journal("resume", reason=reason)
         if self.state is S.HOME:
             self._battery_reported = False
-            self._battery.reset()
+            self.watch.battery.reset()
         self.state = S.ACTIVE
-        self._progress = None
+        self.watch.reset_progress()
         self._core_pose()
         self._core(ev.OperatorResume(t, self.vehicle))
         return True
@@ -533,7 +464,7 @@ class VehicleController:
         """Core said: stop commanding (ReleaseVehicle) or go home (SendHome)."""
         self._pending_fly = self._wanted = None
         self._loiter = None
-        self._progress = None
+        self.watch.reset_progress()
         self._abort_job()
         if home:
             self.state = S.HOME
@@ -573,7 +504,7 @@ class VehicleController:
             self.state = S.JOINING
             self._start(park_job(self))
             return
-        if self._flying_ev.holding:
+        if self.watch.flying.holding:
             return  # may be flying: wait for the evidence either way
         if self.state is not S.ON_GROUND:
             self.state = S.ON_GROUND
@@ -587,13 +518,12 @@ class VehicleController:
     def _advance(self) -> None:
         """Start or step the job, one exchange at a time."""
         for _ in range(8):  # a job that finishes may let another start
-            if self._running is not None or self.stopping:
+            if self._jobs.running is not None or self.stopping:
                 return
-            if self._job is not None:
-                if self._pause_until_s is not None and self.t_s < self._pause_until_s:
+            if self._jobs.job is not None:
+                if not self._jobs.ready(self.t_s):
                     return
-                self._pause_until_s = None
-                self._step(None)
+                self._send(self._jobs.step())
                 continue
             if not self._pick():
                 return
@@ -607,7 +537,7 @@ class VehicleController:
             self._out.append(io.RequestRates(self.s.telemetry_rate_hz))
         if self.state in ASSESSED and t >= max(self._retry_at_s, self._hold_until_s):
             self._assess()
-            if self._job is not None:
+            if self._jobs.job is not None:
                 return True
         if self._pending_home and not self.s.advisory:
             self._pending_home = False
@@ -624,52 +554,27 @@ class VehicleController:
         return False
 
     def _start(self, job: Job) -> None:
-        self._abort_job()
-        self._job = job
-        self._pause_until_s = None
+        self._jobs.start(job)
 
-    def _step(self, value: Any) -> None:
-        job = self._job
-        assert job is not None
-        try:
-            request = job.send(value)
-        except StopIteration:
-            self._job = None
-            return
-        if isinstance(request, Pause):
-            self._pause_until_s = request.until_s
-            return
-        if isinstance(request, io.SetMode | io.UploadMission) and not self.may_command():
-            self._job = None
-            job.close()
-            self.journal(
-                "command_refused", request=type(request).__name__, state=self.status,
-                armed=self.snap.armed, reason="not armed",
-            )  # fmt: skip
-            if self.state in (S.JOINING, S.LAUNCHING):
-                self.state = S.CONNECTING
-            self._retry_at_s = self.t_s + self.s.retry_assess_s
-            return
-        self._running = request
-        self._out.append(request)
+    def _send(self, request: io.Exchange | None) -> None:
+        if request is not None:
+            self._out.append(request)
+
+    def _refused(self, request: io.Exchange) -> None:
+        """The guard stopped ``request``: the job ended; assess again later."""
+        self.journal(
+            "command_refused", request=type(request).__name__, state=self.status,
+            armed=self.snap.armed, reason="not armed",
+        )  # fmt: skip
+        if self.state in (S.JOINING, S.LAUNCHING):
+            self.state = S.CONNECTING
+        self._retry_at_s = self.t_s + self.s.retry_assess_s
 
     def _on_done(self, done: io.ExchangeDone) -> None:
-        if done.request is not self._running:
-            return  # an exchange of an aborted job
-        self._running = None
-        if self._job is None:
-            return
-        if self.stopping:
-            self._abort_job()
-            return
-        self._step(done.result)
+        self._send(self._jobs.done(done.request, done.result, self.stopping))
 
     def _abort_job(self, cancel: bool = False) -> None:
-        if self._job is not None:
-            self._job.close()
-            self._job = None
-        self._pause_until_s = None
-        if cancel and self._running is not None:
+        if self._jobs.abort() and cancel:
             self._out.append(io.CancelExchange())
 
     # ------------------------------------------------------------------ JobHost
@@ -703,7 +608,7 @@ class VehicleController:
 
     def joined(self, how: str) -> None:
         self.state = S.ACTIVE
-        self._progress = None
+        self.watch.reset_progress()
         self.journal("vehicle_joined", how=how, system_id=self.system_id, altitude_m=self.alt_m)
         pose = self._pose(joined=True)
         if pose is not None:
@@ -726,7 +631,7 @@ class VehicleController:
         if self.fly is not None:
             self.fly.verified_t_s = self.t_s
         self.uploads_ok += 1
-        self._progress = None
+        self.watch.reset_progress()
         if self._wanted is fly:
             self._wanted = None
         if self._loiter_end_pending_s is not None:

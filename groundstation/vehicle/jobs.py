@@ -9,7 +9,7 @@ works on a :class:`JobHost` (the controller) for the state it reads and changes.
 from __future__ import annotations
 
 import math
-from collections.abc import Generator
+from collections.abc import Callable, Generator
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -35,7 +35,16 @@ from groundstation.vehicle.io import (
 )
 from groundstation.vehicle.modes import PlaneMode
 
-__all__ = ["Job", "JobHost", "Pause", "home_job", "launch_job", "park_job", "target_job"]
+__all__ = [
+    "Job",
+    "JobHost",
+    "JobRunner",
+    "Pause",
+    "home_job",
+    "launch_job",
+    "park_job",
+    "target_job",
+]
 
 M = mavlink2
 LAUNCH_AHEAD_M = 400.0
@@ -205,3 +214,74 @@ def home_job(host: JobHost) -> Job:
     host.home_done(ok)
     if not ok:
         yield Pause(host.t_s + host.retry_pause_s)
+
+
+class JobRunner:
+    """Steps one job, with at most one exchange outstanding.
+
+    ``guard(request)`` is asked before every request goes out; a refused request ends the
+    job (``on_refused(request)``). A result that comes back for an aborted job's exchange
+    only frees the runner."""
+
+    def __init__(
+        self, guard: Callable[[Exchange], bool], on_refused: Callable[[Exchange], None]
+    ) -> None:
+        self.guard = guard
+        self.on_refused = on_refused
+        self.job: Job | None = None
+        self.running: Exchange | None = None
+        self.pause_until_s: float | None = None
+
+    @property
+    def busy(self) -> bool:
+        return self.job is not None or self.running is not None
+
+    def start(self, job: Job) -> None:
+        self.abort()
+        self.job = job
+
+    def abort(self) -> bool:
+        """End the job; True if one of its exchanges is still running."""
+        if self.job is not None:
+            self.job.close()
+            self.job = None
+        self.pause_until_s = None
+        return self.running is not None
+
+    def ready(self, t_s: float) -> bool:
+        if self.job is None or self.running is not None:
+            return False
+        return self.pause_until_s is None or t_s >= self.pause_until_s
+
+    def step(self, value: Any = None) -> Exchange | None:
+        """Resume the job with ``value``; the exchange to send, if any."""
+        job = self.job
+        assert job is not None
+        self.pause_until_s = None
+        try:
+            request = job.send(value)
+        except StopIteration:
+            self.job = None
+            return None
+        if isinstance(request, Pause):
+            self.pause_until_s = request.until_s
+            return None
+        if not self.guard(request):
+            self.job = None
+            job.close()
+            self.on_refused(request)
+            return None
+        self.running = request
+        return request
+
+    def done(self, request: Exchange, result: Any, stopping: bool) -> Exchange | None:
+        """The result of ``request``: step the job on (the next exchange, if any)."""
+        if request is not self.running:
+            return None
+        self.running = None
+        if self.job is None:
+            return None
+        if stopping:
+            self.abort()
+            return None
+        return self.step(result)
