@@ -37,7 +37,9 @@ FLYING: dict[str, Any] = dict(
     mode=PlaneMode.AUTO, mode_name="AUTO", mission_current_seq=1, mission_total=3,
     battery_remaining_pct=80.0, prearm_ok=True, time_boot_ms=100_000, system_status=4,
 )  # fmt: skip
-ON_GROUND: dict[str, Any] = dict(FLYING, alt_m=0.0, speed_m_s=0.0, armed=False, system_status=3, landed_state=1)
+ON_GROUND: dict[str, Any] = dict(
+    FLYING, alt_m=0.0, speed_m_s=0.0, armed=False, system_status=3, landed_state=1
+)
 
 
 def ok_transfer(items: tuple[MissionItem, ...] | None = None) -> TransferResult:
@@ -325,6 +327,17 @@ def test_auto_again_takes_back_a_flying_vehicle() -> None:
     rig.run(5.0, mode=PlaneMode.AUTO, mode_name="AUTO")
     assert rig.journal("resume")[0].fields["reason"] == "mode AUTO"
     assert rig.c.state is S.ACTIVE and len(rig.core(ev.OperatorResume)) == 1
+
+
+def test_an_override_in_auto_is_not_taken_back_until_auto_is_selected_again() -> None:
+    rig = active_rig()
+    rig.c.override(rig.t, "mission MISSION_COUNT from GCS system 255")
+    rig._collect(rig.c.take_outputs())
+    rig.run(20.0)  # still in AUTO: the other ground station flies it
+    assert rig.c.state is S.OVERRIDDEN and not rig.journal("resume")
+    rig.run(3.0, mode=PlaneMode.LOITER, mode_name="LOITER")
+    rig.run(5.0, mode=PlaneMode.AUTO, mode_name="AUTO")
+    assert rig.c.state is S.ACTIVE and rig.journal("resume")[0].fields["reason"] == "mode AUTO"
 
 
 def test_auto_again_on_the_ground_is_not_a_take_back() -> None:

@@ -122,6 +122,7 @@ class VehicleController:
         self._loiter_end_pending_s: float | None = None
         self._expected: dict[int, float] = {}
         self._own_mode: int | None = None
+        self._left_taken = False  # seen out of AUTO/GUIDED since the override
         self._battery_reported = False
         self._rates_at_s = -math.inf
         self._retry_at_s = 0.0
@@ -283,7 +284,11 @@ class VehicleController:
         ours = mode is not None and self._own_mode == mode
         given_back = self.watch.heartbeat(s, t, ours, self.state in IN_HAND)
         self._resolve_mode_change(t)
-        if given_back and self.state is S.OVERRIDDEN and mode == PlaneMode.AUTO:
+        if mode is not None and mode not in TAKEN_MODES:
+            self._left_taken = True
+        # taken back: switched (back) to AUTO after the override, and kept there
+        auto = mode == PlaneMode.AUTO
+        if given_back and self.state is S.OVERRIDDEN and auto and self._left_taken:
             self.resume(t, "mode AUTO")
         if mode in TAKEN_MODES and self.state in (S.MANUAL, S.CONNECTING):
             self._retry_at_s = min(self._retry_at_s, t)
@@ -432,6 +437,7 @@ class VehicleController:
             return
         was_planned = self.state is S.ACTIVE
         self.state = S.OVERRIDDEN
+        self._left_taken = self.snap.mode is not None and self.snap.mode not in TAKEN_MODES
         self._pending_fly = self._wanted = None
         self._loiter = None
         self.watch.reset_progress()
