@@ -348,6 +348,7 @@ class Daemon:
                 and session.status == "active"
                 and not self.config.advisory
                 and session.link != "lost"
+                and session.controller.may_command()  # the guard: never a disarmed one
             ):
                 for _ in range(3):
                     session.port.fire_mode(11)
