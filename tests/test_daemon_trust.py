@@ -23,6 +23,7 @@ from typing import Any
 import pytest
 from daemon_run import Journal, events
 
+from groundstation.commands.embedded_sim import EmbeddedSim
 from groundstation.commands.run import build_config, run_daemon
 from groundstation.daemon.daemon import Daemon
 from groundstation.daemon.journal import read_journal
@@ -43,8 +44,8 @@ def _server(daemon: Daemon) -> SitlServer:
     """The embedded simulator of a ``--vehicles sim:N`` daemon."""
     for fn in daemon.on_finish:
         owner = getattr(fn, "__self__", None)
-        if isinstance(owner, SitlServer):
-            return owner
+        if isinstance(owner, EmbeddedSim):
+            return owner.server
     raise AssertionError("no embedded simulator")
 
 

@@ -155,20 +155,66 @@ def test_chunked_statustext_missing_chunk_flushed_incomplete() -> None:
     assert tel.tick(10.0) == []  # reported once
 
 
-def test_reboot_detected_when_time_boot_goes_back() -> None:
+def test_reboot_detected_when_time_boot_goes_back_and_stays_back() -> None:
+    # issue 10: one frame with a smaller time_boot_ms is a suspicion, not a reboot; the
+    # frames after it keeping to the new timeline (3 over >= 1 s) confirm it
     tel = fresh()
     tel.receive(heartbeat(10, armed=True), 0.5)
     tel.receive(wire(M.MAVLink_mission_current_message(3, 5)), 0.6)
     tel.receive(gpi(boot_ms=600_000), 1.0)
     assert tel.receive(gpi(boot_ms=599_500), 1.1) == []  # UDP reordering: not a reboot
     assert tel.stale_messages == 1
-    events = tel.receive(gpi(boot_ms=4_000), 30.0)
-    assert events == [Rebooted(30.0, 600_000, 4_000)]
+    assert tel.receive(gpi(boot_ms=4_000), 30.0) == []
+    assert tel.snapshot().reboot_suspected and tel.snapshot().time_boot_ms == 600_000
+    assert tel.receive(wire(M.MAVLink_system_time_message(0, 4_500)), 30.5) == []
+    events = tel.receive(wire(M.MAVLink_system_time_message(0, 5_000)), 31.0)
+    assert events == [Rebooted(31.0, 600_000, 5_000)]
     snap = tel.snapshot()
-    assert snap.time_boot_ms == 4_000 and snap.mission_current_seq is None and snap.mode is None
+    assert snap.time_boot_ms == 5_000 and snap.mission_current_seq is None and snap.mode is None
+    assert not snap.reboot_suspected
     # the position after the reboot is accepted (not treated as stale)
-    assert tel.receive(gpi(789_100_000, boot_ms=5_000), 31.0) == []
-    assert tel.snapshot().last_position_s == 31.0
+    assert tel.receive(gpi(789_100_000, boot_ms=5_200), 31.2) == []
+    assert tel.snapshot().last_position_s == 31.2
+
+
+def test_one_forged_boot_time_changes_nothing() -> None:
+    tel = fresh()
+    tel.receive(heartbeat(10, armed=True), 0.5)
+    tel.receive(wire(M.MAVLink_mission_current_message(3, 5)), 0.6)
+    tel.receive(gpi(boot_ms=600_000), 1.0)
+    for i in range(20):  # forged small boot times, each followed by the real timeline
+        assert tel.receive(wire(M.MAVLink_system_time_message(0, 10 + i)), 2.0 + i) == []
+        assert tel.receive(gpi(boot_ms=602_000 + 1000 * i), 2.1 + i) == []
+    snap = tel.snapshot()
+    assert snap.mission_current_seq == 3 and snap.mode == 10 and not snap.reboot_suspected
+    assert tel.reboot.rejected == 20
+
+
+def test_booting_heartbeat_confirms_a_suspected_reboot_at_once() -> None:
+    tel = fresh()
+    tel.receive(heartbeat(10, armed=True), 0.5)
+    tel.receive(gpi(boot_ms=600_000), 1.0)
+    booting = wire(M.MAVLink_heartbeat_message(1, 3, 1, 16, M.MAV_STATE_BOOT, 3))
+    # booting with no suspicion: nothing to confirm
+    assert not [e for e in tel.receive(booting, 1.5) if isinstance(e, Rebooted)]
+    assert tel.receive(gpi(boot_ms=800), 2.0) == []
+    events = tel.receive(booting, 2.1)
+    assert [type(e) for e in events][:1] == [Rebooted]
+    assert tel.snapshot().system_status == M.MAV_STATE_BOOT
+
+
+def test_landed_state_and_system_status_kept_foreign_components_counted() -> None:
+    tel = fresh()
+    tel.receive(wire(M.MAVLink_extended_sys_state_message(0, 2)), 1.0)
+    assert tel.snapshot().landed_state == 2
+    tel.receive(wire(M.MAVLink_extended_sys_state_message(0, 0)), 2.0)
+    assert tel.snapshot().landed_state is None  # UNDEFINED: not reported
+    events = tel.receive(wire(M.MAVLink_extended_sys_state_message(0, 9)), 3.0)
+    assert isinstance(events[0], InvalidTelemetry)
+    tel.receive(wire(M.MAVLink_heartbeat_message(1, 3, 129, 10, M.MAV_STATE_CRITICAL, 3)), 4.0)
+    assert tel.snapshot().system_status == M.MAV_STATE_CRITICAL
+    forged = wire(M.MAVLink_mission_item_reached_message(1), compid=2)
+    assert tel.receive(forged, 5.0) == [] and tel.foreign_messages == 1
 
 
 def test_nan_and_out_of_range_values_dropped_and_reported() -> None:

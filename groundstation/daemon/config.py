@@ -76,6 +76,7 @@ class DaemonConfig:
     operating_center: str = "home"
     lost_after_s: float = 5.0
     override_grace_s: float = 2.0
+    progress_timeout_s: float = 120.0
     battery_low_pct: float = 25.0
     battery_low_action: str = "rtl"
     telemetry_rate_hz: float = 2.0
@@ -153,6 +154,7 @@ class DaemonConfig:
             "transfer_timeout_s",
             "track_period_s",
             "override_grace_s",
+            "progress_timeout_s",
         ):
             _positive(name, getattr(self, name))
         for name in ("solver_time_limit_s", "loiter_radius_m", "period_s"):

@@ -253,13 +253,13 @@ class Daemon:
                 or self.stopping
             ):
                 return
-            session = self._new_session(sysid)
+            session = self._new_session(sysid, rx.component_id)
         try:
             session.on_message(msg)
         except Exception:
             log.exception("vehicle %s: message handling failed", session.id)
 
-    def _new_session(self, sysid: int) -> VehicleSession:
+    def _new_session(self, sysid: int, component_id: int = 1) -> VehicleSession:
         settings = self.config.settings_for(sysid)
         name = settings.name or str(sysid)
         port = VehiclePort(
@@ -271,7 +271,9 @@ class Daemon:
             retries=self.config.transfer_retries,
         )
         index = sysid - 1 if self.config.sim_count else len(self.sessions)
-        session = VehicleSession(sysid, name, index, self, self.config, settings, port, self.clock)
+        session = VehicleSession(
+            sysid, name, index, self, self.config, settings, port, self.clock, component_id
+        )
         self.sessions[sysid] = session
         self.by_name[name] = session
         self.journal("vehicle_seen", vehicle=name, system_id=sysid, altitude_m=session.alt_m)
@@ -369,6 +371,7 @@ class Daemon:
                 and session.status == "active"
                 and not self.config.advisory
                 and session.link != "lost"
+                and session.controller.may_command()  # the guard: never a disarmed one
             ):
                 for _ in range(3):
                     session.port.fire_mode(11)
@@ -551,6 +554,10 @@ _LOGGED = frozenset(
         "waiting",
         "plan_failed",
         "signing_rejected",
+        "no_progress",
+        "landed",
+        "resume_refused",
+        "command_refused",
     }
 )
 

@@ -263,7 +263,7 @@ async def run_daemon(
                     if (
                         snap.x_m is not None
                         and snap.y_m is not None
-                        and s._flying()
+                        and s.flying()
                         and s.link != "lost"
                     ):
                         out[s.id] = (snap.x_m, snap.y_m)

@@ -178,8 +178,10 @@ class SetCurrent(TransferBase[SetCurrentState]):
         if give_up:
             if acked:
                 message = f"COMMAND_ACK ACCEPTED but MISSION_CURRENT never showed {self.seq}"
-            else:
-                message = f"no confirmation of current item {self.seq}"
+                return self._finish(
+                    TransferCode.TIMEOUT, message, remote_code="MAV_RESULT_ACCEPTED"
+                )
+            message = f"no confirmation of current item {self.seq}"
             return self._finish(TransferCode.TIMEOUT, message)
         if acked:
             return []

@@ -20,9 +20,17 @@ that are not an autopilot (cameras, ground stations on the same system id), are 
 A position older (``time_boot_ms``) than the last one (UDP reordering) is ignored as stale.
 
 Reboots: ``time_boot_ms`` (any message that carries it) going back by more than
-``reboot_backstep_ms`` means the autopilot restarted: :class:`Rebooted` is emitted and the
-mission progress forgotten. (A reboot during a silence shorter than the previous uptime is
-the case this cannot see.)
+``reboot_backstep_ms`` makes a suspicion (``reboot_suspected`` in the snapshot; the value is
+held back); it is a reboot when the following frames keep to the new timeline over
+``reboot_frames`` frames and ``reboot_span_s``, or at once when the HEARTBEAT says the
+autopilot is booting (``system_status`` MAV_STATE_BOOT or mode INITIALISING). Then
+:class:`Rebooted` is emitted and the mission progress forgotten; a frame back on the old
+timeline clears the suspicion (one stray frame is no reboot). (A reboot during a silence
+longer than the previous uptime is the case this cannot see.)
+
+HEARTBEAT ``system_status`` and EXTENDED_SYS_STATE ``landed_state`` are kept in the
+snapshot. Messages of the system from another component are counted
+(``foreign_messages``) and otherwise ignored.
 """
 
 from __future__ import annotations
@@ -49,6 +57,7 @@ from groundstation.mavlink.telemetry_events import (
     VehicleSnapshot,
     mode_name,
 )
+from groundstation.vehicle.evidence import MAV_STATE_BOOT, RebootEvidence
 
 __all__ = [
     "ARDUPLANE_MODES",
@@ -73,6 +82,7 @@ PREARM_CHECK_BIT = 0x10000000  # MAV_SYS_STATUS_PREARM_CHECK
 _ARMED_FLAG = 128  # MAV_MODE_FLAG_SAFETY_ARMED
 _CUSTOM_MODE_FLAG = 1  # MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
 _UINT16_UNKNOWN = 65535
+_INITIALISING = 16  # ArduPlane mode INITIALISING
 _STATUSTEXT_CHUNK = 50
 _MAX_SPEED_M_S = 150.0
 _MAX_ALT_M = 20_000.0
@@ -101,6 +111,8 @@ class VehicleTelemetry:
         battery_low_v: float | None = None,
         battery_hysteresis_pct: float = 5.0,
         reboot_backstep_ms: int = 3000,
+        reboot_frames: int = 3,
+        reboot_span_s: float = 1.0,
         statustext_timeout_s: float = 2.0,
         component_id: int | None = 1,
     ) -> None:
@@ -118,6 +130,8 @@ class VehicleTelemetry:
         self._chunks: dict[int, tuple[float, int, dict[int, str], int | None]] = {}
         self.stale_messages = 0
         self.messages = 0
+        self.foreign_messages = 0
+        self.reboot = RebootEvidence(reboot_backstep_ms, reboot_frames, reboot_span_s)
 
     def snapshot(self) -> VehicleSnapshot:
         """The current state (immutable)."""
@@ -148,6 +162,7 @@ class VehicleTelemetry:
             if msg.get_srcSystem() != self.system_id:
                 return []
             if self.component_id is not None and msg.get_srcComponent() != self.component_id:
+                self.foreign_messages += 1
                 return []
         except AttributeError:
             return []
@@ -175,25 +190,45 @@ class VehicleTelemetry:
 
     def _on_boot_time(self, boot_ms: int, now_s: float) -> list[TelemetryEvent]:
         last = self._snap.time_boot_ms
-        if last is not None and boot_ms < last - self.reboot_backstep_ms:
-            self._snap = replace(
-                self._snap,
-                time_boot_ms=boot_ms,
-                mission_current_seq=None,
-                mission_total=None,
-                armed=None,
-                mode=None,
-                mode_name=None,
-            )
-            self._last_position_boot_ms = None
-            return [Rebooted(now_s, last, boot_ms)]
+        verdict = self.reboot.observe(last, boot_ms, now_s)
+        if verdict == "reboot":
+            return self._rebooted(boot_ms, now_s)
+        if verdict == "suspect":
+            self._snap = replace(self._snap, reboot_suspected=True)
+            return []
+        snap = replace(self._snap, reboot_suspected=False)
         if last is None or boot_ms > last:
-            self._snap = replace(self._snap, time_boot_ms=boot_ms)
+            snap = replace(snap, time_boot_ms=boot_ms)
+        self._snap = snap
         return []
+
+    def _rebooted(self, boot_ms: int, now_s: float) -> list[TelemetryEvent]:
+        last = self._snap.time_boot_ms or 0
+        self._snap = replace(
+            self._snap,
+            time_boot_ms=boot_ms,
+            mission_current_seq=None,
+            mission_total=None,
+            armed=None,
+            mode=None,
+            mode_name=None,
+            landed_state=None,
+            reboot_suspected=False,
+        )
+        self._last_position_boot_ms = None
+        return [Rebooted(now_s, last, boot_ms)]
 
     def _on_heartbeat(self, msg: MAVLinkMessage, now_s: float) -> list[TelemetryEvent]:
         events: list[TelemetryEvent] = []
-        snap = replace(self._snap, last_heartbeat_s=now_s)
+        status = int(msg.system_status)
+        booting = status == MAV_STATE_BOOT or (
+            int(msg.base_mode) & _CUSTOM_MODE_FLAG and int(msg.custom_mode) == _INITIALISING
+        )
+        if booting and self.reboot.suspected:
+            latest = self.reboot.latest_ms()
+            self.reboot.booting()
+            events += self._rebooted(latest if latest is not None else 0, now_s)
+        snap = replace(self._snap, last_heartbeat_s=now_s, system_status=status)
         armed = bool(int(msg.base_mode) & _ARMED_FLAG)
         if snap.armed is not None and armed != snap.armed:  # transitions only
             events.append(Armed(now_s) if armed else Disarmed(now_s))
@@ -331,6 +366,14 @@ class VehicleTelemetry:
             return [MissionCurrentChanged(now_s, old, seq, total)]
         return []
 
+    def _on_extended_sys_state(self, msg: MAVLinkMessage, now_s: float) -> list[TelemetryEvent]:
+        landed = int(msg.landed_state)
+        if not 0 <= landed <= 4:
+            return [InvalidTelemetry(now_s, "EXTENDED_SYS_STATE", "landed_state", landed)]
+        # MAV_LANDED_STATE_UNDEFINED (0): the autopilot does not know; keep None
+        self._snap = replace(self._snap, landed_state=landed or None)
+        return []
+
     def _on_item_reached(self, msg: MAVLinkMessage, now_s: float) -> list[TelemetryEvent]:
         return [MissionItemReached(now_s, int(msg.seq))]
 
@@ -375,6 +418,7 @@ _HANDLERS = {
     "MISSION_CURRENT": VehicleTelemetry._on_mission_current,
     "MISSION_ITEM_REACHED": VehicleTelemetry._on_item_reached,
     "STATUSTEXT": VehicleTelemetry._on_statustext,
+    "EXTENDED_SYS_STATE": VehicleTelemetry._on_extended_sys_state,
 }
 
 

@@ -121,7 +121,13 @@ TelemetryEvent = (
 
 @dataclass(frozen=True)
 class VehicleSnapshot:
-    """The latest known state of one vehicle (None: not heard yet)."""
+    """The latest known state of one vehicle (None: not heard yet).
+
+    ``system_status``: HEARTBEAT MAV_STATE_* (ArduPlane: CRITICAL while a failsafe is
+    active); ``landed_state``: EXTENDED_SYS_STATE MAV_LANDED_STATE_* (None where the
+    autopilot reports none); ``reboot_suspected``: ``time_boot_ms`` went back and the
+    reducer waits for evidence (see :class:`~groundstation.vehicle.evidence.RebootEvidence`).
+    """
 
     system_id: int
     x_m: float | None = None
@@ -144,6 +150,9 @@ class VehicleSnapshot:
     last_heartbeat_s: float | None = None
     last_position_s: float | None = None
     time_boot_ms: int | None = None
+    system_status: int | None = None
+    landed_state: int | None = None
+    reboot_suspected: bool = False
 
     @property
     def course_rad(self) -> float | None:

@@ -1,0 +1,254 @@
+"""Evidence rules: no single frame may remove or redirect a vehicle.
+
+Each rule is a small pure class fed one observation at a time with the mission time it
+arrived; it answers whether the evidence is now sufficient. The thresholds are named
+parameters with defaults chosen for ~1 Hz HEARTBEAT / SYS_STATUS / MISSION_CURRENT streams
+(ArduPlane's defaults; floe asks for 2 Hz of position):
+
+* :class:`Sustained` - a condition holds on ``min_frames`` consecutive frames spanning at
+  least ``min_span_s``; one contrary frame starts the count again. Used for mode changes,
+  disarm, landed and "flying".
+* :class:`RebootEvidence` - ``time_boot_ms`` going back is a reboot only when the frames
+  after it keep to the new timeline, or the autopilot says it is booting.
+* :class:`BatteryEvidence` - low readings sustained *and* confirmed by the autopilot
+  (HEARTBEAT ``system_status`` CRITICAL, or its own RTL), or low for much longer.
+* :class:`LoiterEndEvidence` - a mission item's end needs two agreeing signals.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+__all__ = [
+    "MAV_STATE_BOOT",
+    "MAV_STATE_CRITICAL",
+    "MAV_STATE_EMERGENCY",
+    "BatteryEvidence",
+    "LoiterEndEvidence",
+    "RebootEvidence",
+    "Sustained",
+]
+
+MAV_STATE_BOOT = 1
+MAV_STATE_CRITICAL = 5
+MAV_STATE_EMERGENCY = 6
+
+
+class Sustained:
+    """True once a condition held on ``min_frames`` consecutive observations whose times
+    span at least ``min_span_s`` (first to last); any observation where it does not hold
+    resets it. ``observe`` returns the verdict after the observation."""
+
+    def __init__(self, min_frames: int = 3, min_span_s: float = 2.0) -> None:
+        self.min_frames = min_frames
+        self.min_span_s = min_span_s
+        self._since_s: float | None = None
+        self._last_s = 0.0
+        self._frames = 0
+
+    @property
+    def holding(self) -> bool:
+        """The condition held on the last observation (confirmed or not yet)."""
+        return self._frames > 0
+
+    @property
+    def confirmed(self) -> bool:
+        return self._frames >= self.min_frames and self._span_ok
+
+    @property
+    def since_s(self) -> float | None:
+        """When the current run of agreeing observations began."""
+        return self._since_s
+
+    def observe(self, holds: bool, t_s: float) -> bool:
+        if not holds:
+            self.reset()
+            return False
+        if self._since_s is None:
+            self._since_s = t_s
+        self._frames += 1
+        self._last_s = t_s
+        return self.confirmed
+
+    def reset(self) -> None:
+        self._since_s = None
+        self._frames = 0
+
+    @property
+    def _span_ok(self) -> bool:
+        return self._since_s is not None and self._last_s - self._since_s >= self.min_span_s - 1e-9
+
+
+@dataclass
+class _Candidate:
+    first_ms: int
+    latest_ms: int
+    since_s: float
+    frames: int
+
+
+class RebootEvidence:
+    """Tells a real autopilot restart from a stray frame with a small ``time_boot_ms``.
+
+    A value more than ``backstep_ms`` below the accepted timeline makes a *suspicion*. The
+    suspicion becomes a reboot when ``min_frames`` frames (the first included) keep to the
+    new timeline - never going back by more than ``jitter_ms``, all still below the old
+    one - over at least ``min_span_s``; or at once when the autopilot says it is booting
+    (:meth:`booting`: HEARTBEAT ``system_status`` MAV_STATE_BOOT or mode INITIALISING). A
+    frame on the old timeline clears the suspicion (counted in ``rejected``).
+
+    :meth:`observe` returns ``"ok"`` (accept the value), ``"suspect"`` (hold it back) or
+    ``"reboot"`` (confirmed; the caller resets what a reboot forgets).
+    """
+
+    def __init__(
+        self,
+        backstep_ms: int = 3000,
+        min_frames: int = 3,
+        min_span_s: float = 1.0,
+        jitter_ms: int = 500,
+    ) -> None:
+        self.backstep_ms = backstep_ms
+        self.min_frames = min_frames
+        self.min_span_s = min_span_s
+        self.jitter_ms = jitter_ms
+        self.rejected = 0
+        self._candidate: _Candidate | None = None
+
+    @property
+    def suspected(self) -> bool:
+        return self._candidate is not None
+
+    def observe(self, accepted_ms: int | None, boot_ms: int, t_s: float) -> str:
+        cand = self._candidate
+        if accepted_ms is None or boot_ms >= accepted_ms - self.backstep_ms:
+            if cand is not None:
+                self.rejected += 1
+                self._candidate = None
+            return "ok"
+        if cand is None or boot_ms < cand.latest_ms - self.jitter_ms:
+            self._candidate = _Candidate(boot_ms, boot_ms, t_s, 1)
+        else:
+            cand.latest_ms = max(cand.latest_ms, boot_ms)
+            cand.frames += 1
+        cand = self._candidate
+        assert cand is not None
+        if cand.frames >= self.min_frames and t_s - cand.since_s >= self.min_span_s - 1e-9:
+            self._candidate = None
+            return "reboot"
+        return "suspect"
+
+    def booting(self) -> bool:
+        """The autopilot says it is booting: a pending suspicion is confirmed (True)."""
+        if self._candidate is None:
+            return False
+        self._candidate = None
+        return True
+
+    def latest_ms(self) -> int | None:
+        return None if self._candidate is None else self._candidate.latest_ms
+
+
+class BatteryEvidence:
+    """A battery failsafe that floe acts on.
+
+    Low means ``remaining_pct < low_pct``. Confirmed when low readings are sustained over
+    ``min_frames`` frames and ``min_span_s`` *and* the autopilot agrees (``confirm``: its
+    HEARTBEAT ``system_status`` is CRITICAL/EMERGENCY, or it switched to RTL by itself), or
+    when low readings alone are sustained over ``alone_span_s`` (an autopilot whose own
+    failsafe is off). One reading at or above ``low_pct`` starts again.
+    """
+
+    def __init__(
+        self,
+        low_pct: float = 25.0,
+        min_frames: int = 3,
+        min_span_s: float = 2.0,
+        alone_span_s: float = 20.0,
+    ) -> None:
+        self.low_pct = low_pct
+        self.alone_span_s = alone_span_s
+        self._low = Sustained(min_frames, min_span_s)
+        self._confirmed_by_autopilot = False
+
+    def reading(self, remaining_pct: float | None, t_s: float) -> None:
+        if remaining_pct is None:
+            return
+        self._low.observe(remaining_pct < self.low_pct, t_s)
+        if not self._low.holding:
+            self._confirmed_by_autopilot = False
+
+    def autopilot_agrees(self) -> None:
+        """The autopilot reports a failsafe state (CRITICAL) or flew home by itself."""
+        if self._low.holding:
+            self._confirmed_by_autopilot = True
+
+    @property
+    def low_readings(self) -> bool:
+        return self._low.holding
+
+    def confirmed(self, t_s: float) -> bool:
+        if not self._low.confirmed:
+            return False
+        since = self._low.since_s
+        long_enough = since is not None and t_s - since >= self.alone_span_s
+        return self._confirmed_by_autopilot or long_enough
+
+    def reset(self) -> None:
+        self._low.reset()
+        self._confirmed_by_autopilot = False
+
+
+class LoiterEndEvidence:
+    """The end of mission item ``seq`` (a timed loiter or a waypoint) of floe's mission.
+
+    ArduPlane sends MISSION_ITEM_REACHED once and then streams MISSION_CURRENT (~1 Hz). The
+    end is confirmed by two agreeing signals: MISSION_ITEM_REACHED ``>= seq`` followed by a
+    MISSION_CURRENT past ``seq``, or MISSION_CURRENT past ``seq`` on ``min_frames``
+    consecutive frames. MISSION_CURRENT values past ``seq`` count only after one at or
+    before ``seq`` was seen (before that they are the previous mission's). A MISSION_CURRENT
+    back at or before ``seq`` cancels a pending MISSION_ITEM_REACHED (a forged one).
+    ``observe_*`` return True exactly once, when the end is confirmed.
+    """
+
+    def __init__(self, seq: int, *, current_seq: int | None = None, min_frames: int = 2) -> None:
+        self.seq = seq
+        self.min_frames = min_frames
+        self.ended_by: str | None = None
+        self._seen_at_or_before = current_seq is not None and current_seq <= seq
+        self._reached = False
+        self._past_frames = 0
+
+    @property
+    def ended(self) -> bool:
+        return self.ended_by is not None
+
+    def observe_reached(self, seq: int) -> bool:
+        if self.ended:
+            return False
+        if seq == self.seq or (seq > self.seq and self._seen_at_or_before):
+            self._reached = True
+        return False
+
+    def observe_current(self, seq: int) -> bool:
+        """One MISSION_CURRENT frame (every frame, not only changes)."""
+        if self.ended:
+            return False
+        if seq <= self.seq:
+            self._seen_at_or_before = True
+            self._reached = False
+            self._past_frames = 0
+            return False
+        if not self._seen_at_or_before and not self._reached:
+            return False
+        self._past_frames += 1
+        if self._reached:
+            self.ended_by = "reached"
+        elif self._past_frames >= self.min_frames:
+            self.ended_by = "mission_current"
+        return self.ended
+
+    def rebooted(self) -> None:
+        self._seen_at_or_before = False
+        self._reached = False
+        self._past_frames = 0

@@ -1,0 +1,222 @@
+"""The controller's typed inputs and outputs.
+
+In: :class:`Frame` (one message from the vehicle's autopilot, reduced), :class:`Tick`
+(time passes), :class:`ExchangeDone` (the result of the exchange the controller asked
+for), :class:`Fly` / :class:`Release` (the decision core's commands), :class:`Launch`,
+:class:`Resume`, :class:`Override` (operator requests), :class:`ForeignFrame` (a frame of
+another component, counted) and :class:`Stop`.
+
+Out: exchange requests (:data:`Exchange`: one at a time, answered by ``ExchangeDone``),
+fire-and-forget :class:`RequestRates`, :class:`CancelExchange`, :class:`NotifyRebooted`,
+:class:`CoreEvent` (for the decision core), :class:`JournalLine` and :class:`Warn`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from groundstation.core import events as ev
+from groundstation.core.commands import FlyToTarget
+from groundstation.mavlink.mission_items import MissionStep
+from groundstation.mavlink.telemetry_events import TelemetryEvent, VehicleSnapshot
+
+__all__ = [
+    "Arm",
+    "CancelExchange",
+    "CoreEvent",
+    "Download",
+    "Exchange",
+    "ExchangeDone",
+    "Fly",
+    "ForeignFrame",
+    "Frame",
+    "Input",
+    "JournalLine",
+    "Launch",
+    "NotifyRebooted",
+    "Output",
+    "Override",
+    "ParamSet",
+    "Release",
+    "RequestRates",
+    "Resume",
+    "SetCurrent",
+    "SetMode",
+    "Stop",
+    "Tick",
+    "UploadMission",
+    "UploadOutcome",
+    "Warn",
+]
+
+
+# ------------------------------------------------------------------ inputs
+@dataclass(frozen=True)
+class Frame:
+    """One message of the vehicle's own autopilot component: its MAVLink type, the
+    reducer's snapshot after it and the events it caused."""
+
+    t_s: float
+    kind: str
+    snapshot: VehicleSnapshot
+    events: tuple[TelemetryEvent, ...] = ()
+
+
+@dataclass(frozen=True)
+class ForeignFrame:
+    """A message of the vehicle's system from another component: ignored, counted."""
+
+    t_s: float
+    kind: str
+    component_id: int
+
+
+@dataclass(frozen=True)
+class Tick:
+    t_s: float
+
+
+@dataclass(frozen=True)
+class Fly:
+    """The core's FlyToTarget, with the aim point clipped into the operating area."""
+
+    t_s: float
+    command: FlyToTarget
+    x_m: float
+    y_m: float
+    clipped: bool = False
+
+
+@dataclass(frozen=True)
+class Release:
+    """The core's ReleaseVehicle (``home`` False) or SendHome (``home`` True)."""
+
+    t_s: float
+    reason: str
+    home: bool = False
+
+
+@dataclass(frozen=True)
+class Launch:
+    t_s: float
+
+
+@dataclass(frozen=True)
+class Resume:
+    t_s: float
+    reason: str
+
+
+@dataclass(frozen=True)
+class Override:
+    t_s: float
+    reason: str
+
+
+@dataclass(frozen=True)
+class Stop:
+    t_s: float
+
+
+@dataclass(frozen=True)
+class UploadOutcome:
+    """A verified upload: uploaded, read back and compared (``ok``), or why not."""
+
+    ok: bool
+    retries: int = 0
+    error: str | None = None
+    items: int = 0
+
+
+@dataclass(frozen=True)
+class ExchangeDone:
+    """The answer to ``request``: an :class:`UploadOutcome` (UploadMission), a
+    ``TransferResult`` (Download, SetCurrent), a MAV_RESULT or None on silence (SetMode,
+    Arm) or a bool (ParamSet)."""
+
+    t_s: float
+    request: Exchange
+    result: Any
+
+
+Input = (
+    Frame | ForeignFrame | Tick | Fly | Release | Launch | Resume | Override | Stop | ExchangeDone
+)
+
+
+# ------------------------------------------------------------------ outputs
+@dataclass(frozen=True, eq=False)
+class UploadMission:
+    """Upload ``steps`` (the driver prepends home and builds the items), read them back
+    and compare; retried up to the transfer retries."""
+
+    steps: tuple[MissionStep, ...]
+    purpose: str
+    target: str | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class Download:
+    purpose: str = "check"
+
+
+@dataclass(frozen=True, eq=False)
+class SetCurrent:
+    seq: int
+    known_current_seq: int | None
+
+
+@dataclass(frozen=True, eq=False)
+class SetMode:
+    mode: int
+
+
+@dataclass(frozen=True, eq=False)
+class Arm:
+    pass
+
+
+@dataclass(frozen=True, eq=False)
+class ParamSet:
+    name: str
+    value: float
+
+
+Exchange = UploadMission | Download | SetCurrent | SetMode | Arm | ParamSet
+
+
+@dataclass(frozen=True)
+class RequestRates:
+    position_hz: float
+
+
+@dataclass(frozen=True)
+class CancelExchange:
+    """Forget the running exchange: its result will be ignored."""
+
+
+@dataclass(frozen=True)
+class NotifyRebooted:
+    """The vehicle rebooted: end any transfer in progress (``port.notify_rebooted``)."""
+
+
+@dataclass(frozen=True)
+class CoreEvent:
+    event: ev.Event
+
+
+@dataclass(frozen=True)
+class JournalLine:
+    event: str
+    fields: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Warn:
+    """An operator warning (the console, ``log.warning``)."""
+
+    text: str
+
+
+Output = Exchange | RequestRates | CancelExchange | NotifyRebooted | CoreEvent | JournalLine | Warn

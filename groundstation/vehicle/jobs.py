@@ -1,0 +1,287 @@
+"""The controller's multi-step exchanges, written as generators.
+
+A job yields exchange requests (:data:`~groundstation.vehicle.io.Exchange`) or a
+:class:`Pause` and is sent each request's result; it returns when done. Jobs hold no I/O and
+read no clock: the controller steps them as results and ticks come in. Every job here
+works on a :class:`JobHost` (the controller) for the state it reads and changes.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Generator
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+from groundstation.mavlink.codec import mavlink2
+from groundstation.mavlink.mission_items import (
+    LoiterTime,
+    LoiterUnlimited,
+    MissionStep,
+    Takeoff,
+    Waypoint,
+)
+from groundstation.mavlink.mission_transfer import TransferCode
+from groundstation.vehicle.io import (
+    Arm,
+    Download,
+    Exchange,
+    Fly,
+    ParamSet,
+    SetCurrent,
+    SetMode,
+    UploadMission,
+    UploadOutcome,
+)
+from groundstation.vehicle.modes import PlaneMode
+
+__all__ = [
+    "Job",
+    "JobHost",
+    "JobRunner",
+    "Pause",
+    "home_job",
+    "launch_job",
+    "park_job",
+    "target_job",
+]
+
+M = mavlink2
+LAUNCH_AHEAD_M = 400.0
+
+
+@dataclass(frozen=True)
+class Pause:
+    """Resume the job no earlier than ``until_s`` (mission time)."""
+
+    until_s: float
+
+
+Job = Generator[Exchange | Pause, Any, Any]
+
+
+class JobHost(Protocol):
+    """What jobs read and change on the controller."""
+
+    t_s: float
+    alt_m: float
+    wp_loiter_rad_m: float | None
+    retry_pause_s: float
+
+    def mission_seq(self) -> int | None: ...
+    def mode(self) -> int | None: ...
+    def position(self) -> tuple[float, float, float]: ...
+    def loiter_radius_m(self, fallback_m: float | None = None) -> float: ...
+    def journal(self, event: str, **fields: Any) -> None: ...
+    def expect_mode(self, mode: int) -> None: ...
+    def arm_loiter_end(self, seq: int) -> None: ...
+    def disarm_loiter_end(self) -> None: ...
+    def joined(self, how: str) -> None: ...
+    def park_failed(self) -> None: ...
+    def launch_failed(self) -> None: ...
+    def launched(self) -> None: ...
+    def target_verified(self, fly: Fly) -> bool: ...
+    def target_failed(self, fly: Fly) -> bool: ...
+    def home_done(self, ok: bool) -> None: ...
+
+
+def mission_job(
+    host: JobHost, steps: list[MissionStep], current: int | None, purpose: str,
+    target: str | None = None,
+) -> Generator[Exchange | Pause, Any, bool]:
+    """Upload ``steps`` verified; then set ``current`` and make sure of AUTO.
+
+    The loiter end of a target mission is watched from the verified upload on. A
+    set-current that timed out after the vehicle ACCEPTED it, with the vehicle already on a
+    later item of ours (a waypoint passed at once), counts as done (decided on the result's
+    code and ``remote_code``, never on its message)."""
+    host.disarm_loiter_end()
+    up: UploadOutcome = yield UploadMission(tuple(steps), purpose, target)
+    ok, retries, error = up.ok, up.retries, up.error or ""
+    if ok and current is not None:
+        result = yield SetCurrent(current, host.mission_seq())
+        retries += result.retries_used
+        ok = result.ok
+        now_seq = host.mission_seq()
+        moved_past = now_seq is not None and current < now_seq < up.items
+        if (
+            not ok
+            and result.code is TransferCode.TIMEOUT
+            and result.remote_code == "MAV_RESULT_ACCEPTED"
+            and moved_past
+        ):
+            ok = True
+        error = "" if ok else f"set current {result.code.value}: {result.message}"
+        if ok and purpose == "target":
+            host.arm_loiter_end(current)
+        if ok and host.mode() != PlaneMode.AUTO:
+            host.expect_mode(PlaneMode.AUTO)
+            answer = yield SetMode(PlaneMode.AUTO)
+            ok = answer == M.MAV_RESULT_ACCEPTED
+            error = "" if ok else "mode AUTO refused"
+        if not ok:
+            host.disarm_loiter_end()
+    host.journal(
+        "upload", ok=ok, purpose=purpose, target=target, retries=retries, items=up.items,
+        error=error or None,
+    )  # fmt: skip
+    return ok
+
+
+def park_job(host: JobHost) -> Job:
+    """Join a vehicle flying in AUTO: at once if it holds an unlimited loiter as the last
+    item of its mission, else park it on one where it is."""
+    result = yield Download("park")
+    items = result.items or ()
+    seq = host.mission_seq()
+    if (
+        result.ok
+        and seq is not None
+        and 0 < seq < len(items)
+        and items[seq].command == M.MAV_CMD_NAV_LOITER_UNLIM
+        and seq == len(items) - 1
+    ):
+        host.joined("holding")
+        return
+    x_m, y_m, _ = host.position()
+    steps: list[MissionStep] = [LoiterUnlimited(x_m, y_m, host.alt_m, host.loiter_radius_m())]
+    ok = yield from mission_job(host, steps, 1, "park")
+    if ok:
+        host.joined("parked")
+    else:
+        host.park_failed()
+
+
+def launch_job(host: JobHost, heading_rad: float) -> Job:
+    """Upload [home, takeoff, unlimited loiter ahead], verified; arm; item 1; AUTO."""
+    x0, y0, _ = host.position()
+    steps: list[MissionStep] = [
+        Takeoff(host.alt_m),
+        LoiterUnlimited(
+            x0 + LAUNCH_AHEAD_M * math.cos(heading_rad),
+            y0 + LAUNCH_AHEAD_M * math.sin(heading_rad),
+            host.alt_m,
+            host.loiter_radius_m(),
+        ),
+    ]
+    ok = yield from mission_job(host, steps, None, "takeoff")
+    if ok:
+        answer = yield Arm()
+        ok = answer == M.MAV_RESULT_ACCEPTED
+        if not ok:
+            host.journal("arm", ok=False, result=answer)
+    if ok:
+        yield SetCurrent(1, host.mission_seq())
+        host.expect_mode(PlaneMode.AUTO)
+        answer = yield SetMode(PlaneMode.AUTO)
+        ok = answer == M.MAV_RESULT_ACCEPTED
+    if ok:
+        host.launched()
+    else:
+        host.launch_failed()
+
+
+def target_job(host: JobHost, fly: Fly) -> Job:
+    """Fly to a target: [timed loiter (or a waypoint for < 1 s) at the aim point, unlimited
+    loiter there], WP_LOITER_RAD set first; retried until verified, or overtaken."""
+    command = fly.command
+    radius = host.loiter_radius_m(command.loiter_radius_m)
+    first: MissionStep
+    if command.loiter_s >= 1.0:
+        first = LoiterTime(fly.x_m, fly.y_m, host.alt_m, round(command.loiter_s))
+        if host.wp_loiter_rad_m != radius:
+            if (yield ParamSet("WP_LOITER_RAD", radius)):
+                host.wp_loiter_rad_m = radius
+            else:
+                host.journal("param_set", ok=False, name="WP_LOITER_RAD", value=radius)
+    else:
+        first = Waypoint(fly.x_m, fly.y_m, host.alt_m)
+    steps: list[MissionStep] = [first, LoiterUnlimited(fly.x_m, fly.y_m, host.alt_m, radius)]
+    while True:
+        ok = yield from mission_job(host, steps, 1, "target", command.target)
+        if ok:
+            host.target_verified(fly)
+            return
+        if not host.target_failed(fly):
+            return
+        yield Pause(host.t_s + host.retry_pause_s)
+
+
+def home_job(host: JobHost) -> Job:
+    host.expect_mode(PlaneMode.RTL)
+    answer = yield SetMode(PlaneMode.RTL)
+    ok = answer == M.MAV_RESULT_ACCEPTED
+    host.home_done(ok)
+    if not ok:
+        yield Pause(host.t_s + host.retry_pause_s)
+
+
+class JobRunner:
+    """Steps one job, with at most one exchange outstanding.
+
+    ``guard(request)`` is asked before every request goes out; a refused request ends the
+    job (``on_refused(request)``). A result that comes back for an aborted job's exchange
+    only frees the runner."""
+
+    def __init__(
+        self, guard: Callable[[Exchange], bool], on_refused: Callable[[Exchange], None]
+    ) -> None:
+        self.guard = guard
+        self.on_refused = on_refused
+        self.job: Job | None = None
+        self.running: Exchange | None = None
+        self.pause_until_s: float | None = None
+
+    @property
+    def busy(self) -> bool:
+        return self.job is not None or self.running is not None
+
+    def start(self, job: Job) -> None:
+        self.abort()
+        self.job = job
+
+    def abort(self) -> bool:
+        """End the job; True if one of its exchanges is still running."""
+        if self.job is not None:
+            self.job.close()
+            self.job = None
+        self.pause_until_s = None
+        return self.running is not None
+
+    def ready(self, t_s: float) -> bool:
+        if self.job is None or self.running is not None:
+            return False
+        return self.pause_until_s is None or t_s >= self.pause_until_s
+
+    def step(self, value: Any = None) -> Exchange | None:
+        """Resume the job with ``value``; the exchange to send, if any."""
+        job = self.job
+        assert job is not None
+        self.pause_until_s = None
+        try:
+            request = job.send(value)
+        except StopIteration:
+            self.job = None
+            return None
+        if isinstance(request, Pause):
+            self.pause_until_s = request.until_s
+            return None
+        if not self.guard(request):
+            self.job = None
+            job.close()
+            self.on_refused(request)
+            return None
+        self.running = request
+        return request
+
+    def done(self, request: Exchange, result: Any, stopping: bool) -> Exchange | None:
+        """The result of ``request``: step the job on (the next exchange, if any)."""
+        if request is not self.running:
+            return None
+        self.running = None
+        if self.job is None:
+            return None
+        if stopping:
+            self.abort()
+            return None
+        return self.step(result)

@@ -1,0 +1,72 @@
+"""The controller's settings: one frozen dataclass, built from the daemon's configuration
+in one place (:func:`controller_settings`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from groundstation.daemon.config import DaemonConfig, VehicleSettings
+
+__all__ = ["ControllerSettings", "controller_settings"]
+
+
+@dataclass(frozen=True)
+class ControllerSettings:
+    """Everything one vehicle's controller is told (mission seconds, metres, percent).
+
+    Flying (needed to join or rejoin): armed, ``alt_m > flying_alt_m`` above home,
+    groundspeed ``> flying_speed_m_s``, and not MAV_LANDED_STATE_ON_GROUND where the
+    autopilot reports a landed state, on ``evidence_frames`` position frames over
+    ``evidence_span_s``. The same counts apply to a mode change, a disarm and a landing
+    before they take a vehicle out. ``progress_timeout_s``: an active vehicle that gets no
+    nearer its aim point by ``progress_min_m`` (and is not loitering within
+    ``loiter_radius_m + progress_margin_m`` of it, and advances no mission item) for this
+    long leaves the plan. ``restore_settle_s``: after a link restore, how long (and
+    ``evidence_frames`` heartbeats) the vehicle is watched before floe commands it again.
+    """
+
+    altitude_m: float = 100.0
+    loiter_radius_m: float | None = None
+    speed_m_s: float | None = None
+    launch: bool = False
+    advisory: bool = False
+    lost_after_s: float = 5.0
+    override_grace_s: float = 2.0
+    battery_low_pct: float = 25.0
+    telemetry_rate_hz: float = 2.0
+    progress_timeout_s: float = 120.0
+    progress_min_m: float = 20.0
+    progress_margin_m: float = 60.0
+    flying_alt_m: float = 10.0
+    flying_speed_m_s: float = 5.0
+    evidence_frames: int = 3
+    evidence_span_s: float = 2.0
+    battery_alone_span_s: float = 20.0
+    restore_settle_s: float = 2.0
+    rates_every_s: float = 30.0
+    retry_pause_s: float = 1.0
+    retry_assess_s: float = 5.0
+    expect_mode_s: float = 15.0
+    launch_timeout_s: float = 180.0
+    clock_check_s: float = 30.0
+    default_loiter_radius_m: float = 120.0
+
+
+def controller_settings(
+    config: DaemonConfig, vehicle: VehicleSettings, index: int
+) -> ControllerSettings:
+    """The mapping from the daemon's configuration (the only place that knows both)."""
+    return ControllerSettings(
+        altitude_m=vehicle.altitude_m or config.altitude_m + config.altitude_step_m * index,
+        loiter_radius_m=vehicle.loiter_radius_m,
+        speed_m_s=vehicle.speed_m_s,
+        launch=bool(config.launch),
+        advisory=config.advisory,
+        lost_after_s=config.lost_after_s,
+        override_grace_s=config.override_grace_s,
+        battery_low_pct=config.battery_low_pct,
+        telemetry_rate_hz=config.telemetry_rate_hz,
+        progress_timeout_s=config.progress_timeout_s,
+    )

@@ -1,0 +1,238 @@
+"""The controller's state and the parts of it that jobs use (see :mod:`.controller`).
+
+:class:`VehicleState` spells the states as the journal and the status table do;
+:class:`ControllerState` holds what one vehicle's controller knows and the small
+operations its jobs (:mod:`.jobs`) call back (the ``JobHost`` protocol).
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+from groundstation.core import events as ev
+from groundstation.mavlink.telemetry_events import VehicleSnapshot
+from groundstation.vehicle import io
+from groundstation.vehicle.evidence import LoiterEndEvidence
+from groundstation.vehicle.jobs import JobRunner
+from groundstation.vehicle.settings import ControllerSettings
+from groundstation.vehicle.watch import Watch
+
+__all__ = ["ASSESSED", "IN_HAND", "ControllerState", "FlyRecord", "VehicleState"]
+
+LAUNCHED_MARGIN_M = 15.0
+
+
+class VehicleState(enum.Enum):
+    CONNECTING = "connecting"
+    ON_GROUND = "on_ground"
+    LAUNCHING = "launching"
+    JOINING = "joining"
+    MANUAL = "manual"
+    ACTIVE = "active"
+    OVERRIDDEN = "overridden"
+    HOME = "home"
+
+
+S = VehicleState
+IN_HAND = (S.ACTIVE, S.JOINING, S.LAUNCHING)
+ASSESSED = (S.CONNECTING, S.ON_GROUND, S.MANUAL)
+
+
+@dataclass
+class FlyRecord:
+    """The mission a vehicle was last given (for the status table and the benchmark)."""
+
+    target: str
+    x_m: float
+    y_m: float
+    route: tuple[str, ...] = field(default=())
+    verified_t_s: float | None = None
+
+
+class ControllerState:
+    """What one vehicle's controller knows; its outputs; the jobs' callbacks."""
+
+    def __init__(self, vehicle: str, system_id: int, settings: ControllerSettings) -> None:
+        self.vehicle = vehicle
+        self.system_id = system_id
+        self.s = settings
+        self.state = S.CONNECTING
+        self.link = "ok"
+        self.launch_requested = settings.launch
+        self.stopping = False
+        self.snap = VehicleSnapshot(system_id=system_id)
+        self.t_s = 0.0
+        self.alt_m = settings.altitude_m
+        self.retry_pause_s = settings.retry_pause_s
+        self.wp_loiter_rad_m: float | None = None
+        self.fly: FlyRecord | None = None
+        self.uploads_ok = 0
+        self.uploads_failed = 0
+        self.upload_delays_s: list[float] = []
+        self.last_loiter_end_s: float | None = None
+        self.foreign_frames = 0
+        self._out: list[io.Output] = []
+        self.watch = Watch(settings)
+        self._jobs = JobRunner(self.may_command_request, self._refused)
+        self._pending_fly: io.Fly | None = None
+        self._wanted: io.Fly | None = None
+        self._pending_home = False
+        self._loiter: LoiterEndEvidence | None = None
+        self._loiter_end_pending_s: float | None = None
+        self._expected: dict[int, float] = {}
+        self._own_mode: int | None = None
+        self._left_taken = False  # seen out of AUTO/GUIDED since the override
+        self._battery_reported = False
+        self._rates_at_s = -math.inf
+        self._retry_at_s = 0.0
+        self._hold_until_s = 0.0  # no re-assessment before (after no_progress)
+        self._launch_deadline_s: float | None = None
+        self._restore: list[float] | None = None  # [since_s, heartbeats] after a link restore
+
+    # ------------------------------------------------------------------ reading
+    @property
+    def status(self) -> str:
+        return self.state.value
+
+    @property
+    def commanded(self) -> bool:
+        return self.state is S.ACTIVE and not self.s.advisory and not self.stopping
+
+    @property
+    def busy(self) -> bool:
+        return self._jobs.busy
+
+    def flying(self) -> bool:
+        """Sustained evidence that it flies (see ControllerSettings)."""
+        return self.watch.flying.confirmed
+
+    def may_command(self) -> bool:
+        """The guard on every set-mode and upload: armed, or being launched on request."""
+        if self.state is S.LAUNCHING and self.launch_requested and not self.s.advisory:
+            return True
+        return self.snap.armed is True and not self.snap.reboot_suspected
+
+    def may_command_request(self, request: io.Exchange) -> bool:
+        return not isinstance(request, io.SetMode | io.UploadMission) or self.may_command()
+
+    # ------------------------------------------------------------------ outputs
+    def journal(self, event: str, **fields: Any) -> None:
+        self._out.append(io.JournalLine(event, fields))
+
+    def _core(self, event: ev.Event) -> None:
+        self._out.append(io.CoreEvent(event))
+
+    def _pose(self, joined: bool = False) -> ev.Event | None:
+        s = self.snap
+        if s.x_m is None or s.y_m is None:
+            return None
+        heading = s.heading_rad if s.heading_rad is not None else 0.0
+        speed = s.airspeed_m_s or s.speed_m_s or self.s.speed_m_s or 22.0
+        cls = ev.VehicleJoined if joined else ev.Telemetry
+        return cls(self.t_s, self.vehicle, s.x_m, s.y_m, heading, speed)
+
+    def _core_pose(self) -> None:
+        pose = self._pose()
+        if pose is not None:
+            self._core(pose)
+
+    def _battery_low(self, t: float) -> None:
+        if self._battery_reported:
+            return
+        self._battery_reported = True
+        self.journal("battery_low", remaining_pct=self.snap.battery_remaining_pct)
+        if self.state is S.ACTIVE:
+            self._core(ev.BatteryLow(t, self.vehicle))
+    def _loiter_ended(self, t: float, loiter: LoiterEndEvidence) -> None:
+        self._loiter = None
+        self.last_loiter_end_s = t
+        self._loiter_end_pending_s = t
+        target = self.fly.target if self.fly else None
+        self.journal("loiter_end", target=target, how=loiter.ended_by)
+        if self.state is S.ACTIVE:
+            self._core(ev.LoiterEnded(t, self.vehicle))
+    def _refused(self, request: io.Exchange) -> None:
+        """The guard stopped ``request``: the job ended; assess again later."""
+        self.journal(
+            "command_refused", request=type(request).__name__, state=self.status,
+            armed=self.snap.armed, reason="not armed",
+        )  # fmt: skip
+        if self.state in (S.JOINING, S.LAUNCHING):
+            self.state = S.CONNECTING
+        self._retry_at_s = self.t_s + self.s.retry_assess_s
+    # ------------------------------------------------------------------ JobHost
+    def mission_seq(self) -> int | None:
+        return self.snap.mission_current_seq
+
+    def mode(self) -> int | None:
+        return self.snap.mode
+
+    def position(self) -> tuple[float, float, float]:
+        s = self.snap
+        return s.x_m or 0.0, s.y_m or 0.0, s.heading_rad or 0.0
+
+    def loiter_radius_m(self, fallback_m: float | None = None) -> float:
+        return self.s.loiter_radius_m or fallback_m or self.s.default_loiter_radius_m
+
+    def expect_mode(self, mode: int) -> None:
+        self._expected[mode] = self.t_s + self.s.expect_mode_s
+
+    def arm_loiter_end(self, seq: int) -> None:
+        current = self.snap.mission_current_seq
+        loiter = LoiterEndEvidence(seq, current_seq=current)
+        if current is not None and current > seq:
+            loiter.ended_by = "mission_current"  # ended while the set-current was confirmed
+            self._loiter_ended(self.t_s, loiter)
+            return
+        self._loiter = loiter
+
+    def disarm_loiter_end(self) -> None:
+        self._loiter = None
+
+    def joined(self, how: str) -> None:
+        self.state = S.ACTIVE
+        self.watch.reset_progress()
+        self.journal("vehicle_joined", how=how, system_id=self.system_id, altitude_m=self.alt_m)
+        pose = self._pose(joined=True)
+        if pose is not None:
+            self._core(pose)
+
+    def park_failed(self) -> None:
+        if self.state is S.JOINING:
+            self.state = S.CONNECTING
+        self._retry_at_s = self.t_s + self.s.retry_assess_s
+
+    def launch_failed(self) -> None:
+        if self.state is S.LAUNCHING:
+            self.state = S.ON_GROUND
+        self._retry_at_s = self.t_s + self.s.retry_assess_s
+
+    def launched(self) -> None:
+        self._launch_deadline_s = self.t_s + self.s.launch_timeout_s
+
+    def target_verified(self, fly: io.Fly) -> bool:
+        if self.fly is not None:
+            self.fly.verified_t_s = self.t_s
+        self.uploads_ok += 1
+        self.watch.reset_progress()
+        if self._wanted is fly:
+            self._wanted = None
+        if self._loiter_end_pending_s is not None:
+            self.upload_delays_s.append(self.t_s - self._loiter_end_pending_s)
+            self._loiter_end_pending_s = None
+        if fly.clipped:
+            self.journal("clipped", target=fly.command.target, x_m=fly.x_m, y_m=fly.y_m)
+        return True
+
+    def target_failed(self, fly: io.Fly) -> bool:
+        """Whether to try again: not when overtaken, out of the plan or link lost."""
+        self.uploads_failed += 1
+        return self.commanded and self._pending_fly is None and self.link != "lost"
+
+    def home_done(self, ok: bool) -> None:
+        self.journal("rtl", ok=ok)
+        if not ok:
+            self._pending_home = True

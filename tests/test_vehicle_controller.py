@@ -1,0 +1,516 @@
+"""The vehicle controller on its own: fake time, fake frames, fake exchange results.
+
+A :class:`Rig` plays the vehicle: it sends HEARTBEATs (1 Hz), positions (2 Hz),
+SYS_STATUS and MISSION_CURRENT (1 Hz) from a snapshot the test shapes, ticks the
+controller, and answers each exchange it asks for (one at a time) as a cooperative
+ArduPlane would, unless the test answers it itself.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+from typing import Any
+
+import pytest
+
+from groundstation.core import events as ev
+from groundstation.core.commands import FlyToTarget
+from groundstation.mavlink.codec import mavlink2
+from groundstation.mavlink.mission_items import MissionItem
+from groundstation.mavlink.mission_transfer import TransferCode, TransferResult
+from groundstation.mavlink.telemetry_events import (
+    MissionItemReached,
+    Rebooted,
+    VehicleSnapshot,
+)
+from groundstation.vehicle import io
+from groundstation.vehicle.controller import VehicleController, VehicleState
+from groundstation.vehicle.modes import PlaneMode
+from groundstation.vehicle.settings import ControllerSettings
+
+M = mavlink2
+S = VehicleState
+ACCEPTED = M.MAV_RESULT_ACCEPTED
+FLYING: dict[str, Any] = dict(
+    x_m=0.0, y_m=0.0, alt_m=100.0, speed_m_s=22.0, heading_rad=0.0, armed=True,
+    mode=PlaneMode.AUTO, mode_name="AUTO", mission_current_seq=1, mission_total=3,
+    battery_remaining_pct=80.0, prearm_ok=True, time_boot_ms=100_000, system_status=4,
+)  # fmt: skip
+ON_GROUND: dict[str, Any] = dict(
+    FLYING, alt_m=0.0, speed_m_s=0.0, armed=False, system_status=3, landed_state=1
+)
+
+
+def ok_transfer(items: tuple[MissionItem, ...] | None = None) -> TransferResult:
+    return TransferResult(True, TransferCode.SUCCESS, "ok", items=items)
+
+
+class Rig:
+    def __init__(self, auto_answer: bool = True, **settings: Any) -> None:
+        self.c = VehicleController("v1", 1, ControllerSettings(**settings))
+        self.snap = VehicleSnapshot(1, **FLYING)
+        self.t = 0.0
+        self.out: list[io.Output] = []
+        self.pending: io.Exchange | None = None
+        self.asked: list[io.Exchange] = []
+        self.auto_answer = auto_answer
+        self.holding_mission = False
+
+    # -- the vehicle's side
+    def frame(self, kind: str, *events: Any, **changes: Any) -> list[io.Output]:
+        self.snap = replace(self.snap, last_heard_s=self.t, **changes)
+        if kind == "HEARTBEAT":
+            self.snap = replace(self.snap, last_heartbeat_s=self.t)
+        return self.feed(io.Frame(self.t, kind, self.snap, tuple(events)))
+
+    def feed(self, inp: io.Input) -> list[io.Output]:
+        out = self.c.handle(inp)
+        self._collect(out)
+        return out
+
+    def _collect(self, out: list[io.Output]) -> None:
+        self.out += out
+        for o in out:
+            if isinstance(o, io.UploadMission | io.Download | io.SetCurrent | io.SetMode
+                          | io.Arm | io.ParamSet):
+                assert self.pending is None, "two exchanges at once"
+                self.pending = o
+                self.asked.append(o)
+
+    def answer(self, result: Any) -> list[io.Output]:
+        request = self.pending
+        assert request is not None
+        self.pending = None
+        return self.feed(io.ExchangeDone(self.t, request, result))
+
+    def auto(self) -> None:
+        """Answer as a cooperative vehicle would."""
+        while self.auto_answer and self.pending is not None:
+            r = self.pending
+            if isinstance(r, io.UploadMission):
+                self.answer(io.UploadOutcome(True, 0, None, len(r.steps) + 1))
+            elif isinstance(r, io.Download):
+                items = (_item(), _item(), _item(M.MAV_CMD_NAV_LOITER_UNLIM))
+                self.answer(ok_transfer(items if self.holding_mission else (_item(), _item())))
+            elif isinstance(r, io.SetCurrent):
+                self.snap = replace(self.snap, mission_current_seq=r.seq)
+                self.answer(ok_transfer())
+            elif isinstance(r, io.SetMode):
+                self.snap = replace(self.snap, mode=int(r.mode), mode_name=PlaneMode(r.mode).name)
+                self.answer(ACCEPTED)
+            elif isinstance(r, io.Arm):
+                self.snap = replace(self.snap, armed=True)
+                self.answer(ACCEPTED)
+            else:
+                self.answer(True)
+
+    def run(self, seconds: float, step_s: float = 0.5, **changes: Any) -> None:
+        """Let ``seconds`` of mission time pass with regular telemetry."""
+        end = self.t + seconds
+        self.snap = replace(self.snap, **changes)
+        while self.t < end - 1e-9:
+            before = self.t
+            self.t = round(self.t + step_s, 6)
+            if math.floor(self.t + 1e-9) != math.floor(before + 1e-9):  # 1 Hz messages
+                self.frame("HEARTBEAT", **changes)
+                self.frame("SYS_STATUS")
+                self.frame("MISSION_CURRENT")
+            self.frame("GLOBAL_POSITION_INT")
+            self.feed(io.Tick(self.t))
+            self.auto()
+
+    # -- reading the outputs
+    def journal(self, name: str) -> list[io.JournalLine]:
+        return [o for o in self.out if isinstance(o, io.JournalLine) and o.event == name]
+
+    def core(self, kind: type) -> list[Any]:
+        return [o.event for o in self.out if isinstance(o, io.CoreEvent)
+                and isinstance(o.event, kind)]  # fmt: skip
+
+    def requests(self, kind: type) -> list[Any]:
+        return [r for r in self.asked if isinstance(r, kind)]
+
+    def fly(self, target: str = "A", x_m: float = 2000.0, y_m: float = 0.0) -> None:
+        cmd = FlyToTarget(self.t, "v1", target, x_m, y_m, 0.0, 120.0, (target,))
+        self.feed(io.Fly(self.t, cmd, x_m, y_m))
+        self.auto()
+
+
+def _item(command: int = M.MAV_CMD_NAV_WAYPOINT) -> MissionItem:
+    return MissionItem(0, command)
+
+
+def active_rig(**settings: Any) -> Rig:
+    rig = Rig(**settings)
+    rig.run(4.0)
+    assert rig.c.state is S.ACTIVE, rig.out
+    return rig
+
+
+# ------------------------------------------------------------------ joining
+def test_flying_in_auto_is_parked_then_joins() -> None:
+    rig = Rig()
+    rig.run(4.0)
+    assert [type(r) for r in rig.asked] == [io.Download, io.UploadMission, io.SetCurrent]
+    assert rig.asked[1].purpose == "park"  # type: ignore[union-attr]
+    assert rig.journal("vehicle_joined")[0].fields["how"] == "parked"
+    assert len(rig.core(ev.VehicleJoined)) == 1
+
+
+def test_holding_an_unlimited_loiter_joins_without_upload() -> None:
+    rig = Rig()
+    rig.holding_mission = True
+    rig.snap = replace(rig.snap, mission_current_seq=2)
+    rig.run(4.0, mission_current_seq=2)
+    assert rig.requests(io.UploadMission) == []
+    assert rig.journal("vehicle_joined")[0].fields["how"] == "holding"
+
+
+def test_guided_joins_at_once_and_manual_waits() -> None:
+    rig = Rig()
+    rig.run(4.0, mode=PlaneMode.GUIDED, mode_name="GUIDED")
+    assert rig.journal("vehicle_joined")[0].fields["how"] == "guided" and rig.asked == []
+    manual = Rig()
+    manual.run(4.0, mode=PlaneMode.FBWA, mode_name="FBWA")
+    assert manual.c.state is S.MANUAL and manual.asked == [] and manual.journal("waiting")
+
+
+@pytest.mark.parametrize(
+    "changes",
+    [
+        {"armed": False},
+        {"alt_m": 3.0},
+        {"speed_m_s": 0.0},
+        {"landed_state": 1},  # the autopilot says: on the ground
+    ],
+)
+def test_not_flying_never_joins(changes: dict[str, Any]) -> None:
+    rig = Rig()
+    rig.run(10.0, **changes)
+    assert rig.c.state is S.ON_GROUND and rig.asked == [] and not rig.core(ev.VehicleJoined)
+
+
+def test_one_flying_frame_is_not_enough_to_join() -> None:
+    rig = Rig()
+    rig.snap = replace(rig.snap, **ON_GROUND)
+    rig.run(5.0)
+    rig.t += 1.0
+    rig.frame("HEARTBEAT", **FLYING, landed_state=None)
+    rig.frame("GLOBAL_POSITION_INT", **ON_GROUND)
+    rig.run(5.0)
+    assert rig.asked == [] and not rig.core(ev.VehicleJoined)
+
+
+def test_launch_only_when_asked_and_the_guard_lets_it_through() -> None:
+    rig = Rig()
+    rig.snap = replace(rig.snap, **ON_GROUND)
+    rig.run(5.0)
+    assert rig.c.state is S.ON_GROUND and rig.asked == []
+    ok, _ = rig.c.launch()
+    rig._collect(rig.c.take_outputs())
+    assert ok
+    rig.run(2.0)
+    kinds = [type(r) for r in rig.asked]
+    assert kinds == [io.UploadMission, io.Arm, io.SetCurrent, io.SetMode]
+    assert rig.c.state is S.LAUNCHING
+    rig.run(10.0, **{**FLYING, "landed_state": None})
+    assert rig.journal("vehicle_joined")[0].fields["how"] == "launched"
+    assert rig.c.launch() == (False, "vehicle v1 is active, not on the ground")
+
+
+# ------------------------------------------------------------------ flying to targets
+def test_fly_uploads_sets_current_and_counts() -> None:
+    rig = active_rig()
+    rig.asked.clear()
+    rig.fly()
+    assert [type(r) for r in rig.asked] == [io.UploadMission, io.SetCurrent]
+    assert rig.c.uploads_ok == 1 and rig.c.fly is not None and rig.c.fly.target == "A"
+    upload = rig.journal("upload")[-1].fields
+    assert upload["ok"] and upload["purpose"] == "target" and upload["target"] == "A"
+
+
+def test_a_newer_command_overtakes_a_pending_one() -> None:
+    rig = active_rig(auto_answer=True)
+    rig.auto_answer = False
+    rig.fly("A")
+    rig.fly("B")
+    rig.fly("C")
+    rig.auto_answer = True
+    rig.auto()
+    targets = [r.target for r in rig.requests(io.UploadMission) if r.purpose == "target"]
+    assert targets == ["A", "C"]
+
+
+@pytest.mark.parametrize(
+    ("code", "remote", "seq_after", "ok"),
+    [
+        (TransferCode.TIMEOUT, "MAV_RESULT_ACCEPTED", 2, True),  # ACK seen, already past
+        (TransferCode.TIMEOUT, None, 2, False),  # no ACK: the item 2 may be the old mission's
+        (TransferCode.TIMEOUT, "MAV_RESULT_ACCEPTED", 1, False),  # not moved past
+        (TransferCode.DENIED, "MAV_RESULT_DENIED", 2, False),
+    ],
+)
+def test_set_current_decided_on_result_codes(
+    code: TransferCode, remote: str | None, seq_after: int, ok: bool
+) -> None:
+    rig = active_rig()
+    rig.auto_answer = False
+    rig.fly()
+    rig.answer(io.UploadOutcome(True, 0, None, 3))
+    rig.snap = replace(rig.snap, mission_current_seq=seq_after)
+    rig.frame("MISSION_CURRENT")
+    message = "COMMAND_ACK ACCEPTED but MISSION_CURRENT never showed 1"  # never grepped
+    rig.answer(TransferResult(False, code, message, remote_code=remote))
+    assert rig.journal("upload")[-1].fields["ok"] is ok
+
+
+# ------------------------------------------------------------------ the guard
+def test_guard_refuses_a_target_upload_to_a_disarmed_vehicle() -> None:
+    rig = active_rig()
+    rig.frame("HEARTBEAT", armed=False)
+    rig.asked.clear()
+    rig.fly()
+    assert rig.requests(io.UploadMission) == [] and rig.journal("command_refused")
+
+
+def test_guard_refuses_auto_after_an_upload_when_the_vehicle_disarmed_meanwhile() -> None:
+    rig = active_rig()
+    rig.snap = replace(rig.snap, mode=PlaneMode.GUIDED, mode_name="GUIDED")
+    rig.auto_answer = False
+    rig.fly()
+    rig.answer(io.UploadOutcome(True, 0, None, 3))
+    rig.frame("HEARTBEAT", armed=False)
+    rig.snap = replace(rig.snap, mission_current_seq=1)
+    rig.answer(ok_transfer())
+    assert rig.requests(io.SetMode) == [] and rig.journal("command_refused")
+
+
+def test_guard_refuses_the_park_upload_when_the_vehicle_disarmed_meanwhile() -> None:
+    rig = Rig(auto_answer=False)
+    rig.run(4.0)
+    assert [type(r) for r in rig.asked] == [io.Download]
+    rig.frame("HEARTBEAT", armed=False)
+    rig.answer(ok_transfer((_item(), _item())))
+    assert rig.requests(io.UploadMission) == [] and rig.journal("command_refused")
+    assert rig.c.state is S.CONNECTING
+
+
+def test_guard_refuses_rtl_for_a_disarmed_vehicle() -> None:
+    rig = active_rig()
+    rig.frame("HEARTBEAT", armed=False)
+    rig.feed(io.Release(rig.t, "battery low", home=True))
+    assert rig.requests(io.SetMode) == [] and rig.journal("command_refused")
+    armed = active_rig()
+    armed.feed(io.Release(armed.t, "battery low", home=True))
+    armed.auto()
+    assert [r.mode for r in armed.requests(io.SetMode)] == [PlaneMode.RTL]
+    assert armed.journal("rtl")[0].fields["ok"] is True
+
+
+# ------------------------------------------------------------------ overrides and take-back
+def test_sustained_mode_change_is_an_override_one_frame_is_not() -> None:
+    rig = active_rig()
+    rig.t += 0.5
+    rig.frame("HEARTBEAT", mode=PlaneMode.FBWA, mode_name="FBWA")  # one forged frame
+    rig.run(10.0, mode=PlaneMode.AUTO, mode_name="AUTO")
+    assert rig.c.state is S.ACTIVE and not rig.journal("override")
+    rig.run(5.0, mode=PlaneMode.FBWA, mode_name="FBWA")
+    assert rig.journal("override")[0].fields["reason"] == "mode FBWA"
+    assert len(rig.core(ev.OperatorOverride)) == 1
+
+
+def test_auto_again_takes_back_a_flying_vehicle() -> None:
+    rig = active_rig()
+    rig.run(5.0, mode=PlaneMode.FBWA, mode_name="FBWA")
+    rig.asked.clear()
+    rig.run(5.0, mode=PlaneMode.AUTO, mode_name="AUTO")
+    assert rig.journal("resume")[0].fields["reason"] == "mode AUTO"
+    assert rig.c.state is S.ACTIVE and len(rig.core(ev.OperatorResume)) == 1
+
+
+def test_an_override_in_auto_is_not_taken_back_until_auto_is_selected_again() -> None:
+    rig = active_rig()
+    rig.c.override(rig.t, "mission MISSION_COUNT from GCS system 255")
+    rig._collect(rig.c.take_outputs())
+    rig.run(20.0)  # still in AUTO: the other ground station flies it
+    assert rig.c.state is S.OVERRIDDEN and not rig.journal("resume")
+    rig.run(3.0, mode=PlaneMode.LOITER, mode_name="LOITER")
+    rig.run(5.0, mode=PlaneMode.AUTO, mode_name="AUTO")
+    assert rig.c.state is S.ACTIVE and rig.journal("resume")[0].fields["reason"] == "mode AUTO"
+
+
+def test_auto_again_on_the_ground_is_not_a_take_back() -> None:
+    # issue 10.1: overridden to FBWA, glided in, switched back to AUTO at 0 m
+    rig = active_rig()
+    rig.run(5.0, mode=PlaneMode.FBWA, mode_name="FBWA")
+    rig.run(10.0, mode=PlaneMode.FBWA, mode_name="FBWA", alt_m=0.0, speed_m_s=0.0,
+            landed_state=1)  # fmt: skip
+    rig.asked.clear()
+    rig.run(30.0, mode=PlaneMode.AUTO, mode_name="AUTO", alt_m=0.0, speed_m_s=0.0,
+            landed_state=1)  # fmt: skip
+    assert not rig.journal("resume") and rig.journal("resume_refused")
+    assert rig.c.state is S.ON_GROUND and rig.asked == [] and not rig.core(ev.OperatorResume)
+    assert rig.c.resume(rig.t, "api") is False
+
+
+def test_battery_failsafe_rtl_is_not_an_override() -> None:
+    rig = active_rig()
+    rig.run(6.0, mode=PlaneMode.RTL, mode_name="RTL", battery_remaining_pct=10.0,
+            system_status=5)  # fmt: skip
+    assert not rig.journal("override")
+    assert rig.journal("battery_low") and len(rig.core(ev.BatteryLow)) == 1
+
+
+# ------------------------------------------------------------------ battery evidence
+def test_one_low_battery_frame_changes_nothing() -> None:
+    rig = active_rig()
+    rig.t += 0.2
+    rig.frame("SYS_STATUS", battery_remaining_pct=5.0)
+    rig.frame("HEARTBEAT", system_status=5)
+    rig.run(30.0, battery_remaining_pct=80.0, system_status=4)
+    assert not rig.journal("battery_low") and not rig.core(ev.BatteryLow)
+
+
+def test_low_battery_needs_the_autopilot_or_a_long_time() -> None:
+    rig = active_rig()
+    rig.run(10.0, battery_remaining_pct=10.0)
+    assert not rig.core(ev.BatteryLow)  # low readings only, not for long
+    rig.run(15.0, battery_remaining_pct=10.0)
+    assert len(rig.core(ev.BatteryLow)) == 1  # low for more than battery_alone_span_s
+    fast = active_rig()
+    fast.run(3.0, battery_remaining_pct=10.0, system_status=5)
+    assert len(fast.core(ev.BatteryLow)) == 1
+
+
+# ------------------------------------------------------------------ reboot and link
+def test_reboot_cancels_the_transfer_and_leaves_the_plan() -> None:
+    rig = active_rig()
+    rig.auto_answer = False
+    rig.fly()
+    assert rig.pending is not None
+    rig.t += 0.1
+    rig.frame("SYSTEM_TIME", Rebooted(rig.t, 100_000, 800), time_boot_ms=800, armed=None,
+              mode=None, mission_current_seq=None)  # fmt: skip
+    assert any(isinstance(o, io.NotifyRebooted) for o in rig.out)
+    assert rig.c.state is S.CONNECTING and len(rig.core(ev.VehicleLost)) == 1
+    rig.answer(TransferResult(False, TransferCode.VEHICLE_REBOOTED, "rebooted"))
+    # the aborted job says nothing more
+    assert [j for j in rig.journal("upload") if j.fields["purpose"] == "target"] == []
+
+
+def test_link_restore_watches_before_any_command_and_a_rebooted_vehicle_is_not_commanded() -> None:
+    # issue 10.2: a vehicle rebooted (on the ground, disarmed) while the link was down
+    rig = active_rig()
+    rig.fly("A")
+    rig.auto_answer = False
+    rig.fly("B")  # owed when the link goes
+    rig.t += 10.0
+    rig.feed(io.Tick(rig.t))
+    assert rig.c.link == "lost" and len(rig.core(ev.VehicleLost)) == 1
+    assert any(isinstance(o, io.CancelExchange) for o in rig.out)
+    rig.answer(None)  # the cancelled exchange
+    rig.auto_answer = True
+    rig.asked.clear()
+    rig.t += 0.5
+    rig.frame("HEARTBEAT", **ON_GROUND, reboot_suspected=True)  # first frame: boot time back
+    assert rig.journal("link_restored") and rig.asked == []
+    rig.run(1.0, **ON_GROUND, reboot_suspected=True)
+    assert rig.asked == []
+    rig.t += 0.5
+    rig.frame("HEARTBEAT", Rebooted(rig.t, 100_000, 2_000), **ON_GROUND, reboot_suspected=False)
+    rig.run(20.0, **ON_GROUND)
+    assert rig.asked == [] and rig.c.state is S.ON_GROUND
+    assert not rig.core(ev.VehicleReturned)
+
+
+def test_link_restore_of_a_flying_vehicle_sends_the_owed_mission_after_settling() -> None:
+    rig = active_rig()
+    rig.auto_answer = False
+    rig.fly("B")
+    rig.t += 10.0
+    rig.feed(io.Tick(rig.t))
+    rig.answer(None)
+    rig.auto_answer = True
+    rig.asked.clear()
+    rig.t += 0.5
+    rig.frame("HEARTBEAT")
+    assert rig.asked == []
+    t_back = rig.t
+    rig.run(5.0)
+    returned = rig.core(ev.VehicleReturned)
+    assert returned and returned[0].t_s >= t_back + 2.0
+    assert [r.target for r in rig.requests(io.UploadMission)] == ["B"]
+
+
+# ------------------------------------------------------------------ progress and landing
+def test_no_progress_takes_the_vehicle_out_of_the_plan() -> None:
+    rig = active_rig(progress_timeout_s=60.0)
+    rig.fly("A", x_m=3000.0)
+    rig.run(50.0)  # circling far away: no nearer
+    assert rig.c.state is S.ACTIVE
+    rig.run(15.0)
+    assert rig.journal("no_progress") and any(isinstance(o, io.Warn) for o in rig.out)
+    assert len(rig.core(ev.VehicleLost)) == 1 and rig.c.state is S.CONNECTING
+
+
+def test_approaching_loitering_at_the_aim_or_advancing_items_is_progress() -> None:
+    rig = active_rig(progress_timeout_s=60.0)
+    rig.fly("A", x_m=3000.0)
+    for k in range(40):  # approach at ~22 m/s for 80 s
+        rig.run(2.0, x_m=44.0 * (k + 1))
+    rig.run(100.0, x_m=3000.0 + 100.0)  # loitering at the aim point
+    assert not rig.journal("no_progress")
+    far = active_rig(progress_timeout_s=60.0)
+    far.fly("A", x_m=3000.0)
+    for seq in (1, 2) * 5:  # the mission advances every 20 s
+        far.run(20.0, mission_current_seq=seq)
+    assert not far.journal("no_progress")
+
+
+def test_on_the_ground_while_active_is_out() -> None:
+    rig = active_rig()
+    rig.t += 0.5
+    rig.frame("EXTENDED_SYS_STATE", landed_state=1)  # one frame: nothing
+    rig.run(3.0, landed_state=None)
+    assert rig.c.state is S.ACTIVE
+    rig.run(4.0, landed_state=1, alt_m=0.0, speed_m_s=0.0)
+    assert rig.journal("landed") and rig.c.state is S.ON_GROUND
+    assert len(rig.core(ev.VehicleLost)) == 1
+
+
+# ------------------------------------------------------------------ loiter ends
+def test_loiter_end_needs_two_agreeing_signals() -> None:
+    rig = active_rig()
+    rig.fly()
+    rig.t += 0.1
+    rig.frame("MISSION_ITEM_REACHED", MissionItemReached(rig.t, 1))  # forged
+    rig.run(3.0, mission_current_seq=1)
+    rig.t += 0.1
+    rig.frame("MISSION_CURRENT", mission_current_seq=2)  # forged
+    rig.run(3.0, mission_current_seq=1)
+    assert not rig.core(ev.LoiterEnded)
+    rig.t += 0.1
+    rig.frame("MISSION_ITEM_REACHED", MissionItemReached(rig.t, 1))
+    rig.frame("MISSION_CURRENT", mission_current_seq=2)
+    ended = rig.core(ev.LoiterEnded)
+    assert len(ended) == 1 and rig.journal("loiter_end")[0].fields["how"] == "reached"
+
+
+def test_foreign_frames_are_counted_and_change_nothing() -> None:
+    rig = active_rig()
+    rig.fly()
+    before = list(rig.out)
+    for _ in range(50):
+        rig.feed(io.ForeignFrame(rig.t, "MISSION_ITEM_REACHED", 2))
+    assert rig.c.foreign_frames == 50 and rig.out == before
+
+
+def test_commands_wait_while_stopping() -> None:
+    rig = active_rig()
+    rig.feed(io.Stop(rig.t))
+    rig.asked.clear()
+    rig.fly()
+    rig.run(3.0)
+    assert rig.asked == []
+    assert math.isfinite(rig.t)

@@ -1,0 +1,146 @@
+"""The session as the controller's driver: real MAVLink messages in, a fake port, fake time.
+
+It runs one exchange at a time, cancels the running one when the controller says so (link
+lost), tells the port about a confirmed reboot, and keeps other components' frames out of
+the vehicle's state."""
+
+from __future__ import annotations
+
+import asyncio
+from typing import Any
+
+from domain.geodesy import GeoOrigin
+from groundstation.core import events as ev
+from groundstation.daemon.clock import MissionClock
+from groundstation.daemon.config import DaemonConfig, VehicleSettings
+from groundstation.daemon.session import VehicleSession
+from groundstation.mavlink.codec import MavlinkDecoder, MavlinkEncoder, MAVLinkMessage, mavlink2
+from groundstation.mavlink.mission_transfer import TransferCode, TransferResult
+
+M = mavlink2
+ORIGIN = GeoOrigin(78.9, 11.9)
+
+
+def wire(msg: Any, compid: int = 1) -> MAVLinkMessage:
+    out = MavlinkDecoder().feed(MavlinkEncoder(1, compid).encode(msg))
+    assert len(out) == 1
+    return out[0]
+
+
+class Host:
+    origin = ORIGIN
+
+    def __init__(self) -> None:
+        self.events: list[ev.Event] = []
+        self.lines: list[tuple[str, dict[str, Any]]] = []
+
+    def core_event(self, event: ev.Event) -> None:
+        self.events.append(event)
+
+    def journal(self, event: str, **fields: Any) -> None:
+        self.lines.append((event, fields))
+
+    def clip(self, x_m: float, y_m: float) -> tuple[float, float, bool]:
+        return x_m, y_m, False
+
+
+class Port:
+    """Downloads answer at once; uploads hang until cancelled."""
+
+    def __init__(self) -> None:
+        self.busy = False
+        self.calls: list[str] = []
+        self.cancelled = 0
+        self.reboots = 0
+
+    def deliver(self, msg: MAVLinkMessage) -> None:
+        pass
+
+    def notify_rebooted(self) -> None:
+        self.reboots += 1
+
+    def request_rates(self, position_hz: float) -> None:
+        self.calls.append("rates")
+
+    async def download(self) -> TransferResult:
+        self.calls.append("download")
+        return TransferResult(True, TransferCode.SUCCESS, "ok", items=())
+
+    async def upload(self, items: Any) -> TransferResult:
+        self.calls.append("upload")
+        try:
+            await asyncio.sleep(3600)
+        except asyncio.CancelledError:
+            self.cancelled += 1
+            raise
+        raise AssertionError("not reached")
+
+
+def heartbeat(status: int = M.MAV_STATE_ACTIVE) -> Any:
+    return M.MAVLink_heartbeat_message(1, 3, 1 | 128, 10, status, 3)
+
+
+def position(boot_ms: int) -> Any:
+    return M.MAVLink_global_position_int_message(
+        boot_ms, 789_000_000, 119_000_000, 105_000, 100_000, 2200, 0, 0, 9000
+    )
+
+
+async def _flying_session(t: list[float]) -> tuple[VehicleSession, Host, Port]:
+    host, port = Host(), Port()
+    clock = MissionClock(1.0, source=lambda: t[0])
+    session = VehicleSession(
+        1, "v1", 0, host, DaemonConfig(vehicles=["sim:1"]), VehicleSettings(), port, clock  # type: ignore[arg-type]
+    )
+    for k in range(8):  # 4 s of telemetry: flying in AUTO
+        t[0] = 0.5 * k
+        if k % 2 == 0:
+            session.on_message(wire(heartbeat()))
+            session.on_message(wire(M.MAVLink_mission_current_message(1, 3)))
+        session.on_message(wire(position(100_000 + 500 * k)))
+        session.check_link(t[0])
+    return session, host, port
+
+
+def test_link_loss_cancels_the_running_exchange() -> None:
+    async def main() -> tuple[VehicleSession, Host, Port]:
+        t = [0.0]
+        session, host, port = await _flying_session(t)
+        runner = asyncio.create_task(session.run())
+        for _ in range(200):
+            await asyncio.sleep(0.005)
+            if "upload" in port.calls:
+                break
+        assert port.calls[:2] == ["rates", "download"] and "upload" in port.calls
+        t[0] = 20.0  # silence: the link is lost
+        session.check_link(t[0])
+        for _ in range(200):
+            await asyncio.sleep(0.005)
+            if port.cancelled:
+                break
+        session.stopping = True
+        await asyncio.wait_for(runner, 5.0)
+        return session, host, port
+
+    session, host, port = asyncio.run(main())
+    assert port.cancelled == 1 and session.link == "lost"
+    assert session.status == "connecting"
+    assert [e for e, _ in host.lines if e == "link_lost"]
+
+
+def test_reboot_is_told_to_the_port_and_other_components_are_counted_only() -> None:
+    async def main() -> tuple[VehicleSession, Host, Port]:
+        t = [4.0]
+        session, host, port = await _flying_session(t)
+        forged = wire(M.MAVLink_mission_item_reached_message(1), compid=2)
+        for _ in range(5):
+            session.on_message(forged)
+        assert session.controller.foreign_frames == 5 and session.telemetry.foreign_messages == 5
+        for k, boot_ms in enumerate((500, 1_000, 1_500)):  # the autopilot restarted
+            t[0] = 5.0 + 0.5 * k
+            session.on_message(wire(M.MAVLink_system_time_message(0, boot_ms)))
+        return session, host, port
+
+    session, host, port = asyncio.run(main())
+    assert port.reboots == 1 and [e for e, _ in host.lines if e == "reboot"]
+    assert session.status == "connecting"
