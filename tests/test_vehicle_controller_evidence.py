@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from groundstation.vehicle.evidence import (
+from groundstation.mavlink.evidence import (
     BatteryEvidence,
     LoiterEndEvidence,
     RebootEvidence,

@@ -15,9 +15,17 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from domain import errors
+from groundstation.vehicle.settings import ControllerSettings
 from world.yaml_fields import load_yaml_file
 
-__all__ = ["ConfigError", "DaemonConfig", "VehicleSettings", "load_config_file", "parse_hostport"]
+__all__ = [
+    "ConfigError",
+    "DaemonConfig",
+    "VehicleSettings",
+    "controller_settings",
+    "load_config_file",
+    "parse_hostport",
+]
 
 
 class ConfigError(errors.ConfigError):
@@ -335,3 +343,21 @@ def load_config_file(path: str) -> dict[str, Any]:
     if not isinstance(data, dict):
         raise ConfigError(f"--config: {path} must hold a mapping of keys")
     return data
+
+
+def controller_settings(
+    config: DaemonConfig, vehicle: VehicleSettings, index: int
+) -> ControllerSettings:
+    """The mapping from the daemon's configuration (the only place that knows both)."""
+    return ControllerSettings(
+        altitude_m=vehicle.altitude_m or config.altitude_m + config.altitude_step_m * index,
+        loiter_radius_m=vehicle.loiter_radius_m,
+        speed_m_s=vehicle.speed_m_s,
+        launch=bool(config.launch),
+        advisory=config.advisory,
+        lost_after_s=config.lost_after_s,
+        override_grace_s=config.override_grace_s,
+        battery_low_pct=config.battery_low_pct,
+        telemetry_rate_hz=config.telemetry_rate_hz,
+        progress_timeout_s=config.progress_timeout_s,
+    )

@@ -25,7 +25,7 @@ from domain.geodesy import GeoOrigin
 from groundstation.core import events as ev
 from groundstation.core.commands import FlyToTarget
 from groundstation.daemon.clock import MissionClock
-from groundstation.daemon.config import DaemonConfig, VehicleSettings
+from groundstation.daemon.config import DaemonConfig, VehicleSettings, controller_settings
 from groundstation.daemon.vehicle_port import VehiclePort
 from groundstation.mavlink.codec import MAVLinkMessage, mavlink2
 from groundstation.mavlink.mission_items import build_mission_items
@@ -33,7 +33,6 @@ from groundstation.mavlink.mission_verify import compare_missions
 from groundstation.mavlink.telemetry import VehicleSnapshot, VehicleTelemetry
 from groundstation.vehicle import io
 from groundstation.vehicle.controller import FlyRecord, VehicleController
-from groundstation.vehicle.settings import controller_settings
 
 __all__ = ["FlyRecord", "SessionHost", "VehicleSession"]
 

@@ -41,6 +41,7 @@ from typing import Literal
 
 from domain.geodesy import GeoOrigin, enu_rad_from_compass_deg, wrap_pi
 from groundstation.mavlink.codec import MAVLinkMessage, mavlink2
+from groundstation.mavlink.evidence import MAV_STATE_BOOT, RebootEvidence
 from groundstation.mavlink.telemetry_events import (
     ARDUPLANE_MODES,
     Armed,
@@ -57,7 +58,6 @@ from groundstation.mavlink.telemetry_events import (
     VehicleSnapshot,
     mode_name,
 )
-from groundstation.vehicle.evidence import MAV_STATE_BOOT, RebootEvidence
 
 __all__ = [
     "ARDUPLANE_MODES",

@@ -126,7 +126,7 @@ class VehicleSnapshot:
     ``system_status``: HEARTBEAT MAV_STATE_* (ArduPlane: CRITICAL while a failsafe is
     active); ``landed_state``: EXTENDED_SYS_STATE MAV_LANDED_STATE_* (None where the
     autopilot reports none); ``reboot_suspected``: ``time_boot_ms`` went back and the
-    reducer waits for evidence (see :class:`~groundstation.vehicle.evidence.RebootEvidence`).
+    reducer waits for evidence (see :class:`~groundstation.mavlink.evidence.RebootEvidence`).
     """
 
     system_id: int

@@ -1,15 +1,11 @@
 """The controller's settings: one frozen dataclass, built from the daemon's configuration
-in one place (:func:`controller_settings`)."""
+in one place (:func:`groundstation.daemon.config.controller_settings`)."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
-if TYPE_CHECKING:
-    from groundstation.daemon.config import DaemonConfig, VehicleSettings
-
-__all__ = ["ControllerSettings", "controller_settings"]
+__all__ = ["ControllerSettings"]
 
 
 @dataclass(frozen=True)
@@ -52,21 +48,3 @@ class ControllerSettings:
     launch_timeout_s: float = 180.0
     clock_check_s: float = 30.0
     default_loiter_radius_m: float = 120.0
-
-
-def controller_settings(
-    config: DaemonConfig, vehicle: VehicleSettings, index: int
-) -> ControllerSettings:
-    """The mapping from the daemon's configuration (the only place that knows both)."""
-    return ControllerSettings(
-        altitude_m=vehicle.altitude_m or config.altitude_m + config.altitude_step_m * index,
-        loiter_radius_m=vehicle.loiter_radius_m,
-        speed_m_s=vehicle.speed_m_s,
-        launch=bool(config.launch),
-        advisory=config.advisory,
-        lost_after_s=config.lost_after_s,
-        override_grace_s=config.override_grace_s,
-        battery_low_pct=config.battery_low_pct,
-        telemetry_rate_hz=config.telemetry_rate_hz,
-        progress_timeout_s=config.progress_timeout_s,
-    )

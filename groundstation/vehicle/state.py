@@ -13,9 +13,9 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from groundstation.core import events as ev
+from groundstation.mavlink.evidence import LoiterEndEvidence
 from groundstation.mavlink.telemetry_events import VehicleSnapshot
 from groundstation.vehicle import io
-from groundstation.vehicle.evidence import LoiterEndEvidence
 from groundstation.vehicle.jobs import JobRunner
 from groundstation.vehicle.settings import ControllerSettings
 from groundstation.vehicle.watch import Watch

@@ -12,13 +12,13 @@ import collections
 import math
 from dataclasses import dataclass
 
-from groundstation.mavlink.telemetry_events import VehicleSnapshot
-from groundstation.vehicle.evidence import (
+from groundstation.mavlink.evidence import (
     MAV_STATE_CRITICAL,
     MAV_STATE_EMERGENCY,
     BatteryEvidence,
     Sustained,
 )
+from groundstation.mavlink.telemetry_events import VehicleSnapshot
 from groundstation.vehicle.modes import TAKEN_MODES, PlaneMode
 from groundstation.vehicle.settings import ControllerSettings
 
