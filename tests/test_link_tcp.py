@@ -4,41 +4,17 @@ from __future__ import annotations
 
 import asyncio
 import socket
-import time
-from collections.abc import Callable
 from typing import Any
 
 import pytest
+from link_fixtures import TIMEOUT_S, heartbeat, statustext, wait_until
 
 from groundstation.link import LinkError, LinkOptions, Received, open_link
 from groundstation.link.base import Backoff
 from groundstation.link.tcp import TcpClientLink, TcpServerLink
-from groundstation.mavlink.codec import MavlinkDecoder, MavlinkEncoder, mavlink2
+from groundstation.mavlink.codec import MavlinkDecoder
 
-TIMEOUT_S = 3.0
 FAST = LinkOptions(reconnect_initial_s=0.02, reconnect_max_s=0.1, connect_timeout_s=1.0)
-
-
-def heartbeat(sysid: int) -> bytes:
-    enc = MavlinkEncoder(sysid, 1)
-    return enc.encode(
-        enc.mav.heartbeat_encode(
-            mavlink2.MAV_TYPE_FIXED_WING, mavlink2.MAV_AUTOPILOT_ARDUPILOTMEGA, 0, 10, 4
-        )
-    )
-
-
-def statustext(sysid: int, text: str) -> bytes:
-    enc = MavlinkEncoder(sysid, 1)
-    return enc.encode(enc.mav.statustext_encode(6, text.encode()))
-
-
-async def wait_until(cond: Callable[[], bool], timeout_s: float = TIMEOUT_S) -> None:
-    deadline = time.monotonic() + timeout_s
-    while not cond():
-        if time.monotonic() > deadline:
-            raise AssertionError("condition not met in time")
-        await asyncio.sleep(0.002)
 
 
 class FakeVehicle:
