@@ -89,3 +89,32 @@ def drain_socket(sock: socket.socket) -> list[Any]:
         except (BlockingIOError, InterruptedError):
             return out
         out.extend(MavlinkDecoder().feed(data))
+
+
+class FakeVehicle:
+    """A TCP server like ArduPilot SITL: greets each client with a heartbeat."""
+
+    def __init__(self, sysid: int) -> None:
+        self.sysid = sysid
+        self.server: asyncio.Server | None = None
+        self.writers: list[asyncio.StreamWriter] = []
+        self.decoder = MavlinkDecoder()
+        self.received: list[Any] = []
+
+    async def start(self, port: int = 0) -> int:
+        self.server = await asyncio.start_server(self._client, "127.0.0.1", port)
+        return int(self.server.sockets[0].getsockname()[1])
+
+    async def _client(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        self.writers.append(writer)
+        writer.write(heartbeat(self.sysid))
+        while data := await reader.read(4096):
+            self.received.extend(self.decoder.feed(data))
+
+    async def crash(self) -> None:
+        assert self.server is not None
+        self.server.close()
+        for w in self.writers:
+            w.transport.abort()
+        self.writers.clear()
+        await self.server.wait_closed()
