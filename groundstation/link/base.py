@@ -149,7 +149,7 @@ class LinkOptions:
     arrives, so a server that accepts and drops at once cannot make the link spin.
 
     Receiving (see the module docstring): ``rx_budget_frames`` per loop turn;
-    ``rx_max_telemetry``/``rx_max_priority`` inbox items (datagrams) per class;
+    ``rx_max_telemetry_frames``/``rx_max_priority_frames`` waiting per inbox class;
     ``rx_stream_max_bytes`` waiting on a stream before reading pauses; ``udp_read_burst``
     datagrams read per socket wake-up, so the kernel's tail drop (blind to message type)
     gives way to the inbox's oldest-telemetry-first drop; ``binding``: peer-address rules
@@ -163,11 +163,11 @@ class LinkOptions:
     rx_queue_size: int = 4096
     fair: bool = True
     rx_budget_frames: int = 64
-    rx_max_telemetry: int = 1024
-    rx_max_priority: int = 256
+    rx_max_telemetry_frames: int = 2048
+    rx_max_priority_frames: int = 512
     rx_stream_max_bytes: int = 256 * 1024
     rx_stream_slice_bytes: int = 1024
-    udp_read_burst: int = 64
+    udp_read_burst: int = 16
     binding: BindingRules = field(default_factory=BindingRules)
 
 
@@ -223,7 +223,9 @@ class Link(ABC):
         self._last_warning: dict[str, float] = {}
         opts = self.options
         self._inbox = (
-            Inbox(None, None) if self.stream else Inbox(opts.rx_max_telemetry, opts.rx_max_priority)
+            Inbox(None, None)
+            if self.stream
+            else Inbox(opts.rx_max_telemetry_frames, opts.rx_max_priority_frames)
         )
         self._wake = asyncio.Event()
         self._drain_task: asyncio.Task[None] | None = None
@@ -367,10 +369,12 @@ class Link(ABC):
                 self._pause(token)
         else:
             frames, priority = peek_frames(data)
-            before = inbox.dropped, inbox.dropped_priority
-            if inbox.put(RawChunk(data, peer, t_unix_s, True, max(frames, 1)), priority):
-                self.counters.rx_dropped += inbox.dropped - before[0]
-                self.counters.rx_dropped_priority += inbox.dropped_priority - before[1]
+            dropped = inbox.put(RawChunk(data, peer, t_unix_s, True, max(frames, 1)), priority)
+            if dropped:
+                if priority:
+                    self.counters.rx_dropped_priority += dropped
+                else:
+                    self.counters.rx_dropped += dropped
                 self._warn("rx-drop", "receiving faster than it can decode; dropping oldest")
         self._wake.set()
 

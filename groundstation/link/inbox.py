@@ -97,16 +97,18 @@ class RawChunk:
 class Inbox:
     """Two bounded FIFO queues (priority, telemetry) popped in arrival order.
 
-    ``max_telemetry`` / ``max_priority`` of None: unbounded (stream links). ``put`` returns
-    the item it dropped to make room, if any; ``dropped``/``dropped_priority`` count the
-    frames (by header walk) of dropped items.
+    Bounds are in frames (by header walk), so a datagram packed with 50 frames weighs 50:
+    while a class would hold more than its bound, its oldest items are dropped (never the
+    item being added). ``None``: unbounded (stream links). ``dropped`` and
+    ``dropped_priority`` count the frames of dropped items.
     """
 
-    def __init__(self, max_telemetry: int | None, max_priority: int | None) -> None:
-        self.max_telemetry = max_telemetry
-        self.max_priority = max_priority
+    def __init__(self, max_telemetry_frames: int | None, max_priority_frames: int | None) -> None:
+        self.max_telemetry_frames = max_telemetry_frames
+        self.max_priority_frames = max_priority_frames
         self._telemetry: deque[tuple[int, RawChunk]] = deque()
         self._priority: deque[tuple[int, RawChunk]] = deque()
+        self._frames = [0, 0]  # waiting frames: telemetry, priority
         self._seq = 0
         self.bytes = 0
         self.dropped = 0
@@ -115,23 +117,26 @@ class Inbox:
     def __len__(self) -> int:
         return len(self._telemetry) + len(self._priority)
 
-    def put(self, chunk: RawChunk, priority: bool) -> RawChunk | None:
-        """Append ``chunk``; if its class is full, drop that class's oldest item first."""
-        queue, bound = (
-            (self._priority, self.max_priority)
-            if priority
-            else (self._telemetry, self.max_telemetry)
-        )
-        dropped: RawChunk | None = None
-        if bound is not None and len(queue) >= bound:
-            _, dropped = queue.popleft()
-            self.bytes -= len(dropped.data)
-            if priority:
-                self.dropped_priority += dropped.frames
-            else:
-                self.dropped += dropped.frames
+    def put(self, chunk: RawChunk, priority: bool) -> int:
+        """Append ``chunk``, dropping the oldest of its class beyond the bound; returns
+        the number of frames dropped to make room."""
+        k = 1 if priority else 0
+        queue = self._priority if priority else self._telemetry
+        bound = self.max_priority_frames if priority else self.max_telemetry_frames
+        dropped = 0
+        if bound is not None:
+            while queue and self._frames[k] + chunk.frames > bound:
+                _, old = queue.popleft()
+                self._frames[k] -= old.frames
+                self.bytes -= len(old.data)
+                dropped += old.frames
+        if priority:
+            self.dropped_priority += dropped
+        else:
+            self.dropped += dropped
         self._seq += 1
         queue.append((self._seq, chunk))
+        self._frames[k] += chunk.frames
         self.bytes += len(chunk.data)
         return dropped
 
@@ -140,8 +145,10 @@ class Inbox:
         tq, pq = self._telemetry, self._priority
         if tq and (not pq or tq[0][0] < pq[0][0]):
             _, chunk = tq.popleft()
+            self._frames[0] -= chunk.frames
         elif pq:
             _, chunk = pq.popleft()
+            self._frames[1] -= chunk.frames
         else:
             return None
         self.bytes -= len(chunk.data)
@@ -151,4 +158,5 @@ class Inbox:
         """Forget everything waiting (the link stopped)."""
         self._telemetry.clear()
         self._priority.clear()
+        self._frames = [0, 0]
         self.bytes = 0
