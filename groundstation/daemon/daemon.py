@@ -43,6 +43,7 @@ from groundstation.daemon.vehicle_port import VehiclePort
 from groundstation.daemon.world import ScenarioWorld
 from groundstation.link import Received, Router, TlogWriter
 from groundstation.link.base import Link
+from groundstation.link.binding import BindingRules
 from groundstation.mavlink.codec import MavlinkEncoder, mavlink2
 from groundstation.mavlink.geodesy import GeoOrigin
 from groundstation.runners.metrics import MetricsRecorder
@@ -55,6 +56,8 @@ M = mavlink2
 TICK_S = 0.1
 MIN_WAKE_WALL_S = 0.01
 MAX_TICKS_PER_WAKE = 100
+LINK_REPORT_PERIOD_S = 10.0
+"""At most one ``link_drops`` journal line per link per this many mission seconds."""
 MISSION_MESSAGES_FROM_GCS = frozenset(
     {"MISSION_COUNT", "MISSION_CLEAR_ALL", "MISSION_ITEM", "MISSION_ITEM_INT"}
 )
@@ -83,7 +86,16 @@ class Daemon:
         # every input the core sees is journalled exactly (replay feeds them again)
         self.core.on_input = lambda event: journal.write_record(event_to_record(event))
         self.encoder = MavlinkEncoder(config.gcs_system_id, M.MAV_COMP_ID_MISSIONPLANNER)
-        self.router = Router(self._on_vehicle_frame, self._on_out_frame, tlog)
+        self.router = Router(
+            self._on_vehicle_frame,
+            self._on_out_frame,
+            tlog,
+            rules=BindingRules(rebind_after_s=config.rebind_after_s),
+            now_s=clock.now_s,
+            on_notice=lambda event, fields: self.journal(event, **fields),
+        )
+        self._link_reported: dict[str, dict[str, int]] = {}
+        self._next_link_report_s = 0.0
         self.tlog = tlog
         self.sessions: dict[int, VehicleSession] = {}
         self.by_name: dict[str, VehicleSession] = {}
@@ -392,6 +404,9 @@ class Daemon:
             self._next_tick_s = round(self._next_tick_s + TICK_S, 6)
         for session in self.sessions.values():
             session.check_link(now)
+        if now >= self._next_link_report_s:
+            self._next_link_report_s = now + LINK_REPORT_PERIOD_S
+            self.report_links()
         if now >= self._next_track_s:
             self._next_track_s = now + self.config.track_period_s
             for tr in self.core.observer.tracks():
@@ -406,6 +421,19 @@ class Daemon:
             if self.world is not None:  # simulated targets: the truth, for reports
                 for target, (x, y) in sorted(self.world.truth().items()):
                     self.journal("truth", target=target, x_m=round(x, 1), y_m=round(y, 1))
+
+    def report_links(self) -> None:
+        """Journal ``link_drops`` for every link whose receive trouble (frames dropped
+        unread, bad, foreign, iterator overflow) grew since the last report: the increase
+        and the totals. Called every ``LINK_REPORT_PERIOD_S`` mission seconds."""
+        for link in self.router.links:
+            now = link.counters.receive_summary()
+            now["dropped_priority"] = link.counters.rx_dropped_priority
+            before = self._link_reported.get(link.link_id, {})
+            delta = {k: v - before.get(k, 0) for k, v in now.items() if k != "received"}
+            if any(delta.values()):
+                self._link_reported[link.link_id] = now
+                self.journal("link_drops", link=link.link_id, **delta, totals=now)
 
     def _world_event(self, event: ev.Event) -> None:
         if isinstance(event, ev.Detection):
@@ -483,6 +511,7 @@ class Daemon:
             "uploads_failed": sum(s.uploads_failed for s in self.sessions.values()),
             "loiter_to_upload_s": sorted(round(d, 3) for d in delays),
             "visits": len(metrics.get("visits", [])),
+            "links": self.router.link_stats(),
         }
 
     def metrics_dict(self) -> dict[str, Any]:
@@ -517,6 +546,9 @@ _LOGGED = frozenset(
         "on_ground",
         "waiting",
         "plan_failed",
+        "link_drops",
+        "link_rebound",
+        "peer_rebound",
     }
 )
 
