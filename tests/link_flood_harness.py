@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from groundstation.link import LinkOptions, Received, Router, open_link
+from groundstation.link.tcp import TcpServerLink
 from groundstation.link.udp import UdpInLink
 from groundstation.mavlink.codec import MavlinkEncoder, mavlink2
 
@@ -31,9 +32,14 @@ flood = [bytes.fromhex(h) for h in cfg["flood"]]
 normal = [bytes.fromhex(h) for h in cfg["normal"]]
 fa, na = tuple(cfg["flood_addr"]), tuple(cfg["normal_addr"])
 rate, duration, period = cfg["datagrams_per_s"], cfg["duration_s"], cfg["period_s"]
-fs = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+tcp = cfg["transport"] == "tcp"
+if tcp:
+    fs = socket.create_connection(fa)
+    fs.setblocking(False)
+else:
+    fs = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
 ns = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-sent, k, sent_at, errors = 0, 0, [], 0
+sent, k, sent_at, errors, pending = 0, 0, [], 0, b""
 t0 = time.monotonic()
 while True:
     elapsed = time.monotonic() - t0
@@ -46,7 +52,11 @@ while True:
     target, n = int(rate * elapsed), 0
     while sent < target and n < 256:
         try:
-            fs.sendto(flood[sent % len(flood)], fa)
+            if tcp:  # never block: a full socket buffer skips the chunk (and counts it)
+                pending = pending or flood[sent % len(flood)]
+                pending = pending[fs.send(pending):]
+            else:
+                fs.sendto(flood[sent % len(flood)], fa)
         except OSError:
             errors += 1
         sent += 1
@@ -63,6 +73,7 @@ class FloodResult:
     """What the normal vehicle and the two links saw during one flood."""
 
     fair: bool
+    transport: str
     flood_frames_per_s: float
     normal_sent: int
     normal_delivered: int
@@ -110,12 +121,15 @@ def _normal_frames(count: int) -> list[bytes]:
 async def run_flood(
     *,
     fair: bool = True,
+    transport: str = "udp",
     duration_s: float = 3.0,
     datagrams_per_s: int = 4000,
     frames_per_datagram: int = 50,
     period_s: float = 0.1,
 ) -> FloodResult:
-    """Flood one udpin link for ``duration_s`` while a 10 Hz vehicle talks on another."""
+    """Flood one link (``udpin:``, or ``tcpin:`` for ``transport="tcp"``) for
+    ``duration_s`` while a 10 Hz vehicle talks on another (``udpin:``). Over TCP the
+    sender never blocks: what the socket does not take is skipped (``errors``)."""
     options = LinkOptions(fair=fair)
     delivered_at: dict[int, float] = {}
     flood_types: list[str] = []
@@ -127,7 +141,8 @@ async def run_flood(
             flood_types.append(rx.message.get_type())
 
     router = Router(on_vehicle_frame=on_frame)
-    flooded = open_link("udpin:127.0.0.1:0", link_id="flooded", options=options)
+    url = "tcpin:127.0.0.1:0" if transport == "tcp" else "udpin:127.0.0.1:0"
+    flooded = open_link(url, link_id="flooded", options=options)
     normal = open_link("udpin:127.0.0.1:0", link_id="normal", options=options)
     router.add_vehicle_link(flooded)
     router.add_vehicle_link(normal)
@@ -138,9 +153,11 @@ async def run_flood(
         "datagrams_per_s": datagrams_per_s,
         "duration_s": duration_s,
         "period_s": period_s,
+        "transport": transport,
     }
     async with router:
-        assert isinstance(flooded, UdpInLink) and isinstance(normal, UdpInLink)
+        assert isinstance(flooded, UdpInLink | TcpServerLink)
+        assert isinstance(normal, UdpInLink)
         config["flood_addr"] = list(flooded.local_address)
         config["normal_addr"] = list(normal.local_address)
         proc = await asyncio.create_subprocess_exec(
@@ -165,6 +182,7 @@ async def run_flood(
     gaps = [b - a for a, b in itertools.pairwise(times)]
     return FloodResult(
         fair=fair,
+        transport=transport,
         flood_frames_per_s=round(
             report["flood_datagrams"] * (99 * frames_per_datagram + 1) / 100 / report["elapsed_s"]
         ),

@@ -59,3 +59,14 @@ def test_inbox_drops_oldest_telemetry_first_and_keeps_order() -> None:
         order.append(item.data.decode())
     assert order == ["t2", "t3", "t4", "p2", "p3"]
     assert inbox.bytes == 0 and len(inbox) == 0
+
+
+def test_a_tcp_flood_is_paced_by_back_pressure_not_by_starving_others() -> None:
+    """The case that froze the old path: 256 KiB TCP reads decoded in one callback."""
+    result = asyncio.run(run_flood(fair=True, transport="tcp", duration_s=3.0))
+    assert result.normal_delivered == result.normal_sent == 30, result
+    assert result.worst_latency_ms < MAX_DELAY_MS, result
+    assert result.worst_gap_ms < PERIOD_MS + MAX_DELAY_MS, result
+    assert result.flood_delivered >= 20_000 * 3, result  # it was served, not shut out
+    assert result.flood_link["dropped"] == 0, result  # a stream is never cut
+    assert result.normal_link["dropped"] == 0 and result.normal_link["bad"] == 0
