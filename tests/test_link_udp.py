@@ -190,3 +190,21 @@ def test_listening_on_a_taken_port_is_a_link_error() -> None:
         taken.close()
 
     asyncio.run(main())
+
+
+def test_the_old_inline_path_stays_selectable_for_benchmarks() -> None:
+    async def main() -> None:
+        got: list[Received] = []
+        link = open_link(
+            "udpin:127.0.0.1:0", on_receive=got.append, options=LinkOptions(fair=False)
+        )
+        assert isinstance(link, UdpInLink)
+        sender = udp_socket()
+        async with link:
+            sender.sendto(heartbeat(4) + heartbeat(4), link.local_address)
+            await wait_until(lambda: len(got) == 2)
+            assert link.pending == 0 and link._drain_task is None  # decoded in the callback
+            assert link.counters.frames_in == 2 and link.counters.rx_dropped == 0
+        sender.close()
+
+    asyncio.run(main())

@@ -403,7 +403,10 @@ class Link(ABC):
             await self._wake.wait()
             self._wake.clear()
             while len(self._inbox):
-                self.drain(self.options.rx_budget_frames)
+                try:
+                    self.drain(self.options.rx_budget_frames)
+                except Exception:  # a bug must not end receiving on this link
+                    log.exception("link %s: receive failed", self.link_id)
                 await asyncio.sleep(0)
 
     def drain(self, budget_frames: int) -> int:
