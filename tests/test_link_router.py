@@ -3,51 +3,13 @@
 from __future__ import annotations
 
 import asyncio
-import socket
-import time
-from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+
+from link_fixtures import heartbeat, recv_one, statustext, udp_socket, wait_until
 
 from groundstation.link import Received, Router, TlogReader, TlogWriter, open_link
 from groundstation.link.udp import UdpInLink, UdpOutLink
-from groundstation.mavlink.codec import MavlinkDecoder, MavlinkEncoder, mavlink2
-
-TIMEOUT_S = 3.0
-
-
-def heartbeat(sysid: int, mav_type: int = mavlink2.MAV_TYPE_FIXED_WING) -> bytes:
-    enc = MavlinkEncoder(sysid, 1 if mav_type != mavlink2.MAV_TYPE_GCS else 190)
-    return enc.encode(
-        enc.mav.heartbeat_encode(mav_type, mavlink2.MAV_AUTOPILOT_ARDUPILOTMEGA, 0, 10, 4)
-    )
-
-
-def statustext(sysid: int, text: str) -> bytes:
-    enc = MavlinkEncoder(sysid, 1)
-    return enc.encode(enc.mav.statustext_encode(6, text.encode()))
-
-
-async def wait_until(cond: Callable[[], bool], timeout_s: float = TIMEOUT_S) -> None:
-    deadline = time.monotonic() + timeout_s
-    while not cond():
-        if time.monotonic() > deadline:
-            raise AssertionError("condition not met in time")
-        await asyncio.sleep(0.002)
-
-
-def udp_socket() -> socket.socket:
-    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    s.bind(("127.0.0.1", 0))
-    s.setblocking(False)
-    return s
-
-
-async def recv_one(sock: socket.socket) -> tuple[Any, bytes, tuple[str, int]]:
-    loop = asyncio.get_running_loop()
-    data, addr = await asyncio.wait_for(loop.sock_recvfrom(sock, 4096), TIMEOUT_S)
-    (msg,) = MavlinkDecoder().feed(data)
-    return msg, data, addr
+from groundstation.mavlink.codec import MavlinkEncoder, mavlink2
 
 
 def test_router_learns_system_ids_and_forwards_both_ways(tmp_path: Path) -> None:

@@ -11,38 +11,20 @@ import asyncio
 import os
 import sys
 import time
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import pytest
+from link_fixtures import TIMEOUT_S, heartbeat, wait_until
 
 from groundstation.link import LinkOptions, Received, open_link
 from groundstation.link.serial_link import SerialLink
-from groundstation.mavlink.codec import MavlinkDecoder, MavlinkEncoder, mavlink2
+from groundstation.mavlink.codec import MavlinkDecoder
 
 pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="needs POSIX ptys")
 pytest.importorskip("serial_asyncio_fast")
 
-TIMEOUT_S = 3.0
 FAST = LinkOptions(reconnect_initial_s=0.02, reconnect_max_s=0.1)
-
-
-def heartbeat(sysid: int) -> bytes:
-    enc = MavlinkEncoder(sysid, 1)
-    return enc.encode(
-        enc.mav.heartbeat_encode(
-            mavlink2.MAV_TYPE_FIXED_WING, mavlink2.MAV_AUTOPILOT_ARDUPILOTMEGA, 0, 10, 4
-        )
-    )
-
-
-async def wait_until(cond: Callable[[], bool], timeout_s: float = TIMEOUT_S) -> None:
-    deadline = time.monotonic() + timeout_s
-    while not cond():
-        if time.monotonic() > deadline:
-            raise AssertionError("condition not met in time")
-        await asyncio.sleep(0.002)
 
 
 def new_pty(link_path: Path) -> int:

@@ -4,70 +4,17 @@ from __future__ import annotations
 
 import asyncio
 import socket
-import time
-from collections.abc import Callable
 from typing import Any
 
 import pytest
+from link_fixtures import TIMEOUT_S, FakeVehicle, heartbeat, statustext, wait_until
 
 from groundstation.link import LinkError, LinkOptions, Received, open_link
 from groundstation.link.base import Backoff
 from groundstation.link.tcp import TcpClientLink, TcpServerLink
-from groundstation.mavlink.codec import MavlinkDecoder, MavlinkEncoder, mavlink2
+from groundstation.mavlink.codec import MavlinkDecoder
 
-TIMEOUT_S = 3.0
 FAST = LinkOptions(reconnect_initial_s=0.02, reconnect_max_s=0.1, connect_timeout_s=1.0)
-
-
-def heartbeat(sysid: int) -> bytes:
-    enc = MavlinkEncoder(sysid, 1)
-    return enc.encode(
-        enc.mav.heartbeat_encode(
-            mavlink2.MAV_TYPE_FIXED_WING, mavlink2.MAV_AUTOPILOT_ARDUPILOTMEGA, 0, 10, 4
-        )
-    )
-
-
-def statustext(sysid: int, text: str) -> bytes:
-    enc = MavlinkEncoder(sysid, 1)
-    return enc.encode(enc.mav.statustext_encode(6, text.encode()))
-
-
-async def wait_until(cond: Callable[[], bool], timeout_s: float = TIMEOUT_S) -> None:
-    deadline = time.monotonic() + timeout_s
-    while not cond():
-        if time.monotonic() > deadline:
-            raise AssertionError("condition not met in time")
-        await asyncio.sleep(0.002)
-
-
-class FakeVehicle:
-    """A TCP server like ArduPilot SITL: greets each client with a heartbeat."""
-
-    def __init__(self, sysid: int) -> None:
-        self.sysid = sysid
-        self.server: asyncio.Server | None = None
-        self.writers: list[asyncio.StreamWriter] = []
-        self.decoder = MavlinkDecoder()
-        self.received: list[Any] = []
-
-    async def start(self, port: int = 0) -> int:
-        self.server = await asyncio.start_server(self._client, "127.0.0.1", port)
-        return int(self.server.sockets[0].getsockname()[1])
-
-    async def _client(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
-        self.writers.append(writer)
-        writer.write(heartbeat(self.sysid))
-        while data := await reader.read(4096):
-            self.received.extend(self.decoder.feed(data))
-
-    async def crash(self) -> None:
-        assert self.server is not None
-        self.server.close()
-        for w in self.writers:
-            w.transport.abort()
-        self.writers.clear()
-        await self.server.wait_closed()
 
 
 def test_tcp_client_reconnects_after_the_server_restarts() -> None:

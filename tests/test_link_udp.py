@@ -3,53 +3,14 @@
 from __future__ import annotations
 
 import asyncio
-import socket
 import time
-from collections.abc import Callable
-from typing import Any
 
 import pytest
+from link_fixtures import TIMEOUT_S, heartbeat, recv_message, statustext, udp_socket, wait_until
 
 from groundstation.link import LinkError, LinkOptions, Received, open_link
 from groundstation.link.udp import UdpInLink, UdpOutLink
-from groundstation.mavlink.codec import MavlinkDecoder, MavlinkEncoder, mavlink2
-
-TIMEOUT_S = 3.0
-
-
-def heartbeat(sysid: int, mav_type: int = mavlink2.MAV_TYPE_FIXED_WING) -> bytes:
-    enc = MavlinkEncoder(sysid, 1)
-    return enc.encode(
-        enc.mav.heartbeat_encode(mav_type, mavlink2.MAV_AUTOPILOT_ARDUPILOTMEGA, 0, 10, 4)
-    )
-
-
-def statustext(sysid: int, text: str) -> bytes:
-    enc = MavlinkEncoder(sysid, 1)
-    return enc.encode(enc.mav.statustext_encode(6, text.encode()))
-
-
-async def wait_until(cond: Callable[[], bool], timeout_s: float = TIMEOUT_S) -> None:
-    deadline = time.monotonic() + timeout_s
-    while not cond():
-        if time.monotonic() > deadline:
-            raise AssertionError("condition not met in time")
-        await asyncio.sleep(0.002)
-
-
-def udp_socket() -> socket.socket:
-    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    s.bind(("127.0.0.1", 0))
-    s.setblocking(False)
-    return s
-
-
-async def recv_message(sock: socket.socket) -> tuple[Any, tuple[str, int]]:
-    loop = asyncio.get_running_loop()
-    data, addr = await asyncio.wait_for(loop.sock_recvfrom(sock, 4096), TIMEOUT_S)
-    msgs = MavlinkDecoder().feed(data)
-    assert len(msgs) == 1
-    return msgs[0], addr
+from groundstation.mavlink.codec import mavlink2
 
 
 def test_udpin_receives_and_replies_to_each_system_id() -> None:
@@ -87,14 +48,16 @@ def test_udpin_receives_and_replies_to_each_system_id() -> None:
             msg, _ = await recv_message(b)
             assert msg.text == "for all"
 
-            # System 2 comes back from another address: replies follow it.
+            # A frame of system 2 from another address is foreign (issue 10.3): marked,
+            # counted, and replies stay with the address system 2's autopilot is bound to.
             c = udp_socket()
             c.sendto(heartbeat(2), addr)
             await wait_until(lambda: len(got) == 3)
-            assert link.send(statustext(255, "moved"), 2)
-            msg, _ = await recv_message(c)
-            assert msg.text == "moved"
-            assert link.peers.all_peers() == [a.getsockname(), c.getsockname()]
+            assert got[-1].foreign and got[-1].peer == c.getsockname()
+            assert link.send(statustext(255, "still b"), 2)
+            msg, _ = await recv_message(b)
+            assert msg.text == "still b"
+            assert link.peers.all_peers() == [a.getsockname(), b.getsockname()]
             c.close()
 
             snap = link.snapshot()
@@ -102,7 +65,8 @@ def test_udpin_receives_and_replies_to_each_system_id() -> None:
             assert snap["connected"] is True and snap["frames_in"] == 3
             counters = link.counters
             assert counters.frames_in == 3 and counters.bad_frames == 0
-            assert counters.frames_out == 4  # "for two", "for all" x2, "moved"
+            assert counters.foreign == 1
+            assert counters.frames_out == 4  # "for two", "for all" x2, "still b"
             assert counters.frames_dropped == 1  # the first send, before any peer
             assert counters.bytes_in == 3 * len(frame_a)
         assert not link.running
@@ -205,7 +169,9 @@ def test_frames_iterator_ends_on_stop_and_overflow_is_counted() -> None:
         rx = await asyncio.wait_for(first, TIMEOUT_S)
         assert rx.system_id == 3
         await wait_until(lambda: link.counters.frames_in == 5)
-        assert link.counters.rx_overflow == 2  # one taken, two queued, two dropped
+        # The iterator took one; two fit its queue. The five may be drained in one loop
+        # turn (before the iterator ran: three overflow) or the first one alone (two).
+        assert 2 <= link.counters.rx_overflow <= 3
         await link.stop()
         rest = [rx async for rx in frames]
         assert len(rest) <= 2  # what was queued (the stop marker may replace one), then end
@@ -222,5 +188,23 @@ def test_listening_on_a_taken_port_is_a_link_error() -> None:
             await link.start()
         assert not link.running
         taken.close()
+
+    asyncio.run(main())
+
+
+def test_the_old_inline_path_stays_selectable_for_benchmarks() -> None:
+    async def main() -> None:
+        got: list[Received] = []
+        link = open_link(
+            "udpin:127.0.0.1:0", on_receive=got.append, options=LinkOptions(fair=False)
+        )
+        assert isinstance(link, UdpInLink)
+        sender = udp_socket()
+        async with link:
+            sender.sendto(heartbeat(4) + heartbeat(4), link.local_address)
+            await wait_until(lambda: len(got) == 2)
+            assert link.pending == 0 and link._drain_task is None  # decoded in the callback
+            assert link.counters.frames_in == 2 and link.counters.rx_dropped == 0
+        sender.close()
 
     asyncio.run(main())

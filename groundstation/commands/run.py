@@ -119,6 +119,14 @@ def _parser() -> argparse.ArgumentParser:
         metavar="S",
         help="declare a silent vehicle lost after S mission seconds (default 5)",
     )
+    a(
+        "--rebind-after",
+        dest="rebind_after_s",
+        type=float,
+        metavar="S",
+        help="a vehicle's link or address may change only after it was silent there for S "
+        "mission seconds and its heartbeats came consistently on the new one (default 10)",
+    )
     a("--replan", choices=("event", "period", "both"), help="replanning trigger")
     a("--period", dest="period_s", type=float, metavar="S", help="replan period")
     a("--commit", dest="commit", action="store_true", help="keep vehicles on their target")
@@ -195,6 +203,7 @@ def run(argv: list[str]) -> int:
     """Entry point of ``gcs run``; returns the exit status."""
     from groundstation.daemon.config import ConfigError
     from groundstation.daemon.startup import StartError
+    from groundstation.daemon.status import link_lines
 
     try:
         config = build_config(argv)
@@ -224,4 +233,6 @@ def run(argv: list[str]) -> int:
         f"{summary['uploads_failed']} failed, mean uncertainty "
         f"{mean_text}; run folder {daemon.run_dir}"
     )
+    for line in link_lines(summary.get("links", {}), only_trouble=True):
+        print(f"gcs run: {line}")
     return 0

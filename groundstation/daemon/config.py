@@ -83,6 +83,7 @@ class DaemonConfig:
     operating_radius_m: float | None = 10000.0
     operating_center: str = "home"
     lost_after_s: float = 5.0
+    rebind_after_s: float = 10.0
     override_grace_s: float = 2.0
     progress_timeout_s: float = 120.0
     battery_low_pct: float = 25.0
@@ -158,6 +159,7 @@ class DaemonConfig:
         for name in (
             "altitude_m",
             "lost_after_s",
+            "rebind_after_s",
             "telemetry_rate_hz",
             "transfer_timeout_s",
             "track_period_s",

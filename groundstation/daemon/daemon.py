@@ -48,6 +48,7 @@ from groundstation.daemon.vehicle_port import VehiclePort
 from groundstation.daemon.world import ScenarioWorld
 from groundstation.link import Received, Router, TlogWriter
 from groundstation.link.base import Link
+from groundstation.link.binding import BindingRules
 from groundstation.mavlink.codec import MavlinkEncoder, mavlink2
 from planner import PlanResult
 
@@ -60,6 +61,8 @@ MIN_WAKE_WALL_S = 0.01
 MAX_TICKS_PER_WAKE = 100
 SIGNING_REPORT_S = 5.0
 """Mission seconds between two ``signing_rejected`` journal lines of one vehicle/link."""
+LINK_REPORT_PERIOD_S = 10.0
+"""At most one ``link_drops`` journal line per link per this many mission seconds."""
 MISSION_MESSAGES_FROM_GCS = frozenset(
     {"MISSION_COUNT", "MISSION_CLEAR_ALL", "MISSION_ITEM", "MISSION_ITEM_INT"}
 )
@@ -88,7 +91,16 @@ class Daemon:
         # every input the core sees is journalled exactly (replay feeds them again)
         self.core.on_input = lambda event: journal.write_record(event_to_record(event))
         self.encoder = MavlinkEncoder(config.gcs_system_id, M.MAV_COMP_ID_MISSIONPLANNER)
-        self.router = Router(self._on_vehicle_frame, self._on_out_frame, tlog)
+        self.router = Router(
+            self._on_vehicle_frame,
+            self._on_out_frame,
+            tlog,
+            rules=BindingRules(rebind_after_s=config.rebind_after_s),
+            now_s=clock.now_s,
+            on_notice=lambda event, fields: self.journal(event, **fields),
+        )
+        self._link_reported: dict[str, dict[str, int]] = {}
+        self._next_link_report_s = 0.0
         self.tlog = tlog
         self.sessions: dict[int, VehicleSession] = {}
         self.by_name: dict[str, VehicleSession] = {}
@@ -427,6 +439,9 @@ class Daemon:
             self._next_signing_report_s = now + SIGNING_REPORT_S
             for entry in self.signing.take_report():
                 self.journal("signing_rejected", **entry)
+        if now >= self._next_link_report_s:
+            self._next_link_report_s = now + LINK_REPORT_PERIOD_S
+            self.report_links()
         if now >= self._next_track_s:
             self._next_track_s = now + self.config.track_period_s
             for tr in self.core.observer.tracks():
@@ -441,6 +456,19 @@ class Daemon:
             if self.world is not None:  # simulated targets: the truth, for reports
                 for target, (x, y) in sorted(self.world.truth().items()):
                     self.journal("truth", target=target, x_m=round(x, 1), y_m=round(y, 1))
+
+    def report_links(self) -> None:
+        """Journal ``link_drops`` for every link whose receive trouble (frames dropped
+        unread, bad, foreign, iterator overflow) grew since the last report: the increase
+        and the totals. Called every ``LINK_REPORT_PERIOD_S`` mission seconds."""
+        for link in self.router.links:
+            now = link.counters.receive_summary()
+            now["dropped_priority"] = link.counters.rx_dropped_priority
+            before = self._link_reported.get(link.link_id, {})
+            delta = {k: v - before.get(k, 0) for k, v in now.items() if k != "received"}
+            if any(delta.values()):
+                self._link_reported[link.link_id] = now
+                self.journal("link_drops", link=link.link_id, **delta, totals=now)
 
     def _world_event(self, event: ev.Event) -> None:
         if isinstance(event, ev.Detection):
@@ -519,6 +547,7 @@ class Daemon:
             "loiter_to_upload_s": sorted(round(d, 3) for d in delays),
             "visits": len(metrics.get("visits", [])),
             **({"signing": self.signing.summary()} if self.signing is not None else {}),
+            "links": self.router.link_stats(),
         }
 
     def metrics_dict(self) -> dict[str, Any]:
@@ -558,6 +587,9 @@ _LOGGED = frozenset(
         "landed",
         "resume_refused",
         "command_refused",
+        "link_drops",
+        "link_rebound",
+        "peer_rebound",
     }
 )
 

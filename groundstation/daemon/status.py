@@ -1,8 +1,9 @@
 """The live status table (stdout is a TTY) or plain log lines (otherwise).
 
 Table: one row per vehicle (id, system id, status, mode, armed, altitude, target, battery,
-link, uploads) and one per target (id, position, sigma, lost, last seen), then the newest
-journal lines. Redrawn once a wall second.
+link, uploads), one per target (id, position, sigma, lost, last seen), one per link
+(frames received, dropped unread, bad, foreign), then the newest journal lines. Redrawn
+once a wall second.
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ from typing import TYPE_CHECKING, Any, TextIO
 if TYPE_CHECKING:
     from groundstation.daemon.daemon import Daemon
 
-__all__ = ["render_table", "status_loop"]
+__all__ = ["link_lines", "render_table", "status_loop"]
 
 _CLEAR = "\x1b[H\x1b[2J"
 
@@ -23,6 +24,23 @@ def _fmt(value: Any, spec: str = "") -> str:
     if value is None:
         return "-"
     return format(value, spec) if spec else str(value)
+
+
+def link_lines(stats: dict[str, dict[str, int]], only_trouble: bool = False) -> list[str]:
+    """One line per link from ``Router.link_stats()``: received, dropped (unread, inbox
+    full), bad (checksum or garbage), foreign (a vehicle bound elsewhere), overflow.
+    ``only_trouble``: just the links where something was lost or refused."""
+    lines = []
+    for link_id, c in stats.items():
+        trouble = c.get("dropped", 0) + c.get("bad", 0) + c.get("foreign", 0)
+        if only_trouble and not trouble + c.get("overflow", 0):
+            continue
+        lines.append(
+            f"link {link_id}: received {c.get('received', 0)}, dropped {c.get('dropped', 0)}, "
+            f"bad {c.get('bad', 0)}, foreign {c.get('foreign', 0)}"
+            + (f", overflow {c['overflow']}" if c.get("overflow") else "")
+        )
+    return lines
 
 
 def render_table(daemon: Daemon) -> str:
@@ -51,6 +69,7 @@ def render_table(daemon: Daemon) -> str:
             f"{tr.id:<10}{tr.x_m:9.0f}{tr.y_m:9.0f}{tr.sigma:11.2f}  "
             f"{'LOST' if tr.lost else '':<6}{_fmt(seen, '8.0f'):>8}"
         )
+    lines += ["", *link_lines(daemon.router.link_stats())]
     lines += ["", "recent:"]
     recent = [
         line

@@ -12,12 +12,14 @@ from groundstation.link.base import (
     ReceiveCallback,
     Received,
 )
+from groundstation.link.binding import BindingRules
 from groundstation.link.factory import open_link
 from groundstation.link.router import Router, RouterCounters
 from groundstation.link.tlog import TlogReader, TlogRecord, TlogWriter
 from groundstation.link.url import LinkKind, LinkSpec, LinkUrlError, parse_link_url
 
 __all__ = [
+    "BindingRules",
     "Link",
     "LinkCounters",
     "LinkError",

@@ -1,17 +1,26 @@
 """Routing between the daemon, its vehicle links and its ``--out`` links.
 
-* Vehicle links (``--vehicles``): every valid frame teaches the router which link its
-  system id was heard on (the link itself remembers the UDP address or TCP client), is
-  recorded in the tlog, copied unchanged to every out link, and handed to
-  ``on_vehicle_frame``.
+* Vehicle links (``--vehicles``): a vehicle's system id is **bound** to the link its
+  autopilot HEARTBEAT was first heard on (``groundstation.link.binding``; the link itself
+  binds it to a UDP address or TCP client). Every valid frame is recorded in the tlog and
+  copied unchanged to every out link; it is handed to ``on_vehicle_frame`` unless it is
+  **foreign** (its system id is bound to another link, or to another peer of this link),
+  which is counted in that link's ``counters.foreign`` instead. A binding moves only on
+  the vehicle's own evidence (the bound link silent for ``rules.rebind_after_s``, and
+  consistent autopilot heartbeats on the new link); a move is logged and reported through
+  ``on_notice("link_rebound", ...)``. A link that reconnects is the same link object and
+  keeps its bindings.
 * Out links (``--out``: QGroundControl, MAVProxy): every valid frame is recorded, passed
   through to the vehicle its ``target_system`` names (0 or absent or not yet heard: to all
   vehicle links), and handed to ``on_out_frame`` so the daemon can notice another ground
   station's commands (a mission upload is an operator override).
 * The tlog gets every frame; the two lowest timestamp bits say where it went (see
   ``groundstation.link.tlog``): 0..2 the vehicle link it came from, 3 sent to vehicles.
-* The daemon's own frames: :meth:`Router.send_to` (one system id) and
-  :meth:`Router.broadcast` (every vehicle link and peer: the GCS heartbeat); recorded too.
+* The daemon's own frames: :meth:`Router.send_to` (one system id, only ever on its bound
+  link) and :meth:`Router.broadcast` (every vehicle link and peer: the GCS heartbeat);
+  recorded too.
+
+Time for the binding rules comes from ``now_s`` (the daemon passes its mission clock).
 
 The router decides nothing about the vehicles; it only moves frames. Two optional hooks
 let MAVLink 2 signing sit at its edge (``groundstation.daemon.signing_gate``): ``admit``
@@ -24,10 +33,13 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 from groundstation.link.base import Link, ReceiveCallback, Received
+from groundstation.link.binding import Binder, BindingRules, Verdict, is_autopilot_heartbeat
 from groundstation.link.tlog import TlogWriter
 
 __all__ = ["Router", "RouterCounters"]
@@ -49,6 +61,8 @@ class RouterCounters:
     sent: int = 0
     no_route: int = 0
     refused: int = 0
+    foreign: int = 0
+    rebinds: int = 0
 
 
 def target_system_of(rx: Received) -> int:
@@ -65,29 +79,55 @@ class Router:
         on_vehicle_frame: ReceiveCallback | None = None,
         on_out_frame: ReceiveCallback | None = None,
         tlog: TlogWriter | None = None,
+        *,
+        rules: BindingRules | None = None,
+        now_s: Callable[[], float] = time.monotonic,
+        on_notice: Callable[[str, dict[str, Any]], None] | None = None,
     ) -> None:
         self.on_vehicle_frame = on_vehicle_frame
         self.on_out_frame = on_out_frame
         self.tlog = tlog
+        self.now_s = now_s
+        self.on_notice = on_notice
         self.vehicle_links: list[Link] = []
         self.out_links: list[Link] = []
-        self.routes: dict[int, Link] = {}
+        self.binder: Binder[Link] = Binder(rules)
         self.counters = RouterCounters()
         self.admit: Callable[[Link, int, Received], bool] | None = None
         """Signing check: (link, vehicle link index, frame) -> let it through?"""
         self.sign: Callable[[int | None, int, bytes], bytes] | None = None
         """Signing: (system id or None for broadcast, vehicle link index, frame) -> frame."""
 
+    @property
+    def routes(self) -> dict[int, Link]:
+        """System id -> the vehicle link it is bound to."""
+        return self.binder.bound()
+
+    def link_stats(self) -> dict[str, dict[str, int]]:
+        """Per link id: received, dropped, bad, foreign, overflow (see ``LinkCounters``)."""
+        return {link.link_id: link.counters.receive_summary() for link in self.links}
+
     # -- set-up ----------------------------------------------------------------------
     def add_vehicle_link(self, link: Link) -> None:
         """Add a link to vehicles (its receive callback becomes the router's)."""
         link.on_receive = lambda rx: self._from_vehicle(link, rx)
+        link.now_s = lambda: self.now_s()
+        link.on_notice = self._notice
         self.vehicle_links.append(link)
 
     def add_out_link(self, link: Link) -> None:
         """Add a link to another ground station."""
         link.on_receive = lambda rx: self._from_out(rx)
+        link.now_s = lambda: self.now_s()
+        link.on_notice = self._notice
         self.out_links.append(link)
+
+    def _notice(self, event: str, fields: dict[str, Any]) -> None:
+        if self.on_notice is not None:
+            try:
+                self.on_notice(event, fields)
+            except Exception:
+                log.exception("router: notice callback failed")
 
     @property
     def links(self) -> list[Link]:
@@ -122,12 +162,13 @@ class Router:
 
     # -- sending ---------------------------------------------------------------------
     def link_for(self, system_id: int) -> Link | None:
-        """The vehicle link ``system_id`` was last heard on, if any."""
-        return self.routes.get(system_id)
+        """The vehicle link ``system_id`` is bound to, if any."""
+        return self.binder.place_of(system_id)
 
     def send_to(self, system_id: int, frame: bytes) -> bool:
-        """Send the daemon's ``frame`` to one vehicle; False if it was never heard."""
-        link = self.routes.get(system_id)
+        """Send the daemon's ``frame`` to one vehicle, on its bound link only; False if
+        its autopilot was never heard."""
+        link = self.binder.place_of(system_id)
         if link is None:
             self.counters.no_route += 1
             return False
@@ -167,18 +208,31 @@ class Router:
             self.counters.refused += 1
             return
         self.counters.from_vehicles += 1
-        previous = self.routes.get(rx.system_id)
-        if previous is not link:
-            if previous is not None:
-                log.info(
-                    "system %d moved from %s to %s", rx.system_id, previous.link_id, link.link_id
-                )
-            self.routes[rx.system_id] = link
         index = next(i for i, v in enumerate(self.vehicle_links) if v is link)
         self._record(rx.raw, rx.t_unix_s, min(index, 2))
         for out in self.out_links:
             if out.send(rx.raw, None):
                 self.counters.forwarded_to_out += 1
+        if rx.foreign:  # bound to another peer of this link: the link counted it
+            self.counters.foreign += 1
+            return
+        previous = self.binder.place_of(rx.system_id)
+        verdict = self.binder.observe(
+            rx.system_id, link, is_autopilot_heartbeat(rx.message), self.now_s()
+        )
+        if verdict is Verdict.FOREIGN:
+            link.counters.foreign += 1
+            self.counters.foreign += 1
+            return
+        if verdict is Verdict.BOUND:
+            log.info("system %d bound to link %s", rx.system_id, link.link_id)
+        elif verdict is Verdict.REBOUND:
+            self.counters.rebinds += 1
+            old = previous.link_id if previous is not None else None
+            log.warning("system %d re-bound from link %s to %s", rx.system_id, old, link.link_id)
+            self._notice(
+                "link_rebound", {"system_id": rx.system_id, "link": link.link_id, "previous": old}
+            )
         if self.on_vehicle_frame is not None:
             self.on_vehicle_frame(rx)
 
@@ -186,7 +240,7 @@ class Router:
         self.counters.from_out += 1
         self._record(rx.raw, rx.t_unix_s, SENT_LINK_NUMBER)
         target = target_system_of(rx)
-        link = self.routes.get(target) if target else None
+        link = self.binder.place_of(target) if target else None
         if link is not None:
             passed = link.send(rx.raw, target)
         else:

@@ -3,7 +3,9 @@
 The client link sets TCP keep-alive and (on Linux) ``TCP_USER_TIMEOUT`` so that a peer that
 vanishes without closing (a radio bridge switched off) is noticed within about half a
 minute, then reconnected. The server link treats every accepted connection as a peer and
-replies to a system id on the connection it was last heard on.
+replies to a system id on the connection it is bound to (``groundstation.link.binding``:
+the connection its autopilot heartbeat first came from; a connection that closes releases
+its system ids).
 """
 
 from __future__ import annotations
@@ -65,7 +67,7 @@ class TcpServerLink(_StreamSink):
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
-        self.peers = PeerTable()
+        self.peers = PeerTable(self.options.binding)
         self._server: asyncio.Server | None = None
         self._clients: dict[Any, StreamProtocol] = {}
 
@@ -123,9 +125,8 @@ class TcpServerLink(_StreamSink):
             del self._clients[proto.peer]
             self.peers.forget(proto.peer)
 
-    def _on_valid(self, rx: Received) -> None:
-        if rx.peer is not None:
-            self.peers.heard(rx.system_id, rx.peer)
+    def _on_valid(self, rx: Received) -> Received:
+        return self._bind_peer(self.peers, rx)
 
     def _send(self, frame: bytes, system_id: int | None) -> bool:
         sent = False

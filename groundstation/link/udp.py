@@ -1,23 +1,33 @@
 """UDP links: ``udpin:``/``udp:`` (listen) and ``udpout:`` (send).
 
-A listening link learns, from every valid frame, the address its system id came from, and
-sends a frame for that system id there (a broadcast goes to every address currently
-holding a system id). A sending link sends everything to its destination and reads replies
+A listening link binds a vehicle's system id to the address its autopilot HEARTBEAT first
+came from (moved only on the evidence rules of ``groundstation.link.binding``; frames of it
+from other addresses are counted ``foreign`` and marked so), and sends a frame for that
+system id there (a broadcast goes to every address currently holding a system id).
+A sending link sends everything to its destination and reads replies
 on the same socket, whoever sends them (a broadcast destination gets replies from the
 vehicles' own addresses).
 
 UDP send errors (``error_received``) are logged, rate-limited, and counted in
 ``send_errors``; they never stop the link.
+
+Reading: asyncio reads one datagram per socket wake-up; in fair mode the link then reads up
+to ``udp_read_burst - 1`` more that are already waiting, straight into its inbox, so under
+a flood the inbox (which drops oldest telemetry first, counted) rather than the kernel
+(which drops the newest, of any type, silently) decides what is lost.
 """
 
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import ipaddress
 import socket
 from typing import Any
 
 from groundstation.link.base import Link, LinkError, PeerTable, Received
+
+_MAX_DATAGRAM = 65535
 
 __all__ = ["UdpInLink", "UdpOutLink"]
 
@@ -37,6 +47,7 @@ class _UdpLink(Link):
     """Shared datagram plumbing."""
 
     _transport: asyncio.DatagramTransport | None = None
+    _sock: socket.socket | None = None
 
     @property
     def local_address(self) -> tuple[str, int]:
@@ -50,9 +61,31 @@ class _UdpLink(Link):
         if self._transport is not None:
             self._transport.close()
             self._transport = None
+        self._sock = None
+
+    async def _endpoint(self, sock: socket.socket) -> None:
+        """Hand our own socket to asyncio (we keep it to read bursts)."""
+        loop = asyncio.get_running_loop()
+        transport, _ = await loop.create_datagram_endpoint(
+            lambda: _DatagramProtocol(self), sock=sock
+        )
+        self._transport = transport
+        self._sock = sock
 
     def _datagram(self, data: bytes, addr: tuple[Any, ...]) -> None:
-        self._feed_datagram(data, addr)
+        self._arrive(data, addr)
+        sock = self._sock
+        if not self.options.fair or sock is None:
+            return
+        for _ in range(self.options.udp_read_burst - 1):
+            try:
+                data, addr = sock.recvfrom(_MAX_DATAGRAM)
+            except (BlockingIOError, InterruptedError):
+                return
+            except OSError as exc:
+                self._socket_error(exc)
+                return
+            self._arrive(data, addr)
 
     def _socket_error(self, exc: Exception) -> None:
         self.counters.send_errors += 1
@@ -79,7 +112,7 @@ class UdpInLink(_UdpLink):
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
-        self.peers = PeerTable()
+        self.peers = PeerTable(self.options.binding)
 
     @property
     def connected(self) -> bool:
@@ -88,17 +121,24 @@ class UdpInLink(_UdpLink):
     async def _open(self) -> None:
         loop = asyncio.get_running_loop()
         host, port = self.spec.host or "0.0.0.0", self.spec.port or 0
+        sock: socket.socket | None = None
         try:
-            transport, _ = await loop.create_datagram_endpoint(
-                lambda: _DatagramProtocol(self), local_addr=(host, port)
+            infos = await loop.getaddrinfo(
+                host, port, type=socket.SOCK_DGRAM, flags=socket.AI_PASSIVE
             )
+            family, _, _, _, sockaddr = infos[0]
+            sock = socket.socket(family, socket.SOCK_DGRAM)
+            sock.setblocking(False)
+            sock.bind(sockaddr)
+            await self._endpoint(sock)
         except OSError as exc:
+            if sock is not None:
+                with contextlib.suppress(OSError):
+                    sock.close()
             raise LinkError(f"cannot listen on UDP {host}:{port}: {exc.strerror or exc}") from None
-        self._transport = transport
 
-    def _on_valid(self, rx: Received) -> None:
-        if rx.peer is not None:
-            self.peers.heard(rx.system_id, rx.peer)
+    def _on_valid(self, rx: Received) -> Received:
+        return self._bind_peer(self.peers, rx)
 
     def _send(self, frame: bytes, system_id: int | None) -> bool:
         sent = False
@@ -136,16 +176,18 @@ class UdpOutLink(_UdpLink):
         except OSError as exc:
             raise LinkError(f"cannot resolve UDP destination {host!r}: {exc}") from None
         family, _, _, _, sockaddr = infos[0]
+        sock: socket.socket | None = None
         try:
-            transport, _ = await loop.create_datagram_endpoint(
-                lambda: _DatagramProtocol(self),
-                local_addr=(_local_bind_for(str(sockaddr[0])), 0),
-                family=family,
-                allow_broadcast=True,
-            )
+            sock = socket.socket(family, socket.SOCK_DGRAM)
+            sock.setblocking(False)
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_BROADCAST, 1)
+            sock.bind((_local_bind_for(str(sockaddr[0])), 0))
+            await self._endpoint(sock)
         except OSError as exc:
+            if sock is not None:
+                with contextlib.suppress(OSError):
+                    sock.close()
             raise LinkError(f"cannot open a UDP socket: {exc.strerror or exc}") from None
-        self._transport = transport
         self._destination = tuple(sockaddr)
 
     def _send(self, frame: bytes, system_id: int | None) -> bool:
