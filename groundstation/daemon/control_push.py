@@ -29,6 +29,7 @@ import contextlib
 import json
 import logging
 import time
+from collections.abc import Coroutine
 from typing import Any
 
 from aiohttp import WSCloseCode, WSMsgType, web
@@ -68,11 +69,30 @@ class PageHub:
         self._pending_dropped = 0
         self._tasks: list[asyncio.Task[None]] = []
         self._closing: set[asyncio.Task[None]] = set()
+        self.task_group: asyncio.TaskGroup | None = None
+        """Where the hub's tasks run while :meth:`run` serves (the daemon's tree)."""
 
     # ----------------------------------------------------------------- lifecycle
 
-    def start(self) -> None:
-        """Seed the buffer from the daemon's recent events and start pushing."""
+    def _spawn(self, coro: Coroutine[Any, Any, None], name: str) -> asyncio.Task[None]:
+        if self.task_group is not None:
+            return self.task_group.create_task(coro, name=name)
+        return asyncio.create_task(coro, name=name)
+
+    async def run(self) -> None:
+        """Push from a task group of this coroutine's own until cancelled (the daemon runs
+        it in its root group); :meth:`start` with ``push=False`` only seeds the buffer."""
+        async with asyncio.TaskGroup() as group:
+            self.task_group = group
+            try:
+                self._start_pushing()
+                await asyncio.Event().wait()
+            finally:
+                self.task_group = None
+
+    def start(self, push: bool = True) -> None:
+        """Seed the buffer from the daemon's recent events and (unless ``push`` is False:
+        then :meth:`run` pushes) start pushing."""
         try:
             recent = self.control.state().get("events") or []
         except Exception:  # the daemon's state is its business; start anyway
@@ -81,8 +101,12 @@ class PageHub:
         for line in recent:
             if isinstance(line, dict):
                 self.buffer.record(line)
-        self._tasks = [asyncio.create_task(self._pump_events(), name="control-events"),
-                       asyncio.create_task(self._push_states(), name="control-push")]
+        if push:
+            self._start_pushing()
+
+    def _start_pushing(self) -> None:
+        self._tasks = [self._spawn(self._pump_events(), "control-events"),
+                       self._spawn(self._push_states(), "control-push")]
 
     async def stop(self) -> None:
         """Stop the pushes and close every page (1001), aborting those that do not answer."""
@@ -100,7 +124,7 @@ class PageHub:
 
     async def _pump_events(self) -> None:
         """Buffer the daemon's journal events and fan them out in batches every 0.1 s."""
-        flusher = asyncio.create_task(self._flush_events(), name="control-flush")
+        flusher = self._spawn(self._flush_events(), "control-flush")
         try:
             async for line in self.control.subscribe():
                 if not isinstance(line, dict):
@@ -166,7 +190,7 @@ class PageHub:
         if slow:
             self.rejects.note("ws_slow_evicted", f"live page too slow ({reason}); dropped",
                               time.monotonic())
-        task = asyncio.create_task(self._close_client(client))
+        task = self._spawn(self._close_client(client), "control-ws-close")
         self._closing.add(task)
         task.add_done_callback(self._closing.discard)
 

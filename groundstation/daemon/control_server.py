@@ -186,8 +186,9 @@ class ControlServer:
             raise RuntimeError("ControlServer not started")
         return self._url
 
-    async def start(self) -> None:
-        """Bind and serve; raises OSError if the address is taken."""
+    async def start(self, push: bool = True) -> None:
+        """Bind and serve; raises OSError if the address is taken. With ``push=False`` the
+        live pages are fed only while :meth:`run` runs (the daemon's task tree)."""
         warning = binding_warning(self.host)
         if warning:
             log.warning(warning)
@@ -230,7 +231,11 @@ class ControlServer:
         self.port = int(addresses[0][1]) if addresses else self.port
         shown = f"[{self.host}]" if ":" in self.host else self.host
         self._url = f"http://{shown}:{self.port}"
-        self.pages.start()
+        self.pages.start(push)
+
+    async def run(self) -> None:
+        """Feed the live pages from a child task group until cancelled."""
+        await self.pages.run()
 
     async def stop(self) -> None:
         """Close every page's WebSocket, stop the pushes and unbind."""

@@ -337,34 +337,54 @@ class Daemon:
             self._stop.set()
 
     async def run(self, links: list[Link], out_links: list[Link]) -> None:
-        """Run until stopped (signal, ``--duration``, :meth:`request_stop`)."""
+        """Run until stopped (signal, ``--duration``, :meth:`request_stop`).
+
+        Every task runs in the root task group: the links first (their own tasks in a
+        child group; a link that cannot start, e.g. a port in use, ends the run with its
+        LinkError), then the ticker, heartbeat, solver, extra services and vehicle sessions."""
         for link in links:
             self.router.add_vehicle_link(link)
         for link in out_links:
             self.router.add_out_link(link)
-        await self.router.start()
+        start_error: BaseException | None = None
         try:
             async with asyncio.TaskGroup() as tg:
                 self._tg = tg
-                self._spawn("ticker", self._tick_loop)
-                self._spawn("heartbeat", self._heartbeat_loop)
-                self._spawn("solver", self.solver.run)
-                for factory in self.extra_tasks:
-                    self._spawn(getattr(factory, "__name__", "task"), factory)
-                for session in self.sessions.values():
-                    gave_up = functools.partial(self._gave_up, session)
-                    self._spawn(f"vehicle {session.id}", session.run, gave_up)
-                await self._stop.wait()
-                await self._shutdown()
-                self._finished = True
-                self.supervisor.stopped = True
-                for finish in self.on_finish:
-                    finish()
-                for task in self._tasks:
-                    task.cancel()
+                ready: asyncio.Future[None] = asyncio.get_running_loop().create_future()
+                self._spawn("links", functools.partial(self.router.serve, ready))
+                try:
+                    await ready
+                except Exception as exc:
+                    start_error = exc
+                    self._cancel_tasks()
+                else:
+                    await self._run_tasks()
         finally:
             self.solver.close()
             await self.router.stop()
+        if start_error is not None:
+            raise start_error
+
+    async def _run_tasks(self) -> None:
+        self._spawn("ticker", self._tick_loop)
+        self._spawn("heartbeat", self._heartbeat_loop)
+        self._spawn("solver", self.solver.run)
+        for factory in self.extra_tasks:
+            self._spawn(getattr(factory, "__name__", "task"), factory)
+        for session in self.sessions.values():
+            gave_up = functools.partial(self._gave_up, session)
+            self._spawn(f"vehicle {session.id}", session.run, gave_up)
+        await self._stop.wait()
+        await self._shutdown()
+        for finish in self.on_finish:
+            finish()
+        self._cancel_tasks()
+
+    def _cancel_tasks(self) -> None:
+        self._finished = True
+        self.supervisor.stopped = True
+        for task in self._tasks:
+            task.cancel()
 
     async def _shutdown(self) -> None:
         """Never mid-upload: stop taking commands, wait for running exchanges, then act."""

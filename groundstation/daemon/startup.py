@@ -399,9 +399,10 @@ async def _start_control(
         controller, host, port, token, allow_origins=config.http_allow_origins, limits=limits
     )
     try:
-        await server.start()
+        await server.start(push=False)  # the pushes run in the daemon's task tree
     except OSError as exc:
         raise StartError(f"http: cannot listen on {host}:{port}: {exc.strerror or exc}") from None
+    daemon.extra_tasks.append(server.run)
     daemon.extra_stops.append(server.stop)
     daemon.control_url = str(getattr(server, "url", f"http://{host}:{port}"))
     daemon.control_token = token

@@ -26,7 +26,7 @@ import dataclasses
 import logging
 import time
 from abc import ABC, abstractmethod
-from collections.abc import AsyncIterator, Callable
+from collections.abc import AsyncIterator, Callable, Coroutine
 from dataclasses import dataclass, field
 from typing import Any, TypeAlias
 
@@ -230,6 +230,8 @@ class Link(ABC):
         )
         self._wake = asyncio.Event()
         self._drain_task: asyncio.Task[None] | None = None
+        self.task_group: asyncio.TaskGroup | None = None
+        """Where the link's background tasks run (set by its owner before :meth:`start`)."""
         self._paused: set[Any] = set()
 
     # -- lifecycle -------------------------------------------------------------------
@@ -258,6 +260,13 @@ class Link(ABC):
     def connected(self) -> bool:
         """True while frames can be sent somewhere (a peer or port is there)."""
 
+    def _spawn(self, coro: Coroutine[Any, Any, None], name: str) -> asyncio.Task[None]:
+        """A background task of this link: in :attr:`task_group` when the owner gave one
+        (the daemon's links run in a child task group of its root), else a plain task."""
+        if self.task_group is not None:
+            return self.task_group.create_task(coro, name=name)
+        return asyncio.create_task(coro, name=name)
+
     async def start(self) -> None:
         """Open the transport. Listeners raise :class:`LinkError` if they cannot bind;
         connecting kinds (tcp, serial) return at once and keep trying in the background."""
@@ -266,7 +275,7 @@ class Link(ABC):
         await self._open()
         self._running = True
         if self.options.fair:
-            self._drain_task = asyncio.create_task(self._drain_loop(), name=f"drain {self.link_id}")
+            self._drain_task = self._spawn(self._drain_loop(), f"drain {self.link_id}")
         log.info("link %s started (%s)", self.link_id, self.spec.canonical)
 
     async def stop(self) -> None:

@@ -31,6 +31,7 @@ daemon sends (``send_to``/``broadcast``) for the vehicle link it goes out on.
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import logging
 import time
@@ -146,6 +147,29 @@ class Router:
                 with contextlib.suppress(Exception):
                     await link.stop()
             raise
+
+    async def serve(self, ready: asyncio.Future[None]) -> None:
+        """Start every link with its background tasks (drain, reconnect) in a task group of
+        this coroutine's own, tell ``ready`` (or hand it the start error), and run until
+        cancelled; then stop the links. The daemon runs this in its root task group."""
+        try:
+            async with asyncio.TaskGroup() as group:
+                for link in self.links:
+                    link.task_group = group
+                try:
+                    await self.start()
+                except BaseException as exc:
+                    if not ready.done():
+                        ready.set_exception(exc)
+                    return
+                ready.set_result(None)
+                try:
+                    await asyncio.Event().wait()
+                finally:
+                    await self.stop()
+        finally:
+            for link in self.links:
+                link.task_group = None
 
     async def stop(self) -> None:
         """Stop every link. Idempotent."""

@@ -99,7 +99,7 @@ class ReconnectingLink(_StreamSink):
     def _describe(self) -> str: ...
 
     async def _open(self) -> None:
-        self._task = asyncio.create_task(self._run(), name=f"link {self.link_id}")
+        self._task = self._spawn(self._run(), f"link {self.link_id}")
 
     async def _close(self) -> None:
         task, self._task = self._task, None
