@@ -248,3 +248,30 @@ def test_gcs_sitl_options_are_checked_once_and_frozen() -> None:
         with pytest.raises(UsageError) as info:
             sitl_command.parse_options(argv)
         assert str(info.value).startswith(name)
+
+
+# ------------------------------------------------------------------ enums below the daemon
+def test_core_and_planner_closed_sets_are_enums_spelt_as_before() -> None:
+    from groundstation.core.config import BatteryAction as CoreBattery
+    from groundstation.core.config import CoreConfig, config_from_dict, config_to_dict
+    from groundstation.core.records import RecordError, result_from_record
+    from planner import Objective as PlannerObjective
+    from planner import PlanStatus, problem_from_dict, problem_to_dict
+
+    assert BatteryAction is CoreBattery and Objective is PlannerObjective  # one definition
+    core = config_from_dict({"objective": "arrival", "battery_low_action": "release"})
+    assert core.objective is Objective.ARRIVAL and core.battery_low_action is BatteryAction.RELEASE
+    plain = config_to_dict(core)
+    assert type(plain["objective"]) is str and plain["battery_low_action"] == "release"
+    assert config_from_dict(json.loads(json.dumps(plain))) == core
+    with pytest.raises(ValueError, match="objective"):
+        CoreConfig(objective="fastest")  # type: ignore[arg-type]
+    problem = problem_from_dict({"uavs": [{"id": "u", "x": 0, "y": 0, "heading": 0}],
+                                 "targets": [], "turn_radius": 100, "objective": "arrival"})
+    assert problem.objective is Objective.ARRIVAL
+    assert type(problem_to_dict(problem)["objective"]) is str
+    record = {"status": "feasible", "solver": "dp", "objective": 1.0, "f1": 1.0, "f2": 0.0,
+              "mu": 1.0, "routes": {}, "solve_time_s": 0.1}  # fmt: skip
+    assert result_from_record(record).status is PlanStatus.FEASIBLE
+    with pytest.raises(RecordError):
+        result_from_record({**record, "status": "great"})

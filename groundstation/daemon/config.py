@@ -7,8 +7,9 @@ fields (:data:`groundstation.daemon.config_parse.ALIASES`). Parsing is
 :func:`groundstation.daemon.config_parse.parse_config`, one pure function; defaults that
 depend on other keys are resolved by :func:`resolve`, another pure function
 (``resolve(resolve(c)) == resolve(c)``). Every closed set of strings is an enum
-(:class:`OnExit`, :class:`StatusMode`, :class:`BatteryAction`, :class:`Objective`,
-:class:`ReplanTrigger`, :class:`OperatingCenter`). ``None`` for a core setting
+(:class:`OnExit`, :class:`StatusMode`, :class:`ReplanTrigger`, :class:`OperatingCenter`
+here; the core's :class:`~groundstation.core.config.BatteryAction` and the planner's
+:class:`~planner.Objective`, re-exported). ``None`` for a core setting
 (``loiter_s`` ...) means "the scenario's, else the core's default".
 
 :meth:`DaemonConfig.to_dict` is the nested plain data written to the run folder's
@@ -27,7 +28,9 @@ from typing import Any
 
 from domain import errors
 from domain.geodesy import GeoOrigin
+from groundstation.core.config import BatteryAction
 from groundstation.vehicle.settings import ControllerSettings
+from planner import Objective
 from world.yaml_fields import load_yaml_file
 
 __all__ = [
@@ -79,20 +82,6 @@ class StatusMode(StrEnum):
     TABLE = "table"
     LOG = "log"
     QUIET = "quiet"
-
-
-class BatteryAction(StrEnum):
-    """What a low battery leads to: send the vehicle home, or stop commanding it."""
-
-    RTL = "rtl"
-    RELEASE = "release"
-
-
-class Objective(StrEnum):
-    """The planner's objective (``planner.problem.OBJECTIVES``)."""
-
-    SEQUENCE = "sequence"
-    ARRIVAL = "arrival"
 
 
 class ReplanTrigger(StrEnum):

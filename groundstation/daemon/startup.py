@@ -31,7 +31,7 @@ from domain.errors import ConfigError, UsageError
 from domain.geodesy import GeoOrigin
 from domain.limits import MAX_COORDINATE_M, MAX_SPEED_M_S, MAX_TARGETS
 from groundstation.core import events as ev
-from groundstation.core.config import CoreConfig, ReplanPolicy
+from groundstation.core.config import CoreConfig, ReplanPolicy, config_to_dict
 from groundstation.core.scenario_config import core_config_for
 from groundstation.daemon.clock import MissionClock
 from groundstation.daemon.config import DaemonConfig, StatusMode, resolve
@@ -99,8 +99,8 @@ def core_config(config: DaemonConfig, scenario: Any, speedup: float) -> CoreConf
             if mission.loiter_radius_m is not None
             else base.loiter_radius_m
         ),
-        objective=planner.objective.value if planner.objective is not None else base.objective,
-        battery_low_action=config.fleet.battery.action.value,
+        objective=planner.objective or base.objective,
+        battery_low_action=config.fleet.battery.action,
         time_limit_s=max(MIN_SOLVER_WALL_S, limit / speedup),
     )
 
@@ -372,7 +372,7 @@ async def run_daemon(
 
 
 def _core_dict(ccfg: CoreConfig) -> dict[str, Any]:
-    out = dataclasses.asdict(ccfg)
+    out = config_to_dict(ccfg)
     return out
 
 
