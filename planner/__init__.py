@@ -2,8 +2,10 @@
 
 from planner.dubins import dubins_distance_to_point
 from planner.problem import (
+    Objective,
     PlanningProblem,
     PlanResult,
+    PlanStatus,
     ProblemError,
     TargetEstimate,
     UavPose,
@@ -14,8 +16,10 @@ from planner.problem import (
 from planner.solve import PlanSolver, solve_plan
 
 __all__ = [
+    "Objective",
     "PlanResult",
     "PlanSolver",
+    "PlanStatus",
     "PlanningProblem",
     "ProblemError",
     "TargetEstimate",

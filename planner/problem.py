@@ -16,13 +16,32 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
+from enum import StrEnum
 from typing import Any
 
 from domain.errors import PlanningError
 from domain.limits import MAX_FLEET, MAX_TARGETS
 
-OBJECTIVES = ("sequence", "arrival")
-STATUSES = ("optimal", "feasible", "fallback")
+
+class Objective(StrEnum):
+    """The objective: the paper's ``sequence`` (position-weighted uncertainty) or
+    ``arrival`` (uncertainty at the predicted arrival time)."""
+
+    SEQUENCE = "sequence"
+    ARRIVAL = "arrival"
+
+
+class PlanStatus(StrEnum):
+    """``optimal``: the DP ran or CP-SAT proved optimality; ``feasible``: CP-SAT found a
+    plan; ``fallback``: CP-SAT found none (time limit or stop), the heuristic plan is used."""
+
+    OPTIMAL = "optimal"
+    FEASIBLE = "feasible"
+    FALLBACK = "fallback"
+
+
+OBJECTIVES = tuple(o.value for o in Objective)
+STATUSES = tuple(s.value for s in PlanStatus)
 
 
 class ProblemError(PlanningError):
@@ -65,7 +84,7 @@ class PlanningProblem:
     mu: float | None = None
     min_sigma_fraction: float = 0.1
     time_limit_s: float = 5.0
-    objective: str = "sequence"
+    objective: Objective = Objective.SEQUENCE
     speed_m_s: float = 22.0
 
 
@@ -73,7 +92,7 @@ class PlanningProblem:
 class PlanResult:
     """Outcome of a solve. `routes` is the model optimum; `idle` the idle-UAV rule."""
 
-    status: str
+    status: PlanStatus
     solver: str
     objective: float
     f1: float
@@ -212,7 +231,7 @@ def problem_from_dict(d: Mapping[str, Any]) -> PlanningProblem:
         mu=mu,
         min_sigma_fraction=frac,
         time_limit_s=limit,
-        objective=str(objective),
+        objective=Objective(objective),
         speed_m_s=speed,
     )
 
@@ -226,7 +245,7 @@ def problem_to_dict(p: PlanningProblem) -> dict[str, Any]:
         "tau": p.tau,
         "min_sigma_fraction": p.min_sigma_fraction,
         "time_limit_s": p.time_limit_s,
-        "objective": p.objective,
+        "objective": str(p.objective),
         "speed_m_s": p.speed_m_s,
     }
     if p.mu is not None:
@@ -237,7 +256,7 @@ def problem_to_dict(p: PlanningProblem) -> dict[str, Any]:
 def result_to_dict(r: PlanResult) -> dict[str, Any]:
     """The `gcs plan` output object."""
     return {
-        "status": r.status,
+        "status": str(r.status),
         "solver": r.solver,
         "objective": r.objective,
         "f1": r.f1,

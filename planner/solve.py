@@ -22,7 +22,7 @@ from planner.cpsat_model import CpSatRun
 from planner.exact_dp import dp_is_cheap, solve_dp
 from planner.heuristics import LocalSearch, RouteCoster, best_insertion, greedy
 from planner.instance import Instance, build_instance
-from planner.problem import PlanningProblem, PlanResult
+from planner.problem import PlanningProblem, PlanResult, PlanStatus
 
 POSITION_MODEL_MAX_TARGETS = 30
 
@@ -105,12 +105,13 @@ class PlanSolver:
         routes: list[list[int]]
         hit = False
         if n == 0:
-            return self._result(inst, [[] for _ in range(m)], "optimal", "trivial", start, False)
+            empty: list[list[int]] = [[] for _ in range(m)]
+            return self._result(inst, empty, PlanStatus.OPTIMAL, "trivial", start, False)
         method = self.method
         if method == "auto" and dp_is_cheap(m, n):
             method = "dp"
         if method == "dp":
-            return self._result(inst, solve_dp(inst), "optimal", "dp", start, False)
+            return self._result(inst, solve_dp(inst), PlanStatus.OPTIMAL, "dp", start, False)
         # heuristic start
         ls = LocalSearch(inst, self.random_seed, self._stop.is_set)
         routes = greedy(inst, ls.coster)
@@ -140,7 +141,7 @@ class PlanSolver:
             )
         if method == "heuristic" or self._stop.is_set():
             hit = not self._stop.is_set()
-            return self._result(inst, routes, "fallback", "greedy+ils", start, hit)
+            return self._result(inst, routes, PlanStatus.FALLBACK, "greedy+ils", start, hit)
         run = CpSatRun(inst, kind)
         run.add_hint(routes)
         with self._lock:
@@ -162,18 +163,18 @@ class PlanSolver:
         name = f"cp-sat/{outcome.model}+ils"
         if outcome.routes is None:
             hit = not outcome.stopped
-            return self._result(inst, routes, "fallback", "greedy+ils", start, hit)
+            return self._result(inst, routes, PlanStatus.FALLBACK, "greedy+ils", start, hit)
         cp_cost = ls.coster.total(outcome.routes)
         if cp_cost <= best_cost:
             routes = outcome.routes
         hit = outcome.status != "optimal" and not outcome.stopped
-        return self._result(inst, routes, outcome.status, name, start, hit)
+        return self._result(inst, routes, PlanStatus(outcome.status), name, start, hit)
 
     def _result(
         self,
         inst: Instance,
         routes: list[list[int]],
-        status: str,
+        status: PlanStatus,
         solver: str,
         start: float,
         hit: bool,

@@ -23,12 +23,20 @@ Spec grammar (command line)::
     3:reorder:p=0.1           1:drop:at=60,for=20              2:reboot:at=120
     2:kill:at=60,for=30
     1:mode:at=90,mode=FBWA    3:battery:at=200,pct=10
+
+One builder: every fault spec floe makes is spelt by :func:`fault_spec`, the whole list
+(the user's ``--fault``/``sim_fault`` specs, then the all-links impairments of
+``--loss/--dup/--reorder/--delay-ms``/``sim_loss``, then the scenario's scripted events) is
+assembled by :func:`fault_specs`, and turned into each vehicle's :class:`VehicleFaults`
+(seeded ``seed * 1000 + sysid``) by :func:`build_faults`. ``gcs sitl``, ``gcs run
+--vehicles sim:N`` and the scenario setup (:mod:`sitl.sitl_setup`) all use them.
 """
 
 from __future__ import annotations
 
 import heapq
 import random
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from itertools import count
 from typing import Any
@@ -41,6 +49,9 @@ __all__ = [
     "LinkImpairment",
     "VehicleFaults",
     "apply_fault",
+    "build_faults",
+    "fault_spec",
+    "fault_specs",
     "parse_fault_spec",
 ]
 
@@ -162,3 +173,47 @@ def apply_fault(faults: VehicleFaults, kind: str, options: dict[str, str]) -> No
         faults.add_event(FaultEvent(at, "mode", mode=fault_mode(options["mode"])))
     elif kind == "battery":
         faults.add_event(FaultEvent(at, "battery", fraction=float(options["pct"]) / 100.0))
+
+
+def fault_spec(vehicles: int | str, kind: str, options: Mapping[str, float | str] = {}) -> str:
+    """One spec in the grammar: ``fault_spec(2, "drop", {"at": 60.0, "for": 30.0})`` ->
+    ``2:drop:at=60.0,for=30.0`` (numbers as ``repr``, so they parse back exactly)."""
+    body = ",".join(f"{k}={v!r}" if isinstance(v, float) else f"{k}={v}"
+                    for k, v in options.items())
+    return f"{vehicles}:{kind}:{body}" if body else f"{vehicles}:{kind}"
+
+
+def fault_specs(
+    specs: Iterable[str] = (),
+    *,
+    loss: float | None = None,
+    dup: float | None = None,
+    reorder: float | None = None,
+    delay_s: float | None = None,
+    scripted: Iterable[str] = (),
+) -> list[str]:
+    """All of a run's specs, in the order they are applied (a later spec of the same kind
+    for the same vehicle wins): ``specs`` (the user's), then the impairments of every link
+    (``None``: none), then ``scripted`` (the scenario's)."""
+    out = list(specs)
+    for kind, value in (("loss", loss), ("dup", dup), ("reorder", reorder)):
+        if value is not None:
+            out.append(fault_spec("all", kind, {"p": float(value)}))
+    if delay_s is not None:
+        out.append(fault_spec("all", "delay", {"s": float(delay_s)}))
+    out += scripted
+    return out
+
+
+def build_faults(specs: Sequence[str], system_ids: Sequence[int], seed: int) -> dict[
+    int, VehicleFaults
+]:
+    """Each vehicle's faults with ``specs`` applied in order; raises :class:`FaultError`
+    naming the bad spec (the vehicles are system ids 1..max(system_ids))."""
+    faults = {sysid: VehicleFaults(seed * 1000 + sysid) for sysid in system_ids}
+    count = max(system_ids, default=0)
+    for spec in specs:
+        for sysid, kind, options in parse_fault_spec(spec, count):
+            if sysid in faults:
+                apply_fault(faults[sysid], kind, options)
+    return faults

@@ -4,7 +4,8 @@ world's detection feed and the scripted vehicle events turned into faults.
 Scenario events map to faults of the vehicle whose system id is the event's ``vehicle``
 (an integer string): ``vehicle_lost`` -> link drop until the matching ``vehicle_returned``
 (else for good), ``vehicle_rebooted`` -> reboot, ``override`` -> the operator switches to
-FBWA, ``resume`` -> the operator switches back to AUTO, ``battery_low`` -> 10 % battery.
+FBWA, ``resume`` -> the operator switches back to AUTO, ``battery_low`` -> 10 % battery
+(spelt by :func:`sitl.faults.fault_spec`).
 A scenario attribute ``faults`` (a list of ``--fault`` specs), if the scenario format has
 one, is added as is. Without a scenario: origin = home, no world (no detection feed),
 vehicles start at home with headings spread over the circle.
@@ -19,6 +20,7 @@ from typing import Any
 
 from domain.geodesy import GeoOrigin
 from sitl.detections import DetectionFeed
+from sitl.faults import fault_spec
 from sitl.vehicle import VehicleConfig
 
 __all__ = ["SitlSetup", "scenario_setup"]
@@ -77,6 +79,7 @@ def _event_faults(scenario: Any, count: int) -> tuple[list[str], list[str]]:
             )
             continue
         sysid = int(ev.vehicle)
+        at_s = float(ev.t_s)
         if ev.kind == "vehicle_lost":
             back = next(
                 (
@@ -87,15 +90,15 @@ def _event_faults(scenario: Any, count: int) -> tuple[list[str], list[str]]:
                 None,
             )
             duration = (back - ev.t_s) if back is not None else 1e9
-            specs.append(f"{sysid}:drop:at={ev.t_s},for={duration}")
+            specs.append(fault_spec(sysid, "drop", {"at": at_s, "for": float(duration)}))
         elif ev.kind == "vehicle_rebooted":
-            specs.append(f"{sysid}:reboot:at={ev.t_s}")
+            specs.append(fault_spec(sysid, "reboot", {"at": at_s}))
         elif ev.kind == "override":
-            specs.append(f"{sysid}:mode:at={ev.t_s},mode=FBWA")
+            specs.append(fault_spec(sysid, "mode", {"at": at_s, "mode": "FBWA"}))
         elif ev.kind == "resume":
-            specs.append(f"{sysid}:mode:at={ev.t_s},mode=AUTO")
+            specs.append(fault_spec(sysid, "mode", {"at": at_s, "mode": "AUTO"}))
         elif ev.kind == "battery_low":
-            specs.append(f"{sysid}:battery:at={ev.t_s},pct=10")
+            specs.append(fault_spec(sysid, "battery", {"at": at_s, "pct": 10}))
     return specs, skipped
 
 

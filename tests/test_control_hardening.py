@@ -394,18 +394,18 @@ def test_gcs_run_flags_and_config_keys(tmp_path: Any) -> None:
                     "http_max_targets: 50\nhttp_header_timeout_s: 2.5\n", encoding="utf-8")
     config = build_config(["--config", str(path), "--http-max-ws-clients", "4",
                            "--http-max-writes-per-s", "5"])
-    assert config.http_allow_origins == ["https://ops.example"]
-    assert (config.http_max_targets, config.http_max_ws_clients) == (50, 4)
-    assert (config.http_max_writes_per_s, config.http_header_timeout_s) == (5.0, 2.5)
+    assert config.http.allow_origins == ("https://ops.example",)
+    assert (config.http.max_targets, config.http.max_ws_clients) == (50, 4)
+    assert (config.http.max_writes_per_s, config.http.header_timeout_s) == (5.0, 2.5)
     config = build_config(["--vehicles", "sim:1", "--http-allow-origin", "http://a.example:81",
                            "--http-allow-origin", "http://b.example"])
-    assert config.http_allow_origins == ["http://a.example:81", "http://b.example"]
+    assert config.http.allow_origins == ("http://a.example:81", "http://b.example")
     defaults = build_config(["--vehicles", "sim:1"])
-    assert ControlLimits().max_targets == defaults.http_max_targets == 100
-    assert ControlLimits().max_ws_clients == defaults.http_max_ws_clients == 16
-    for bad, key in ((["--http-allow-origin", "ops.example"], "http_allow_origins"),
-                     (["--http-max-targets", "0"], "http_max_targets"),
-                     (["--http-max-ws-clients", "-1"], "http_max_ws_clients"),
-                     (["--http-header-timeout", "inf"], "http_header_timeout_s")):
+    assert ControlLimits().max_targets == defaults.http.max_targets == 100
+    assert ControlLimits().max_ws_clients == defaults.http.max_ws_clients == 16
+    for bad, key in ((["--http-allow-origin", "ops.example"], "--http-allow-origin"),
+                     (["--http-max-targets", "0"], "--http-max-targets"),
+                     (["--http-max-ws-clients", "-1"], "--http-max-ws-clients"),
+                     (["--http-header-timeout", "inf"], "--http-header-timeout")):
         with pytest.raises(ConfigError, match=key):
             build_config(["--vehicles", "sim:1", *bad])

@@ -196,7 +196,7 @@ def test_run_folder_files_are_whole_and_control_json_is_private(tmp_path: Path) 
     assert stat.S_IMODE((run_dir / "control.json").stat().st_mode) == 0o600
     control = json.loads((run_dir / "control.json").read_text())
     assert control["token"] == daemon.control_token and control["url"] == daemon.control_url
-    assert yaml.safe_load((run_dir / "config.yaml").read_text())["duration"] == 20
+    assert yaml.safe_load((run_dir / "config.yaml").read_text())["mission"]["duration_s"] == 20
     assert json.loads((run_dir / "metrics.json").read_text())["summary"]["mission_s"] >= 20
     assert sorted(p.name for p in run_dir.iterdir()) == [
         "config.yaml", "control.json", "flight.tlog", "gcs.log", "journal.jsonl", "metrics.json"

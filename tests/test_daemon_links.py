@@ -15,7 +15,7 @@ from daemon_run import events
 
 from groundstation.commands.embedded_sim import build_embedded_sim
 from groundstation.commands.run import build_config, run_daemon
-from groundstation.daemon.config import DaemonConfig
+from groundstation.daemon.config_parse import parse_config
 from groundstation.daemon.control import DaemonController
 from groundstation.daemon.daemon import Daemon
 from groundstation.daemon.journal import read_journal
@@ -26,7 +26,7 @@ from world.scenario import load_scenario
 def test_two_vehicles_on_one_udp_link_with_a_virtual_camera(tmp_path: Path) -> None:
     scenario = load_scenario("svalbard-2015")
     sim = build_embedded_sim(
-        DaemonConfig(vehicles=["sim:2"], sim_airborne=True, speedup=40.0), scenario
+        parse_config({"vehicles": ["sim:2"], "sim_airborne": True, "speedup": 40.0}, {}), scenario
     )
     server = sim.server
     # the simulator's shared UDP socket also sends to a dead address (as `gcs sitl --out`)

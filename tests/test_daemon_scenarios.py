@@ -42,7 +42,7 @@ def test_paper_boat_three_vehicles(tmp_path: Path) -> None:
         "200",
     )
     # every line is a JSON object with t, unix_s and event; the start line has the config
-    assert journal[0]["event"] == "start" and journal[0]["config"]["vehicles"] == ["sim:3"]
+    assert journal[0]["event"] == "start" and journal[0]["config"]["links"]["vehicles"] == ["sim:3"]
     assert all({"t", "unix_s", "event"} <= set(e) for e in journal)
     assert not events(journal, "task_error") and not events(journal, "core_error")
     # taken over while holding their loiter, then every vehicle flies planned missions

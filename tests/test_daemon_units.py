@@ -20,7 +20,8 @@ from domain.geodesy import GeoOrigin
 from groundstation.commands.run import build_config
 from groundstation.core.config import CoreConfig
 from groundstation.daemon.clock import MissionClock
-from groundstation.daemon.config import ConfigError, DaemonConfig
+from groundstation.daemon.config import ConfigError, OnExit
+from groundstation.daemon.config_parse import parse_config
 from groundstation.daemon.journal import Journal, read_journal
 from groundstation.daemon.startup import StartError, core_config, load_targets
 from world.scenario import load_scenario
@@ -47,12 +48,13 @@ vehicle_settings:
 """,
     )
     config = build_config(["--config", cfg, "--speedup", "20"])
-    assert config.vehicles == ["tcp:127.0.0.1:5760", "tcp:127.0.0.1:5770"]
+    assert config.links.vehicles == ("tcp:127.0.0.1:5760", "tcp:127.0.0.1:5770")
     assert config.speedup == 20.0  # the flag wins
-    assert config.loiter_s == 45.0 and config.gcs_system_id == 200 and config.on_exit == "rtl"
+    assert config.mission.loiter_s == 45.0 and config.links.gcs_system_id == 200
+    assert config.on_exit is OnExit.RTL
     assert config.settings_for(2).name == "bravo" and config.settings_for(2).altitude_m == 140
     assert config.settings_for(3).name is None
-    assert config.to_dict()["vehicle_settings"][1] == {"name": "alpha", "altitude_m": 120.0}
+    assert config.to_dict()["fleet"]["settings"][1] == {"name": "alpha", "altitude_m": 120.0}
 
 
 @pytest.mark.parametrize(
@@ -84,16 +86,16 @@ def test_speedup_defaults_depend_on_the_vehicles() -> None:
 
 def test_core_config_scales_the_solver_budget_and_keeps_the_scenario_policy() -> None:
     scenario = load_scenario("paper-boat")
-    config = DaemonConfig(vehicles=["sim:3"])
+    config = parse_config({"vehicles": ["sim:3"]}, {})
     ccfg = core_config(config, scenario, 50.0)
     assert ccfg.policy.period_s == 5.0 and not ccfg.policy.commit
     assert ccfg.loiter_s == 0.0
     assert ccfg.time_limit_s == pytest.approx(max(0.05, 2.0 / 50.0))
-    config.commit, config.loiter_s = True, 30.0
+    config = parse_config({"vehicles": ["sim:3"], "commit": True, "loiter_s": 30.0}, {})
     ccfg = core_config(config, scenario, 1.0)
     assert ccfg.policy.commit and ccfg.policy.period_s == 5.0 and ccfg.loiter_s == 30.0
     assert ccfg.time_limit_s == 2.0
-    assert core_config(DaemonConfig(vehicles=["sim:1"]), None, 1.0).loiter_s == (
+    assert core_config(parse_config({"vehicles": ["sim:1"]}, {}), None, 1.0).loiter_s == (
         CoreConfig().loiter_s
     )
 
@@ -189,7 +191,7 @@ def gcs_run_here(capsys: pytest.CaptureFixture[str], *args: str) -> tuple[int, s
         (["--vehicles", "sim:0"], "vehicles"),
         (["--vehicles", "sim:1", "--duration", "-3"], "duration"),
         (["--vehicles", "sim:1", "--http", "nonsense"], "http"),
-        (["--vehicles", "sim:1", "--sim-fault", "1:explode:at=3"], "sim_fault"),
+        (["--vehicles", "sim:1", "--sim-fault", "1:explode:at=3"], "--sim-fault"),
         (["--speedup", "5"], "vehicles"),
     ],
 )

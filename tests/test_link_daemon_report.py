@@ -8,7 +8,7 @@ from pathlib import Path
 
 from groundstation.core.config import CoreConfig
 from groundstation.daemon.clock import MissionClock
-from groundstation.daemon.config import DaemonConfig
+from groundstation.daemon.config_parse import parse_config
 from groundstation.daemon.daemon import Daemon
 from groundstation.daemon.journal import Journal, read_journal
 from groundstation.daemon.status import link_lines, render_table
@@ -16,7 +16,7 @@ from groundstation.link import open_link
 
 
 def _daemon(tmp_path: Path, t: list[float]) -> Daemon:
-    config = DaemonConfig(vehicles=["udpin:127.0.0.1:0"], rebind_after_s=4.0)
+    config = parse_config({"vehicles": ["udpin:127.0.0.1:0"], "rebind_after_s": 4.0}, {})
     journal = Journal(tmp_path / "journal.jsonl", lambda: t[0], lambda: 1.7e9)
     clock = MissionClock(1.0, source=lambda: t[0])
     return Daemon(config, CoreConfig(), clock, tmp_path, None, journal, None)

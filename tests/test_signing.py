@@ -10,7 +10,8 @@ from typing import Any
 import pytest
 
 from groundstation.commands.run import build_config
-from groundstation.daemon.config import ConfigError, DaemonConfig, VehicleSettings
+from groundstation.daemon.config import ConfigError
+from groundstation.daemon.config_parse import parse_config
 from groundstation.daemon.signing_gate import SigningGate, SigningKeys, load_signing_keys
 from groundstation.link.base import Received
 from groundstation.mavlink.codec import MavlinkDecoder, MavlinkEncoder, mavlink2
@@ -200,23 +201,24 @@ def test_key_loading_errors_are_one_line_and_never_quote_the_key(tmp_path: Path)
     bad = tmp_path / "bad.key"
     bad.write_text("not-a-key-secret")
     keys = load_signing_keys(
-        DaemonConfig(
-            vehicles=["sim:2"],
-            signing_passphrase_file=str(phrase),
-            vehicle_settings={2: VehicleSettings(signing_key_file=str(good))},
-        ),
+        parse_config({
+            "vehicles": ["sim:2"],
+            "signing_passphrase_file": str(phrase),
+            "vehicle_settings": {2: {"signing_key_file": str(good)}},
+        }, {}),
         environ={},
     )
     assert keys.key_for(1) == KEY and keys.key_for(2) == KEY and keys.key_for(3) == KEY
     assert keys.sources == {"all": str(phrase), "2": str(good)}
-    env_keys = load_signing_keys(DaemonConfig(vehicles=["sim:1"]),
+    env_keys = load_signing_keys(parse_config({"vehicles": ["sim:1"]}, {}),
                                  environ={"FLOE_SIGNING_PASSPHRASE": "correct horse"})
     assert env_keys.default == KEY and env_keys.sources == {"all": "$FLOE_SIGNING_PASSPHRASE"}
-    assert not load_signing_keys(DaemonConfig(vehicles=["sim:1"]), environ={}).enabled
+    assert not load_signing_keys(parse_config({"vehicles": ["sim:1"]}, {}), environ={}).enabled
+    sim1 = {"vehicles": ["sim:1"]}
     for config, words in (
-        (DaemonConfig(vehicles=["sim:1"], signing_key_file=str(bad)), "signing_key_file"),
-        (DaemonConfig(vehicles=["sim:1"], signing_key_file=str(tmp_path / "nope")), "cannot read"),
-        (DaemonConfig(vehicles=["sim:1"], signing_setup=True), "signing_setup"),
+        (parse_config({**sim1, "signing_key_file": str(bad)}, {}), "signing_key_file"),
+        (parse_config({**sim1, "signing_key_file": str(tmp_path / "nope")}, {}), "cannot read"),
+        (parse_config({**sim1, "signing_setup": True}, {}), "signing_setup"),
     ):
         with pytest.raises(ConfigError) as err:
             load_signing_keys(config, environ={})
@@ -232,8 +234,8 @@ def test_config_carries_paths_never_keys(tmp_path: Path) -> None:
     config = build_config(["--config", str(yaml_file), "--vehicles", "sim:3",
                            "--signing-passphrase-file", str(key_file), "--signing-setup"])
     data = config.to_dict()
-    assert data["signing_passphrase_file"] == str(key_file) and data["signing_setup"] is True
-    assert data["vehicle_settings"][3] == {"signing_key_file": str(key_file)}
+    assert data["signing"]["passphrase_file"] == str(key_file) and data["signing"]["setup"] is True
+    assert data["fleet"]["settings"][3] == {"signing_key_file": str(key_file)}
     assert KEY.hex() not in repr(data)
     yaml_file.write_text("vehicle_settings:\n  3: {signing_key_file: 5}\n")
     with pytest.raises(ConfigError, match=r"vehicle_settings\.3\.signing_key_file"):

@@ -52,7 +52,7 @@ def test_signed_round_trip_with_the_built_in_vehicle(tmp_path: Path) -> None:
     assert signing["sources"] == {"all": str(phrase)}
     start = events(journal, "start")[0]
     assert start["signing"] == {"keys": {"all": str(phrase)}, "setup": False}
-    assert start["config"]["signing_passphrase_file"] == str(phrase)
+    assert start["config"]["signing"]["passphrase_file"] == str(phrase)
     assert "signing on; refused frames: none" in render_table(daemon)
     no_key_in_run_folder(daemon, tmp_path)
 

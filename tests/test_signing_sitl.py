@@ -129,11 +129,11 @@ def test_gcs_sitl_signing_options(tmp_path: Path, capsys: pytest.CaptureFixture[
     assert "secret-but-wrong-length" not in err
     phrase = tmp_path / "phrase"
     phrase.write_text("floe test passphrase\n")
-    args = sitl_command._parser().parse_args(["--signing-passphrase-file", str(phrase)])
+    args = sitl_command.parse_options(["--signing-passphrase-file", str(phrase)])
     assert sitl_command.signing_key(args, environ={}) == KEY
     _, _, _, options = sitl_command.build(args)
     assert options.signing_keys == {1: KEY} and KEY.hex() not in repr(options)
-    env_args = sitl_command._parser().parse_args([])
+    env_args = sitl_command.parse_options([])
     assert sitl_command.signing_key(
         env_args, environ={"FLOE_SIGNING_PASSPHRASE": "floe test passphrase"}) == KEY
 

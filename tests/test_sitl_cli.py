@@ -3,7 +3,6 @@ ArduPilot SITL launcher's command lines."""
 
 from __future__ import annotations
 
-import argparse
 import os
 import stat
 import sys
@@ -12,6 +11,7 @@ from pathlib import Path
 import pytest
 
 from groundstation.commands import sitl as cmd
+from groundstation.commands.sitl_args import SitlOptions
 from sitl.ardupilot import ardupilot_commands, default_defaults_file
 
 
@@ -60,8 +60,8 @@ def test_runs_for_a_duration_and_prints_ports(capsys: pytest.CaptureFixture[str]
     assert "stopped after 10" in out
 
 
-def parse(argv: list[str]) -> argparse.Namespace:
-    return cmd._parser().parse_args(argv)
+def parse(argv: list[str]) -> SitlOptions:
+    return cmd.parse_options(argv)
 
 
 def test_scenario_sets_fleet_origin_launch_and_event_faults(tmp_path: Path) -> None:

@@ -12,7 +12,8 @@ from typing import Any
 from domain.geodesy import GeoOrigin
 from groundstation.core import events as ev
 from groundstation.daemon.clock import MissionClock
-from groundstation.daemon.config import DaemonConfig, VehicleSettings
+from groundstation.daemon.config import VehicleSettings
+from groundstation.daemon.config_parse import parse_config
 from groundstation.daemon.session import VehicleSession
 from groundstation.mavlink.codec import MavlinkDecoder, MavlinkEncoder, MAVLinkMessage, mavlink2
 from groundstation.mavlink.mission_transfer import TransferCode, TransferResult
@@ -90,7 +91,7 @@ async def _flying_session(t: list[float]) -> tuple[VehicleSession, Host, Port]:
     host, port = Host(), Port()
     clock = MissionClock(1.0, source=lambda: t[0])
     session = VehicleSession(
-        1, "v1", 0, host, DaemonConfig(vehicles=["sim:1"]), VehicleSettings(), port, clock  # type: ignore[arg-type]
+        1, "v1", 0, host, parse_config({"vehicles": ["sim:1"]}, {}), VehicleSettings(), port, clock  # type: ignore[arg-type]
     )
     for k in range(8):  # 4 s of telemetry: flying in AUTO
         t[0] = 0.5 * k

@@ -8,7 +8,8 @@ The vehicles serve TCP on ephemeral 127.0.0.1 ports and the daemon connects to t
 ordinary ``tcp:`` links, exactly as to ArduPilot SITL. Launch poses, origin and home come
 from the scenario (``sitl.sitl_setup.scenario_setup``), whose scripted vehicle events
 become simulator faults (vehicle_lost -> link drop, override -> the operator switches to
-FBWA, resume -> AUTO, battery_low -> 10 %); ``sim_loss`` and ``sim_fault`` add more. The
+FBWA, resume -> AUTO, battery_low -> 10 %); ``sim.faults`` and ``sim.loss`` add more (one
+builder, :func:`sitl.faults.fault_specs`). The
 mission clock follows the simulator's simulated time. The simulator ticks every 5 ms and
 advances by at most max(0.05 s, min(0.5 s, 5 ms x K)) per tick, so a loaded host slows the
 run down instead of making the vehicles' clocks jump (a jump of a few simulated seconds
@@ -21,8 +22,8 @@ import time
 from dataclasses import dataclass
 
 from domain.geodesy import GeoOrigin
-from groundstation.daemon.config import ConfigError, DaemonConfig, parse_latlon
-from sitl.faults import FaultError, VehicleFaults, apply_fault, parse_fault_spec
+from groundstation.daemon.config import ConfigError, DaemonConfig
+from sitl.faults import FaultError, build_faults, fault_specs
 from sitl.server import ServerOptions, SitlServer
 from sitl.sitl_setup import scenario_setup
 from world.scenario import Scenario
@@ -76,34 +77,30 @@ def build_embedded_sim(
     the MAVLink 2 signing key each system id starts with."""
     count = config.sim_count
     assert count is not None
-    home_given = config.origin is not None
-    home = DEFAULT_HOME
-    if config.origin is not None:
-        home = parse_latlon(config.origin, "origin")
-    setup = scenario_setup(scenario, count, home, home_given)
+    origin = config.mission.origin
+    home = DEFAULT_HOME if origin is None else (origin.lat_deg, origin.lon_deg)
+    setup = scenario_setup(scenario, count, home, origin is not None)
+    fleet = config.fleet
     configs = []
     for i in range(count):
         settings = config.settings_for(i + 1)
-        alt = settings.altitude_m or config.altitude_m + config.altitude_step_m * i
+        alt = settings.altitude_m or fleet.altitude_m + fleet.altitude_step_m * i
         configs.append(setup.vehicle_config(
-            i, airborne=config.sim_airborne, airborne_alt_m=alt,
-            fast_boot=config.sim_fast_boot, unix_time_at_zero_s=time.time(),
+            i, airborne=config.sim.airborne, airborne_alt_m=alt,
+            fast_boot=config.sim.fast_boot, unix_time_at_zero_s=time.time(),
         ))
-    faults = {c.system_id: VehicleFaults(config.seed * 1000 + c.system_id) for c in configs}
-    specs = list(config.sim_fault)
-    if config.sim_loss > 0:
-        specs.append(f"all:loss:p={config.sim_loss}")
-    specs += setup.fault_specs
+    specs = fault_specs(
+        config.sim.faults, loss=config.sim.loss or None, scripted=setup.fault_specs
+    )
     try:
-        for spec in specs:
-            for sysid, kind, fault_options in parse_fault_spec(spec, count):
-                apply_fault(faults[sysid], kind, fault_options)
+        faults = build_faults(specs, [c.system_id for c in configs], config.mission.seed)
     except FaultError as exc:
         raise ConfigError(f"sim_fault: {exc}") from None
 
-    step_s = max(0.05, min(0.5, config.speedup * SIM_TICK_S))
+    speedup = config.speedup_x
+    step_s = max(0.05, min(0.5, speedup * SIM_TICK_S))
     options = ServerOptions(
-        speedup=config.speedup,
+        speedup=speedup,
         host="127.0.0.1",
         base_port=0,
         tick_s=SIM_TICK_S,

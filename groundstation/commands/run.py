@@ -30,6 +30,8 @@ class _Parser(argparse.ArgumentParser):
 
 
 def _parser() -> argparse.ArgumentParser:
+    from groundstation.daemon.config import Objective, OnExit, ReplanTrigger, StatusMode
+
     p = _Parser(
         prog="gcs run",
         description="The floe ground-station daemon: keeps a fleet of "
@@ -68,7 +70,7 @@ def _parser() -> argparse.ArgumentParser:
     a("--advisory", action="store_true", help="plan and journal, never command a vehicle")
     a(
         "--on-exit",
-        choices=("loiter", "rtl"),
+        choices=[m.value for m in OnExit],
         help="what vehicles do when floe stops (default loiter)",
     )
     a("--http", metavar="HOST:PORT|off", help="control API (default 127.0.0.1:0)")
@@ -127,7 +129,8 @@ def _parser() -> argparse.ArgumentParser:
         help="a vehicle's link or address may change only after it was silent there for S "
         "mission seconds and its heartbeats came consistently on the new one (default 10)",
     )
-    a("--replan", choices=("event", "period", "both"), help="replanning trigger")
+    a("--replan", choices=[m.value for m in ReplanTrigger], help="replanning trigger")
+    a("--objective", choices=[m.value for m in Objective], help="planner objective (scenario's)")
     a("--period", dest="period_s", type=float, metavar="S", help="replan period")
     a("--commit", dest="commit", action="store_true", help="keep vehicles on their target")
     a("--no-commit", dest="commit", action="store_false", help="let replans redirect")
@@ -154,39 +157,24 @@ def _parser() -> argparse.ArgumentParser:
     )
     a(
         "--status",
-        choices=("auto", "table", "log", "quiet"),
+        choices=[m.value for m in StatusMode],
         help="live table (TTY), log lines, or nothing",
     )
     return p
 
 
-def build_config(argv: list[str]) -> Any:
-    """Parse ``argv`` into an effective :class:`DaemonConfig` (raises ConfigError)."""
-    from groundstation.daemon.config import (
-        ConfigError,
-        DaemonConfig,
-        apply_mapping,
-        load_config_file,
-    )
+def build_config(argv: list[str]) -> DaemonConfig:
+    """Parse ``argv`` (and its ``--config`` file) into the effective, resolved
+    :class:`DaemonConfig` (raises ConfigError naming the flag or key)."""
+    from groundstation.daemon.config import load_config_file, resolve
+    from groundstation.daemon.config_parse import parse_config
 
-    args = vars(_parser().parse_args(argv))
-    config = DaemonConfig()
+    parser = _parser()
+    spelling = {a.dest: a.option_strings[0] for a in reversed(parser._actions) if a.option_strings}
+    args = vars(parser.parse_args(argv))
     path = args.pop("config", None)
     data = load_config_file(path) if path else {}
-    if "speedup" not in data and "speedup" not in args:
-        sim = ("vehicles" in args and any(v.startswith("sim:") for v in args["vehicles"])) or (
-            "vehicles" not in args
-            and any(str(v).startswith("sim:") for v in data.get("vehicles") or [])
-        )
-        config.speedup = 50.0 if sim else 1.0
-    apply_mapping(config, data)
-    for key, value in args.items():
-        try:
-            apply_mapping(config, {key: value})
-        except ConfigError as exc:
-            raise ConfigError(f"--{key.replace('_', '-')}: {exc}") from None
-    config.validate()
-    return config
+    return resolve(parse_config(data, {spelling[dest]: value for dest, value in args.items()}))
 
 
 async def run_daemon(config: DaemonConfig, **options: Any) -> Daemon:

@@ -21,13 +21,13 @@ from typing import Any
 from groundstation.commands.async_main import run_async
 from groundstation.commands.sitl_args import (
     DEFAULT_HOME,
+    SitlOptions,
     UsageError,
-    _check,
-    parse_latlon,
-    parse_udp_url,
+    sitl_options,
 )
 
-__all__ = ["run"]
+__all__ = ["build", "parse_options", "run", "signing_key"]
+
 
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
@@ -146,7 +146,12 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
-def signing_key(args: argparse.Namespace, environ: dict[str, str] | None = None) -> bytes | None:
+def parse_options(argv: list[str]) -> SitlOptions:
+    """``argv`` -> the checked, frozen options (raises UsageError naming the option)."""
+    return sitl_options(_parser().parse_args(argv))
+
+
+def signing_key(options: SitlOptions, environ: dict[str, str] | None = None) -> bytes | None:
     """The key the vehicles start with (``--signing-key``, ``--signing-passphrase-file``,
     else ``FLOE_SIGNING_PASSPHRASE``), None for none. Errors never quote the content."""
     import os
@@ -160,10 +165,7 @@ def signing_key(args: argparse.Namespace, environ: dict[str, str] | None = None)
     )
 
     env = os.environ if environ is None else environ
-    key_file = getattr(args, "signing_key", None)
-    pass_file = getattr(args, "signing_passphrase_file", None)
-    if key_file and pass_file:
-        raise UsageError("--signing-key and --signing-passphrase-file: give one, not both")
+    key_file, pass_file = options.signing_key_file, options.signing_passphrase_file
     option, path = ("--signing-key", key_file) if key_file else (
         "--signing-passphrase-file", pass_file)
     try:
@@ -180,69 +182,55 @@ def signing_key(args: argparse.Namespace, environ: dict[str, str] | None = None)
     return None
 
 
-def build(args: argparse.Namespace) -> tuple[Any, ...]:
-    """(configs, faults, feed, options) for the built-in simulator from parsed arguments."""
-    from sitl.faults import FaultError, VehicleFaults, apply_fault, parse_fault_spec
+def build(options: SitlOptions) -> tuple[Any, ...]:
+    """(configs, faults, feed, server options) for the built-in simulator."""
+    from sitl.faults import FaultError, build_faults, fault_specs
     from sitl.server import ServerOptions
     from sitl.sitl_setup import scenario_setup
 
-    _check(args)
     scenario = None
-    if args.scenario is not None:
+    if options.scenario is not None:
         from world.scenario import load_scenario
 
-        scenario = load_scenario(args.scenario)
-    count = args.count or (scenario.fleet.count if scenario is not None else 1)
-    home = parse_latlon(args.home) if args.home else None
+        scenario = load_scenario(options.scenario)
+    count = options.count or (scenario.fleet.count if scenario is not None else 1)
+    home = options.home
     setup = scenario_setup(scenario, count, home or DEFAULT_HOME, home is not None)
     configs = [
-        setup.vehicle_config(i, airborne=args.airborne, airborne_alt_m=args.alt,
-                             fast_boot=args.fast_boot, unix_time_at_zero_s=time.time())
+        setup.vehicle_config(i, airborne=options.airborne, airborne_alt_m=options.alt_m,
+                             fast_boot=options.fast_boot, unix_time_at_zero_s=time.time())
         for i in range(count)
     ]
-    faults = {c.system_id: VehicleFaults(args.seed * 1000 + c.system_id) for c in configs}
-    specs = list(args.fault)
-    for name, kind, key in (
-        ("loss", "loss", "p"),
-        ("dup", "dup", "p"),
-        ("reorder", "reorder", "p"),
-    ):
-        if getattr(args, name) is not None:
-            specs.append(f"all:{kind}:{key}={getattr(args, name)}")
-    if args.delay_ms is not None:
-        specs.append(f"all:delay:s={args.delay_ms / 1000.0}")
-    specs += setup.fault_specs
+    specs = fault_specs(
+        options.faults, loss=options.loss, dup=options.dup, reorder=options.reorder,
+        delay_s=options.delay_s, scripted=setup.fault_specs,
+    )
     try:
-        for spec in specs:
-            for sysid, kind, fault_options in parse_fault_spec(spec, count):
-                apply_fault(faults[sysid], kind, fault_options)
+        faults = build_faults(specs, [c.system_id for c in configs], options.seed)
     except FaultError as exc:
         raise UsageError(f"--fault: {exc}") from None
     feed = None
-    feed_address = None
-    if args.detections != "none":
-        feed_address = parse_udp_url(args.detections, "--detections")
-        feed = setup.make_feed(args.seed, args.anonymous_detections)
-    out = parse_udp_url(args.out, "--out") if args.out else None
-    options = ServerOptions(
-        speedup=args.speedup,
-        host=args.host,
-        base_port=args.base_port,
-        out=out,
-        wait_for_client=args.wait_for_client,
-        feed_address=feed_address,
+    if options.detections is not None:
+        feed = setup.make_feed(options.seed, options.anonymous_detections)
+    server_options = ServerOptions(
+        speedup=options.speedup,
+        host=options.host,
+        base_port=options.base_port,
+        out=options.out,
+        wait_for_client=options.wait_for_client,
+        feed_address=options.detections,
     )
-    start_key = signing_key(args)
+    start_key = signing_key(options)
     if start_key is not None:
-        options.signing_keys = {c.system_id: start_key for c in configs}
-    return configs, faults, feed, options
+        server_options.signing_keys = {c.system_id: start_key for c in configs}
+    return configs, faults, feed, server_options
 
 
-async def _serve(args: argparse.Namespace) -> int:
+async def _serve(options: SitlOptions) -> int:
     from sitl.server import SitlServer
 
-    configs, faults, feed, options = build(args)
-    server = SitlServer(configs, options, faults, feed)
+    configs, faults, feed, server_options = build(options)
+    server = SitlServer(configs, server_options, faults, feed)
     try:
         await server.start()
     except OSError as exc:
@@ -255,10 +243,10 @@ async def _serve(args: argparse.Namespace) -> int:
             loop.add_signal_handler(sig, server.stop)
     for line in server.describe():
         print(line, flush=True)
-    if options.signing_keys:
+    if server_options.signing_keys:
         print("signing: vehicles start with a key (MAVLink 2 signing on)", flush=True)
     try:
-        await server.run(args.duration)
+        await server.run(options.duration_s)
     finally:
         await server.close()
     for sysid, counts in server.signing_rejected().items():
@@ -277,18 +265,16 @@ def run(argv: list[str]) -> int:
     """Entry point of ``gcs sitl``; returns the exit status."""
     args = _parser().parse_args(argv)
     try:
-        if args.camera_of is not None:
+        options = sitl_options(args)
+        if options.camera_of is not None:
             from groundstation.commands.sitl_ardupilot import run_camera_only
 
-            return run_camera_only(args)
-        if args.ardupilot is not None:
+            return run_camera_only(options)
+        if options.ardupilot is not None:
             from groundstation.commands.sitl_ardupilot import run_ardupilot
-            if args.signing_key or args.signing_passphrase_file:
-                raise UsageError("--signing-*: real ArduPilot SITL keeps its own key; "
-                                 "give it one with `gcs run --signing-setup`")
 
-            return run_ardupilot(args)
-        return run_async(lambda: _serve(args))
+            return run_ardupilot(options)
+        return run_async(lambda: _serve(options))
     except KeyboardInterrupt:
         return 130
     except UsageError as exc:

@@ -8,15 +8,8 @@ from __future__ import annotations
 
 import asyncio
 from pathlib import Path
-from typing import Any
 
-from groundstation.commands.sitl_args import (
-    DEFAULT_HOME,
-    UsageError,
-    _check,
-    parse_latlon,
-    parse_udp_url,
-)
+from groundstation.commands.sitl_args import DEFAULT_HOME, SitlOptions, UsageError
 from sitl.ardupilot import (
     CameraLink,
     ardupilot_commands,
@@ -30,15 +23,15 @@ from world.scenario import load_scenario
 __all__ = ["run_ardupilot", "run_camera_only"]
 
 
-def run_ardupilot(args: Any) -> int:
+def run_ardupilot(options: SitlOptions) -> int:
     """``gcs sitl --ardupilot PATH``: start, supervise and stop N SITL instances."""
-    _check(args)
-    binary = Path(args.ardupilot)
+    assert options.ardupilot is not None
+    binary = Path(options.ardupilot)
     if not binary.is_file():
         raise UsageError(f"--ardupilot: no such file {binary}")
     defaults = (
-        Path(args.ardupilot_defaults)
-        if args.ardupilot_defaults
+        Path(options.ardupilot_defaults)
+        if options.ardupilot_defaults
         else (default_defaults_file(binary))
     )
     if not defaults.is_file():
@@ -47,45 +40,35 @@ def run_ardupilot(args: Any) -> int:
             "defaults file, Tools/autotest/models/plane.parm)"
         )
     scenario = None
-    if args.scenario is not None:
-        scenario = load_scenario(args.scenario)
-    count = args.count or (scenario.fleet.count if scenario is not None else 1)
-    home = parse_latlon(args.home) if args.home else None
+    if options.scenario is not None:
+        scenario = load_scenario(options.scenario)
+    count = options.count or (scenario.fleet.count if scenario is not None else 1)
+    home = options.home
     setup = scenario_setup(scenario, count, home or DEFAULT_HOME, home is not None)
     launches = ardupilot_commands(
-        binary, count, args.speedup, setup.home, defaults, Path("sitl-ardupilot").resolve()
+        binary, count, options.speedup, setup.home, defaults, Path("sitl-ardupilot").resolve()
     )
-    feed_address = (
-        None if args.detections == "none" else parse_udp_url(args.detections, "--detections")
-    )
-    feed = setup.make_feed(args.seed, args.anonymous_detections)
+    feed = setup.make_feed(options.seed, options.anonymous_detections)
     return asyncio.run(
-        launch(launches, feed, feed_address, setup.origin, args.speedup, args.duration)
+        launch(launches, feed, options.detections, setup.origin, options.speedup,
+               options.duration_s)
     )
 
 
-def run_camera_only(args: Any) -> int:
+def run_camera_only(options: SitlOptions) -> int:
     """``gcs sitl --camera-of HOST:PORT,...``: only the world and its camera, reading the
     positions of vehicles served elsewhere (e.g. the SITL containers of docker-compose.yml);
     the k-th endpoint is taken to be system id k."""
-    _check(args)
-    if args.scenario is None:
+    if options.scenario is None:
         raise UsageError("--camera-of needs --scenario (the world to play)")
-    scenario = load_scenario(args.scenario)
-    endpoints = []
-    for part in args.camera_of.split(","):
-        host, sep, port = part.strip().removeprefix("tcp:").rpartition(":")
-        if not sep or not host or not port.isdigit():
-            raise UsageError(f"--camera-of: expected HOST:PORT[,HOST:PORT...], got {part!r}")
-        endpoints.append((host, int(port)))
+    scenario = load_scenario(options.scenario)
+    endpoints = options.camera_of or ()
     setup = scenario_setup(scenario, len(endpoints), DEFAULT_HOME, False)
     cameras = [CameraLink(i + 1, h, p, setup.origin) for i, (h, p) in enumerate(endpoints)]
-    feed = setup.make_feed(args.seed, args.anonymous_detections)
-    feed_address = (
-        None if args.detections == "none" else parse_udp_url(args.detections, "--detections")
-    )
+    feed = setup.make_feed(options.seed, options.anonymous_detections)
+    feed_address = options.detections
     for cam in cameras:
         print(f"camera of system id {cam.system_id}: tcp:{cam.host}:{cam.port}", flush=True)
     return asyncio.run(
-        supervise([], cameras, feed, feed_address, args.speedup, args.duration)
+        supervise([], cameras, feed, feed_address, options.speedup, options.duration_s)
     )

@@ -1,19 +1,24 @@
-"""``gcs sitl``'s argument checks, shared by the built-in vehicles and the ArduPilot
-launcher (``groundstation.commands.sitl`` and ``sitl_ardupilot``): one line per mistake."""
+"""``gcs sitl``'s options: one frozen :class:`SitlOptions`, built and checked once from the
+parsed arguments by :func:`sitl_options` (one line per mistake, naming the option), and
+shared by the built-in vehicles and the ArduPilot launcher (``groundstation.commands.sitl``
+and ``sitl_ardupilot``). ``sitl/`` itself never sees arguments."""
 
 from __future__ import annotations
 
 import argparse
 import math
+from dataclasses import dataclass
 
 from domain import errors
 
 __all__ = [
     "DEFAULT_DETECTIONS",
     "DEFAULT_HOME",
+    "SitlOptions",
     "UsageError",
     "parse_latlon",
     "parse_udp_url",
+    "sitl_options",
 ]
 
 DEFAULT_HOME = (78.93, 11.92)  # near Ny-Alesund, Svalbard
@@ -44,7 +49,54 @@ def parse_latlon(text: str) -> tuple[float, float]:
     return lat, lon
 
 
-def _check(args: argparse.Namespace) -> None:
+@dataclass(frozen=True, slots=True)
+class SitlOptions:
+    """Everything ``gcs sitl`` was told, checked; addresses and home parsed.
+
+    ``detections`` None: no detection feed (``--detections none``); ``home`` None: the
+    scenario's launch point, else :data:`DEFAULT_HOME`; ``camera_of`` None: not the
+    camera-only mode; ``delay_s`` from ``--delay-ms``."""
+
+    count: int | None = None
+    speedup: float = 1.0
+    seed: int = 0
+    scenario: str | None = None
+    base_port: int = 5760
+    host: str = "127.0.0.1"
+    out: tuple[str, int] | None = None
+    detections: tuple[str, int] | None = DEFAULT_DETECTIONS
+    anonymous_detections: bool = False
+    wait_for_client: bool = False
+    airborne: bool = False
+    alt_m: float = 100.0
+    home: tuple[float, float] | None = None
+    fast_boot: bool = False
+    duration_s: float | None = None
+    faults: tuple[str, ...] = ()
+    loss: float | None = None
+    dup: float | None = None
+    reorder: float | None = None
+    delay_s: float | None = None
+    ardupilot: str | None = None
+    ardupilot_defaults: str | None = None
+    camera_of: tuple[tuple[str, int], ...] | None = None
+    signing_key_file: str | None = None
+    signing_passphrase_file: str | None = None
+
+
+def _camera_of(text: str) -> tuple[tuple[str, int], ...]:
+    endpoints = []
+    for part in text.split(","):
+        host, sep, port = part.strip().removeprefix("tcp:").rpartition(":")
+        if not sep or not host or not port.isdigit():
+            raise UsageError(f"--camera-of: expected HOST:PORT[,HOST:PORT...], got {part!r}")
+        endpoints.append((host, int(port)))
+    return tuple(endpoints)
+
+
+def sitl_options(args: argparse.Namespace) -> SitlOptions:
+    """Check ``gcs sitl``'s parsed arguments and freeze them (raises :class:`UsageError`
+    naming the option)."""
     if args.count is not None and not 1 <= args.count <= 250:
         raise UsageError(f"--count: expected 1..250, got {args.count}")
     if not (math.isfinite(args.speedup) and 0 < args.speedup <= 1000):
@@ -61,3 +113,37 @@ def _check(args: argparse.Namespace) -> None:
             raise UsageError(f"--{name}: expected a probability in [0, 1], got {value}")
     if args.delay_ms is not None and not (math.isfinite(args.delay_ms) and args.delay_ms >= 0):
         raise UsageError(f"--delay-ms: expected >= 0, got {args.delay_ms}")
+    if args.ardupilot is not None and (args.signing_key or args.signing_passphrase_file):
+        raise UsageError("--signing-*: real ArduPilot SITL keeps its own key; "
+                         "give it one with `gcs run --signing-setup`")
+    if args.signing_key and args.signing_passphrase_file:
+        raise UsageError("--signing-key and --signing-passphrase-file: give one, not both")
+    return SitlOptions(
+        count=args.count,
+        speedup=float(args.speedup),
+        seed=args.seed,
+        scenario=args.scenario,
+        base_port=args.base_port,
+        host=args.host,
+        out=parse_udp_url(args.out, "--out") if args.out else None,
+        detections=(
+            None if args.detections == "none" else parse_udp_url(args.detections, "--detections")
+        ),
+        anonymous_detections=args.anonymous_detections,
+        wait_for_client=args.wait_for_client,
+        airborne=args.airborne,
+        alt_m=float(args.alt),
+        home=parse_latlon(args.home) if args.home else None,
+        fast_boot=args.fast_boot,
+        duration_s=args.duration,
+        faults=tuple(args.fault),
+        loss=args.loss,
+        dup=args.dup,
+        reorder=args.reorder,
+        delay_s=None if args.delay_ms is None else args.delay_ms / 1000.0,
+        ardupilot=args.ardupilot,
+        ardupilot_defaults=args.ardupilot_defaults,
+        camera_of=_camera_of(args.camera_of) if args.camera_of is not None else None,
+        signing_key_file=args.signing_key,
+        signing_passphrase_file=args.signing_passphrase_file,
+    )

@@ -5,11 +5,20 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from enum import StrEnum
 from typing import Any
 
 from observer import ObserverConfig
+from planner import Objective
 
-__all__ = ["CoreConfig", "ReplanPolicy", "config_from_dict", "config_to_dict"]
+__all__ = ["BatteryAction", "CoreConfig", "ReplanPolicy", "config_from_dict", "config_to_dict"]
+
+
+class BatteryAction(StrEnum):
+    """What a low battery leads to: send the vehicle home, or stop commanding it."""
+
+    RTL = "rtl"
+    RELEASE = "release"
 
 
 @dataclass(frozen=True)
@@ -67,11 +76,11 @@ class CoreConfig:
     loiter_s: float = 30.0
     loiter_radius_m: float = 120.0
     tau: float = 0.5
-    objective: str = "sequence"
+    objective: Objective = Objective.SEQUENCE
     time_limit_s: float = 2.0
     min_sigma_fraction: float = 0.1
     retarget_threshold_m: float = 50.0
-    battery_low_action: str = "rtl"
+    battery_low_action: BatteryAction = BatteryAction.RTL
     priority_gain: float = 0.0
     priority_near_m: float = 300.0
     priority_far_m: float = 1500.0
@@ -83,13 +92,21 @@ class CoreConfig:
             raise ValueError("speed_m_s must be > 0")
         if self.loiter_s < 0:
             raise ValueError("loiter_s must be >= 0")
-        if self.battery_low_action not in ("rtl", "release"):
+        # plain strings (a journal's start line, a scenario) become the enums
+        if self.battery_low_action not in tuple(BatteryAction):
             raise ValueError("battery_low_action must be rtl or release")
+        if self.objective not in tuple(Objective):
+            raise ValueError(f"objective must be one of {', '.join(Objective)}")
+        object.__setattr__(self, "battery_low_action", BatteryAction(self.battery_low_action))
+        object.__setattr__(self, "objective", Objective(self.objective))
 
 
 def config_to_dict(config: CoreConfig) -> dict[str, Any]:
     """The core configuration as plain JSON/YAML data (journalled at start for replay)."""
-    return dataclasses.asdict(config)
+    out = dataclasses.asdict(config)
+    out["objective"] = str(config.objective)
+    out["battery_low_action"] = str(config.battery_low_action)
+    return out
 
 
 def config_from_dict(data: Mapping[str, Any]) -> CoreConfig:

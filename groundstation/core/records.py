@@ -27,7 +27,7 @@ from groundstation.core.commands import (
 from groundstation.core.events import (
     Event,
 )
-from planner import PlanResult, problem_from_dict, problem_to_dict, result_to_dict
+from planner import PlanResult, PlanStatus, problem_from_dict, problem_to_dict, result_to_dict
 
 __all__ = [
     "RecordError",
@@ -53,7 +53,7 @@ def result_to_record(result: PlanResult) -> dict[str, Any]:
 def result_from_record(data: Mapping[str, Any]) -> PlanResult:
     try:
         return PlanResult(
-            status=str(data["status"]),
+            status=PlanStatus(str(data["status"])),
             solver=str(data["solver"]),
             objective=float(data["objective"]),
             f1=float(data["f1"]),

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from groundstation.core.config import CoreConfig, ReplanPolicy
 from observer import ObserverConfig
+from planner import Objective
 from world.scenario import Scenario
 
 __all__ = ["core_config_for"]
@@ -30,7 +31,7 @@ def core_config_for(scenario: Scenario, objective: str | None = None) -> CoreCon
         loiter_s=scenario.fleet.loiter_s,
         loiter_radius_m=scenario.fleet.loiter_radius_m,
         tau=scenario.planner.tau,
-        objective=objective or scenario.planner.objective,
+        objective=Objective(objective or scenario.planner.objective),
         time_limit_s=scenario.planner.time_limit_s,
         min_sigma_fraction=scenario.planner.min_sigma_fraction,
         priority_gain=obs.priority_gain,

@@ -1,40 +1,118 @@
-"""Effective configuration of ``gcs run``: defaults < ``--config FILE`` (YAML) < flags.
+"""Effective configuration of ``gcs run``: nested, frozen, typed.
 
-Every flag has a YAML key of the same name with dashes as underscores (``--on-exit`` ->
-``on_exit``); per-vehicle settings live under ``vehicle_settings`` keyed by system id. An
-unknown key, or a value of the wrong type or range, is a :class:`ConfigError` naming the
-key. ``None`` for a core setting (``loiter_s`` ...) means "the scenario's, else the core's
-default".
+Defaults < ``--config FILE`` (YAML) < flags. The YAML may use the nested spelling
+(``fleet: {lost_after_s: 10, battery: {low_pct: 30}}``) or the flat keys of earlier
+releases (``lost_after_s: 10``, ``battery_low_pct: 30``), which are aliases of the nested
+fields (:data:`groundstation.daemon.config_parse.ALIASES`). Parsing is
+:func:`groundstation.daemon.config_parse.parse_config`, one pure function; defaults that
+depend on other keys are resolved by :func:`resolve`, another pure function
+(``resolve(resolve(c)) == resolve(c)``). Every closed set of strings is an enum
+(:class:`OnExit`, :class:`StatusMode`, :class:`ReplanTrigger`, :class:`OperatingCenter`
+here; the core's :class:`~groundstation.core.config.BatteryAction` and the planner's
+:class:`~planner.Objective`, re-exported). ``None`` for a core setting
+(``loiter_s`` ...) means "the scenario's, else the core's default".
+
+:meth:`DaemonConfig.to_dict` is the nested plain data written to the run folder's
+``config.yaml`` and the journal's ``start`` line; parsing it again gives an equal config.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
+import types
+from collections.abc import Mapping
 from dataclasses import dataclass, field
+from enum import StrEnum
 from typing import Any
 
 from domain import errors
+from domain.geodesy import GeoOrigin
+from groundstation.core.config import BatteryAction
 from groundstation.vehicle.settings import ControllerSettings
+from planner import Objective
 from world.yaml_fields import load_yaml_file
 
 __all__ = [
+    "BatteryAction",
+    "BatteryConfig",
     "ConfigError",
     "DaemonConfig",
+    "Endpoint",
+    "FleetConfig",
+    "HttpConfig",
+    "LinksConfig",
+    "MissionConfig",
+    "Objective",
+    "OnExit",
+    "OperatingCenter",
+    "PlannerConfig",
+    "RecordsConfig",
+    "ReplanTrigger",
+    "SigningConfig",
+    "SimConfig",
+    "StatusMode",
     "VehicleSettings",
     "controller_settings",
     "load_config_file",
     "parse_hostport",
+    "parse_latlon",
+    "resolve",
 ]
+
+SIM_SPEEDUP = 50.0
+"""Default speed-up with ``sim:N`` (real vehicles: 1)."""
 
 
 class ConfigError(errors.ConfigError):
-    """Bad configuration; the message names the key."""
+    """Bad configuration; the message names the key (``--flag`` or ``dotted.path``)."""
 
 
-@dataclass(frozen=True)
+class OnExit(StrEnum):
+    """What commanded vehicles do when floe stops."""
+
+    LOITER = "loiter"
+    RTL = "rtl"
+
+
+class StatusMode(StrEnum):
+    """The console: live table (``auto`` on a TTY), log lines, or nothing."""
+
+    AUTO = "auto"
+    TABLE = "table"
+    LOG = "log"
+    QUIET = "quiet"
+
+
+class ReplanTrigger(StrEnum):
+    """What makes the core replan: events, a period, or both."""
+
+    EVENT = "event"
+    PERIOD = "period"
+    BOTH = "both"
+
+
+class OperatingCenter(StrEnum):
+    """Centre of the operating area: the mission origin (home) or the boat."""
+
+    HOME = "home"
+    BOAT = "boat"
+
+
+@dataclass(frozen=True, slots=True)
+class Endpoint:
+    """A ``HOST:PORT`` to listen on (port 0: ephemeral)."""
+
+    host: str
+    port: int
+
+    def __str__(self) -> str:
+        return f"{self.host}:{self.port}"
+
+
+@dataclass(frozen=True, slots=True)
 class VehicleSettings:
-    """Per-vehicle settings (``vehicle_settings: {SYSID: {...}}``)."""
+    """Per-vehicle settings (``fleet.settings`` / ``vehicle_settings: {SYSID: {...}}``)."""
 
     name: str | None = None
     altitude_m: float | None = None
@@ -46,197 +124,218 @@ class VehicleSettings:
     """This vehicle's signing passphrase file (key = SHA-256 of its first line)."""
 
 
-@dataclass
-class DaemonConfig:
-    """Everything ``gcs run`` can be told (see docs/daemon.md for each key)."""
+@dataclass(frozen=True, slots=True)
+class LinksConfig:
+    """The MAVLink side: vehicle links (or ``sim:N``), ``--out`` links, binding, transfers."""
 
-    vehicles: list[str] = field(default_factory=list)
-    out: list[str] = field(default_factory=list)
-    scenario: str | None = None
-    targets: str | None = None
-    duration: float | None = None
-    launch: bool | None = None
-    advisory: bool = False
-    on_exit: str = "loiter"
-    http: str = "127.0.0.1:0"
-    http_allow_origins: list[str] = field(default_factory=list)
-    http_max_targets: int = 100
-    http_max_ws_clients: int = 16
-    http_max_writes_per_s: float = 20.0
-    http_header_timeout_s: float = 5.0
-    detections: str = "127.0.0.1:14600"
-    run_dir: str = "runs"
-    journal: str | None = None
-    gcs_system_id: int = 245
-    speedup: float = 50.0
-    seed: int = 0
-    num_workers: int = 1
-    solver_time_limit_s: float | None = None
-    origin: str | None = None
-    altitude_m: float = 100.0
-    altitude_step_m: float = 15.0
-    loiter_s: float | None = None
-    loiter_radius_m: float | None = None
-    replan: str | None = None
-    period_s: float | None = None
-    commit: bool | None = None
-    operating_radius_m: float | None = 10000.0
-    operating_center: str = "home"
-    lost_after_s: float = 5.0
+    vehicles: tuple[str, ...] = ()
+    out: tuple[str, ...] = ()
     rebind_after_s: float = 10.0
-    override_grace_s: float = 2.0
-    progress_timeout_s: float = 120.0
-    battery_low_pct: float = 25.0
-    battery_low_action: str = "rtl"
-    telemetry_rate_hz: float = 2.0
+    gcs_system_id: int = 245
     transfer_timeout_s: float = 1.5
     transfer_retries: int = 5
-    track_period_s: float = 5.0
-    sim_airborne: bool = False
-    sim_fast_boot: bool = True
-    sim_loss: float = 0.0
-    sim_fault: list[str] = field(default_factory=list)
-    status: str = "auto"
-    signing_key_file: str | None = None
-    signing_passphrase_file: str | None = None
-    signing_setup: bool = False
-    vehicle_settings: dict[int, VehicleSettings] = field(default_factory=dict)
 
-    # ------------------------------------------------------------------ derived
+    @property
+    def sim_count(self) -> int | None:
+        """N for ``sim:N`` (None: real links)."""
+        if len(self.vehicles) == 1 and self.vehicles[0].startswith("sim:"):
+            count = self.vehicles[0][4:]
+            return int(count) if count.isdigit() else None
+        return None
+
+
+@dataclass(frozen=True, slots=True)
+class MissionConfig:
+    """What is flown: scenario, targets, duration, origin, area, loiters.
+
+    ``scenario``: None = unset (``sim:N`` resolves it to ``default``), ``"none"`` = no
+    scenario asked for explicitly; :attr:`scenario_to_load` is what to load."""
+
+    scenario: str | None = None
+    targets: str | None = None
+    duration_s: float | None = None
+    origin: GeoOrigin | None = None
+    seed: int = 0
+    loiter_s: float | None = None
+    loiter_radius_m: float | None = None
+    operating_radius_m: float | None = 10000.0
+    operating_center: OperatingCenter = OperatingCenter.HOME
+    track_period_s: float = 5.0
+
+    @property
+    def scenario_to_load(self) -> str | None:
+        """The scenario name or file to load (None: none)."""
+        return None if self.scenario in (None, "none") else self.scenario
+
+
+@dataclass(frozen=True, slots=True)
+class BatteryConfig:
+    """Low battery: the level (percent) that takes a vehicle out, and what follows."""
+
+    low_pct: float = 25.0
+    action: BatteryAction = BatteryAction.RTL
+
+
+@dataclass(frozen=True, slots=True)
+class FleetConfig:
+    """How floe treats its vehicles (altitudes, launch, evidence timeouts, per vehicle)."""
+
+    altitude_m: float = 100.0
+    altitude_step_m: float = 15.0
+    launch: bool | None = None
+    lost_after_s: float = 5.0
+    override_grace_s: float = 2.0
+    progress_timeout_s: float = 120.0
+    telemetry_rate_hz: float = 2.0
+    battery: BatteryConfig = field(default_factory=BatteryConfig)
+    settings: Mapping[int, VehicleSettings] = field(
+        default_factory=lambda: types.MappingProxyType({})
+    )
+
+    def settings_for(self, system_id: int) -> VehicleSettings:
+        return self.settings.get(system_id, VehicleSettings())
+
+
+@dataclass(frozen=True, slots=True)
+class PlannerConfig:
+    """The planner and the replan policy (None: the scenario's, else the core's)."""
+
+    objective: Objective | None = None
+    time_limit_s: float | None = None
+    num_workers: int = 1
+    replan: ReplanTrigger | None = None
+    period_s: float | None = None
+    commit: bool | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class HttpConfig:
+    """The control API: where it listens (None: off), allowed origins, limits."""
+
+    bind: Endpoint | None = Endpoint("127.0.0.1", 0)
+    allow_origins: tuple[str, ...] = ()
+    max_targets: int = 100
+    max_ws_clients: int = 16
+    max_writes_per_s: float = 20.0
+    header_timeout_s: float = 5.0
+
+
+@dataclass(frozen=True, slots=True)
+class RecordsConfig:
+    """Where the run folder and the journal go."""
+
+    run_dir: str = "runs"
+    journal: str | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class SigningConfig:
+    """MAVLink 2 signing: the key file or passphrase file for all vehicles, and setup.
+    Only paths: key material never enters the configuration."""
+
+    key_file: str | None = None
+    passphrase_file: str | None = None
+    setup: bool = False
+
+
+@dataclass(frozen=True, slots=True)
+class SimConfig:
+    """The built-in vehicles of ``sim:N`` (the count is ``links.vehicles``)."""
+
+    airborne: bool = False
+    fast_boot: bool = True
+    loss: float = 0.0
+    faults: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True, slots=True)
+class DaemonConfig:
+    """Everything ``gcs run`` can be told (docs/daemon.md has each key)."""
+
+    links: LinksConfig = field(default_factory=LinksConfig)
+    mission: MissionConfig = field(default_factory=MissionConfig)
+    fleet: FleetConfig = field(default_factory=FleetConfig)
+    planner: PlannerConfig = field(default_factory=PlannerConfig)
+    http: HttpConfig = field(default_factory=HttpConfig)
+    records: RecordsConfig = field(default_factory=RecordsConfig)
+    signing: SigningConfig = field(default_factory=SigningConfig)
+    sim: SimConfig = field(default_factory=SimConfig)
+    detections: Endpoint | None = Endpoint("127.0.0.1", 14600)
+    speedup: float | None = None
+    advisory: bool = False
+    status: StatusMode = StatusMode.AUTO
+    on_exit: OnExit = OnExit.LOITER
+
     @property
     def sim_count(self) -> int | None:
         """N for ``--vehicles sim:N`` (None: real links)."""
-        if len(self.vehicles) == 1 and self.vehicles[0].startswith("sim:"):
-            return int(self.vehicles[0][4:])
-        return None
+        return self.links.sim_count
 
-    def resolve_defaults(self) -> None:
-        """Defaults that depend on other keys: ``sim:N`` without a scenario flies the bundled
-        ``default`` scenario (``none``: no scenario), and launches its vehicles unless they
-        start airborne."""
-        if self.scenario == "none":
-            self.scenario = None
-        elif self.sim_count is not None and self.scenario is None:
-            self.scenario = "default"
-        if self.launch is None:
-            self.launch = self.sim_count is not None and not self.sim_airborne
+    @property
+    def speedup_x(self) -> float:
+        """The resolved speed-up (``speedup`` unless unresolved: then its default)."""
+        if self.speedup is not None:
+            return self.speedup
+        return SIM_SPEEDUP if self.sim_count is not None else 1.0
 
     def settings_for(self, system_id: int) -> VehicleSettings:
-        return self.vehicle_settings.get(system_id, VehicleSettings())
+        return self.fleet.settings_for(system_id)
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain data (the run folder's config.yaml and the journal's start event)."""
-        out = dataclasses.asdict(self)
-        out["vehicle_settings"] = {
-            int(k): {n: v for n, v in dataclasses.asdict(s).items() if v is not None}
-            for k, s in self.vehicle_settings.items()
-        }
+        """Nested plain data (config.yaml, the journal's start line): enums as their
+        values, the origin as ``LAT,LON``, endpoints as ``HOST:PORT`` or ``off``, per-vehicle
+        settings without their unset keys. ``parse_config(c.to_dict(), {}) == c``."""
+        out = {f.name: _plain(getattr(self, f.name)) for f in dataclasses.fields(self)}
+        out["detections"] = _off(self.detections)
         return out
 
-    def validate(self) -> None:
-        """Raise :class:`ConfigError` naming the first bad key."""
-        if not self.vehicles:
-            raise ConfigError("vehicles: at least one link URL or sim:N is required")
-        sims = [v for v in self.vehicles if v.startswith("sim:")]
-        if sims:
-            if len(self.vehicles) != 1:
-                raise ConfigError("vehicles: sim:N cannot be mixed with other links")
-            count = sims[0][4:]
-            if not count.isdigit() or not 1 <= int(count) <= 50:
-                raise ConfigError(f"vehicles: expected sim:N with N in 1..50, got {sims[0]!r}")
-        _positive("speedup", self.speedup, high=1000.0)
-        if self.duration is not None:
-            _positive("duration", self.duration)
-        if self.on_exit not in ("loiter", "rtl"):
-            raise ConfigError(f"on_exit: expected loiter or rtl, got {self.on_exit!r}")
-        if not 1 <= self.gcs_system_id <= 255 or self.gcs_system_id == 255:
-            raise ConfigError(
-                f"gcs_system_id: expected 1..254 (255 is what other GCSs use), "
-                f"got {self.gcs_system_id}"
-            )
-        if not 1 <= self.num_workers <= 64:
-            raise ConfigError(f"num_workers: expected 1..64, got {self.num_workers}")
-        for name in (
-            "altitude_m",
-            "lost_after_s",
-            "rebind_after_s",
-            "telemetry_rate_hz",
-            "transfer_timeout_s",
-            "track_period_s",
-            "override_grace_s",
-            "progress_timeout_s",
-        ):
-            _positive(name, getattr(self, name))
-        for name in ("solver_time_limit_s", "loiter_radius_m", "period_s"):
-            value = getattr(self, name)
-            if value is not None:
-                _positive(name, value)
-        if self.loiter_s is not None and not (
-            math.isfinite(self.loiter_s) and 0 <= self.loiter_s <= 65535
-        ):
-            raise ConfigError(f"loiter_s: expected 0..65535 s, got {self.loiter_s}")
-        if not (math.isfinite(self.altitude_step_m) and self.altitude_step_m >= 0):
-            raise ConfigError(f"altitude_step_m: expected >= 0, got {self.altitude_step_m}")
-        if self.operating_radius_m is not None:
-            _positive("operating_radius_m", self.operating_radius_m)
-        if self.operating_center not in ("home", "boat"):
-            raise ConfigError(
-                f"operating_center: expected home or boat, got {self.operating_center!r}"
-            )
-        if self.replan is not None and self.replan not in ("event", "period", "both"):
-            raise ConfigError(f"replan: expected event, period or both, got {self.replan!r}")
-        if self.replan in ("period", "both") and self.period_s is None:
-            raise ConfigError("period_s: required when replan is period or both")
-        if not 0 <= self.battery_low_pct <= 100:
-            raise ConfigError(f"battery_low_pct: expected 0..100, got {self.battery_low_pct}")
-        if self.battery_low_action not in ("rtl", "release"):
-            raise ConfigError(
-                f"battery_low_action: expected rtl or release, got {self.battery_low_action!r}"
-            )
-        if not 0 <= self.transfer_retries <= 50:
-            raise ConfigError(f"transfer_retries: expected 0..50, got {self.transfer_retries}")
-        if not 0 <= self.sim_loss < 1:
-            raise ConfigError(f"sim_loss: expected a probability in [0, 1), got {self.sim_loss}")
-        if self.status not in ("auto", "table", "log", "quiet"):
-            raise ConfigError(f"status: expected auto, table, log or quiet, got {self.status!r}")
-        for key in ("http", "detections"):
-            value = getattr(self, key)
-            if value != "off":
-                parse_hostport(value, key)
-        if self.origin is not None:
-            parse_latlon(self.origin, "origin")
-        self._validate_http()
-        alts = [s.altitude_m for s in self.vehicle_settings.values() if s.altitude_m is not None]
-        if len(alts) != len(set(alts)):
-            raise ConfigError("vehicle_settings: two vehicles share an altitude_m")
+
+def _plain(value: Any) -> Any:
+    if isinstance(value, GeoOrigin):
+        return f"{value.lat_deg!r},{value.lon_deg!r}"
+    if isinstance(value, Endpoint):
+        return str(value)
+    if isinstance(value, VehicleSettings):
+        return {f.name: getattr(value, f.name) for f in dataclasses.fields(value)
+                if getattr(value, f.name) is not None}
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        out = {f.name: _plain(getattr(value, f.name)) for f in dataclasses.fields(value)}
+        if isinstance(value, HttpConfig):
+            out["bind"] = _off(value.bind)
+        return out
+    if isinstance(value, StrEnum):
+        return value.value
+    if isinstance(value, tuple):
+        return [_plain(v) for v in value]
+    if isinstance(value, Mapping):
+        return {k: _plain(v) for k, v in value.items()}
+    return value
 
 
-    def _validate_http(self) -> None:
-        from groundstation.daemon.control_guard import parse_origin  # pure, no aiohttp
-
-        for text in self.http_allow_origins:
-            try:
-                parse_origin(text)
-            except ValueError as exc:
-                raise ConfigError(f"http_allow_origins: {exc}") from None
-        if not 1 <= self.http_max_targets <= 100_000:
-            raise ConfigError(f"http_max_targets: expected 1..100000, got {self.http_max_targets}")
-        if not 1 <= self.http_max_ws_clients <= 10_000:
-            raise ConfigError(
-                f"http_max_ws_clients: expected 1..10000, got {self.http_max_ws_clients}"
-            )
-        _positive("http_max_writes_per_s", self.http_max_writes_per_s, high=10_000.0)
-        _positive("http_header_timeout_s", self.http_header_timeout_s, high=300.0)
+def _off(value: Endpoint | None) -> Any:
+    return "off" if value is None else str(value)
 
 
-def _positive(name: str, value: float, high: float = math.inf) -> None:
-    if not (isinstance(value, int | float) and math.isfinite(value) and 0 < value <= high):
-        limit = f" and <= {high:g}" if math.isfinite(high) else ""
-        raise ConfigError(f"{name}: expected a number > 0{limit}, got {value!r}")
+def resolve(config: DaemonConfig) -> DaemonConfig:
+    """Defaults that depend on other keys, resolved (pure and idempotent):
+
+    * ``speedup``: 50 with ``sim:N``, else 1;
+    * ``mission.scenario``: ``default`` with ``sim:N`` when unset (``none``: none);
+    * ``fleet.launch``: on for ``sim:N`` unless its vehicles start airborne, else off."""
+    sim = config.sim_count is not None
+    mission, fleet = config.mission, config.fleet
+    if sim and mission.scenario is None:
+        mission = dataclasses.replace(mission, scenario="default")
+    if fleet.launch is None:
+        fleet = dataclasses.replace(fleet, launch=sim and not config.sim.airborne)
+    return dataclasses.replace(
+        config, speedup=config.speedup_x, mission=mission, fleet=fleet
+    )
 
 
 def parse_hostport(text: str, key: str) -> tuple[str, int]:
-    """``HOST:PORT`` (``udp:`` prefix allowed) -> (host, port); port 0 = ephemeral."""
+    """``HOST:PORT`` (``udp:``/``tcp:``/``http:`` prefix allowed) -> (host, port); port 0 =
+    ephemeral."""
     body = text.split(":", 1)[1] if text.startswith(("udp:", "tcp:", "http:")) else text
     host, sep, port = body.rpartition(":")
     if not sep or not host or not port.isdigit() or not 0 <= int(port) < 65536:
@@ -253,85 +352,6 @@ def parse_latlon(text: str, key: str) -> tuple[float, float]:
     if not (math.isfinite(lat) and -90 <= lat <= 90 and math.isfinite(lon) and -180 <= lon <= 180):
         raise ConfigError(f"{key}: latitude/longitude out of range in {text!r}")
     return lat, lon
-
-
-def _field_types() -> dict[str, str]:
-    return {f.name: str(f.type) for f in dataclasses.fields(DaemonConfig)}
-
-
-def _coerce(key: str, value: Any, type_text: str) -> Any:
-    optional = "None" in type_text
-    if value is None:
-        if optional:
-            return None
-        raise ConfigError(f"{key}: a value is required")
-    if type_text.startswith("list"):
-        if isinstance(value, str):
-            value = [value]
-        if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
-            raise ConfigError(f"{key}: expected a list of strings")
-        return list(value)
-    if type_text.startswith("bool"):
-        if not isinstance(value, bool):
-            raise ConfigError(f"{key}: expected true or false, got {value!r}")
-        return value
-    if type_text.startswith("int"):
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise ConfigError(f"{key}: expected an integer, got {value!r}")
-        return value
-    if type_text.startswith("float"):
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            raise ConfigError(f"{key}: expected a number, got {value!r}")
-        return float(value)
-    if type_text.startswith("str"):
-        if not isinstance(value, str):
-            raise ConfigError(f"{key}: expected a string, got {value!r}")
-        return value
-    raise ConfigError(f"{key}: cannot be set here")
-
-
-def _vehicle_settings(value: Any) -> dict[int, VehicleSettings]:
-    if not isinstance(value, dict):
-        raise ConfigError("vehicle_settings: expected a mapping of system id -> settings")
-    out: dict[int, VehicleSettings] = {}
-    names = {f.name for f in dataclasses.fields(VehicleSettings)}
-    for sysid, settings in value.items():
-        where = f"vehicle_settings.{sysid}"
-        if isinstance(sysid, bool) or not isinstance(sysid, int) or not 1 <= sysid <= 255:
-            raise ConfigError(f"{where}: the key must be a system id 1..255")
-        if not isinstance(settings, dict):
-            raise ConfigError(f"{where}: expected a mapping")
-        kwargs: dict[str, Any] = {}
-        for k, v in settings.items():
-            if k not in names:
-                raise ConfigError(f"{where}.{k}: unknown key (known: {', '.join(sorted(names))})")
-            if k in ("name", "signing_key_file", "signing_passphrase_file"):
-                if not isinstance(v, str) or not v:
-                    raise ConfigError(f"{where}.{k}: expected a non-empty string")
-                kwargs[k] = v
-            else:
-                if (
-                    isinstance(v, bool)
-                    or not isinstance(v, int | float)
-                    or not (math.isfinite(v) and v > 0)
-                ):
-                    raise ConfigError(f"{where}.{k}: expected a number > 0, got {v!r}")
-                kwargs[k] = float(v)
-        out[sysid] = VehicleSettings(**kwargs)
-    return out
-
-
-def apply_mapping(config: DaemonConfig, data: dict[str, Any], where: str = "") -> None:
-    """Set ``config`` fields from a YAML mapping (unknown keys are errors naming the key)."""
-    types = _field_types()
-    for key, value in data.items():
-        name = f"{where}{key}"
-        if not isinstance(key, str) or key not in types:
-            raise ConfigError(f"{name}: unknown key (see docs/daemon.md for the keys)")
-        if key == "vehicle_settings":
-            config.vehicle_settings = _vehicle_settings(value)
-            continue
-        setattr(config, key, _coerce(name, value, types[key]))
 
 
 def load_config_file(path: str) -> dict[str, Any]:
@@ -351,15 +371,16 @@ def controller_settings(
     config: DaemonConfig, vehicle: VehicleSettings, index: int
 ) -> ControllerSettings:
     """The mapping from the daemon's configuration (the only place that knows both)."""
+    fleet = config.fleet
     return ControllerSettings(
-        altitude_m=vehicle.altitude_m or config.altitude_m + config.altitude_step_m * index,
+        altitude_m=vehicle.altitude_m or fleet.altitude_m + fleet.altitude_step_m * index,
         loiter_radius_m=vehicle.loiter_radius_m,
         speed_m_s=vehicle.speed_m_s,
-        launch=bool(config.launch),
+        launch=bool(fleet.launch),
         advisory=config.advisory,
-        lost_after_s=config.lost_after_s,
-        override_grace_s=config.override_grace_s,
-        battery_low_pct=config.battery_low_pct,
-        telemetry_rate_hz=config.telemetry_rate_hz,
-        progress_timeout_s=config.progress_timeout_s,
+        lost_after_s=fleet.lost_after_s,
+        override_grace_s=fleet.override_grace_s,
+        battery_low_pct=fleet.battery.low_pct,
+        telemetry_rate_hz=fleet.telemetry_rate_hz,
+        progress_timeout_s=fleet.progress_timeout_s,
     )

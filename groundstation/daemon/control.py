@@ -80,7 +80,7 @@ class DaemonController:
             "speedup": d.clock.speedup,
             "advisory": d.config.advisory,
             "origin": {"lat_deg": origin.lat_deg, "lon_deg": origin.lon_deg} if origin else None,
-            "operating_radius_m": d.config.operating_radius_m,
+            "operating_radius_m": d.config.mission.operating_radius_m,
             "operating_center_m": list(d.area_center()),
             "vehicles": vehicles,
             "targets": targets,
@@ -116,7 +116,7 @@ class DaemonController:
         if not self.daemon.inside_area(x, y):
             return (
                 f"position ({x:.0f}, {y:.0f}) m is outside the operating area "
-                f"({self.daemon.config.operating_radius_m:g} m)"
+                f"({self.daemon.config.mission.operating_radius_m:g} m)"
             )
         return x, y
 

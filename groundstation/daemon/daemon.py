@@ -38,7 +38,7 @@ from groundstation.core.decision import DecisionCore
 from groundstation.core.metrics import MetricsRecorder
 from groundstation.core.records import command_to_record, event_to_record
 from groundstation.daemon.clock import MissionClock
-from groundstation.daemon.config import DaemonConfig
+from groundstation.daemon.config import DaemonConfig, OnExit, OperatingCenter
 from groundstation.daemon.journal import Journal
 from groundstation.daemon.planning import SolverRunner
 from groundstation.daemon.session import VehicleSession
@@ -90,12 +90,12 @@ class Daemon:
         self.core = DecisionCore(core_config)
         # every input the core sees is journalled exactly (replay feeds them again)
         self.core.on_input = lambda event: journal.write_record(event_to_record(event))
-        self.encoder = MavlinkEncoder(config.gcs_system_id, M.MAV_COMP_ID_MISSIONPLANNER)
+        self.encoder = MavlinkEncoder(config.links.gcs_system_id, M.MAV_COMP_ID_MISSIONPLANNER)
         self.router = Router(
             self._on_vehicle_frame,
             self._on_out_frame,
             tlog,
-            rules=BindingRules(rebind_after_s=config.rebind_after_s),
+            rules=BindingRules(rebind_after_s=config.links.rebind_after_s),
             now_s=clock.now_s,
             on_notice=lambda event, fields: self.journal(event, **fields),
         )
@@ -106,8 +106,8 @@ class Daemon:
         self.by_name: dict[str, VehicleSession] = {}
         self.solver = SolverRunner(
             self._on_solved,
-            num_workers=config.num_workers,
-            seed=config.seed,
+            num_workers=config.planner.num_workers,
+            seed=config.mission.seed,
             on_error=self._on_solve_error,
         )
         self.metrics = MetricsRecorder()
@@ -175,7 +175,7 @@ class Daemon:
 
     def clip(self, x_m: float, y_m: float) -> tuple[float, float, bool]:
         """Clip a waypoint into the operating area (a circle around home or the boat)."""
-        radius = self.config.operating_radius_m
+        radius = self.config.mission.operating_radius_m
         if radius is None:
             return x_m, y_m, False
         cx, cy = self.area_center()
@@ -186,12 +186,13 @@ class Daemon:
         return cx + (x_m - cx) * k, cy + (y_m - cy) * k, True
 
     def area_center(self) -> tuple[float, float]:
-        if self.config.operating_center == "boat" and self.boat_xy_m is not None:
+        center = self.config.mission.operating_center
+        if center == OperatingCenter.BOAT and self.boat_xy_m is not None:
             return self.boat_xy_m
         return 0.0, 0.0
 
     def inside_area(self, x_m: float, y_m: float) -> bool:
-        radius = self.config.operating_radius_m
+        radius = self.config.mission.operating_radius_m
         if radius is None:
             return True
         cx, cy = self.area_center()
@@ -243,7 +244,7 @@ class Daemon:
     def _on_vehicle_frame(self, rx: Received) -> None:
         msg = rx.message
         sysid = rx.system_id
-        if sysid == self.config.gcs_system_id:
+        if sysid == self.config.links.gcs_system_id:
             return
         session = self.sessions.get(sysid)
         if session is None:
@@ -279,8 +280,8 @@ class Daemon:
             self.router.send_to,
             self.encoder,
             self.clock,
-            timeout_s=self.config.transfer_timeout_s,
-            retries=self.config.transfer_retries,
+            timeout_s=self.config.links.transfer_timeout_s,
+            retries=self.config.links.transfer_retries,
         )
         index = sysid - 1 if self.config.sim_count else len(self.sessions)
         session = VehicleSession(
@@ -297,7 +298,7 @@ class Daemon:
         """Another ground station's traffic (through --out): its mission upload to a vehicle
         floe commands is an operator override."""
         msg = rx.message
-        if rx.system_id == self.config.gcs_system_id:
+        if rx.system_id == self.config.links.gcs_system_id:
             return
         if msg.get_type() in MISSION_MESSAGES_FROM_GCS:
             if getattr(msg, "mission_type", 0) != M.MAV_MISSION_TYPE_MISSION:
@@ -399,7 +400,7 @@ class Daemon:
                 self.journal("stop_wait_timeout", vehicle=session.id)
             if (
                 self.internal_error is None
-                and self.config.on_exit == "rtl"
+                and self.config.on_exit == OnExit.RTL
                 and session.status == "active"
                 and not self.config.advisory
                 and session.link != "lost"
@@ -428,7 +429,8 @@ class Daemon:
         while not self.stopping:
             now = self.clock.now_s()
             self.tick(now)
-            if self.config.duration is not None and now >= self.config.duration:
+            duration_s = self.config.mission.duration_s
+            if duration_s is not None and now >= duration_s:
                 self.request_stop("duration")
                 return
             self._kick.clear()
@@ -463,7 +465,7 @@ class Daemon:
             self._next_link_report_s = now + LINK_REPORT_PERIOD_S
             self.report_links()
         if now >= self._next_track_s:
-            self._next_track_s = now + self.config.track_period_s
+            self._next_track_s = now + self.config.mission.track_period_s
             for tr in self.core.observer.tracks():
                 self.journal(
                     "track",

@@ -101,11 +101,12 @@ def _setup_logging(run_dir: Path) -> list[tuple[logging.Logger, logging.Handler]
 def open_run_files(config: DaemonConfig, clock: MissionClock) -> RunFiles:
     """Probe, create the run folder, open the journal, tlog and log, write config.yaml.
     Raises :class:`StorageError` (one line naming the path); nothing is left open then."""
-    check_writable(config.run_dir, "run_dir", folder=True)
-    if config.journal:
-        check_writable(config.journal, "journal")
-    run_dir = make_run_dir(config.run_dir)
-    journal_path = Path(config.journal) if config.journal else run_dir / "journal.jsonl"
+    records = config.records
+    check_writable(records.run_dir, "run_dir", folder=True)
+    if records.journal:
+        check_writable(records.journal, "journal")
+    run_dir = make_run_dir(records.run_dir)
+    journal_path = Path(records.journal) if records.journal else run_dir / "journal.jsonl"
     try:
         journal = Journal(journal_path, clock.now_s, clock.unix_s)
     except OSError as exc:

@@ -82,7 +82,7 @@ class VehicleSession:
             name, system_id, controller_settings(config, settings, index)
         )
         self.telemetry = VehicleTelemetry(
-            system_id, host.origin, battery_low_pct=config.battery_low_pct,
+            system_id, host.origin, battery_low_pct=config.fleet.battery.low_pct,
             component_id=component_id,
         )  # fmt: skip
         self.alt_m = self.controller.alt_m
@@ -270,7 +270,7 @@ class VehicleSession:
             return io.UploadOutcome(False, 0, str(exc), 0)
         retries = 0
         last = ""
-        for attempt in range(self.config.transfer_retries + 1):
+        for attempt in range(self.config.links.transfer_retries + 1):
             if attempt:
                 retries += 1
                 await asyncio.sleep(self.clock.wall_s(self.controller.s.retry_pause_s))

@@ -99,14 +99,15 @@ def load_signing_keys(
     env = os.environ if environ is None else environ
     sources: dict[str, str] = {}
     default: bytes | None = None
-    if config.signing_key_file and config.signing_passphrase_file:
+    signing = config.signing
+    if signing.key_file and signing.passphrase_file:
         raise ConfigError("signing_key_file and signing_passphrase_file: give one, not both")
-    if config.signing_key_file:
-        default = _read_key(config.signing_key_file, False, "signing_key_file")
-        sources["all"] = config.signing_key_file
-    elif config.signing_passphrase_file:
-        default = _read_key(config.signing_passphrase_file, True, "signing_passphrase_file")
-        sources["all"] = config.signing_passphrase_file
+    if signing.key_file:
+        default = _read_key(signing.key_file, False, "signing_key_file")
+        sources["all"] = signing.key_file
+    elif signing.passphrase_file:
+        default = _read_key(signing.passphrase_file, True, "signing_passphrase_file")
+        sources["all"] = signing.passphrase_file
     elif env.get(PASSPHRASE_ENV):
         try:
             from groundstation.mavlink.signing import key_from_passphrase
@@ -116,7 +117,7 @@ def load_signing_keys(
             raise ConfigError(f"{PASSPHRASE_ENV}: {exc}") from None
         sources["all"] = f"${PASSPHRASE_ENV}"
     per_vehicle: dict[int, bytes] = {}
-    for sysid, settings in sorted(config.vehicle_settings.items()):
+    for sysid, settings in sorted(config.fleet.settings.items()):
         where = f"vehicle_settings.{sysid}"
         if settings.signing_key_file and settings.signing_passphrase_file:
             raise ConfigError(f"{where}: give signing_key_file or signing_passphrase_file")
@@ -130,9 +131,9 @@ def load_signing_keys(
                 settings.signing_passphrase_file, True, f"{where}.signing_passphrase_file"
             )
             sources[str(sysid)] = settings.signing_passphrase_file
-    if config.signing_setup and default is None and not per_vehicle:
+    if signing.setup and default is None and not per_vehicle:
         raise ConfigError("signing_setup: needs a signing key (signing_key_file, ...)")
-    return SigningKeys(default, per_vehicle, config.signing_setup, sources)
+    return SigningKeys(default, per_vehicle, signing.setup, sources)
 
 
 class SigningGate:

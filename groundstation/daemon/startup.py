@@ -31,10 +31,11 @@ from domain.errors import ConfigError, UsageError
 from domain.geodesy import GeoOrigin
 from domain.limits import MAX_COORDINATE_M, MAX_SPEED_M_S, MAX_TARGETS
 from groundstation.core import events as ev
-from groundstation.core.config import CoreConfig, ReplanPolicy
+from groundstation.core.config import CoreConfig, ReplanPolicy, config_to_dict
 from groundstation.core.scenario_config import core_config_for
 from groundstation.daemon.clock import MissionClock
-from groundstation.daemon.config import DaemonConfig, parse_hostport, parse_latlon
+from groundstation.daemon.config import DaemonConfig, StatusMode, resolve
+from groundstation.daemon.config_parse import check_config
 from groundstation.daemon.control import DaemonController
 from groundstation.daemon.control_server import ControlLimits, ControlServer, binding_warning
 from groundstation.daemon.daemon import Daemon
@@ -73,29 +74,33 @@ def core_config(config: DaemonConfig, scenario: Any, speedup: float) -> CoreConf
     takes the same mission time at any speed-up (floor 0.05 s)."""
     base = core_config_for(scenario) if scenario is not None else CoreConfig()
     policy = base.policy
-    if config.replan is not None or config.period_s is not None or config.commit is not None:
-        replan = config.replan or (
+    planner, mission = config.planner, config.mission
+    if planner.replan is not None or planner.period_s is not None or planner.commit is not None:
+        replan = planner.replan or (
             "event"
             if policy.on_events and policy.period_s is None
             else "period"
             if not policy.on_events
             else "both"
         )
-        period = config.period_s if config.period_s is not None else policy.period_s
-        commit = config.commit if config.commit is not None else policy.commit
+        period = planner.period_s if planner.period_s is not None else policy.period_s
+        commit = planner.commit if planner.commit is not None else policy.commit
         try:
             policy = ReplanPolicy.from_names(replan, period, commit)
         except ValueError as exc:
             raise StartError(f"replan: {exc}") from None
-    limit = config.solver_time_limit_s or base.time_limit_s
+    limit = planner.time_limit_s or base.time_limit_s
     return dataclasses.replace(
         base,
         policy=policy,
-        loiter_s=config.loiter_s if config.loiter_s is not None else base.loiter_s,
+        loiter_s=mission.loiter_s if mission.loiter_s is not None else base.loiter_s,
         loiter_radius_m=(
-            config.loiter_radius_m if config.loiter_radius_m is not None else base.loiter_radius_m
+            mission.loiter_radius_m
+            if mission.loiter_radius_m is not None
+            else base.loiter_radius_m
         ),
-        battery_low_action=config.battery_low_action,
+        objective=planner.objective or base.objective,
+        battery_low_action=config.fleet.battery.action,
         time_limit_s=max(MIN_SOLVER_WALL_S, limit / speedup),
     )
 
@@ -179,15 +184,15 @@ async def run_daemon(
 
     ``embedded`` builds the vehicles of ``--vehicles sim:N`` (the command layer passes the
     built-in simulator; the daemon itself never imports it)."""
-    config.validate()
-    config.resolve_defaults()
+    check_config(config)
+    config = resolve(config)
     signing_keys = load_signing_keys(config)
     scenario = None
-    if config.scenario is not None:
+    if config.mission.scenario_to_load is not None:
         from world.scenario import load_scenario
 
         try:
-            scenario = load_scenario(config.scenario)
+            scenario = load_scenario(config.mission.scenario_to_load)
         except (ValueError, OSError) as exc:
             raise StartError(f"scenario: {exc}") from None
     sim: EmbeddedVehicles | None = None
@@ -206,20 +211,20 @@ async def run_daemon(
         origin = scenario.origin
     elif sim is not None:
         origin = sim.origin
-    elif config.origin is not None:
-        origin = GeoOrigin(*parse_latlon(config.origin, "origin"))
-    targets = load_targets(config.targets, origin) if config.targets else []
+    elif config.mission.origin is not None:
+        origin = config.mission.origin
+    targets = load_targets(config.mission.targets, origin) if config.mission.targets else []
     from groundstation.link import parse_link_url
 
-    for url in [*([] if sim is not None else config.vehicles), *config.out]:
+    for url in [*([] if sim is not None else config.links.vehicles), *config.links.out]:
         try:
             parse_link_url(url)
         except LinkUrlError as exc:
             raise StartError(str(exc)) from None
     if sim is not None:
-        clock = MissionClock(config.speedup, source=sim.now_s)
+        clock = MissionClock(config.speedup_x, source=sim.now_s)
     else:
-        clock = MissionClock(config.speedup)
+        clock = MissionClock(config.speedup_x)
     ccfg = core_config(config, scenario, clock.speedup)
     try:
         files = open_run_files(config, clock)
@@ -228,7 +233,7 @@ async def run_daemon(
     run_dir, journal, tlog, effective = files.run_dir, files.journal, files.tlog, files.effective
     daemon = Daemon(config, ccfg, clock, run_dir, origin, journal, tlog)
     if signing_keys.enabled:
-        daemon.use_signing(SigningGate(signing_keys, config.gcs_system_id))
+        daemon.use_signing(SigningGate(signing_keys, config.links.gcs_system_id))
     server_started = False
     cleanups: list[Callable[[], None]] = []
     try:
@@ -254,7 +259,7 @@ async def run_daemon(
 
             positions: Callable[[], dict[str, tuple[float, float]]] = sim_positions
         else:
-            urls = list(config.vehicles)
+            urls = list(config.links.vehicles)
 
             def telemetry_positions() -> dict[str, tuple[float, float]]:
                 out: dict[str, tuple[float, float]] = {}
@@ -271,10 +276,10 @@ async def run_daemon(
 
             positions = telemetry_positions
         if scenario is not None:
-            daemon.world = ScenarioWorld(scenario, config.seed, positions)
+            daemon.world = ScenarioWorld(scenario, config.mission.seed, positions)
         try:
             links = [open_link(url, link_id=f"vehicles{i}") for i, url in enumerate(urls)]
-            outs = [open_link(url, link_id=f"out{i}") for i, url in enumerate(config.out)]
+            outs = [open_link(url, link_id=f"out{i}") for i, url in enumerate(config.links.out)]
         except LinkUrlError as exc:
             raise StartError(str(exc)) from None
         journal.write(
@@ -328,7 +333,7 @@ async def run_daemon(
             for sig in (signal.SIGINT, signal.SIGTERM):
                 with contextlib.suppress(NotImplementedError, RuntimeError):
                     loop.add_signal_handler(sig, daemon.request_stop, sig.name)
-        if not _use_table(config) and config.status != "quiet":
+        if not _use_table(config) and config.status != StatusMode.QUIET:
             console = logging.StreamHandler(sys.stdout)
             console.setFormatter(logging.Formatter("gcs run: %(message)s"))
             console.setLevel(logging.INFO)
@@ -367,14 +372,14 @@ async def run_daemon(
 
 
 def _core_dict(ccfg: CoreConfig) -> dict[str, Any]:
-    out = dataclasses.asdict(ccfg)
+    out = config_to_dict(ccfg)
     return out
 
 
 def _use_table(config: DaemonConfig) -> bool:
-    if config.status == "table":
+    if config.status == StatusMode.TABLE:
         return True
-    if config.status == "log":
+    if config.status == StatusMode.LOG:
         return False
     return sys.stdout.isatty()
 
@@ -385,18 +390,19 @@ async def _start_control(
     controller: DaemonController,
     print_fn: Callable[[str], None],
 ) -> None:
-    if config.http == "off":
+    http = config.http
+    if http.bind is None:
         return
-    host, port = parse_hostport(config.http, "http")
+    host, port = http.bind.host, http.bind.port
     token = secrets.token_urlsafe(16)
     limits = ControlLimits(
-        max_targets=config.http_max_targets,
-        max_ws_clients=config.http_max_ws_clients,
-        max_writes_per_s=config.http_max_writes_per_s,
-        header_timeout_s=config.http_header_timeout_s,
+        max_targets=http.max_targets,
+        max_ws_clients=http.max_ws_clients,
+        max_writes_per_s=http.max_writes_per_s,
+        header_timeout_s=http.header_timeout_s,
     )
     server = ControlServer(
-        controller, host, port, token, allow_origins=config.http_allow_origins, limits=limits
+        controller, host, port, token, allow_origins=list(http.allow_origins), limits=limits
     )
     try:
         await server.start(push=False)  # the pushes run in the daemon's task tree
@@ -427,9 +433,9 @@ async def _start_control(
 async def _start_detection_feed(
     config: DaemonConfig, daemon: Daemon, print_fn: Callable[[str], None]
 ) -> None:
-    if config.detections == "off":
+    if config.detections is None:
         return
-    host, port = parse_hostport(config.detections, "detections")
+    host, port = config.detections.host, config.detections.port
 
     def on_detection(item: Any) -> None:
         _feed_detection(daemon, item)
