@@ -93,32 +93,43 @@ def test_battery_low_alone_for_long_is_enough() -> None:
 @pytest.mark.parametrize(
     ("signals", "ended_by"),
     [
-        ([("reached", 1)], None),  # forged MISSION_ITEM_REACHED alone
-        ([("current", 2)], None),  # one forged MISSION_CURRENT
-        ([("current", 2), ("current", 1), ("current", 2)], None),  # flickering
-        ([("reached", 1), ("current", 1), ("current", 2)], None),  # reached contradicted
-        ([("reached", 1), ("current", 2)], "reached"),  # the real sequence
-        ([("current", 2), ("current", 2)], "mission_current"),  # MISSION_ITEM_REACHED lost
-        ([("reached", 0), ("current", 2), ("current", 2)], "mission_current"),
+        ([("reached", 1, 0.0)], None),  # forged MISSION_ITEM_REACHED alone
+        ([("current", 2, 0.0)], None),  # one forged MISSION_CURRENT
+        ([("current", 2, 0.0), ("current", 1, 1.0), ("current", 2, 2.0)], None),  # flicker
+        ([("reached", 1, 0.0), ("current", 1, 1.0), ("current", 2, 2.0)], None),  # contradicted
+        # a burst (any number of frames at once) is no evidence: it has no span
+        ([("reached", 1, 5.0), ("current", 2, 5.0)], None),
+        ([("reached", 1, 5.0)] + [("current", 2, 5.0 + k * 1e-3) for k in range(50)], None),
+        ([("current", 2, 5.0), ("current", 3, 5.0), ("current", 4, 5.0)], None),
+        # ... and the vehicle's own next MISSION_CURRENT cancels it
+        ([("current", 2, 5.0), ("current", 3, 5.0), ("current", 1, 5.6), ("current", 2, 6.0)],
+         None),
+        ([("reached", 1, 0.0), ("current", 2, 0.1), ("current", 2, 1.1)], "reached"),  # real
+        ([("reached", 1, 0.0), ("current", 2, 0.9)], "reached"),  # real, slower stream
+        ([("current", 2, 0.0), ("current", 2, 1.0)], "mission_current"),  # REACHED lost
+        ([("reached", 0, 0.0), ("current", 2, 1.0), ("current", 2, 2.0)], "mission_current"),
     ],
-)
-def test_loiter_end_evidence(signals: list[tuple[str, int]], ended_by: str | None) -> None:
+)  # fmt: skip
+def test_loiter_end_evidence(
+    signals: list[tuple[str, int, float]], ended_by: str | None
+) -> None:
     rule = LoiterEndEvidence(1, current_seq=1)
     ends = 0
-    for kind, seq in signals:
-        ends += rule.observe_reached(seq) if kind == "reached" else rule.observe_current(seq)
+    for kind, seq, t_s in signals:
+        observe = rule.observe_reached if kind == "reached" else rule.observe_current
+        ends += observe(seq, t_s)
     assert rule.ended_by == ended_by and ends == (ended_by is not None)
     if ended_by is not None:
-        assert rule.observe_current(3) is False  # once
+        assert rule.observe_current(3, 10.0) is False  # once
 
 
 def test_loiter_end_ignores_the_previous_missions_current() -> None:
     rule = LoiterEndEvidence(1, current_seq=5)  # the old mission was on item 5
-    assert not rule.observe_current(5) and not rule.observe_current(5)
+    assert not rule.observe_current(5, 0.0) and not rule.observe_current(5, 1.0)
     assert not rule.ended
-    assert not rule.observe_current(1)
-    assert not rule.observe_current(2)
-    assert rule.observe_current(2) and rule.ended_by == "mission_current"
+    assert not rule.observe_current(1, 2.0)
+    assert not rule.observe_current(2, 3.0)
+    assert rule.observe_current(2, 4.0) and rule.ended_by == "mission_current"
 
 
 def test_modes() -> None:
