@@ -12,6 +12,7 @@ from __future__ import annotations
 import asyncio
 import itertools
 import math
+import random
 import socket
 import subprocess
 import sys
@@ -28,8 +29,8 @@ from groundstation.commands.run import build_config, run_daemon
 from groundstation.daemon.daemon import Daemon
 from groundstation.daemon.journal import read_journal
 from groundstation.link.tlog import TlogReader
-from groundstation.mavlink.codec import MavlinkDecoder, mavlink2
-from sitl.forge import forged_frames
+from groundstation.mavlink.codec import MavlinkDecoder, MavlinkEncoder, mavlink2
+from sitl.forge import forged_frames, random_valid_frame
 from sitl.server import SitlServer
 from sitl.vehicle import ReceivedCommand
 
@@ -266,6 +267,58 @@ def test_single_forged_frames_change_nothing(tmp_path: Path, how: str) -> None:
         and getattr(m, "target_system", 0) == 1
     ]  # fmt: skip
     assert not to_peer, to_peer[:3]
+
+
+# ------------------------------------------------------------- new system ids
+def _write_to_link(server: SitlServer, data: bytes) -> None:
+    """Bytes on vehicle 1's own link, between its frames."""
+    slot = next(s for s in server.slots if s.config.system_id == 1)
+    assert slot.clients, "the daemon is not connected to vehicle 1"
+    for writer in slot.clients:
+        writer.write(data)
+
+
+def _heartbeat(encoder: MavlinkEncoder, mav_type: int = 1, autopilot: int = 3) -> bytes:
+    return encoder.encode(M.MAVLink_heartbeat_message(mav_type, autopilot, 0, 0, 4, 3))
+
+
+@pytest.mark.timeout(120)
+def test_stray_system_ids_make_no_vehicle_but_a_steady_new_autopilot_does(
+    tmp_path: Path,
+) -> None:
+    rng = random.Random(7)
+    fuzz = b"".join(random_valid_frame(rng, rng.randrange(10, 250), 1) for _ in range(3000))
+    burst = MavlinkEncoder(201, 1)  # three heartbeats at once: no span
+    replayed = _heartbeat(MavlinkEncoder(202, 1))  # the same frame again and again
+    flip = [MavlinkEncoder(203, 1)]  # a new type or autopilot each time
+    steady = MavlinkEncoder(204, 1)  # a real newcomer: 1 Hz, fresh sequence numbers
+    actions: list[tuple[float, Action]] = [
+        (20.0, lambda d, s: _write_to_link(s, fuzz)),
+        (21.0, lambda d, s: _write_to_link(s, b"".join(_heartbeat(burst) for _ in range(3)))),
+    ]
+    for k in range(6):
+        t = 30.0 + k
+        actions.append((t, lambda d, s: _write_to_link(s, replayed)))
+        actions.append((t, lambda d, s, k=k: _write_to_link(s, _heartbeat(flip[0], 1 + k % 2))))
+    for k in range(4):
+        actions.append((50.0 + k, lambda d, s: _write_to_link(s, _heartbeat(steady))))
+    daemon, _, journal = run_with_actions(
+        tmp_path,
+        ["--vehicles", "sim:2", "--scenario", "default", "--sim-airborne",
+         "--speedup", "20", "--duration", "60"],
+        actions,
+    )  # fmt: skip
+    assert not events(journal, "task_error")
+    seen = {e["system_id"]: e["t"] for e in events(journal, "vehicle_seen")}
+    assert set(seen) == {1, 2, 204}, seen
+    assert 52.0 - 0.5 <= seen[204] <= 54.0, seen  # on the third heartbeat, 2 s after the 1st
+    assert max(seen[1], seen[2]) < 5.0  # the simulator's own autopilots: within seconds
+    unknown = daemon.summary()["unknown_systems"]
+    assert unknown["frames"] >= 2000 and unknown["heartbeats"] > 10
+    assert unknown["duplicates"] >= 5  # the replayed heartbeat
+    for name in FALSE_STATE_EVENTS:  # (204 really goes silent after its four heartbeats)
+        wrong = [e for e in events(journal, name) if e["vehicle"] != "204"]
+        assert not wrong, f"{name}: {wrong}"
 
 
 # ------------------------------------------------------------------------ flood

@@ -7,6 +7,7 @@ import pytest
 from groundstation.mavlink.evidence import (
     BatteryEvidence,
     LoiterEndEvidence,
+    NewSystemEvidence,
     RebootEvidence,
     Sustained,
 )
@@ -130,6 +131,48 @@ def test_loiter_end_ignores_the_previous_missions_current() -> None:
     assert not rule.observe_current(1, 2.0)
     assert not rule.observe_current(2, 3.0)
     assert rule.observe_current(2, 4.0) and rule.ended_by == "mission_current"
+
+
+PLANE = (1, 3)  # MAV_TYPE_FIXED_WING, MAV_AUTOPILOT_ARDUPILOTMEGA
+
+
+@pytest.mark.parametrize(
+    ("beats", "confirmed_at"),
+    [
+        ([("a", PLANE, 0, 0.0), ("a", PLANE, 9, 1.0), ("a", PLANE, 18, 2.0)], 2),  # real
+        ([("a", PLANE, 0, 0.0), ("a", PLANE, 1, 0.0), ("a", PLANE, 2, 0.0)], None),  # burst
+        ([("a", PLANE, 5, 0.0), ("a", PLANE, 5, 1.0), ("a", PLANE, 5, 2.0)], None),  # replay
+        ([("a", PLANE, 0, 0.0), ("a", (2, 3), 1, 1.0), ("a", PLANE, 2, 2.0)], None),  # type
+        ([("a", PLANE, 0, 0.0), ("a", (1, 12), 1, 1.0), ("a", PLANE, 2, 2.0)], None),  # AP
+        ([("a", PLANE, 0, 0.0), ("b", PLANE, 1, 1.0), ("a", PLANE, 2, 2.0)], None),  # places
+        ([("a", PLANE, 0, 0.0), ("a", PLANE, 1, 6.0), ("a", PLANE, 2, 7.0)], None),  # gap
+        # a duplicate in between adds nothing and breaks nothing
+        ([("a", PLANE, 0, 0.0), ("a", PLANE, 0, 0.5), ("a", PLANE, 1, 1.0),
+          ("a", PLANE, 2, 2.0)], 3),
+        # the count starts again from a heartbeat that broke it
+        ([("a", (2, 3), 0, 0.0), ("a", PLANE, 1, 1.0), ("a", PLANE, 2, 2.0),
+          ("a", PLANE, 3, 3.0)], 3),
+    ],
+)  # fmt: skip
+def test_new_system_evidence(
+    beats: list[tuple[str, tuple[int, int], int, float]], confirmed_at: int | None
+) -> None:
+    rule = NewSystemEvidence()
+    verdicts = [rule.heartbeat(42, place, sig, seq, t) for place, sig, seq, t in beats]
+    first = verdicts.index(True) if True in verdicts else None
+    assert first == confirmed_at, verdicts
+    assert rule.pending == 1 and rule.heartbeats == len(beats)
+    rule.forget(42)
+    assert rule.pending == 0
+
+
+def test_new_system_evidence_is_kept_per_system_id() -> None:
+    rule = NewSystemEvidence()
+    for k in range(3):  # two system ids interleaved on one place: each its own count
+        assert not rule.heartbeat(7, "a", PLANE, k, float(k)) or k == 2
+        assert not rule.heartbeat(8, "a", PLANE, k, float(k) + 0.5) or k == 2
+    assert rule.heartbeat(7, "a", PLANE, 3, 3.0) and rule.heartbeat(8, "a", PLANE, 3, 3.5)
+    assert rule.restarts == 0
 
 
 def test_modes() -> None:

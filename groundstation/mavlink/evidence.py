@@ -13,10 +13,13 @@ parameters with defaults chosen for ~1 Hz HEARTBEAT / SYS_STATUS / MISSION_CURRE
 * :class:`BatteryEvidence` - low readings sustained *and* confirmed by the autopilot
   (HEARTBEAT ``system_status`` CRITICAL, or its own RTL), or low for much longer.
 * :class:`LoiterEndEvidence` - a mission item's end needs agreeing signals over time.
+* :class:`NewSystemEvidence` - a system id becomes a vehicle (a session) only after
+  consistent autopilot HEARTBEATs from one place over time.
 """
 
 from __future__ import annotations
 
+from collections.abc import Hashable
 from dataclasses import dataclass
 
 __all__ = [
@@ -25,6 +28,7 @@ __all__ = [
     "MAV_STATE_EMERGENCY",
     "BatteryEvidence",
     "LoiterEndEvidence",
+    "NewSystemEvidence",
     "RebootEvidence",
     "Sustained",
 ]
@@ -289,3 +293,86 @@ class LoiterEndEvidence:
     def rebooted(self) -> None:
         self._seen_at_or_before = False
         self._reset_run()
+
+
+@dataclass
+class _Newcomer:
+    place: Hashable
+    signature: tuple[int, int]
+    first_s: float
+    last_s: float
+    last_seq: int
+    count: int = 1
+
+
+class NewSystemEvidence:
+    """When an unknown system id is a vehicle: consistent autopilot HEARTBEATs.
+
+    Fed the autopilot HEARTBEATs (``type`` not GCS, ``autopilot`` not INVALID, component
+    1: the caller filters) of system ids that have no session yet. A system id is
+    **confirmed** when ``min_heartbeats`` of them, spanning at least ``min_span_s``,
+    came from one place (link and peer) with the same ``(type, autopilot)`` and no gap
+    longer than ``max_gap_s``; a heartbeat from another place, with another signature or
+    after a longer gap starts the count again from it. A heartbeat with the same MAVLink
+    sequence number as the last one counted is a duplicate (a radio's repeat, a replay)
+    and adds nothing. A real autopilot (1 Hz, its sequence number counting every frame it
+    sends) is confirmed 2-3 s after it is first heard; random system ids in noise or
+    fuzzed frames, which rarely repeat a signature and never over seconds with fresh
+    sequence numbers, are not. :meth:`heartbeat` returns True while the evidence is
+    sufficient; the caller :meth:`forget` s the system id once it made a session. At most
+    one candidate per system id (256) is kept.
+
+    Counters: ``heartbeats`` (fed), ``duplicates``, ``restarts`` (a candidate's count
+    started again).
+    """
+
+    def __init__(
+        self, min_heartbeats: int = 3, min_span_s: float = 2.0, max_gap_s: float = 5.0
+    ) -> None:
+        self.min_heartbeats = min_heartbeats
+        self.min_span_s = min_span_s
+        self.max_gap_s = max_gap_s
+        self.heartbeats = 0
+        self.duplicates = 0
+        self.restarts = 0
+        self._candidates: dict[int, _Newcomer] = {}
+
+    @property
+    def pending(self) -> int:
+        """System ids heard but not (yet) confirmed."""
+        return len(self._candidates)
+
+    def heartbeat(
+        self,
+        system_id: int,
+        place: Hashable,
+        signature: tuple[int, int],
+        seq: int,
+        t_s: float,
+    ) -> bool:
+        """One autopilot HEARTBEAT of ``system_id`` from ``place`` (``signature``: its
+        ``(type, autopilot)``, ``seq``: its MAVLink sequence number) at ``t_s``."""
+        self.heartbeats += 1
+        cand = self._candidates.get(system_id)
+        if cand is not None and cand.place == place and cand.signature == signature:
+            if seq == cand.last_seq:
+                self.duplicates += 1
+                return self._enough(cand)
+            if t_s - cand.last_s <= self.max_gap_s:
+                cand.count += 1
+                cand.last_s = t_s
+                cand.last_seq = seq
+                return self._enough(cand)
+        if cand is not None:
+            self.restarts += 1
+        self._candidates[system_id] = _Newcomer(place, signature, t_s, t_s, seq)
+        return self.min_heartbeats <= 1 and self.min_span_s <= 0.0
+
+    def forget(self, system_id: int) -> None:
+        self._candidates.pop(system_id, None)
+
+    def _enough(self, cand: _Newcomer) -> bool:
+        return (
+            cand.count >= self.min_heartbeats
+            and cand.last_s - cand.first_s >= self.min_span_s - 1e-9
+        )
