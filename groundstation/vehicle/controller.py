@@ -69,11 +69,12 @@ class VehicleController(ControllerState):
 
     # ------------------------------------------------------------------ the entry point
     def handle(self, inp: io.Input) -> list[io.Output]:
+        if isinstance(inp, io.ForeignFrame):  # changes nothing: no work per frame
+            self.foreign_frames += 1
+            return []
         self.t_s = max(self.t_s, inp.t_s)
         if isinstance(inp, io.Frame):
             self._on_frame(inp)
-        elif isinstance(inp, io.ForeignFrame):
-            self.foreign_frames += 1
         elif isinstance(inp, io.Tick):
             self._on_tick(inp.t_s)
         elif isinstance(inp, io.ExchangeDone):
