@@ -14,9 +14,17 @@ Printed (and written as JSON with ``--json FILE``):
 * frames sent (link fuzz, other link);
 * task errors in the journal (``task_error``, ``core_error``): must be 0;
 * false state changes: journal lines ``reboot``, ``battery_low``, ``override``,
-  ``link_lost`` (the simulator has no fault scheduled, so none is real; a ``battery_low``
-  after the vehicle's own "Battery 1 is low" STATUSTEXT would be), and ``loiter_end``
-  without the vehicle's own "Loiter time complete" STATUSTEXT in the 3 s before: must be 0;
+  ``link_lost`` and ``loiter_end`` that the simulated vehicles' real events do not
+  explain: must be 0. The truth is a **tap**: this script connects its own TCP client to
+  every simulated vehicle (not through the fuzzing proxy, sending nothing) and records
+  what each vehicle really said. A ``loiter_end`` is explained by the vehicle's own
+  "Loiter time complete" STATUSTEXT or MISSION_ITEM_REACHED on the tap in the 3 mission
+  seconds (plus 0.5 wall seconds for the host) before it; a ``battery_low`` by its own
+  "Battery" STATUSTEXT in the 10 mission seconds before; a ``reboot`` by its
+  ``time_boot_ms`` going back on the tap; ``override`` and ``link_lost`` by nothing (no
+  fault is scheduled). (The daemon's journal alone is not the truth: the fuzz on vehicle
+  1's link destroys some of its real frames, e.g. a "Loiter time complete" text, as noise
+  on a radio does; the daemon then sees the end from MISSION_CURRENT.)
 * the worst gap between frames the daemon received (tlog reception times) from each of
   the other vehicles during the fuzz window, and in the same length of time before it;
 * the daemon's resident memory (VmRSS) just before the fuzz and at the end;
@@ -26,6 +34,7 @@ Printed (and written as JSON with ``--json FILE``):
 Exit status 1 if task errors or false state changes were found.
 
     python benchmarks/fuzz_daemon.py                 # 3 vehicles, 20 000 frames/s for 10 s
+                                                     # (writes benchmarks/fuzz_daemon.json)
     python benchmarks/fuzz_daemon.py --quick         # 2 vehicles, 2 s: a smoke test
 """
 
@@ -40,16 +49,19 @@ import socket
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 from typing import Any
 
 from groundstation.daemon.journal import read_journal
 from groundstation.link.tlog import TlogReader
+from groundstation.mavlink.codec import MavlinkDecoder
 from sitl.forge import forged_frames, random_valid_frame
 
 FALSE_EVENTS = ("reboot", "battery_low", "override", "link_lost")
 GCS = str(Path(sys.executable).parent / "gcs")
+RESULTS = Path(__file__).with_suffix(".json")
 
 
 def _start(cmd: list[str], pattern: str, count: int, timeout_s: float) -> tuple[Any, list[str]]:
@@ -106,25 +118,84 @@ def _send_other_link(port: int, rate: float, seconds: float, seed: int) -> int:
     return sent
 
 
-def _false_changes(journal: list[dict[str, Any]]) -> list[dict[str, Any]]:
-    texts: dict[str, list[tuple[float, str]]] = {}
-    for e in journal:
-        if e["event"] == "statustext":
-            texts.setdefault(str(e.get("vehicle")), []).append((e["t"], e["text"]))
+class Tap:
+    """A passive TCP client of one simulated vehicle: what it really said, with the wall
+    time (Unix) it arrived. Records loiter ends, battery texts and reboots."""
 
-    def said(vehicle: str, t: float, words: str, before_s: float) -> bool:
-        return any(t - before_s <= tt <= t and words in x for tt, x in texts.get(vehicle, []))
+    def __init__(self, port: int) -> None:
+        self.port = port
+        self.events: list[tuple[float, str]] = []  # (unix s, "loiter_end"|"battery"|"reboot")
+        self.frames = 0
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
 
-    explained = {"loiter_end": ("Loiter time complete", 3.0), "battery_low": ("Battery 1", 10.0)}
+    def start(self) -> None:
+        self._thread.start()
+
+    def stop(self) -> None:
+        self._stop.set()
+        self._thread.join(timeout=5.0)
+
+    def _run(self) -> None:
+        decoder = MavlinkDecoder()
+        last_boot_ms: int | None = None
+        with socket.create_connection(("127.0.0.1", self.port), timeout=10.0) as sock:
+            sock.settimeout(0.2)
+            while not self._stop.is_set():
+                try:
+                    data = sock.recv(65536)
+                except TimeoutError:
+                    continue
+                except OSError:
+                    return
+                if not data:
+                    return
+                now = time.time()
+                for msg in decoder.feed(data):
+                    self.frames += 1
+                    kind = msg.get_type()
+                    if kind == "MISSION_ITEM_REACHED":
+                        self.events.append((now, "loiter_end"))
+                    elif kind == "STATUSTEXT":
+                        text = str(msg.text)
+                        if "Loiter time complete" in text:
+                            self.events.append((now, "loiter_end"))
+                        elif "Battery" in text:
+                            self.events.append((now, "battery"))
+                    boot_ms = getattr(msg, "time_boot_ms", None)
+                    if isinstance(boot_ms, int) and msg.get_srcComponent() == 1:
+                        if last_boot_ms is not None and boot_ms < last_boot_ms - 3000:
+                            self.events.append((now, "reboot"))
+                        last_boot_ms = boot_ms
+
+    def said(self, kind: str, unix_s: float, before_s: float) -> bool:
+        return any(unix_s - before_s <= t <= unix_s + 0.2 and k == kind for t, k in self.events)
+
+
+def _false_changes(
+    journal: list[dict[str, Any]], taps: dict[str, Tap], speedup: float
+) -> list[dict[str, Any]]:
+    """State changes that the vehicles' real events (the taps) do not explain."""
+    explained = {
+        "loiter_end": ("loiter_end", 3.0 / speedup + 0.5),
+        "battery_low": ("battery", 10.0 / speedup + 0.5),
+        "reboot": ("reboot", 3.0 / speedup + 0.5),
+    }
     out = []
     for e in journal:
         name, vehicle = e["event"], str(e.get("vehicle"))
         if name not in (*FALSE_EVENTS, "loiter_end"):
             continue
-        words, before_s = explained.get(name, ("", -1.0))
-        if not said(vehicle, e["t"], words, before_s):
+        tap = taps.get(vehicle)
+        kind, before_s = explained.get(name, ("", 0.0))
+        if tap is None or not kind or not tap.said(kind, e["unix_s"], before_s):
             out.append(e)
     return out
+
+
+def _stop_summary(journal: list[dict[str, Any]]) -> dict[str, Any]:
+    stops = [e for e in journal if e["event"] == "stop"]
+    return stops[-1] if stops else {}
 
 
 def run(args: argparse.Namespace) -> dict[str, Any]:
@@ -138,6 +209,9 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         "system id", args.vehicles, 60.0,
     )  # fmt: skip
     ports = [int(x.rsplit(":", 1)[1]) for x in lines if "system id" in x]
+    taps = {str(i + 1): Tap(port) for i, port in enumerate(ports)}
+    for tap in taps.values():
+        tap.start()
     proxy, plines = _start(
         [sys.executable, "-m", "sitl.flood_proxy", "--upstream", str(ports[0]), "--mix",
          "fuzz", "--rate", f"{args.rate:g}", "--at", f"{args.at:g}", "--for",
@@ -178,6 +252,8 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         daemon.wait(timeout=30)
     finally:
         out, _ = proxy.communicate(input="", timeout=30)
+        for tap in taps.values():
+            tap.stop()
         sim.kill()
         sim.wait(timeout=10)
     flood = [x for x in out.splitlines() if x.startswith("flood")]
@@ -201,7 +277,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         )
         for (w, v), ts in times.items()
     }
-    false = _false_changes(journal)
+    false = _false_changes(journal, taps, k)
     served = {str(v) for v in range(1, args.vehicles + 1)}
     by_kind: dict[str, int] = {}
     for e in false:
@@ -223,6 +299,8 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             key=lambda v: int(v) if v.isdigit() else 0,
         ),
         "worst_telemetry_gap_ms": gaps_ms,
+        "tap_frames": {v: tap.frames for v, tap in taps.items()},
+        "unknown_systems": _stop_summary(journal).get("unknown_systems"),
         "daemon_rss_kib": {"before_fuzz": rss_before, "end": rss[-1] if rss else None},
         "daemon_exit": daemon.returncode,
         "run_dir": str(run_dir),
@@ -240,8 +318,13 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--speedup", type=float, default=10.0)
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--quick", action="store_true", help="2 vehicles, 5000 frames/s for 2 s")
-    p.add_argument("--json", type=Path, help="also write the results to this file")
+    p.add_argument(
+        "--json", type=Path,
+        help=f"also write the results to this file (default, without --quick: {RESULTS})",
+    )  # fmt: skip
     args = p.parse_args(argv)
+    if args.json is None and not args.quick:
+        args.json = RESULTS
     if args.quick:
         args.vehicles, args.rate, args.udp_rate, args.seconds, args.at = 2, 5000.0, 500.0, 2.0, 3.0
     if args.vehicles < 2 or args.rate <= 0 or args.seconds <= 0:

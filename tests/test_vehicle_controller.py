@@ -399,6 +399,24 @@ def test_reboot_cancels_the_transfer_and_leaves_the_plan() -> None:
     assert [j for j in rig.journal("upload") if j.fields["purpose"] == "target"] == []
 
 
+def test_a_stray_small_boot_time_holds_the_upload_it_does_not_drop_it() -> None:
+    # one forged frame with a small time_boot_ms just as a new mission is due: the upload
+    # waits for the next frames (which clear the suspicion) instead of being refused
+    rig = active_rig()
+    rig.asked.clear()
+    rig.frame("SYSTEM_TIME", time_boot_ms=100_000, reboot_suspected=True)
+    rig.fly("B")
+    assert rig.asked == [] and rig.pending is None
+    assert not rig.journal("command_refused")
+    rig.t += 0.2
+    rig.frame("ATTITUDE", reboot_suspected=False)  # back on the vehicle's own timeline
+    rig.feed(io.Tick(rig.t))
+    rig.auto()
+    uploads = rig.requests(io.UploadMission)
+    assert [u.target for u in uploads] == ["B"] and rig.c.fly is not None
+    assert rig.c.fly.verified_t_s is not None and not rig.journal("command_refused")
+
+
 def test_link_restore_watches_before_any_command_and_a_rebooted_vehicle_is_not_commanded() -> None:
     # issue 10.2: a vehicle rebooted (on the ground, disarmed) while the link was down
     rig = active_rig()
@@ -480,7 +498,7 @@ def test_on_the_ground_while_active_is_out() -> None:
 
 
 # ------------------------------------------------------------------ loiter ends
-def test_loiter_end_needs_two_agreeing_signals() -> None:
+def test_loiter_end_needs_agreeing_signals_over_time() -> None:
     rig = active_rig()
     rig.fly()
     rig.t += 0.1
@@ -489,10 +507,17 @@ def test_loiter_end_needs_two_agreeing_signals() -> None:
     rig.t += 0.1
     rig.frame("MISSION_CURRENT", mission_current_seq=2)  # forged
     rig.run(3.0, mission_current_seq=1)
-    assert not rig.core(ev.LoiterEnded)
-    rig.t += 0.1
+    rig.t += 0.1  # a forged burst: both signals at once, then the vehicle's own frames
+    rig.frame("MISSION_ITEM_REACHED", MissionItemReached(rig.t, 1))
+    for seq in (2, 3, 2, 3):
+        rig.frame("MISSION_CURRENT", mission_current_seq=seq)
+    rig.run(3.0, mission_current_seq=1)
+    assert not rig.core(ev.LoiterEnded) and not rig.journal("loiter_end")
+    rig.t += 0.1  # the real end: reached, and the mission goes on to item 2 and stays
     rig.frame("MISSION_ITEM_REACHED", MissionItemReached(rig.t, 1))
     rig.frame("MISSION_CURRENT", mission_current_seq=2)
+    assert not rig.core(ev.LoiterEnded)
+    rig.run(1.0, mission_current_seq=2)
     ended = rig.core(ev.LoiterEnded)
     assert len(ended) == 1 and rig.journal("loiter_end")[0].fields["how"] == "reached"
 

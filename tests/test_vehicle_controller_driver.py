@@ -53,9 +53,10 @@ class Port:
         self.calls: list[str] = []
         self.cancelled = 0
         self.reboots = 0
+        self.delivered: list[MAVLinkMessage] = []
 
     def deliver(self, msg: MAVLinkMessage) -> None:
-        pass
+        self.delivered.append(msg)
 
     def notify_rebooted(self) -> None:
         self.reboots += 1
@@ -134,9 +135,15 @@ def test_reboot_is_told_to_the_port_and_other_components_are_counted_only() -> N
         t = [4.0]
         session, host, port = await _flying_session(t)
         forged = wire(M.MAVLink_mission_item_reached_message(1), compid=2)
+        ack = wire(M.MAVLink_mission_ack_message(245, 190, 0, 0), compid=2)
+        delivered = len(port.delivered)
         for _ in range(5):
             session.on_message(forged)
-        assert session.controller.foreign_frames == 5 and session.telemetry.foreign_messages == 5
+            session.on_message(ack)
+        assert session.controller.foreign_frames == 10 and session.telemetry.foreign_messages == 10
+        assert len(port.delivered) == delivered  # never to the transfers
+        session.on_message(wire(M.MAVLink_mission_ack_message(245, 190, 0, 0)))
+        assert len(port.delivered) == delivered + 1  # the autopilot's own
         for k, boot_ms in enumerate((500, 1_000, 1_500)):  # the autopilot restarted
             t[0] = 5.0 + 0.5 * k
             session.on_message(wire(M.MAVLink_system_time_message(0, boot_ms)))

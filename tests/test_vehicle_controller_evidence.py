@@ -7,6 +7,7 @@ import pytest
 from groundstation.mavlink.evidence import (
     BatteryEvidence,
     LoiterEndEvidence,
+    NewSystemEvidence,
     RebootEvidence,
     Sustained,
 )
@@ -93,32 +94,85 @@ def test_battery_low_alone_for_long_is_enough() -> None:
 @pytest.mark.parametrize(
     ("signals", "ended_by"),
     [
-        ([("reached", 1)], None),  # forged MISSION_ITEM_REACHED alone
-        ([("current", 2)], None),  # one forged MISSION_CURRENT
-        ([("current", 2), ("current", 1), ("current", 2)], None),  # flickering
-        ([("reached", 1), ("current", 1), ("current", 2)], None),  # reached contradicted
-        ([("reached", 1), ("current", 2)], "reached"),  # the real sequence
-        ([("current", 2), ("current", 2)], "mission_current"),  # MISSION_ITEM_REACHED lost
-        ([("reached", 0), ("current", 2), ("current", 2)], "mission_current"),
+        ([("reached", 1, 0.0)], None),  # forged MISSION_ITEM_REACHED alone
+        ([("current", 2, 0.0)], None),  # one forged MISSION_CURRENT
+        ([("current", 2, 0.0), ("current", 1, 1.0), ("current", 2, 2.0)], None),  # flicker
+        ([("reached", 1, 0.0), ("current", 1, 1.0), ("current", 2, 2.0)], None),  # contradicted
+        # a burst (any number of frames at once) is no evidence: it has no span
+        ([("reached", 1, 5.0), ("current", 2, 5.0)], None),
+        ([("reached", 1, 5.0)] + [("current", 2, 5.0 + k * 1e-3) for k in range(50)], None),
+        ([("current", 2, 5.0), ("current", 3, 5.0), ("current", 4, 5.0)], None),
+        # ... and the vehicle's own next MISSION_CURRENT cancels it
+        ([("current", 2, 5.0), ("current", 3, 5.0), ("current", 1, 5.6), ("current", 2, 6.0)],
+         None),
+        ([("reached", 1, 0.0), ("current", 2, 0.1), ("current", 2, 1.1)], "reached"),  # real
+        ([("reached", 1, 0.0), ("current", 2, 0.9)], "reached"),  # real, slower stream
+        ([("current", 2, 0.0), ("current", 2, 1.0)], "mission_current"),  # REACHED lost
+        ([("reached", 0, 0.0), ("current", 2, 1.0), ("current", 2, 2.0)], "mission_current"),
     ],
-)
-def test_loiter_end_evidence(signals: list[tuple[str, int]], ended_by: str | None) -> None:
+)  # fmt: skip
+def test_loiter_end_evidence(
+    signals: list[tuple[str, int, float]], ended_by: str | None
+) -> None:
     rule = LoiterEndEvidence(1, current_seq=1)
     ends = 0
-    for kind, seq in signals:
-        ends += rule.observe_reached(seq) if kind == "reached" else rule.observe_current(seq)
+    for kind, seq, t_s in signals:
+        observe = rule.observe_reached if kind == "reached" else rule.observe_current
+        ends += observe(seq, t_s)
     assert rule.ended_by == ended_by and ends == (ended_by is not None)
     if ended_by is not None:
-        assert rule.observe_current(3) is False  # once
+        assert rule.observe_current(3, 10.0) is False  # once
 
 
 def test_loiter_end_ignores_the_previous_missions_current() -> None:
     rule = LoiterEndEvidence(1, current_seq=5)  # the old mission was on item 5
-    assert not rule.observe_current(5) and not rule.observe_current(5)
+    assert not rule.observe_current(5, 0.0) and not rule.observe_current(5, 1.0)
     assert not rule.ended
-    assert not rule.observe_current(1)
-    assert not rule.observe_current(2)
-    assert rule.observe_current(2) and rule.ended_by == "mission_current"
+    assert not rule.observe_current(1, 2.0)
+    assert not rule.observe_current(2, 3.0)
+    assert rule.observe_current(2, 4.0) and rule.ended_by == "mission_current"
+
+
+PLANE = (1, 3)  # MAV_TYPE_FIXED_WING, MAV_AUTOPILOT_ARDUPILOTMEGA
+
+
+@pytest.mark.parametrize(
+    ("beats", "confirmed_at"),
+    [
+        ([("a", PLANE, 0, 0.0), ("a", PLANE, 9, 1.0), ("a", PLANE, 18, 2.0)], 2),  # real
+        ([("a", PLANE, 0, 0.0), ("a", PLANE, 1, 0.0), ("a", PLANE, 2, 0.0)], None),  # burst
+        ([("a", PLANE, 5, 0.0), ("a", PLANE, 5, 1.0), ("a", PLANE, 5, 2.0)], None),  # replay
+        ([("a", PLANE, 0, 0.0), ("a", (2, 3), 1, 1.0), ("a", PLANE, 2, 2.0)], None),  # type
+        ([("a", PLANE, 0, 0.0), ("a", (1, 12), 1, 1.0), ("a", PLANE, 2, 2.0)], None),  # AP
+        ([("a", PLANE, 0, 0.0), ("b", PLANE, 1, 1.0), ("a", PLANE, 2, 2.0)], None),  # places
+        ([("a", PLANE, 0, 0.0), ("a", PLANE, 1, 6.0), ("a", PLANE, 2, 7.0)], None),  # gap
+        # a duplicate in between adds nothing and breaks nothing
+        ([("a", PLANE, 0, 0.0), ("a", PLANE, 0, 0.5), ("a", PLANE, 1, 1.0),
+          ("a", PLANE, 2, 2.0)], 3),
+        # the count starts again from a heartbeat that broke it
+        ([("a", (2, 3), 0, 0.0), ("a", PLANE, 1, 1.0), ("a", PLANE, 2, 2.0),
+          ("a", PLANE, 3, 3.0)], 3),
+    ],
+)  # fmt: skip
+def test_new_system_evidence(
+    beats: list[tuple[str, tuple[int, int], int, float]], confirmed_at: int | None
+) -> None:
+    rule = NewSystemEvidence()
+    verdicts = [rule.heartbeat(42, place, sig, seq, t) for place, sig, seq, t in beats]
+    first = verdicts.index(True) if True in verdicts else None
+    assert first == confirmed_at, verdicts
+    assert rule.pending == 1 and rule.heartbeats == len(beats)
+    rule.forget(42)
+    assert rule.pending == 0
+
+
+def test_new_system_evidence_is_kept_per_system_id() -> None:
+    rule = NewSystemEvidence()
+    for k in range(3):  # two system ids interleaved on one place: each its own count
+        assert not rule.heartbeat(7, "a", PLANE, k, float(k)) or k == 2
+        assert not rule.heartbeat(8, "a", PLANE, k, float(k) + 0.5) or k == 2
+    assert rule.heartbeat(7, "a", PLANE, 3, 3.0) and rule.heartbeat(8, "a", PLANE, 3, 3.5)
+    assert rule.restarts == 0
 
 
 def test_modes() -> None:

@@ -50,6 +50,7 @@ from groundstation.link import Received, Router, TlogWriter
 from groundstation.link.base import Link
 from groundstation.link.binding import BindingRules
 from groundstation.mavlink.codec import MavlinkEncoder, mavlink2
+from groundstation.mavlink.evidence import NewSystemEvidence
 from planner import PlanResult
 
 __all__ = ["Daemon"]
@@ -103,6 +104,10 @@ class Daemon:
         self._next_link_report_s = 0.0
         self.tlog = tlog
         self.sessions: dict[int, VehicleSession] = {}
+        self.newcomers = NewSystemEvidence()
+        """Evidence before a system id gets a session (``vehicle_seen``)."""
+        self.unknown_frames = 0
+        """Frames of system ids without a session (dropped; candidates' included)."""
         self.by_name: dict[str, VehicleSession] = {}
         self.solver = SolverRunner(
             self._on_solved,
@@ -257,15 +262,23 @@ class Daemon:
                 self.journal(
                     "origin", lat_deg=msg.lat / 1e7, lon_deg=msg.lon / 1e7, source=f"system {sysid}"
                 )
+            self.unknown_frames += 1
             if (
                 msg.get_type() != "HEARTBEAT"
                 or rx.component_id != 1
                 or msg.type == M.MAV_TYPE_GCS
                 or msg.autopilot == M.MAV_AUTOPILOT_INVALID
-                or self.origin_or_none is None
                 or self.stopping
             ):
                 return
+            signature = (int(msg.type), int(msg.autopilot))
+            place = (rx.link_id, rx.peer)
+            confirmed = self.newcomers.heartbeat(
+                sysid, place, signature, int(msg.get_seq()), self.clock.now_s()
+            )
+            if not confirmed or self.origin_or_none is None:
+                return
+            self.newcomers.forget(sysid)
             session = self._new_session(sysid, rx.component_id)
         try:
             session.on_message(msg)
@@ -570,6 +583,12 @@ class Daemon:
             "visits": len(metrics.get("visits", [])),
             **({"signing": self.signing.summary()} if self.signing is not None else {}),
             "links": self.router.link_stats(),
+            "unknown_systems": {
+                "frames": self.unknown_frames,
+                "heartbeats": self.newcomers.heartbeats,
+                "duplicates": self.newcomers.duplicates,
+                "pending": self.newcomers.pending,
+            },
         }
 
     def metrics_dict(self) -> dict[str, Any]:

@@ -3,13 +3,13 @@ VehicleController`.
 
 The policy (join, park, launch, override, take-back, reboot, link restore, battery,
 progress, the guard on commands) lives in the sans-IO controller; the session only carries
-it out. Every message of the vehicle's system goes to the telemetry reducer and the
-vehicle port; a message of the autopilot component whose HEARTBEAT created the session is
-fed to the controller as a ``Frame``, one of another component as a ``ForeignFrame``
-(counted, ignored). The session runs the ONE exchange the controller asks for at a time
-through the :class:`~groundstation.daemon.vehicle_port.VehiclePort` (in a task, so a
-``CancelExchange`` cancels it politely) and feeds the result back; it journals, warns and
-hands core events to the daemon as the controller says.
+it out. Every message of the vehicle's system goes to the telemetry reducer; a message of
+the autopilot component whose HEARTBEAT created the session goes to the vehicle port (the
+transfers) and is fed to the controller as a ``Frame``; one of another component only as
+a ``ForeignFrame`` (counted, ignored). The session runs the ONE exchange the controller
+asks for at a time through the :class:`~groundstation.daemon.vehicle_port.VehiclePort`
+(in a task, so a ``CancelExchange`` cancels it politely) and feeds the result back; it
+journals, warns and hands core events to the daemon as the controller says.
 """
 
 from __future__ import annotations
@@ -148,12 +148,15 @@ class VehicleSession:
         before = self.telemetry.messages
         foreign_before = self.telemetry.foreign_messages
         events = self.telemetry.receive(msg, t_s)
-        self.port.deliver(msg)
         kind = msg.get_type()
+        if self.telemetry.foreign_messages != foreign_before:
+            # another component of the system: counted; it never reaches the transfers
+            # (a flood of them would push the autopilot's answers out of the port's queue)
+            self._feed(io.ForeignFrame(t_s, kind, int(msg.get_srcComponent())))
+            return
+        self.port.deliver(msg)
         if self.telemetry.messages != before:
             self._feed(io.Frame(t_s, kind, self.telemetry.snapshot(), tuple(events)))
-        elif self.telemetry.foreign_messages != foreign_before:
-            self._feed(io.ForeignFrame(t_s, kind, int(msg.get_srcComponent())))
         if kind == "GLOBAL_POSITION_INT":
             s = self.snapshot
             due = t_s - self._last_track_s >= TRACK_EVERY_S

@@ -82,8 +82,12 @@ class MavlinkEncoder:
         self._mav = mavlink2.MAVLink(None, srcSystem=system_id, srcComponent=component_id)
 
     def encode(self, msg: MAVLinkMessage) -> bytes:
-        """Return the wire bytes of ``msg`` sent from this source."""
-        return bytes(msg.pack(self._mav))
+        """Return the wire bytes of ``msg`` sent from this source; the frame's sequence
+        number is this source's next one (0..255, wrapping), as ``MAVLink.send`` counts
+        (``pack`` alone does not: every frame was sequence 0)."""
+        frame = bytes(msg.pack(self._mav))
+        self._mav.seq = (self._mav.seq + 1) % 256
+        return frame
 
     @property
     def mav(self) -> Any:

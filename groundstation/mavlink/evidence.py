@@ -12,11 +12,14 @@ parameters with defaults chosen for ~1 Hz HEARTBEAT / SYS_STATUS / MISSION_CURRE
   after it keep to the new timeline, or the autopilot says it is booting.
 * :class:`BatteryEvidence` - low readings sustained *and* confirmed by the autopilot
   (HEARTBEAT ``system_status`` CRITICAL, or its own RTL), or low for much longer.
-* :class:`LoiterEndEvidence` - a mission item's end needs two agreeing signals.
+* :class:`LoiterEndEvidence` - a mission item's end needs agreeing signals over time.
+* :class:`NewSystemEvidence` - a system id becomes a vehicle (a session) only after
+  consistent autopilot HEARTBEATs from one place over time.
 """
 
 from __future__ import annotations
 
+from collections.abc import Hashable
 from dataclasses import dataclass
 
 __all__ = [
@@ -25,6 +28,7 @@ __all__ = [
     "MAV_STATE_EMERGENCY",
     "BatteryEvidence",
     "LoiterEndEvidence",
+    "NewSystemEvidence",
     "RebootEvidence",
     "Sustained",
 ]
@@ -202,53 +206,173 @@ class BatteryEvidence:
 class LoiterEndEvidence:
     """The end of mission item ``seq`` (a timed loiter or a waypoint) of floe's mission.
 
-    ArduPlane sends MISSION_ITEM_REACHED once and then streams MISSION_CURRENT (~1 Hz). The
-    end is confirmed by two agreeing signals: MISSION_ITEM_REACHED ``>= seq`` followed by a
-    MISSION_CURRENT past ``seq``, or MISSION_CURRENT past ``seq`` on ``min_frames``
-    consecutive frames. MISSION_CURRENT values past ``seq`` count only after one at or
-    before ``seq`` was seen (before that they are the previous mission's). A MISSION_CURRENT
-    back at or before ``seq`` cancels a pending MISSION_ITEM_REACHED (a forged one).
-    ``observe_*`` return True exactly once, when the end is confirmed.
+    ArduPlane sends MISSION_ITEM_REACHED once and then streams MISSION_CURRENT (~1 Hz). A
+    signal that the item is over is MISSION_ITEM_REACHED ``seq`` (or later), or a
+    MISSION_CURRENT past ``seq``. The end is confirmed when such signals agree over time:
+
+    * a run of them, with no MISSION_CURRENT at or before ``seq`` in between, holds at
+      least ``min_frames`` signals, at least one of them a MISSION_CURRENT past ``seq``,
+      and spans ``min_span_s`` or more of mission time (first signal to last).
+
+    The span is what a burst cannot fake: any number of forged frames written at once
+    arrive together, and the vehicle's own MISSION_CURRENT (at or before ``seq`` while it
+    still loiters) cancels the run within one period. The default 0.8 s is below the 1 s
+    period of MISSION_CURRENT, so the real end is confirmed by MISSION_ITEM_REACHED and the
+    next MISSION_CURRENT 0.8 s or more later, or by two MISSION_CURRENTs past ``seq`` (one
+    period apart) when MISSION_ITEM_REACHED was lost: 1-2 s after the end.
+
+    Signals count only after a MISSION_CURRENT at or before ``seq`` was seen (before that
+    a MISSION_CURRENT past ``seq`` is the previous mission's), except MISSION_ITEM_REACHED
+    of ``seq`` itself. ``observe_*`` return True exactly once, when the end is confirmed;
+    ``ended_by`` is ``"reached"`` if a MISSION_ITEM_REACHED is in the confirming run, else
+    ``"mission_current"``.
     """
 
-    def __init__(self, seq: int, *, current_seq: int | None = None, min_frames: int = 2) -> None:
+    def __init__(
+        self,
+        seq: int,
+        *,
+        current_seq: int | None = None,
+        min_frames: int = 2,
+        min_span_s: float = 0.8,
+    ) -> None:
         self.seq = seq
         self.min_frames = min_frames
+        self.min_span_s = min_span_s
         self.ended_by: str | None = None
         self._seen_at_or_before = current_seq is not None and current_seq <= seq
-        self._reached = False
-        self._past_frames = 0
+        self._run_since_s: float | None = None
+        self._run_frames = 0
+        self._run_reached = False
+        self._run_past_current = False
 
     @property
     def ended(self) -> bool:
         return self.ended_by is not None
 
-    def observe_reached(self, seq: int) -> bool:
+    def observe_reached(self, seq: int, t_s: float) -> bool:
+        """One MISSION_ITEM_REACHED frame."""
         if self.ended:
             return False
         if seq == self.seq or (seq > self.seq and self._seen_at_or_before):
-            self._reached = True
+            self._run_reached = True
+            return self._signal(t_s)
         return False
 
-    def observe_current(self, seq: int) -> bool:
+    def observe_current(self, seq: int, t_s: float) -> bool:
         """One MISSION_CURRENT frame (every frame, not only changes)."""
         if self.ended:
             return False
         if seq <= self.seq:
             self._seen_at_or_before = True
-            self._reached = False
-            self._past_frames = 0
+            self._reset_run()
             return False
-        if not self._seen_at_or_before and not self._reached:
+        if not self._seen_at_or_before and not self._run_reached:
             return False
-        self._past_frames += 1
-        if self._reached:
-            self.ended_by = "reached"
-        elif self._past_frames >= self.min_frames:
-            self.ended_by = "mission_current"
+        self._run_past_current = True
+        return self._signal(t_s)
+
+    def _signal(self, t_s: float) -> bool:
+        if self._run_since_s is None:
+            self._run_since_s = t_s
+        self._run_frames += 1
+        if (
+            self._run_past_current
+            and self._run_frames >= self.min_frames
+            and t_s - self._run_since_s >= self.min_span_s - 1e-9
+        ):
+            self.ended_by = "reached" if self._run_reached else "mission_current"
         return self.ended
+
+    def _reset_run(self) -> None:
+        self._run_since_s = None
+        self._run_frames = 0
+        self._run_reached = False
+        self._run_past_current = False
 
     def rebooted(self) -> None:
         self._seen_at_or_before = False
-        self._reached = False
-        self._past_frames = 0
+        self._reset_run()
+
+
+@dataclass
+class _Newcomer:
+    place: Hashable
+    signature: tuple[int, int]
+    first_s: float
+    last_s: float
+    last_seq: int
+    count: int = 1
+
+
+class NewSystemEvidence:
+    """When an unknown system id is a vehicle: consistent autopilot HEARTBEATs.
+
+    Fed the autopilot HEARTBEATs (``type`` not GCS, ``autopilot`` not INVALID, component
+    1: the caller filters) of system ids that have no session yet. A system id is
+    **confirmed** when ``min_heartbeats`` of them, spanning at least ``min_span_s``,
+    came from one place (link and peer) with the same ``(type, autopilot)`` and no gap
+    longer than ``max_gap_s``; a heartbeat from another place, with another signature or
+    after a longer gap starts the count again from it. A heartbeat with the same MAVLink
+    sequence number as the last one counted is a duplicate (a radio's repeat, a replay)
+    and adds nothing. A real autopilot (1 Hz, its sequence number counting every frame it
+    sends) is confirmed 2-3 s after it is first heard; random system ids in noise or
+    fuzzed frames, which rarely repeat a signature and never over seconds with fresh
+    sequence numbers, are not. :meth:`heartbeat` returns True while the evidence is
+    sufficient; the caller :meth:`forget` s the system id once it made a session. At most
+    one candidate per system id (256) is kept.
+
+    Counters: ``heartbeats`` (fed), ``duplicates``, ``restarts`` (a candidate's count
+    started again).
+    """
+
+    def __init__(
+        self, min_heartbeats: int = 3, min_span_s: float = 2.0, max_gap_s: float = 5.0
+    ) -> None:
+        self.min_heartbeats = min_heartbeats
+        self.min_span_s = min_span_s
+        self.max_gap_s = max_gap_s
+        self.heartbeats = 0
+        self.duplicates = 0
+        self.restarts = 0
+        self._candidates: dict[int, _Newcomer] = {}
+
+    @property
+    def pending(self) -> int:
+        """System ids heard but not (yet) confirmed."""
+        return len(self._candidates)
+
+    def heartbeat(
+        self,
+        system_id: int,
+        place: Hashable,
+        signature: tuple[int, int],
+        seq: int,
+        t_s: float,
+    ) -> bool:
+        """One autopilot HEARTBEAT of ``system_id`` from ``place`` (``signature``: its
+        ``(type, autopilot)``, ``seq``: its MAVLink sequence number) at ``t_s``."""
+        self.heartbeats += 1
+        cand = self._candidates.get(system_id)
+        if cand is not None and cand.place == place and cand.signature == signature:
+            if seq == cand.last_seq:
+                self.duplicates += 1
+                return self._enough(cand)
+            if t_s - cand.last_s <= self.max_gap_s:
+                cand.count += 1
+                cand.last_s = t_s
+                cand.last_seq = seq
+                return self._enough(cand)
+        if cand is not None:
+            self.restarts += 1
+        self._candidates[system_id] = _Newcomer(place, signature, t_s, t_s, seq)
+        return self.min_heartbeats <= 1 and self.min_span_s <= 0.0
+
+    def forget(self, system_id: int) -> None:
+        self._candidates.pop(system_id, None)
+
+    def _enough(self, cand: _Newcomer) -> bool:
+        return (
+            cand.count >= self.min_heartbeats
+            and cand.last_s - cand.first_s >= self.min_span_s - 1e-9
+        )

@@ -69,11 +69,12 @@ class VehicleController(ControllerState):
 
     # ------------------------------------------------------------------ the entry point
     def handle(self, inp: io.Input) -> list[io.Output]:
+        if isinstance(inp, io.ForeignFrame):  # changes nothing: no work per frame
+            self.foreign_frames += 1
+            return []
         self.t_s = max(self.t_s, inp.t_s)
         if isinstance(inp, io.Frame):
             self._on_frame(inp)
-        elif isinstance(inp, io.ForeignFrame):
-            self.foreign_frames += 1
         elif isinstance(inp, io.Tick):
             self._on_tick(inp.t_s)
         elif isinstance(inp, io.ExchangeDone):
@@ -125,7 +126,7 @@ class VehicleController(ControllerState):
         elif kind == "MISSION_CURRENT" and s.mission_current_seq is not None:
             self.watch.mission_seq(s.mission_current_seq)
             loiter = self._loiter
-            if loiter is not None and loiter.observe_current(s.mission_current_seq):
+            if loiter is not None and loiter.observe_current(s.mission_current_seq, t):
                 self._loiter_ended(t, loiter)
         elif kind == "GLOBAL_POSITION_INT" and self.state is S.ACTIVE and self._restore is None:
             self._core_pose()
@@ -147,8 +148,9 @@ class VehicleController(ControllerState):
             self.journal("mode", old=event.old_name, mode=event.new_name, cause=cause)
             self._own_mode = event.new if ours else None
         elif isinstance(event, MissionItemReached):
-            if self._loiter is not None:
-                self._loiter.observe_reached(event.seq)
+            loiter = self._loiter
+            if loiter is not None and loiter.observe_reached(event.seq, t):
+                self._loiter_ended(t, loiter)
         elif isinstance(event, StatusText):
             self.watch.texts.append((t, event.text))
             self.journal("statustext", severity=event.severity, text=event.text)

@@ -219,17 +219,23 @@ def home_job(host: JobHost) -> Job:
 class JobRunner:
     """Steps one job, with at most one exchange outstanding.
 
-    ``guard(request)`` is asked before every request goes out; a refused request ends the
-    job (``on_refused(request)``). A result that comes back for an aborted job's exchange
-    only frees the runner."""
+    ``hold(request)`` is asked first: while it says True the request waits (held, the job
+    paused; e.g. while a reboot is suspected and not yet confirmed or cleared). Then
+    ``guard(request)``; a refused request ends the job (``on_refused(request)``). A result
+    that comes back for an aborted job's exchange only frees the runner."""
 
     def __init__(
-        self, guard: Callable[[Exchange], bool], on_refused: Callable[[Exchange], None]
+        self,
+        guard: Callable[[Exchange], bool],
+        on_refused: Callable[[Exchange], None],
+        hold: Callable[[Exchange], bool] | None = None,
     ) -> None:
         self.guard = guard
         self.on_refused = on_refused
+        self.hold = hold
         self.job: Job | None = None
         self.running: Exchange | None = None
+        self.held: Exchange | None = None
         self.pause_until_s: float | None = None
 
     @property
@@ -246,25 +252,36 @@ class JobRunner:
             self.job.close()
             self.job = None
         self.pause_until_s = None
+        self.held = None
         return self.running is not None
 
     def ready(self, t_s: float) -> bool:
         if self.job is None or self.running is not None:
             return False
+        if self.held is not None:
+            return self.hold is None or not self.hold(self.held)
         return self.pause_until_s is None or t_s >= self.pause_until_s
 
     def step(self, value: Any = None) -> Exchange | None:
-        """Resume the job with ``value``; the exchange to send, if any."""
+        """Resume the job with ``value`` (or release the held request); the exchange to
+        send, if any."""
         job = self.job
         assert job is not None
-        self.pause_until_s = None
-        try:
-            request = job.send(value)
-        except StopIteration:
-            self.job = None
-            return None
+        if self.held is not None:
+            request: Exchange | Pause = self.held
+            self.held = None
+        else:
+            self.pause_until_s = None
+            try:
+                request = job.send(value)
+            except StopIteration:
+                self.job = None
+                return None
         if isinstance(request, Pause):
             self.pause_until_s = request.until_s
+            return None
+        if self.hold is not None and self.hold(request):
+            self.held = request
             return None
         if not self.guard(request):
             self.job = None

@@ -76,7 +76,7 @@ class ControllerState:
         self.foreign_frames = 0
         self._out: list[io.Output] = []
         self.watch = Watch(settings)
-        self._jobs = JobRunner(self.may_command_request, self._refused)
+        self._jobs = JobRunner(self.may_command_request, self._refused, self.must_wait)
         self._pending_fly: io.Fly | None = None
         self._wanted: io.Fly | None = None
         self._pending_home = False
@@ -117,6 +117,14 @@ class ControllerState:
 
     def may_command_request(self, request: io.Exchange) -> bool:
         return not isinstance(request, io.SetMode | io.UploadMission) or self.may_command()
+
+    def must_wait(self, request: io.Exchange) -> bool:
+        """A command waits while a reboot is suspected (a ``time_boot_ms`` that went back,
+        not yet confirmed or cleared by the next frames): one stray frame must not cost
+        the vehicle its mission, nor may a command reach a vehicle that may have
+        rebooted. A confirmed reboot aborts the job; a cleared suspicion lets it go on."""
+        commanding = io.SetMode | io.UploadMission | io.SetCurrent | io.Arm
+        return isinstance(request, commanding) and self.snap.reboot_suspected
 
     # ------------------------------------------------------------------ outputs
     def journal(self, event: str, **fields: Any) -> None:
