@@ -14,6 +14,7 @@ from typing import Any
 
 import pytest
 
+from domain.modes import ArduPlaneMode
 from groundstation.core import events as ev
 from groundstation.core.commands import FlyToTarget
 from groundstation.mavlink.codec import mavlink2
@@ -26,7 +27,6 @@ from groundstation.mavlink.telemetry_events import (
 )
 from groundstation.vehicle import io
 from groundstation.vehicle.controller import VehicleController, VehicleState
-from groundstation.vehicle.modes import PlaneMode
 from groundstation.vehicle.settings import ControllerSettings
 
 M = mavlink2
@@ -34,7 +34,7 @@ S = VehicleState
 ACCEPTED = M.MAV_RESULT_ACCEPTED
 FLYING: dict[str, Any] = dict(
     x_m=0.0, y_m=0.0, alt_m=100.0, speed_m_s=22.0, heading_rad=0.0, armed=True,
-    mode=PlaneMode.AUTO, mode_name="AUTO", mission_current_seq=1, mission_total=3,
+    mode=ArduPlaneMode.AUTO, mode_name="AUTO", mission_current_seq=1, mission_total=3,
     battery_remaining_pct=80.0, prearm_ok=True, time_boot_ms=100_000, system_status=4,
 )  # fmt: skip
 ON_GROUND: dict[str, Any] = dict(
@@ -97,7 +97,8 @@ class Rig:
                 self.snap = replace(self.snap, mission_current_seq=r.seq)
                 self.answer(ok_transfer())
             elif isinstance(r, io.SetMode):
-                self.snap = replace(self.snap, mode=int(r.mode), mode_name=PlaneMode(r.mode).name)
+                name = ArduPlaneMode(r.mode).name
+                self.snap = replace(self.snap, mode=int(r.mode), mode_name=name)
                 self.answer(ACCEPTED)
             elif isinstance(r, io.Arm):
                 self.snap = replace(self.snap, armed=True)
@@ -169,10 +170,10 @@ def test_holding_an_unlimited_loiter_joins_without_upload() -> None:
 
 def test_guided_joins_at_once_and_manual_waits() -> None:
     rig = Rig()
-    rig.run(4.0, mode=PlaneMode.GUIDED, mode_name="GUIDED")
+    rig.run(4.0, mode=ArduPlaneMode.GUIDED, mode_name="GUIDED")
     assert rig.journal("vehicle_joined")[0].fields["how"] == "guided" and rig.asked == []
     manual = Rig()
-    manual.run(4.0, mode=PlaneMode.FBWA, mode_name="FBWA")
+    manual.run(4.0, mode=ArduPlaneMode.FBWA, mode_name="FBWA")
     assert manual.c.state is S.MANUAL and manual.asked == [] and manual.journal("waiting")
 
 
@@ -276,7 +277,7 @@ def test_guard_refuses_a_target_upload_to_a_disarmed_vehicle() -> None:
 
 def test_guard_refuses_auto_after_an_upload_when_the_vehicle_disarmed_meanwhile() -> None:
     rig = active_rig()
-    rig.snap = replace(rig.snap, mode=PlaneMode.GUIDED, mode_name="GUIDED")
+    rig.snap = replace(rig.snap, mode=ArduPlaneMode.GUIDED, mode_name="GUIDED")
     rig.auto_answer = False
     rig.fly()
     rig.answer(io.UploadOutcome(True, 0, None, 3))
@@ -304,7 +305,7 @@ def test_guard_refuses_rtl_for_a_disarmed_vehicle() -> None:
     armed = active_rig()
     armed.feed(io.Release(armed.t, "battery low", home=True))
     armed.auto()
-    assert [r.mode for r in armed.requests(io.SetMode)] == [PlaneMode.RTL]
+    assert [r.mode for r in armed.requests(io.SetMode)] == [ArduPlaneMode.RTL]
     assert armed.journal("rtl")[0].fields["ok"] is True
 
 
@@ -312,19 +313,19 @@ def test_guard_refuses_rtl_for_a_disarmed_vehicle() -> None:
 def test_sustained_mode_change_is_an_override_one_frame_is_not() -> None:
     rig = active_rig()
     rig.t += 0.5
-    rig.frame("HEARTBEAT", mode=PlaneMode.FBWA, mode_name="FBWA")  # one forged frame
-    rig.run(10.0, mode=PlaneMode.AUTO, mode_name="AUTO")
+    rig.frame("HEARTBEAT", mode=ArduPlaneMode.FBWA, mode_name="FBWA")  # one forged frame
+    rig.run(10.0, mode=ArduPlaneMode.AUTO, mode_name="AUTO")
     assert rig.c.state is S.ACTIVE and not rig.journal("override")
-    rig.run(5.0, mode=PlaneMode.FBWA, mode_name="FBWA")
+    rig.run(5.0, mode=ArduPlaneMode.FBWA, mode_name="FBWA")
     assert rig.journal("override")[0].fields["reason"] == "mode FBWA"
     assert len(rig.core(ev.OperatorOverride)) == 1
 
 
 def test_auto_again_takes_back_a_flying_vehicle() -> None:
     rig = active_rig()
-    rig.run(5.0, mode=PlaneMode.FBWA, mode_name="FBWA")
+    rig.run(5.0, mode=ArduPlaneMode.FBWA, mode_name="FBWA")
     rig.asked.clear()
-    rig.run(5.0, mode=PlaneMode.AUTO, mode_name="AUTO")
+    rig.run(5.0, mode=ArduPlaneMode.AUTO, mode_name="AUTO")
     assert rig.journal("resume")[0].fields["reason"] == "mode AUTO"
     assert rig.c.state is S.ACTIVE and len(rig.core(ev.OperatorResume)) == 1
 
@@ -335,19 +336,19 @@ def test_an_override_in_auto_is_not_taken_back_until_auto_is_selected_again() ->
     rig._collect(rig.c.take_outputs())
     rig.run(20.0)  # still in AUTO: the other ground station flies it
     assert rig.c.state is S.OVERRIDDEN and not rig.journal("resume")
-    rig.run(3.0, mode=PlaneMode.LOITER, mode_name="LOITER")
-    rig.run(5.0, mode=PlaneMode.AUTO, mode_name="AUTO")
+    rig.run(3.0, mode=ArduPlaneMode.LOITER, mode_name="LOITER")
+    rig.run(5.0, mode=ArduPlaneMode.AUTO, mode_name="AUTO")
     assert rig.c.state is S.ACTIVE and rig.journal("resume")[0].fields["reason"] == "mode AUTO"
 
 
 def test_auto_again_on_the_ground_is_not_a_take_back() -> None:
     # issue 10.1: overridden to FBWA, glided in, switched back to AUTO at 0 m
     rig = active_rig()
-    rig.run(5.0, mode=PlaneMode.FBWA, mode_name="FBWA")
-    rig.run(10.0, mode=PlaneMode.FBWA, mode_name="FBWA", alt_m=0.0, speed_m_s=0.0,
+    rig.run(5.0, mode=ArduPlaneMode.FBWA, mode_name="FBWA")
+    rig.run(10.0, mode=ArduPlaneMode.FBWA, mode_name="FBWA", alt_m=0.0, speed_m_s=0.0,
             landed_state=1)  # fmt: skip
     rig.asked.clear()
-    rig.run(30.0, mode=PlaneMode.AUTO, mode_name="AUTO", alt_m=0.0, speed_m_s=0.0,
+    rig.run(30.0, mode=ArduPlaneMode.AUTO, mode_name="AUTO", alt_m=0.0, speed_m_s=0.0,
             landed_state=1)  # fmt: skip
     assert not rig.journal("resume") and rig.journal("resume_refused")
     assert rig.c.state is S.ON_GROUND and rig.asked == [] and not rig.core(ev.OperatorResume)
@@ -356,7 +357,7 @@ def test_auto_again_on_the_ground_is_not_a_take_back() -> None:
 
 def test_battery_failsafe_rtl_is_not_an_override() -> None:
     rig = active_rig()
-    rig.run(6.0, mode=PlaneMode.RTL, mode_name="RTL", battery_remaining_pct=10.0,
+    rig.run(6.0, mode=ArduPlaneMode.RTL, mode_name="RTL", battery_remaining_pct=10.0,
             system_status=5)  # fmt: skip
     assert not rig.journal("override")
     assert rig.journal("battery_low") and len(rig.core(ev.BatteryLow)) == 1

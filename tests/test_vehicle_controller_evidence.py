@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import pytest
 
+from domain.modes import TAKEN_MODES, ArduPlaneMode, mode_name
 from groundstation.mavlink.evidence import (
     BatteryEvidence,
     LoiterEndEvidence,
@@ -11,7 +12,6 @@ from groundstation.mavlink.evidence import (
     RebootEvidence,
     Sustained,
 )
-from groundstation.vehicle.modes import TAKEN_MODES, PlaneMode, plane_mode_name
 
 
 @pytest.mark.parametrize(
@@ -176,6 +176,6 @@ def test_new_system_evidence_is_kept_per_system_id() -> None:
 
 
 def test_modes() -> None:
-    assert PlaneMode.AUTO == 10 and plane_mode_name(5) == "FBWA"
-    assert plane_mode_name(99) == "MODE_99"
-    assert {PlaneMode.AUTO, PlaneMode.GUIDED} == TAKEN_MODES
+    assert ArduPlaneMode.AUTO == 10 and mode_name(5) == "FBWA"
+    assert mode_name(99) == "MODE_99"
+    assert {ArduPlaneMode.AUTO, ArduPlaneMode.GUIDED} == TAKEN_MODES

@@ -16,7 +16,6 @@ import asyncio
 import contextlib
 import functools
 import logging
-import math
 import time
 from collections.abc import Awaitable, Callable
 from pathlib import Path
@@ -37,15 +36,19 @@ from groundstation.core.config import CoreConfig
 from groundstation.core.decision import DecisionCore
 from groundstation.core.metrics import MetricsRecorder
 from groundstation.core.records import command_to_record, event_to_record
+from groundstation.daemon.area import OperatingArea
 from groundstation.daemon.clock import MissionClock
 from groundstation.daemon.config import DaemonConfig, OnExit, OperatingCenter
 from groundstation.daemon.journal import Journal
+from groundstation.daemon.log_lines import LOGGED_EVENTS, describe_line
 from groundstation.daemon.planning import SolverRunner
+from groundstation.daemon.reports import LinkReporter, run_summary
 from groundstation.daemon.session import VehicleSession
 from groundstation.daemon.signing_gate import SigningGate
 from groundstation.daemon.supervision import Supervisor
 from groundstation.daemon.vehicle_port import VehiclePort
 from groundstation.daemon.world import ScenarioWorld
+from groundstation.daemon.world_feed import WorldFeed
 from groundstation.link import Received, Router, TlogWriter
 from groundstation.link.base import Link
 from groundstation.link.binding import BindingRules
@@ -100,7 +103,7 @@ class Daemon:
             now_s=clock.now_s,
             on_notice=lambda event, fields: self.journal(event, **fields),
         )
-        self._link_reported: dict[str, dict[str, int]] = {}
+        self._link_reporter = LinkReporter()
         self._next_link_report_s = 0.0
         self.tlog = tlog
         self.sessions: dict[int, VehicleSession] = {}
@@ -125,6 +128,13 @@ class Daemon:
         self.control_token: str | None = None
         self.detection_address: tuple[str, int] | None = None
         self.boat_xy_m: tuple[float, float] | None = None
+        self.feed = WorldFeed(self.core, self.core_event, self.journal, self.metrics,
+                              lambda: self.world, self.inside_area)
+        self.area = OperatingArea(
+            config.mission.operating_radius_m,
+            config.mission.operating_center == OperatingCenter.BOAT,
+            lambda: self.boat_xy_m,
+        )
         self.stopping = False
         self.stop_reason = ""
         self.last_plan: dict[str, Any] | None = None
@@ -158,8 +168,8 @@ class Daemon:
 
     def journal(self, event: str, **fields: Any) -> None:
         line = self.journal_file.write(event, **fields)
-        if event in _LOGGED:
-            log.info("%s", _describe(line))
+        if event in LOGGED_EVENTS:
+            log.info("%s", describe_line(line))
 
     def core_event(self, event: ev.Event) -> None:
         """Feed the core and carry out what it says (as the offline runner does).
@@ -179,29 +189,14 @@ class Daemon:
             self._execute(command)
 
     def clip(self, x_m: float, y_m: float) -> tuple[float, float, bool]:
-        """Clip a waypoint into the operating area (a circle around home or the boat)."""
-        radius = self.config.mission.operating_radius_m
-        if radius is None:
-            return x_m, y_m, False
-        cx, cy = self.area_center()
-        d = math.hypot(x_m - cx, y_m - cy)
-        if d <= radius:
-            return x_m, y_m, False
-        k = radius / d
-        return cx + (x_m - cx) * k, cy + (y_m - cy) * k, True
+        """Clip a waypoint into the operating area (SessionHost)."""
+        return self.area.clip(x_m, y_m)
 
     def area_center(self) -> tuple[float, float]:
-        center = self.config.mission.operating_center
-        if center == OperatingCenter.BOAT and self.boat_xy_m is not None:
-            return self.boat_xy_m
-        return 0.0, 0.0
+        return self.area.center()
 
     def inside_area(self, x_m: float, y_m: float) -> bool:
-        radius = self.config.mission.operating_radius_m
-        if radius is None:
-            return True
-        cx, cy = self.area_center()
-        return math.hypot(x_m - cx, y_m - cy) <= radius
+        return self.area.contains(x_m, y_m)
 
     # ------------------------------------------------------------------ core commands
     def _execute(self, command: Command) -> None:
@@ -459,13 +454,13 @@ class Daemon:
             t = self._next_tick_s
             if self.world is not None:
                 for event in self.world.step_to(t):
-                    self._world_event(event)
+                    self.feed.scenario_event(event)
                 if self.world.boat_xy_m is not None:
                     self.boat_xy_m = self.world.boat_xy_m
                     self.core.set_boat(*self.world.boat_xy_m)
             self.core_event(ev.Tick(t))
             if t >= self._next_sample_s - 1e-9:
-                self._sample(t)
+                self.feed.sample(t)
                 self._next_sample_s += 1.0
             self._next_tick_s = round(self._next_tick_s + TICK_S, 6)
         for session in self.sessions.values():
@@ -479,177 +474,26 @@ class Daemon:
             self.report_links()
         if now >= self._next_track_s:
             self._next_track_s = now + self.config.mission.track_period_s
-            for tr in self.core.observer.tracks():
-                self.journal(
-                    "track",
-                    target=tr.id,
-                    sigma=round(tr.sigma, 3),
-                    x_m=round(tr.x_m, 1),
-                    y_m=round(tr.y_m, 1),
-                    lost=tr.lost or None,
-                )
-            if self.world is not None:  # simulated targets: the truth, for reports
-                for target, (x, y) in sorted(self.world.truth().items()):
-                    self.journal("truth", target=target, x_m=round(x, 1), y_m=round(y, 1))
+            self.feed.journal_tracks()
 
     def report_links(self) -> None:
-        """Journal ``link_drops`` for every link whose receive trouble (frames dropped
-        unread, bad, foreign, iterator overflow) grew since the last report: the increase
-        and the totals. Called every ``LINK_REPORT_PERIOD_S`` mission seconds."""
-        for link in self.router.links:
-            now = link.counters.receive_summary()
-            now["dropped_priority"] = link.counters.rx_dropped_priority
-            before = self._link_reported.get(link.link_id, {})
-            delta = {k: v - before.get(k, 0) for k, v in now.items() if k != "received"}
-            if any(delta.values()):
-                self._link_reported[link.link_id] = now
-                self.journal("link_drops", link=link.link_id, **delta, totals=now)
-
-    def _world_event(self, event: ev.Event) -> None:
-        if isinstance(event, ev.Detection):
-            self.add_detection(event)
-            return
-        if isinstance(event, ev.TargetAdded):
-            if not self.inside_area(event.x_m, event.y_m):
-                self.journal(
-                    "target_refused",
-                    target=event.target,
-                    x_m=event.x_m,
-                    y_m=event.y_m,
-                    reason="outside the operating area",
-                )
-                return
-            self.journal(
-                "target_added",
-                target=event.target,
-                x_m=event.x_m,
-                y_m=event.y_m,
-                vx_m_s=event.vx_m_s,
-                vy_m_s=event.vy_m_s,
-                sigma0=event.sigma0,
-                source="scenario",
-            )
-        elif isinstance(event, ev.TargetRemoved):
-            self.journal("target_removed", target=event.target, source="scenario")
-        self.core_event(event)
+        """Journal ``link_drops`` where a link's receive trouble grew (see LinkReporter)."""
+        for line in self._link_reporter.changes(self.router.links):
+            self.journal("link_drops", **line)
 
     def add_detection(self, event: ev.Detection) -> None:
         """A camera measurement (virtual camera or detection feed) for the core."""
-        if not self.inside_area(event.x_m, event.y_m):
+        if not self.feed.detection(event):
             self.detections_dropped += 1
-            return
-        self.core_event(event)
-        outcome = self.core.last_measurement
-        accepted = outcome is not None and outcome.accepted
-        if accepted and event.target is not None:
-            self.metrics.seen(event.t_s, event.vehicle, event.target)
-        self.journal(
-            "detection",
-            vehicle=event.vehicle,
-            target=event.target,
-            x_m=round(event.x_m, 1),
-            y_m=round(event.y_m, 1),
-            accepted=accepted,
-        )
-
-    def _sample(self, t: float) -> None:
-        tracks = self.core.observer.tracks()
-        self.metrics.sample(t, (tr.sigma for tr in tracks))
-        truth = self.world.truth() if self.world is not None else {}
-        for tr in tracks:
-            if tr.lost:
-                self.metrics.mark_lost(tr.id)
-            if tr.id in truth:
-                tx, ty = truth[tr.id]
-                self.metrics.error(tr.id, math.hypot(tr.x_m - tx, tr.y_m - ty))
 
     # ------------------------------------------------------------------ reports
     def summary(self) -> dict[str, Any]:
-        wall = time.perf_counter() - self._wall_start
-        cpu = time.process_time() - self._cpu_start
-        metrics = self.metrics.to_dict(wall)
-        delays = [d for s in self.sessions.values() for d in s.upload_delays_s]
-        return {
-            "mission_s": round(self.clock.now_s(), 2),
-            "wall_s": round(wall, 2),
-            "cpu_s": round(cpu, 2),
-            "mean_uncertainty": metrics.get("mean_uncertainty"),
-            "max_uncertainty": metrics.get("max_uncertainty"),
-            "final_uncertainty": metrics.get("final_uncertainty"),
-            "plans": self.core.plans_adopted,
-            "uploads_ok": sum(s.uploads_ok for s in self.sessions.values()),
-            "uploads_failed": sum(s.uploads_failed for s in self.sessions.values()),
-            "loiter_to_upload_s": sorted(round(d, 3) for d in delays),
-            "visits": len(metrics.get("visits", [])),
-            **({"signing": self.signing.summary()} if self.signing is not None else {}),
-            "links": self.router.link_stats(),
-            "unknown_systems": {
-                "frames": self.unknown_frames,
-                "heartbeats": self.newcomers.heartbeats,
-                "duplicates": self.newcomers.duplicates,
-                "pending": self.newcomers.pending,
-            },
-        }
+        """The run in figures (printed at the end, in ``metrics.json`` and the stop line)."""
+        return run_summary(self, time.perf_counter() - self._wall_start,
+                           time.process_time() - self._cpu_start)
 
     def metrics_dict(self) -> dict[str, Any]:
         wall = time.perf_counter() - self._wall_start
         out = self.metrics.to_dict(wall)
         out["summary"] = self.summary()
         return out
-
-
-_LOGGED = frozenset(
-    {
-        "plan",
-        "upload",
-        "loiter_end",
-        "link_lost",
-        "link_restored",
-        "override",
-        "resume",
-        "battery_low",
-        "vehicle_joined",
-        "reboot",
-        "launch",
-        "target_added",
-        "target_removed",
-        "task_error",
-        "rtl",
-        "release",
-        "released",
-        "send_home",
-        "stop",
-        "autopilot_mode",
-        "on_ground",
-        "waiting",
-        "plan_failed",
-        "signing_rejected",
-        "no_progress",
-        "landed",
-        "resume_refused",
-        "command_refused",
-        "link_drops",
-        "link_rebound",
-        "peer_rebound",
-    }
-)
-
-
-def _describe(line: dict[str, Any]) -> str:
-    skip = {"t", "unix_s", "event", "problem", "result", "hint", "request_id"}
-    parts = [f"t={line['t']:.1f}", line["event"]]
-    for key, value in line.items():
-        if key not in skip:
-            parts.append(f"{key}={_short(value)}")
-    return " ".join(parts)
-
-
-def _short(value: Any) -> Any:
-    """Floats to 4 significant digits for the log (the journal keeps full precision)."""
-    if isinstance(value, float):
-        return f"{value:.4g}" if abs(value) < 1e5 else f"{value:.0f}"
-    if isinstance(value, list) and len(value) > 6 and all(isinstance(v, float) for v in value):
-        return f"[{len(value)} values, median {sorted(value)[len(value) // 2]:.3g}]"
-    if isinstance(value, list):
-        return [_short(v) for v in value]
-    return value

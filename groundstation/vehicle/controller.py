@@ -30,6 +30,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
+from domain.modes import TAKEN_MODES, ArduPlaneMode
 from groundstation.core import events as ev
 from groundstation.mavlink.telemetry_events import (
     Armed,
@@ -49,7 +50,6 @@ from groundstation.vehicle.jobs import (
     park_job,
     target_job,
 )
-from groundstation.vehicle.modes import TAKEN_MODES, PlaneMode
 from groundstation.vehicle.state import (
     ASSESSED,
     IN_HAND,
@@ -179,7 +179,7 @@ class VehicleController(ControllerState):
         if mode is not None and mode not in TAKEN_MODES:
             self._left_taken = True
         # taken back: switched (back) to AUTO after the override, and kept there
-        auto = mode == PlaneMode.AUTO
+        auto = mode == ArduPlaneMode.AUTO
         if given_back and self.state is S.OVERRIDDEN and auto and self._left_taken:
             self.resume(t, "mode AUTO")
         if mode in TAKEN_MODES and self.state in (S.MANUAL, S.CONNECTING):
@@ -379,8 +379,8 @@ class VehicleController(ControllerState):
                 return
             if s.x_m is None:
                 return
-            if s.mode == PlaneMode.GUIDED or self.s.advisory:
-                self.joined("guided" if s.mode == PlaneMode.GUIDED else "advisory")
+            if s.mode == ArduPlaneMode.GUIDED or self.s.advisory:
+                self.joined("guided" if s.mode == ArduPlaneMode.GUIDED else "advisory")
                 return
             self.state = S.JOINING
             self._start(park_job(self))

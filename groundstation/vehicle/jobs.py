@@ -13,6 +13,7 @@ from collections.abc import Callable, Generator
 from dataclasses import dataclass
 from typing import Any, Protocol
 
+from domain.modes import ArduPlaneMode
 from groundstation.mavlink.codec import mavlink2
 from groundstation.mavlink.mission_items import (
     LoiterTime,
@@ -33,7 +34,6 @@ from groundstation.vehicle.io import (
     UploadMission,
     UploadOutcome,
 )
-from groundstation.vehicle.modes import PlaneMode
 
 __all__ = [
     "Job",
@@ -114,9 +114,9 @@ def mission_job(
         error = "" if ok else f"set current {result.code.value}: {result.message}"
         if ok and purpose == "target":
             host.arm_loiter_end(current)
-        if ok and host.mode() != PlaneMode.AUTO:
-            host.expect_mode(PlaneMode.AUTO)
-            answer = yield SetMode(PlaneMode.AUTO)
+        if ok and host.mode() != ArduPlaneMode.AUTO:
+            host.expect_mode(ArduPlaneMode.AUTO)
+            answer = yield SetMode(ArduPlaneMode.AUTO)
             ok = answer == M.MAV_RESULT_ACCEPTED
             error = "" if ok else "mode AUTO refused"
         if not ok:
@@ -172,8 +172,8 @@ def launch_job(host: JobHost, heading_rad: float) -> Job:
             host.journal("arm", ok=False, result=answer)
     if ok:
         yield SetCurrent(1, host.mission_seq())
-        host.expect_mode(PlaneMode.AUTO)
-        answer = yield SetMode(PlaneMode.AUTO)
+        host.expect_mode(ArduPlaneMode.AUTO)
+        answer = yield SetMode(ArduPlaneMode.AUTO)
         ok = answer == M.MAV_RESULT_ACCEPTED
     if ok:
         host.launched()
@@ -208,8 +208,8 @@ def target_job(host: JobHost, fly: Fly) -> Job:
 
 
 def home_job(host: JobHost) -> Job:
-    host.expect_mode(PlaneMode.RTL)
-    answer = yield SetMode(PlaneMode.RTL)
+    host.expect_mode(ArduPlaneMode.RTL)
+    answer = yield SetMode(ArduPlaneMode.RTL)
     ok = answer == M.MAV_RESULT_ACCEPTED
     host.home_done(ok)
     if not ok:

@@ -12,6 +12,7 @@ import collections
 import math
 from dataclasses import dataclass
 
+from domain.modes import TAKEN_MODES, ArduPlaneMode
 from groundstation.mavlink.evidence import (
     MAV_STATE_CRITICAL,
     MAV_STATE_EMERGENCY,
@@ -19,7 +20,6 @@ from groundstation.mavlink.evidence import (
     Sustained,
 )
 from groundstation.mavlink.telemetry_events import VehicleSnapshot
-from groundstation.vehicle.modes import TAKEN_MODES, PlaneMode
 from groundstation.vehicle.settings import ControllerSettings
 
 __all__ = ["MAV_LANDED_STATE_ON_GROUND", "ModeChange", "Watch"]
@@ -84,7 +84,7 @@ class Watch:
             self.battery.autopilot_agrees()
         if mode is None:
             return False
-        if mode == PlaneMode.RTL and not ours:
+        if mode == ArduPlaneMode.RTL and not ours:
             self.battery.autopilot_agrees()
         taken = mode in TAKEN_MODES
         if in_hand and not taken and not ours:
@@ -114,7 +114,7 @@ class Watch:
             text.lower() for tt, text in self.texts if tt >= since - TEXT_LOOKBACK_S
         )
         critical = s.system_status in (MAV_STATE_CRITICAL, MAV_STATE_EMERGENCY)
-        rtl = mode == PlaneMode.RTL
+        rtl = mode == ArduPlaneMode.RTL
         if rtl and (self.battery.low_readings or (critical and "batt" in texts)):
             return ModeChange(since, mode, name, "battery", "battery failsafe")
         seq, total = s.mission_current_seq, s.mission_total
