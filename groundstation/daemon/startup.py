@@ -40,6 +40,7 @@ from groundstation.daemon.control import DaemonController
 from groundstation.daemon.control_server import ControlLimits, ControlServer, binding_warning
 from groundstation.daemon.daemon import Daemon
 from groundstation.daemon.embedded import EmbeddedFactory, EmbeddedVehicles
+from groundstation.daemon.gc_guard import frozen_heap
 from groundstation.daemon.run_files import open_run_files
 from groundstation.daemon.signing_gate import SigningGate, load_signing_keys
 from groundstation.daemon.world import ScenarioWorld
@@ -350,7 +351,8 @@ async def run_daemon(
         if on_started is not None:
             on_started(daemon)
         try:
-            await daemon.run(links, outs)
+            with frozen_heap():  # collections skip what existed before the run (gc_guard)
+                await daemon.run(links, outs)
         except LinkError as exc:
             raise StartError(str(exc)) from None
         try:
