@@ -185,8 +185,12 @@ def test_mission_upload_by_another_gcs_is_an_override(tmp_path: Path) -> None:
             )
         )
         daemon = await started
-        # wait until vehicle 1 flies a mission of ours
-        while not (daemon.sessions.get(1) and daemon.sessions[1].uploads_ok):
+        # wait until vehicle 1 flies a mission of ours and vehicle 2 has joined (its join
+        # now waits for evidence that it flies, so it may come after vehicle 1's upload)
+        while not (
+            daemon.sessions.get(1) and daemon.sessions[1].uploads_ok
+            and daemon.sessions.get(2) and daemon.sessions[2].status == "active"
+        ):
             await asyncio.sleep(0.01)
         assert gcs.peer is not None and 1 in gcs.heard  # traffic forwarded to the other GCS
         encoder = MavlinkEncoder(255, 190)

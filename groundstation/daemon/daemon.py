@@ -177,6 +177,8 @@ class Daemon:
         A fleet event (loiter end, vehicle joined/lost...) also wakes the ticker at once, so
         the plan it triggers is asked for on the next 0.1 s tick without waiting for the
         ticker's sleep."""
+        if self._finished:  # the run is over (its stop line is written): nothing more
+            return
         if not isinstance(event, ev.Tick | ev.Telemetry | ev.Detection | ev.PlanSolved):
             self._kick.set()
         try:
