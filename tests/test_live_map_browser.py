@@ -143,8 +143,6 @@ def backend(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[Backend]
         with ServerThread(tick_s=0.1, token="page-token", push_hz=5.0) as server:
             yield FakeBackend(server)
         return
-    if not _daemon_available():
-        pytest.skip("gcs run (groundstation/commands/run.py) not available in this tree")
     daemon = start_daemon(tmp_path)
     try:
         yield daemon
@@ -155,15 +153,6 @@ def backend(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[Backend]
         except subprocess.TimeoutExpired:
             daemon.proc.kill()
             daemon.proc.wait(5)
-
-
-def _daemon_available() -> bool:
-    try:
-        from groundstation.cli import COMMANDS
-    except ImportError:
-        return False
-    return "run" in COMMANDS and (Path(__file__).parents[1] / "groundstation" / "commands"
-                                  / "run.py").exists()
 
 
 # ------------------------------------------------------------------ page helpers

@@ -243,6 +243,20 @@ def test_a_newer_command_overtakes_a_pending_one() -> None:
     assert targets == ["A", "C"]
 
 
+def test_a_newer_command_during_a_retry_pause_is_flown_not_the_old_one() -> None:
+    rig = active_rig()
+    rig.auto_answer = False
+    rig.fly("A")
+    rig.answer(io.UploadOutcome(False, 5, "upload timeout", 3))  # A failed: its job pauses
+    assert rig.pending is None
+    rig.fly("B")  # the core moves on while A waits to be retried
+    rig.auto_answer = True
+    rig.run(5.0)
+    targets = [r.target for r in rig.requests(io.UploadMission) if r.purpose == "target"]
+    assert targets == ["A", "B"]  # A is not uploaded again before B
+    assert rig.c.fly is not None and rig.c.fly.target == "B"
+
+
 @pytest.mark.parametrize(
     ("code", "remote", "seq_after", "ok"),
     [

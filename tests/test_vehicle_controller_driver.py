@@ -152,3 +152,53 @@ def test_reboot_is_told_to_the_port_and_other_components_are_counted_only() -> N
     session, host, port = asyncio.run(main())
     assert port.reboots == 1 and [e for e, _ in host.lines if e == "reboot"]
     assert session.status == "connecting"
+
+
+class RebootingPort(Port):
+    """Uploads run until the vehicle is reported rebooted, then end VEHICLE_REBOOTED (a
+    result the transfer layer calls retryable), as VehiclePort's do."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.rebooted = asyncio.Event()
+
+    def notify_rebooted(self) -> None:
+        super().notify_rebooted()
+        self.rebooted.set()
+
+    async def upload(self, items: Any) -> TransferResult:
+        self.calls.append("upload")
+        await self.rebooted.wait()
+        return TransferResult(False, TransferCode.VEHICLE_REBOOTED, "vehicle rebooted")
+
+
+def test_an_upload_ended_by_a_reboot_is_not_retried_to_the_rebooted_vehicle() -> None:
+    async def main() -> tuple[VehicleSession, Port]:
+        t = [0.0]
+        session, _, _ = await _flying_session(t)
+        port = RebootingPort()
+        session.port = port  # type: ignore[assignment]
+        runner = asyncio.create_task(session.run())
+        for _ in range(400):
+            await asyncio.sleep(0.005)
+            if "upload" in port.calls:
+                break
+        assert "upload" in port.calls
+        for k, boot_ms in enumerate((500, 1_000, 1_500)):  # the autopilot restarted
+            t[0] = 5.0 + 0.5 * k
+            session.on_message(wire(M.MAVLink_system_time_message(0, boot_ms)))
+        for k in range(40):  # 20 s of mission time, 2 s of wall: the session's retry pause
+            t[0] = 7.0 + 0.5 * k  # (1 s, a wall wait at this clock's speed-up 1) has passed
+            standby = M.MAVLink_heartbeat_message(1, 3, 1, 0, M.MAV_STATE_STANDBY, 3)
+            session.on_message(wire(standby))
+            session.on_message(wire(M.MAVLink_system_time_message(0, 1_500 + 500 * (k + 1))))
+            session.check_link(t[0])  # the rebooted vehicle talks on: its link stays up
+            await asyncio.sleep(0.05)
+        session.stopping = True
+        await asyncio.wait_for(runner, 5.0)
+        return session, port
+
+    session, port = asyncio.run(main())
+    assert session.status == "on_ground"  # re-assessed: the rebooted plane sits disarmed
+    assert port.reboots == 1
+    assert port.calls.count("upload") == 1  # no retry to a vehicle that just rebooted

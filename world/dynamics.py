@@ -28,6 +28,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 
+from domain.geodesy import wrap_pi
+
 __all__ = [
     "LoiterCommand",
     "PointCommand",
@@ -41,10 +43,6 @@ __all__ = [
 
 _HEADING_GAIN_PER_S = 2.0
 _ORBIT_GAIN = 2.0
-
-
-def _wrap_pi(angle_rad: float) -> float:
-    return (angle_rad + math.pi) % (2.0 * math.pi) - math.pi
 
 
 @dataclass(frozen=True)
@@ -96,7 +94,7 @@ def step_kinematics(state: UavState, turn_rate_rad_s: float, dt_s: float) -> Uav
         state,
         x_m=state.x_m + radius * (math.sin(psi1) - math.sin(psi0)),
         y_m=state.y_m - radius * (math.cos(psi1) - math.cos(psi0)),
-        heading_rad=_wrap_pi(psi1),
+        heading_rad=wrap_pi(psi1),
     )
 
 
@@ -108,7 +106,7 @@ def turn_rate_to_point(
     dx, dy = x_m - state.x_m, y_m - state.y_m
     if math.hypot(dx, dy) < 1e-6:
         return 0.0
-    err = _wrap_pi(math.atan2(dy, dx) - state.heading_rad)
+    err = wrap_pi(math.atan2(dy, dx) - state.heading_rad)
     side = 1.0 if err >= 0.0 else -1.0
     # centre of the turning circle on the side we would turn to
     cx = state.x_m - side * min_turn_radius_m * math.sin(state.heading_rad)
@@ -131,7 +129,7 @@ def turn_rate_to_circle(
         return 0.0
     gamma = math.atan2(dy, dx)
     chi_d = gamma + lam * (math.pi / 2.0 + math.atan(_ORBIT_GAIN * (d - radius) / radius))
-    err = _wrap_pi(chi_d - state.heading_rad)
+    err = wrap_pi(chi_d - state.heading_rad)
     feed_forward = lam * state.speed_m_s / max(d, radius)
     return max(-u_max, min(u_max, _HEADING_GAIN_PER_S * err + feed_forward))
 

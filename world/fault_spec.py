@@ -14,11 +14,12 @@ from __future__ import annotations
 from domain.errors import ConfigError
 from domain.modes import ArduPlaneMode
 
-__all__ = ["FAULT_KINDS", "FaultError", "fault_mode", "parse_fault_spec"]
+__all__ = ["FAULT_KINDS", "SIM_MODES", "FaultError", "fault_mode", "parse_fault_spec"]
 
 FAULT_KINDS = ("loss", "dup", "reorder", "delay", "drop", "kill", "reboot", "mode", "battery")
-# the modes the built-in vehicle flies (ArduPlane's numbers up to INITIALISING, no AVOID_ADSB)
-_SIM_MODES = {m.name: int(m) for m in ArduPlaneMode if m <= 16 and m != 14}
+SIM_MODES = {m.name: int(m) for m in ArduPlaneMode if m <= 16 and m != 14}
+"""Name -> number of the modes the built-in vehicle flies (ArduPlane's up to INITIALISING,
+no AVOID_ADSB, no QuadPlane): the simulator's mode table and what ``mode=`` may name."""
 
 
 class FaultError(ConfigError):
@@ -28,7 +29,7 @@ class FaultError(ConfigError):
 def fault_mode(text: str) -> int:
     """The mode number a ``mode=`` option names (a name such as FBWA, or a number)."""
     name = text.upper()
-    return int(name) if name.isdigit() else _SIM_MODES[name]
+    return int(name) if name.isdigit() else SIM_MODES[name]
 
 
 def _number(key: str, text: str, spec: str) -> float:
@@ -116,7 +117,7 @@ def _validate(kind: str, options: dict[str, str], spec: str) -> None:
         raise FaultError(f"fault {spec!r}: pct must be <= 100")
     if (
         kind == "mode"
-        and options["mode"].upper() not in _SIM_MODES
-        and not (options["mode"].isdigit() and int(options["mode"]) in _SIM_MODES.values())
+        and options["mode"].upper() not in SIM_MODES
+        and not (options["mode"].isdigit() and int(options["mode"]) in SIM_MODES.values())
     ):
         raise FaultError(f"fault {spec!r}: unknown mode {options['mode']!r}")

@@ -22,6 +22,7 @@ import time
 from dataclasses import dataclass
 
 from domain.geodesy import GeoOrigin
+from groundstation.commands.sitl_args import DEFAULT_HOME
 from groundstation.daemon.config import ConfigError, DaemonConfig
 from sitl.faults import FaultError, build_faults, fault_specs
 from sitl.server import ServerOptions, SitlServer
@@ -30,7 +31,6 @@ from world.scenario import Scenario
 
 __all__ = ["EmbeddedSim", "build_embedded_sim"]
 
-DEFAULT_HOME = (78.93, 11.92)
 SIM_TICK_S = 0.005
 
 

@@ -53,7 +53,7 @@ from groundstation.link import Received, Router, TlogWriter
 from groundstation.link.base import Link
 from groundstation.link.binding import BindingRules
 from groundstation.mavlink.codec import MavlinkEncoder, mavlink2
-from groundstation.mavlink.evidence import NewSystemEvidence
+from groundstation.mavlink.evidence import NewSystemEvidence, is_autopilot_heartbeat
 from planner import PlanResult
 
 __all__ = ["Daemon"]
@@ -126,7 +126,6 @@ class Daemon:
         self.on_finish: list[Callable[[], None]] = []
         self.control_url: str | None = None
         self.control_token: str | None = None
-        self.detection_address: tuple[str, int] | None = None
         self.boat_xy_m: tuple[float, float] | None = None
         self.feed = WorldFeed(self.core, self.core_event, self.journal, self.metrics,
                               lambda: self.world, self.inside_area)
@@ -179,7 +178,9 @@ class Daemon:
         ticker's sleep."""
         if self._finished:  # the run is over (its stop line is written): nothing more
             return
-        if not isinstance(event, ev.Tick | ev.Telemetry | ev.Detection | ev.PlanSolved):
+        if not isinstance(
+            event, ev.Tick | ev.Telemetry | ev.Detection | ev.PlanSolved | ev.BoatPosition
+        ):
             self._kick.set()
         try:
             pending = self.core.handle(event)
@@ -260,13 +261,7 @@ class Daemon:
                     "origin", lat_deg=msg.lat / 1e7, lon_deg=msg.lon / 1e7, source=f"system {sysid}"
                 )
             self.unknown_frames += 1
-            if (
-                msg.get_type() != "HEARTBEAT"
-                or rx.component_id != 1
-                or msg.type == M.MAV_TYPE_GCS
-                or msg.autopilot == M.MAV_AUTOPILOT_INVALID
-                or self.stopping
-            ):
+            if not is_autopilot_heartbeat(msg) or self.stopping:
                 return
             signature = (int(msg.type), int(msg.autopilot))
             place = (rx.link_id, rx.peer)
@@ -458,8 +453,7 @@ class Daemon:
                 for event in self.world.step_to(t):
                     self.feed.scenario_event(event)
                 if self.world.boat_xy_m is not None:
-                    self.boat_xy_m = self.world.boat_xy_m
-                    self.core.set_boat(*self.world.boat_xy_m)
+                    self.set_boat(*self.world.boat_xy_m)
             self.core_event(ev.Tick(t))
             if t >= self._next_sample_s - 1e-9:
                 self.feed.sample(t)
@@ -482,6 +476,11 @@ class Daemon:
         """Journal ``link_drops`` where a link's receive trouble grew (see LinkReporter)."""
         for line in self._link_reporter.changes(self.router.links):
             self.journal("link_drops", **line)
+
+    def set_boat(self, x_m: float, y_m: float) -> None:
+        """Where the boat is (scenario truth or the detection feed), for the core."""
+        self.boat_xy_m = (x_m, y_m)
+        self.core_event(ev.BoatPosition(self.core.t_s, x_m, y_m))  # as core.set_boat stamps it
 
     def add_detection(self, event: ev.Detection) -> None:
         """A camera measurement (virtual camera or detection feed) for the core."""

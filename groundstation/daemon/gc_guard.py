@@ -37,8 +37,9 @@ def frozen_heap() -> Iterator[None]:
     with _lock:
         if _users == 0:
             _owner = gc.get_freeze_count() == 0
+            if _owner:  # a freeze the process made itself is left as it was
+                gc.freeze()
         _users += 1
-        gc.freeze()
     try:
         yield
     finally:

@@ -121,11 +121,6 @@ class Journal:
             return
         self.file.append(data, keep=not is_telemetry(line))
 
-    def retry(self) -> None:
-        """Try to write held lines now (the daemon may call it periodically)."""
-        if self.file is not None:
-            self.file.retry()
-
     async def subscribe(self) -> AsyncIterator[dict[str, Any]]:
         """Every line written from now on, until :meth:`close`."""
         queue: asyncio.Queue[dict[str, Any] | None] = asyncio.Queue(_SUBSCRIBER_QUEUE)

@@ -236,6 +236,9 @@ class VehicleSession:
         self._feed(io.Tick(self.clock.now_s()))
         while self._exchanges:
             request = self._exchanges.popleft()
+            if not self.controller.wants(request):  # its job ended while it was queued
+                self._feed(io.ExchangeDone(self.clock.now_s(), request, None))
+                continue
             task = asyncio.ensure_future(self._exchange(request))
             self._exchange_task = task
             result: Any = None
@@ -258,9 +261,7 @@ class VehicleSession:
         if isinstance(request, io.SetCurrent):
             return await port.set_current(request.seq, request.known_current_seq)
         if isinstance(request, io.SetMode):
-            return await port.command(
-                M.MAV_CMD_DO_SET_MODE, [M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, int(request.mode)]
-            )
+            return await port.set_mode(int(request.mode))
         if isinstance(request, io.Arm):
             return await port.arm()
         return await port.param_set(request.name, request.value)
@@ -277,6 +278,8 @@ class VehicleSession:
             if attempt:
                 retries += 1
                 await asyncio.sleep(self.clock.wall_s(self.controller.s.retry_pause_s))
+            if not self.controller.wants(request):  # aborted (reboot, release...): stop
+                return io.UploadOutcome(False, retries, "no longer wanted", len(items))
             up = await self.port.upload(items)
             retries += up.retries_used
             if not up.ok and not up.maybe_stored:
@@ -284,6 +287,8 @@ class VehicleSession:
                 if not up.retryable:
                     break
                 continue
+            if not self.controller.wants(request):
+                return io.UploadOutcome(False, retries, "no longer wanted", len(items))
             down = await self.port.download()
             retries += down.retries_used
             if not down.ok or down.items is None:

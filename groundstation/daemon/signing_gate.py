@@ -43,6 +43,7 @@ from typing import Any
 
 from groundstation.daemon.config import ConfigError, DaemonConfig
 from groundstation.mavlink.codec import mavlink2
+from groundstation.mavlink.evidence import is_autopilot_heartbeat
 from groundstation.mavlink.signing import (
     SigningKeyError,
     SigningState,
@@ -196,7 +197,7 @@ class SigningGate:
         if verdict.accepted:
             return True
         self.rejected.setdefault((sysid, str(rx.link_id)), Counter())[verdict.value] += 1
-        if self.keys.setup and sysid not in self.confirmed and _is_vehicle_heartbeat(rx):
+        if self.keys.setup and sysid not in self.confirmed and is_autopilot_heartbeat(rx.message):
             self._maybe_setup(link, link_index, sysid, key)
         return False
 
@@ -236,13 +237,3 @@ class SigningGate:
                 )
                 self._reported[(sysid, link)] = Counter(counts)
         return out
-
-
-def _is_vehicle_heartbeat(rx: Any) -> bool:
-    """A HEARTBEAT of an autopilot (not another ground station's, not ours)."""
-    msg = rx.message
-    return (
-        msg.get_type() == "HEARTBEAT"
-        and msg.type != mavlink2.MAV_TYPE_GCS
-        and msg.autopilot != mavlink2.MAV_AUTOPILOT_INVALID
-    )

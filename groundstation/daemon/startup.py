@@ -289,7 +289,7 @@ async def run_daemon(
             versions=_versions(),
             run_dir=str(run_dir),
             speedup=clock.speedup,
-            core=_core_dict(ccfg),
+            core=config_to_dict(ccfg),
             origin=dataclasses.asdict(origin) if origin else None,
             sim_faults=sim.fault_specs if sim else None,
             scenario=scenario.name if scenario else None,
@@ -373,11 +373,6 @@ async def run_daemon(
         files.close()
 
 
-def _core_dict(ccfg: CoreConfig) -> dict[str, Any]:
-    out = config_to_dict(ccfg)
-    return out
-
-
 def _use_table(config: DaemonConfig) -> bool:
     if config.status == StatusMode.TABLE:
         return True
@@ -451,7 +446,6 @@ async def _start_detection_feed(
         ) from None
     daemon.extra_stops.append(feed.stop)
     bound_host, bound_port = getattr(feed, "address", (host, port))
-    daemon.detection_address = (bound_host, bound_port)
     print_fn(f"gcs run: detection feed on udp:{bound_host}:{bound_port}")
 
 
@@ -468,8 +462,7 @@ def _feed_detection(daemon: Daemon, item: Any) -> None:
     x, y, _ = daemon.origin.to_local(float(lat), float(lon))
     t = daemon.clock.now_s()
     if _field(item, "kind") == "boat":
-        daemon.boat_xy_m = (x, y)
-        daemon.core.set_boat(x, y)
+        daemon.set_boat(x, y)
         return
     sysid = _field(item, "vehicle")
     session = daemon.sessions.get(int(sysid)) if isinstance(sysid, int) else None

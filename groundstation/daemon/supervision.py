@@ -59,7 +59,6 @@ class Supervisor:
         self._on_bug = on_bug
         self.policy = policy or RestartPolicy()
         self.stopped = False
-        self.bugs = 0
         self.given_up: list[str] = []
 
     async def supervise(
@@ -97,7 +96,6 @@ class Supervisor:
                 )
                 await asyncio.sleep(min(5.0, self.policy.pause_step_s * restarts))
             except Exception as exc:
-                self.bugs += 1
                 log.critical(
                     "internal error in task %s: %s; stopping (vehicles keep their last mission)",
                     name, _one_line(exc), exc_info=exc,

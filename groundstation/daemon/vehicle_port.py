@@ -278,11 +278,11 @@ class VehiclePort:
         await self.run(machine)
         return machine.ack_result
 
-    async def set_mode(self, mode: int) -> bool:
-        result = await self.command(
+    async def set_mode(self, mode: int) -> int | None:
+        """MAV_CMD_DO_SET_MODE (custom mode); the MAV_RESULT, or None on silence."""
+        return await self.command(
             M.MAV_CMD_DO_SET_MODE, [M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, mode]
         )
-        return result == M.MAV_RESULT_ACCEPTED
 
     async def arm(self) -> int | None:
         return await self.command(M.MAV_CMD_COMPONENT_ARM_DISARM, [1.0], retries=2)

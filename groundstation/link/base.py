@@ -36,11 +36,11 @@ from groundstation.link.binding import (
     Peer,
     PeerTable,
     Verdict,
-    is_autopilot_heartbeat,
 )
 from groundstation.link.inbox import Inbox, RawChunk, peek_frames
 from groundstation.link.url import LinkSpec
 from groundstation.mavlink.codec import MavlinkDecoder
+from groundstation.mavlink.evidence import is_autopilot_heartbeat
 
 __all__ = [
     "Backoff",

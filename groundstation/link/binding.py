@@ -22,28 +22,14 @@ from __future__ import annotations
 import enum
 from collections.abc import Hashable
 from dataclasses import dataclass, field
-from typing import Any, Generic, TypeVar
+from typing import Generic, TypeVar
 
-__all__ = ["Binder", "BindingRules", "Peer", "PeerTable", "Verdict", "is_autopilot_heartbeat"]
+__all__ = ["Binder", "BindingRules", "Peer", "PeerTable", "Verdict"]
 
 P = TypeVar("P", bound=Hashable)
 
 Peer = Hashable
 """A transport address: a UDP ``(host, port)``, a TCP client number; None on 1:1 links."""
-
-_MAV_TYPE_GCS = 6
-_MAV_AUTOPILOT_INVALID = 8
-
-
-def is_autopilot_heartbeat(message: Any) -> bool:
-    """True for a HEARTBEAT sent by an autopilot (not a GCS, not a peripheral)."""
-    if message.get_type() != "HEARTBEAT":
-        return False
-    return (
-        int(getattr(message, "type", _MAV_TYPE_GCS)) != _MAV_TYPE_GCS
-        and int(getattr(message, "autopilot", _MAV_AUTOPILOT_INVALID)) != _MAV_AUTOPILOT_INVALID
-    )
-
 
 @dataclass(frozen=True)
 class BindingRules:
@@ -190,16 +176,14 @@ class PeerTable:
 
     def all_peers(self) -> list[Peer]:
         """Every distinct current peer, in first-heard order."""
-        out: list[Peer] = []
-        for p in [*self.by_system.values(), *self.extra]:
-            if p not in out:
-                out.append(p)
-        return out
+        return list(dict.fromkeys([*self.by_system.values(), *self.extra]))
 
     def peers_for(self, system_id: int | None) -> list[Peer]:
         """Where a frame for ``system_id`` (None or 0: everyone) should go."""
         if system_id:
-            peer = self.by_system.get(system_id)
+            peer = self.binder.place_of(system_id)
+            if peer is None:
+                peer = self.soft.get(system_id)
             if peer is not None:
                 return [peer]
         return self.all_peers()

@@ -99,8 +99,8 @@ class Inbox:
 
     Bounds are in frames (by header walk), so a datagram packed with 50 frames weighs 50:
     while a class would hold more than its bound, its oldest items are dropped (never the
-    item being added). ``None``: unbounded (stream links). ``dropped`` and
-    ``dropped_priority`` count the frames of dropped items.
+    item being added). ``None``: unbounded (stream links). :meth:`put` returns
+    how many frames it dropped (the link counts them).
     """
 
     def __init__(self, max_telemetry_frames: int | None, max_priority_frames: int | None) -> None:
@@ -111,8 +111,6 @@ class Inbox:
         self._frames = [0, 0]  # waiting frames: telemetry, priority
         self._seq = 0
         self.bytes = 0
-        self.dropped = 0
-        self.dropped_priority = 0
 
     def __len__(self) -> int:
         return len(self._telemetry) + len(self._priority)
@@ -130,10 +128,6 @@ class Inbox:
                 self._frames[k] -= old.frames
                 self.bytes -= len(old.data)
                 dropped += old.frames
-        if priority:
-            self.dropped_priority += dropped
-        else:
-            self.dropped += dropped
         self._seq += 1
         queue.append((self._seq, chunk))
         self._frames[k] += chunk.frames

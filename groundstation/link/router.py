@@ -40,8 +40,9 @@ from dataclasses import dataclass
 from typing import Any
 
 from groundstation.link.base import Link, ReceiveCallback, Received
-from groundstation.link.binding import Binder, BindingRules, Verdict, is_autopilot_heartbeat
+from groundstation.link.binding import Binder, BindingRules, Verdict
 from groundstation.link.tlog import TlogWriter
+from groundstation.mavlink.evidence import is_autopilot_heartbeat
 
 __all__ = ["Router", "RouterCounters"]
 
@@ -91,6 +92,7 @@ class Router:
         self.now_s = now_s
         self.on_notice = on_notice
         self.vehicle_links: list[Link] = []
+        self._indices: dict[int, int] = {}  # id(link) -> its place among the vehicle links
         self.out_links: list[Link] = []
         self.binder: Binder[Link] = Binder(rules)
         self.counters = RouterCounters()
@@ -111,7 +113,9 @@ class Router:
     # -- set-up ----------------------------------------------------------------------
     def add_vehicle_link(self, link: Link) -> None:
         """Add a link to vehicles (its receive callback becomes the router's)."""
-        link.on_receive = lambda rx: self._from_vehicle(link, rx)
+        index = len(self.vehicle_links)
+        self._indices[id(link)] = index
+        link.on_receive = lambda rx: self._from_vehicle(link, index, rx)
         link.now_s = lambda: self.now_s()
         link.on_notice = self._notice
         self.vehicle_links.append(link)
@@ -158,11 +162,13 @@ class Router:
                     link.task_group = group
                 try:
                     await self.start()
-                except BaseException as exc:
-                    if not ready.done():
-                        ready.set_exception(exc)
+                except Exception as exc:
+                    if ready.done():  # a restart by the supervisor: its error is the task's
+                        raise
+                    ready.set_exception(exc)
                     return
-                ready.set_result(None)
+                if not ready.done():
+                    ready.set_result(None)
                 try:
                     await asyncio.Event().wait()
                 finally:
@@ -220,19 +226,18 @@ class Router:
         return taken
 
     def _index(self, link: Link) -> int:
-        return next((i for i, v in enumerate(self.vehicle_links) if v is link), 0)
+        return self._indices.get(id(link), 0)
 
     # -- receiving -------------------------------------------------------------------
     def _record(self, frame: bytes, t_unix_s: float | None, link_number: int) -> None:
         if self.tlog is not None:
             self.tlog.write(frame, t_unix_s, link_number)
 
-    def _from_vehicle(self, link: Link, rx: Received) -> None:
-        if self.admit is not None and not self.admit(link, self._index(link), rx):
+    def _from_vehicle(self, link: Link, index: int, rx: Received) -> None:
+        if self.admit is not None and not self.admit(link, index, rx):
             self.counters.refused += 1
             return
         self.counters.from_vehicles += 1
-        index = next(i for i, v in enumerate(self.vehicle_links) if v is link)
         self._record(rx.raw, rx.t_unix_s, min(index, 2))
         for out in self.out_links:
             if out.send(rx.raw, None):

@@ -126,6 +126,8 @@ class TcpServerLink(_StreamSink):
             self.peers.forget(proto.peer)
 
     def _on_valid(self, rx: Received) -> Received:
+        if rx.peer not in self._clients:  # drained after its client left: bind nothing to it
+            return rx
         return self._bind_peer(self.peers, rx)
 
     def _send(self, frame: bytes, system_id: int | None) -> bool:

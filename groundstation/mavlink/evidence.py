@@ -21,6 +21,9 @@ from __future__ import annotations
 
 from collections.abc import Hashable
 from dataclasses import dataclass
+from typing import Any
+
+from groundstation.mavlink.codec import mavlink2
 
 __all__ = [
     "MAV_STATE_BOOT",
@@ -31,6 +34,7 @@ __all__ = [
     "NewSystemEvidence",
     "RebootEvidence",
     "Sustained",
+    "is_autopilot_heartbeat",
 ]
 
 MAV_STATE_BOOT = 1
@@ -376,3 +380,16 @@ class NewSystemEvidence:
             cand.count >= self.min_heartbeats
             and cand.last_s - cand.first_s >= self.min_span_s - 1e-9
         )
+
+
+def is_autopilot_heartbeat(message: Any) -> bool:
+    """A HEARTBEAT of a vehicle's autopilot: from component 1 (MAV_COMP_ID_AUTOPILOT1), of a
+    type that is not a ground station, naming a real autopilot. The one test every layer
+    uses (link binding, new-vehicle evidence, signing setup)."""
+    return (
+        message.get_type() == "HEARTBEAT"
+        and message.get_srcComponent() == mavlink2.MAV_COMP_ID_AUTOPILOT1
+        and getattr(message, "type", mavlink2.MAV_TYPE_GCS) != mavlink2.MAV_TYPE_GCS
+        and getattr(message, "autopilot", mavlink2.MAV_AUTOPILOT_INVALID)
+        != mavlink2.MAV_AUTOPILOT_INVALID
+    )

@@ -83,12 +83,6 @@ class VehicleController(ControllerState):
             self._pending_fly = self._wanted = inp
         elif isinstance(inp, io.Release):
             self._release(inp.reason, inp.home)
-        elif isinstance(inp, io.Launch):
-            self._launch_request()
-        elif isinstance(inp, io.Resume):
-            self.resume(inp.t_s, inp.reason)
-        elif isinstance(inp, io.Override):
-            self.override(inp.t_s, inp.reason)
         elif isinstance(inp, io.Stop):
             self.stopping = True
         self._advance()
@@ -440,6 +434,11 @@ class VehicleController(ControllerState):
     def _send(self, request: io.Exchange | None) -> None:
         if request is not None:
             self._out.append(request)
+
+    def wants(self, request: io.Exchange) -> bool:
+        """Whether the driver should still run (or retry) ``request``: False once its job
+        was aborted (a reboot, a release, an override, the link lost, leaving the plan)."""
+        return self._jobs.wants(request)
 
     def _on_done(self, done: io.ExchangeDone) -> None:
         self._send(self._jobs.done(done.request, done.result, self.stopping))

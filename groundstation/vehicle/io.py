@@ -2,9 +2,9 @@
 
 In: :class:`Frame` (one message from the vehicle's autopilot, reduced), :class:`Tick`
 (time passes), :class:`ExchangeDone` (the result of the exchange the controller asked
-for), :class:`Fly` / :class:`Release` (the decision core's commands), :class:`Launch`,
-:class:`Resume`, :class:`Override` (operator requests), :class:`ForeignFrame` (a frame of
-another component, counted) and :class:`Stop`.
+for), :class:`Fly` / :class:`Release` (the decision core's commands), :class:`ForeignFrame`
+(a frame of another component, counted) and :class:`Stop`. Operator requests (launch,
+resume, override) are the controller's methods of those names.
 
 Out: exchange requests (:data:`Exchange`: one at a time, answered by ``ExchangeDone``),
 fire-and-forget :class:`RequestRates`, :class:`CancelExchange`, :class:`NotifyRebooted`,
@@ -33,14 +33,11 @@ __all__ = [
     "Frame",
     "Input",
     "JournalLine",
-    "Launch",
     "NotifyRebooted",
     "Output",
-    "Override",
     "ParamSet",
     "Release",
     "RequestRates",
-    "Resume",
     "SetCurrent",
     "SetMode",
     "Stop",
@@ -98,23 +95,6 @@ class Release:
 
 
 @dataclass(frozen=True)
-class Launch:
-    t_s: float
-
-
-@dataclass(frozen=True)
-class Resume:
-    t_s: float
-    reason: str
-
-
-@dataclass(frozen=True)
-class Override:
-    t_s: float
-    reason: str
-
-
-@dataclass(frozen=True)
 class Stop:
     t_s: float
 
@@ -141,7 +121,7 @@ class ExchangeDone:
 
 
 Input = (
-    Frame | ForeignFrame | Tick | Fly | Release | Launch | Resume | Override | Stop | ExchangeDone
+    Frame | ForeignFrame | Tick | Fly | Release | Stop | ExchangeDone
 )
 
 

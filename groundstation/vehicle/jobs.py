@@ -82,6 +82,7 @@ class JobHost(Protocol):
     def launched(self) -> None: ...
     def target_verified(self, fly: Fly) -> bool: ...
     def target_failed(self, fly: Fly) -> bool: ...
+    def target_wanted(self) -> bool: ...
     def home_done(self, ok: bool) -> None: ...
 
 
@@ -205,6 +206,8 @@ def target_job(host: JobHost, fly: Fly) -> Job:
         if not host.target_failed(fly):
             return
         yield Pause(host.t_s + host.retry_pause_s)
+        if not host.target_wanted():  # overtaken while it paused: the newer one goes next
+            return
 
 
 def home_job(host: JobHost) -> Job:
@@ -254,6 +257,11 @@ class JobRunner:
         self.pause_until_s = None
         self.held = None
         return self.running is not None
+
+    def wants(self, request: Exchange) -> bool:
+        """Whether ``request`` is still the live job's running exchange (an aborted job's
+        exchange, queued or between retries, is not: its driver stops it)."""
+        return self.job is not None and self.running is request
 
     def ready(self, t_s: float) -> bool:
         if self.job is None or self.running is not None:

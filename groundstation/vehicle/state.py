@@ -238,6 +238,11 @@ class ControllerState:
     def target_failed(self, fly: io.Fly) -> bool:
         """Whether to try again: not when overtaken, out of the plan or link lost."""
         self.uploads_failed += 1
+        return self.target_wanted()
+
+    def target_wanted(self) -> bool:
+        """Whether the job's target still stands: commanded, not overtaken by a newer
+        FlyToTarget, link up."""
         return self.commanded and self._pending_fly is None and self.link != "lost"
 
     def home_done(self, ok: bool) -> None:
