@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 from domain.geodesy import GeoOrigin
 from groundstation.commands.sitl_args import DEFAULT_HOME
-from groundstation.daemon.config import ConfigError, DaemonConfig
+from groundstation.daemon.config import ConfigError, DaemonConfig, controller_settings
 from sitl.faults import FaultError, build_faults, fault_specs
 from sitl.server import ServerOptions, SitlServer
 from sitl.sitl_setup import scenario_setup
@@ -80,14 +80,14 @@ def build_embedded_sim(
     origin = config.mission.origin
     home = DEFAULT_HOME if origin is None else (origin.lat_deg, origin.lon_deg)
     setup = scenario_setup(scenario, count, home, origin is not None)
-    fleet = config.fleet
     configs = []
+    start_unix_s = time.time()
     for i in range(count):
-        settings = config.settings_for(i + 1)
-        alt = settings.altitude_m or fleet.altitude_m + fleet.altitude_step_m * i
+        # airborne vehicles start at the altitude the controller will command them to
+        alt = controller_settings(config, config.settings_for(i + 1), i).altitude_m
         configs.append(setup.vehicle_config(
             i, airborne=config.sim.airborne, airborne_alt_m=alt,
-            fast_boot=config.sim.fast_boot, unix_time_at_zero_s=time.time(),
+            fast_boot=config.sim.fast_boot, unix_time_at_zero_s=start_unix_s,
         ))
     specs = fault_specs(
         config.sim.faults, loss=config.sim.loss or None, scripted=setup.fault_specs

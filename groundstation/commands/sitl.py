@@ -176,6 +176,7 @@ def signing_key(options: SitlOptions, environ: dict[str, str] | None = None) -> 
                 raise UsageError(f"{option}: cannot read {path}: {exc.strerror or exc}") from None
             return parse_key_file_bytes(data) if key_file else parse_passphrase_file_bytes(data)
         if env.get("FLOE_SIGNING_PASSPHRASE"):
+            option, path = "FLOE_SIGNING_PASSPHRASE", "(environment)"
             return key_from_passphrase(env["FLOE_SIGNING_PASSPHRASE"])
     except SigningKeyError as exc:
         raise UsageError(f"{option}: {path}: {exc}") from None
