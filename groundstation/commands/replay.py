@@ -205,14 +205,11 @@ _READY_TIMEOUT_S = 30.0
 
 
 def serve_spec(url: str) -> Any:
-    """The link for ``--serve URL``: sending forms as given; ``udp:`` sends (design.md:
-    ``--out`` and ``--serve`` always send), like ``udpout:``."""
-    from groundstation.link import parse_link_url
+    """The link for ``--serve URL``, read as ``gcs run --out`` (MAVProxy's ``--out``):
+    ``udp:``/``udpout:`` send, ``udpin:`` listens, ``tcpin:`` serves, ``tcp:`` connects."""
+    from groundstation.link import parse_out_url
 
-    text = url.strip()
-    if text.lower().startswith("udp:"):
-        text = "udpout:" + text[4:].removeprefix("//")
-    return parse_link_url(text)
+    return parse_out_url(url)
 
 
 async def serve_frames(
