@@ -425,8 +425,7 @@ async def _start_control(
         print_fn(f"gcs run: {warning}")
     print_fn(
         f"gcs run: control API {daemon.control_url} token {token} "
-        f"(for gcs target/vehicle: export FLOE_API={daemon.control_url} "
-        f"FLOE_TOKEN={token})"
+        f"(gcs target/vehicle find it through {daemon.run_dir / 'control.json'})"
     )
 
 
@@ -449,7 +448,8 @@ async def _start_detection_feed(
         ) from None
     daemon.extra_stops.append(feed.stop)
     bound_host, bound_port = getattr(feed, "address", (host, port))
-    print_fn(f"gcs run: detection feed on udp:{bound_host}:{bound_port}")
+    chosen = " (a free port; --detections HOST:PORT to choose)" if port == 0 else ""
+    print_fn(f"gcs run: detection feed on udp:{bound_host}:{bound_port}{chosen}")
 
 
 def _field(item: Any, name: str) -> Any:
