@@ -42,6 +42,17 @@ def test_a_pipe_gets_plain_quarter_lines_and_no_escape_codes() -> None:
     assert lines == [f"replay: {n} / 100 inputs" for n in (25, 50, 75, 100)]
 
 
+def test_replay_style_shows_nothing_in_a_pipe_and_bars_on_a_terminal() -> None:
+    pipe = io.StringIO()
+    with ProgressBars(stream=pipe, plain_lines=False) as bars:
+        bars.task("gcs replay --serve", 10.0, " frames")(10.0)
+    assert pipe.getvalue() == ""
+    terminal = _Terminal()
+    with ProgressBars(stream=terminal, plain_lines=False) as bars:
+        bars.task("gcs replay --serve", 10.0, " frames")(10.0)
+    assert "gcs replay --serve" in terminal.getvalue() and "10/10 frames" in terminal.getvalue()
+
+
 def test_quiet_shows_nothing() -> None:
     stream = _Terminal()
     with ProgressBars(quiet=True, stream=stream) as bars:

@@ -3,7 +3,9 @@
 Rules: progress goes to stderr only (stdout stays the command's result); on a terminal each
 task is a ``rich`` bar (one per fleet size of ``gcs simulate --uavs 1,3,5``, one for a
 ``gcs replay``); when stderr is not a terminal (a pipe, a CI log) there are no escape codes:
-one plain line per task at 25 %, 50 %, 75 % and 100 %. ``--quiet`` shows nothing.
+one plain line per task at 25 %, 50 %, 75 % and 100 % (``plain_lines``, ``gcs simulate``'s
+habit), or nothing (``gcs replay``, whose stderr in a pipe holds only warnings and errors).
+``--quiet`` shows nothing.
 """
 
 from __future__ import annotations
@@ -47,9 +49,12 @@ class ProgressBars:
     ``update(t_s)`` as the work advances.
     """
 
-    def __init__(self, quiet: bool = False, stream: IO[str] | None = None) -> None:
+    def __init__(
+        self, quiet: bool = False, stream: IO[str] | None = None, *, plain_lines: bool = True
+    ) -> None:
         self.stream: IO[str] = stream if stream is not None else sys.stderr
         self.quiet = quiet
+        self.plain_lines = plain_lines
         isatty = getattr(self.stream, "isatty", None)
         self.tty = bool(isatty()) if callable(isatty) else False
         self._rich: Any = None
@@ -94,6 +99,8 @@ class ProgressBars:
         if self.quiet:
             return lambda done: None
         if self._rich is None:
+            if not self.plain_lines:
+                return lambda done: None
             return _PlainTask(self.stream, label, total, unit)
         bar = self._rich
         task_id = bar.add_task(label, total=max(total, 1e-9), unit=unit)
