@@ -233,3 +233,13 @@ def test_port_in_use_is_a_clear_error(capsys: pytest.CaptureFixture[str]) -> Non
     assert status == 1
     err = capsys.readouterr().err
     assert "cannot open a port" in err and "--base-port" in err and "Traceback" not in err
+
+
+def test_sitl_out_takes_mavproxy_sending_spellings() -> None:
+    from groundstation.commands.sitl_args import parse_udp_url
+
+    assert parse_udp_url("udp:127.0.0.1:14550", "--out") == ("127.0.0.1", 14550)
+    assert parse_udp_url("udpout:127.0.0.1:14551", "--out") == ("127.0.0.1", 14551)
+    assert parse_udp_url("127.0.0.1:14550", "--out") == ("127.0.0.1", 14550)
+    with pytest.raises(UsageError, match=r"udpin: \(listen\) is not supported"):
+        parse_udp_url("udpin:0.0.0.0:14550", "--out")
