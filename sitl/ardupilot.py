@@ -11,7 +11,8 @@ for that client before it boots) and B + 2 + 10 i (SERIAL1), where the launcher 
 positions to play the camera; B is ``base_port`` (5760, ArduPilot's default). Each instance
 is given ``--base-port B+10i`` explicitly: SITL adds 10 i for ``-I i`` only while its base
 port is still the default, so the explicit port is right in any argument order. SITL exits
-when its parent goes away, so the launcher stays alive until Ctrl-C (or ``--duration``) and then terminates its children.
+when its parent goes away, so the launcher stays alive until Ctrl-C (or ``--duration``) and
+then terminates its children.
 """
 
 from __future__ import annotations
