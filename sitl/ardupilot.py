@@ -2,14 +2,17 @@
 
 Instance i is started as sim_vehicle.py would (ArduPilot's SITL_cmdline.cpp options)::
 
-    PATH -S --model plane --speedup K -I i --home LAT,LON,ALT,HDG \
+    PATH -S --model plane --speedup K --base-port B+10i -I i --home LAT,LON,ALT,HDG \
          --defaults <tree>/Tools/autotest/models/plane.parm --sysid i+1
 
 in its own working directory (``DIR/I<i>``: SITL keeps eeprom.bin and logs in the current
-directory). Instance i serves TCP 5760 + 10 i (SERIAL0, for the ground station; it waits
-for that client before it boots) and 5762 + 10 i (SERIAL1), where the launcher itself reads
-positions to play the camera. SITL exits when its parent goes away, so the launcher stays
-alive until Ctrl-C (or ``--duration``) and then terminates its children.
+directory). Instance i serves TCP B + 10 i (SERIAL0, for the ground station; it waits
+for that client before it boots) and B + 2 + 10 i (SERIAL1), where the launcher itself reads
+positions to play the camera; B is ``base_port`` (5760, ArduPilot's default). Each instance
+is given ``--base-port B+10i`` explicitly: SITL adds 10 i for ``-I i`` only while its base
+port is still the default, so the explicit port is right in any argument order. SITL exits
+when its parent goes away, so the launcher stays alive until Ctrl-C (or ``--duration``) and
+then terminates its children.
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ from typing import Any
 from groundstation.mavlink.codec import MavlinkDecoder, MavlinkEncoder, mavlink2
 
 __all__ = [
+    "DEFAULT_BASE_PORT",
     "ArduPilotLaunch",
     "CameraLink",
     "ardupilot_commands",
@@ -35,6 +39,8 @@ __all__ = [
     "supervise",
 ]
 
+DEFAULT_BASE_PORT = 5760
+"""ArduPilot SITL's own base port (instance i: 5760 + 10 i)."""
 CAMERA_SYSID = 250
 CAMERA_COMPID = 191
 
@@ -66,10 +72,15 @@ def ardupilot_commands(
     workdir: Path,
     home_alt_m: float = 0.0,
     home_heading_deg: float = 0.0,
+    base_port: int = DEFAULT_BASE_PORT,
 ) -> list[ArduPilotLaunch]:
-    """The command lines of ``count`` ArduPlane SITL instances."""
+    """The command lines of ``count`` ArduPlane SITL instances; instance i serves the
+    ground station on TCP ``base_port + 10 i``."""
+    if not 1 <= base_port <= 65535 - 10 * count:
+        raise ValueError(f"base port {base_port} leaves no room for {count} instance(s)")
     out = []
     for i in range(count):
+        port = base_port + 10 * i
         argv = [
             str(binary),
             "-S",
@@ -77,6 +88,8 @@ def ardupilot_commands(
             "plane",
             "--speedup",
             f"{speedup:g}",
+            "--base-port",
+            str(port),
             "-I",
             str(i),
             "--home",
@@ -86,7 +99,7 @@ def ardupilot_commands(
             "--sysid",
             str(i + 1),
         ]
-        out.append(ArduPilotLaunch(i, i + 1, argv, workdir / f"I{i}", 5760 + 10 * i, 5762 + 10 * i))
+        out.append(ArduPilotLaunch(i, i + 1, argv, workdir / f"I{i}", port, port + 2))
     return out
 
 

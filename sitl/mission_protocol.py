@@ -17,6 +17,10 @@ Download: MISSION_REQUEST_LIST -> MISSION_COUNT; MISSION_REQUEST_INT -> MISSION_
 and MISSION_REQUEST -> MISSION_ITEM; item 0 is home. MISSION_CLEAR_ALL keeps home only
 (ERROR during an upload). As ArduPilot, the first MISSION_REQUEST and the first MISSION_ITEM
 get a one-time STATUSTEXT warning to use the _INT forms.
+
+The fence and rally mission types are answered by :class:`sitl.geo_items.GeoItemsServer`
+(MISSION_COUNT 0 of that type until something is uploaded; uploads accepted, as ArduPlane);
+any other mission type is UNSUPPORTED.
 """
 
 from __future__ import annotations
@@ -25,6 +29,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from groundstation.mavlink.codec import mavlink2
+from sitl.geo_items import GeoItemsServer
 from sitl.mission_store import MissionStore, item_from_message, item_to_message
 from sitl.statustext import StatusTextFactory
 
@@ -57,6 +62,7 @@ class MissionServer:
         self._last_receive_t = 0.0
         self._request_warning_sent = False
         self._item_warning_sent = False
+        self.geo = GeoItemsServer()
 
     def _ack(self, peer: tuple[int, int], result: int, mission_type: int = 0) -> Any:
         return M.MAVLink_mission_ack_message(peer[0], peer[1], result, mission_type)
@@ -70,6 +76,8 @@ class MissionServer:
         kind = msg.get_type()
         peer = (int(msg.get_srcSystem()), int(msg.get_srcComponent()))
         mission_type = int(getattr(msg, "mission_type", 0) or 0)
+        if self.geo.handles(mission_type) and kind.startswith("MISSION_"):
+            return self.geo.handle(msg, t_s)
         if kind == "MISSION_COUNT":
             if mission_type != M.MAV_MISSION_TYPE_MISSION:
                 return [self._ack(peer, M.MAV_MISSION_UNSUPPORTED, mission_type)]
@@ -174,18 +182,21 @@ class MissionServer:
 
     def step(self, t_s: float) -> list[Any]:
         """Re-request a missing item about every second; cancel after 8 s of silence."""
+        geo = self.geo.step(t_s)
         if not self.receiving:
-            return []
+            return geo
         if t_s - self._last_receive_t >= UPLOAD_TIMEOUT_S:
             self.receiving = False
             return [
+                *geo,
                 self._ack(self._peer, M.MAV_MISSION_OPERATION_CANCELLED),
                 *self._text.make("Mission upload timeout", M.MAV_SEVERITY_WARNING),
             ]
         if t_s - self._last_request_t >= REREQUEST_S:
-            return [self._request(t_s)]
-        return []
+            return [*geo, self._request(t_s)]
+        return geo
 
     def reset(self) -> None:
         """Forget any upload in progress (reboot)."""
         self.receiving = False
+        self.geo.reset()

@@ -298,3 +298,16 @@ def test_unwritable_output_is_a_one_line_error_and_leaves_no_half_page(
     assert "\n" not in err and "Traceback" not in err
     assert (out / "report.html").read_text() == "old page\n"
     assert sorted(p.name for p in out.iterdir()) == ["report.html"]  # no temporaries
+
+
+def test_report_title_names_the_frontend_and_the_run_once() -> None:
+    """The title read "run run, ..." for a gcs run folder."""
+    from groundstation.runners.report_data import RunData, _title
+
+    run = RunData("run", Path("runs/20261121T071106Z"), start={"scenario": "paper-boat"})
+    run.vehicle_tracks = {"1": [], "2": []}
+    assert _title(run) == "gcs run 20261121T071106Z, scenario paper-boat, 2 vehicle(s)"
+    sim = RunData("simulate", Path("out/paper"), start={"scenario": "paper-boat", "seed": 3})
+    assert _title(sim) == "gcs simulate paper, scenario paper-boat, seed 3, 0 vehicle(s)"
+    assert _title(RunData("tlog", Path("x/flight.tlog"))) == "tlog flight.tlog, 0 vehicle(s)"
+    assert "run run" not in _title(run)

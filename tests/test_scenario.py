@@ -94,3 +94,28 @@ def test_a_copied_bundled_scenario_loads_from_a_file(tmp_path: Path) -> None:
 def test_fault_specs_are_kept_for_the_mavlink_simulator() -> None:
     scenario = parse_scenario({"faults": ["all:loss:p=0.2", "2:drop:at=60,for=30"]})
     assert scenario.faults == ("all:loss:p=0.2", "2:drop:at=60,for=30")
+
+
+def test_malformed_yaml_keeps_pyyaml_line_and_column(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The error said only "while parsing a block mapping": no line, no column."""
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("name: t\nfleet:\n  count: 3\n   speed_m_s: 18\n")
+    with pytest.raises(ScenarioError) as info:
+        load_scenario(str(bad))
+    message = str(info.value)
+    assert "bad.yaml" in message and "\n" not in message
+    assert "line 4, column 13: mapping values are not allowed here" in message
+    flow = tmp_path / "flow.yaml"
+    flow.write_text("fleet: [1, 2\nname: t\n")
+    with pytest.raises(ScenarioError, match=r"line 2, column 5: .*flow sequence that started "
+                       r"at line 1, column 8"):
+        load_scenario(str(flow))
+    # the same through gcs run --config: one line, line and column kept, exit 2
+    from groundstation.commands import run as run_cmd
+
+    assert run_cmd.run(["--config", str(bad), "--vehicles", "sim:1"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("gcs run: error: --config ") and "\n" not in err
+    assert "line 4, column 13" in err

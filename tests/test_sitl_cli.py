@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from groundstation.commands import sitl as cmd
-from groundstation.commands.sitl_args import SitlOptions
+from groundstation.commands.sitl_args import SitlOptions, UsageError
 from sitl.ardupilot import ardupilot_commands, default_defaults_file
 
 
@@ -118,6 +118,33 @@ def test_ardupilot_command_lines(tmp_path: Path) -> None:
     assert len({x.cwd for x in launches}) == 3
 
 
+def test_gcs_sitl_ardupilot_honours_base_port(tmp_path: Path) -> None:
+    """`gcs sitl --ardupilot BIN --base-port 6000 --count 2`: each instance is told its
+    port (SITL's --base-port), and the launcher expects the ground station and camera
+    there; the default stays ArduPilot's 5760. No ArduPilot binary is run."""
+    from groundstation.commands.sitl_ardupilot import ardupilot_launches
+
+    binary = tmp_path / "arduplane"
+    defaults = tmp_path / "plane.parm"
+    home = (78.93, 11.92)
+
+    options = parse(["--ardupilot", str(binary), "--base-port", "6000", "--count", "2"])
+    launches = ardupilot_launches(options, binary, defaults, 2, home)
+    assert [(x.gcs_port, x.camera_port) for x in launches] == [(6000, 6002), (6010, 6012)]
+    for launch in launches:
+        argv = launch.argv
+        assert argv[argv.index("--base-port") + 1] == str(launch.gcs_port)
+        assert argv.index("--base-port") < argv.index("-I")  # SITL wants it before -I
+
+    default = ardupilot_launches(parse(["--ardupilot", str(binary)]), binary, defaults, 1, home)
+    assert default[0].gcs_port == 5760
+    assert default[0].argv[default[0].argv.index("--base-port") + 1] == "5760"
+
+    with pytest.raises(UsageError, match="--base-port: 0"):
+        ardupilot_launches(parse(["--ardupilot", str(binary), "--base-port", "0"]),
+                           binary, defaults, 1, home)
+
+
 def test_ardupilot_launcher_keeps_children_alive_then_stops_them(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -206,3 +233,13 @@ def test_port_in_use_is_a_clear_error(capsys: pytest.CaptureFixture[str]) -> Non
     assert status == 1
     err = capsys.readouterr().err
     assert "cannot open a port" in err and "--base-port" in err and "Traceback" not in err
+
+
+def test_sitl_out_takes_mavproxy_sending_spellings() -> None:
+    from groundstation.commands.sitl_args import parse_udp_url
+
+    assert parse_udp_url("udp:127.0.0.1:14550", "--out") == ("127.0.0.1", 14550)
+    assert parse_udp_url("udpout:127.0.0.1:14551", "--out") == ("127.0.0.1", 14551)
+    assert parse_udp_url("127.0.0.1:14550", "--out") == ("127.0.0.1", 14550)
+    with pytest.raises(UsageError, match=r"udpin: \(listen\) is not supported"):
+        parse_udp_url("udpin:0.0.0.0:14550", "--out")

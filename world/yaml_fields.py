@@ -62,12 +62,31 @@ def load_yaml_text(text: str, what: str) -> Any:
     try:
         data = yaml.safe_load(text)
     except yaml.YAMLError as exc:
-        first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        raise ConfigError(f"{what}: not valid YAML: {first}") from None
+        raise ConfigError(f"{what}: not valid YAML: {yaml_error_text(exc)}") from None
     except RecursionError:
         raise ConfigError(f"{what}: nested deeper than {MAX_YAML_DEPTH} levels") from None
     _check_shape(data, what)
     return data
+
+
+def yaml_error_text(exc: yaml.YAMLError) -> str:
+    """PyYAML's error on one line, keeping where it is (1-based line and column, as an
+    editor shows them): ``line 2, column 4: mapping values are not allowed here``, and
+    the construct it was in: ``line 2, column 2: expected ',' or ']', but got ':'
+    (while parsing a flow sequence that started at line 1, column 4)``."""
+    if not isinstance(exc, yaml.MarkedYAMLError):
+        return str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+    problem = " ".join((exc.problem or "").split()) or type(exc).__name__
+    mark = exc.problem_mark
+    text = f"line {mark.line + 1}, column {mark.column + 1}: {problem}" if mark else problem
+    if exc.context:
+        context = " ".join(exc.context.split())
+        where = exc.context_mark
+        if where is not None and (mark is None or (where.line, where.column) !=
+                                  (mark.line, mark.column)):
+            context += f" that started at line {where.line + 1}, column {where.column + 1}"
+        text += f" ({context})"
+    return text
 
 
 def _check_shape(data: Any, what: str) -> None:

@@ -2,7 +2,8 @@
 
     gcs replay runs/20260101T120000Z                  # regression check, exit 0/1/2
     gcs replay out/sim --set planner.tau=0.9          # what-if: shows the differences
-    gcs replay runs/X --serve udpout:127.0.0.1:14550 --speed 5   # play the tlog as vehicles
+    gcs replay runs/X --serve udp:127.0.0.1:14550 --pace 1     # the vehicles, in mission time
+    gcs replay runs/X --serve udp:127.0.0.1:14550 --speed 5    # 5x the recorded wall pace
     gcs replay flight.tlog --detections det.jsonl     # the core on a bare tlog
 
 Exit status: 0 the replayed decisions are the recorded ones (or serving ended), 1 they
@@ -23,6 +24,7 @@ from typing import Any
 
 from groundstation.commands.argtypes import positive_float
 from groundstation.commands.async_main import run_async
+from groundstation.commands.progress_bars import ProgressBars, TaskUpdate
 
 __all__ = ["run"]
 
@@ -51,6 +53,15 @@ def _parser() -> argparse.ArgumentParser:
         metavar="K",
         help="pace inputs (or served frames) at K times the recorded pace "
         "(default: as fast as possible for a regression check; 1 for --serve)",
+    )
+    pace.add_argument(
+        "--pace",
+        type=positive_float,
+        default=None,
+        metavar="K",
+        help="pace by mission time: K mission seconds per second, whatever the recording's "
+        "speed-up (a 50x run at --pace 1 is watched in real mission time; mission time from "
+        "the run's journal, else the vehicles' time_boot_ms)",
     )
     pace.add_argument(
         "--as-fast-as-possible", action="store_true", help="no pacing (the default without --serve)"
@@ -127,7 +138,11 @@ def run(argv: list[str]) -> int:
     args = _parser().parse_args(argv)
     if args.serve is not None:
         speed = 1e9 if args.as_fast_as_possible else (args.speed or 1.0)
-        return _serve_command(args.run, args.serve, speed, quiet=args.quiet, as_json=args.json)
+        return _serve_command(
+            args.run, args.serve, speed, quiet=args.quiet, as_json=args.json, pace=args.pace
+        )
+    if args.pace is not None:  # a journal's inputs are paced by mission time already
+        args.speed = args.pace
     if _is_tlog(args.run):
         if args.detections is None:
             return _error(
@@ -161,21 +176,23 @@ def _journal_replay(args: argparse.Namespace) -> int:
             "wrote it did not journal the decision core's inputs"
         )
     quiet = args.quiet or args.json
-
-    def progress(done: int, total: int) -> None:
-        if not quiet and sys.stderr.isatty():
-            end = "\n" if done >= total else ""
-            print(f"\r{_PROG}: {done}/{total} inputs", end=end, file=sys.stderr, flush=True)
-
     pace = make_pace(args.speed) if args.speed is not None else None
-    report = replay_journal(
-        journal,
-        config,
-        recorded_config=recorded,
-        pace=pace,
-        progress=progress,
-        resolve=not args.no_resolve,
-    )
+    with ProgressBars(quiet=quiet, plain_lines=False) as bars:
+        updates: list[TaskUpdate] = []
+
+        def progress(done: int, total: int) -> None:
+            if not updates:
+                updates.append(bars.task(f"{_PROG} {journal.path.parent.name}", total, " inputs"))
+            updates[0](done)
+
+        report = replay_journal(
+            journal,
+            config,
+            recorded_config=recorded,
+            pace=pace,
+            progress=progress,
+            resolve=not args.no_resolve,
+        )
     skipped = report.skipped()
     if report.inputs == 0:
         where = f" ({skipped})" if skipped else ""
@@ -205,14 +222,11 @@ _READY_TIMEOUT_S = 30.0
 
 
 def serve_spec(url: str) -> Any:
-    """The link for ``--serve URL``: sending forms as given; ``udp:`` sends (design.md:
-    ``--out`` and ``--serve`` always send), like ``udpout:``."""
-    from groundstation.link import parse_link_url
+    """The link for ``--serve URL``, read as ``gcs run --out`` (MAVProxy's ``--out``):
+    ``udp:``/``udpout:`` send, ``udpin:`` listens, ``tcpin:`` serves, ``tcp:`` connects."""
+    from groundstation.link import parse_out_url
 
-    text = url.strip()
-    if text.lower().startswith("udp:"):
-        text = "udpout:" + text[4:].removeprefix("//")
-    return parse_link_url(text)
+    return parse_out_url(url)
 
 
 async def serve_frames(
@@ -221,12 +235,13 @@ async def serve_frames(
     *,
     ready_timeout_s: float = _READY_TIMEOUT_S,
     say: Callable[[str], None] | None = None,
+    progress: Callable[[int], None] | None = None,
 ) -> dict[str, Any]:
     """Send each :class:`ServedFrame` at its time on a link to ``spec``; returns counters.
 
     Waits (at most ``ready_timeout_s``) for a TCP connection, or for a peer of a listening
-    link; raises ``LinkError`` if none comes. Cancellation (Ctrl-C) stops at once; the
-    link is always closed.
+    link; raises ``LinkError`` if none comes. ``progress(frames)`` is told every 256
+    frames. Cancellation (Ctrl-C) stops at once; the link is always closed.
     """
     from groundstation.link import LinkError, open_link
 
@@ -254,6 +269,10 @@ async def serve_frames(
                 sent[frame.system_id] += 1
             else:
                 failed += 1
+            if progress is not None and n % 256 == 0:
+                progress(n + 1)
+        if progress is not None:
+            progress(sum(sent.values()) + failed)
         await asyncio.sleep(0.05)  # the last datagrams leave before the socket closes
         wall = loop.time() - start
     finally:
@@ -266,14 +285,23 @@ async def serve_frames(
     }
 
 
-def _serve_command(path: Path, url: str, speed: float, *, quiet: bool, as_json: bool) -> int:
+def _serve_command(
+    path: Path, url: str, speed: float, *, quiet: bool, as_json: bool, pace: float | None = None
+) -> int:
     from groundstation.link import LinkError, LinkUrlError
+    from groundstation.runners.mission_timeline import mission_timeline
     from groundstation.runners.replay_serve import serving_schedule
-    from groundstation.runners.replay_tlog import TlogError
+    from groundstation.runners.replay_tlog import TlogError, read_tlog
 
+    timeline = None
     try:
         spec = serve_spec(url)
-        summary, frames = serving_schedule(path, speed)
+        recorded = read_tlog(path)
+        if pace is not None:
+            timeline = mission_timeline(recorded.path, sorted(recorded.vehicles))
+        summary, frames = serving_schedule(
+            path, speed, pace=pace, timeline=timeline.at if timeline else None, summary=recorded
+        )
     except (LinkUrlError, TlogError, ValueError) as exc:
         return _error(str(exc))
     vehicles = summary.vehicles
@@ -290,13 +318,24 @@ def _serve_command(path: Path, url: str, speed: float, *, quiet: bool, as_json: 
     for line in summary.skipped_text():
         say(f"warning: {summary.path}: {line}")
     span = (summary.last_t_s or 0.0) - (summary.first_t_s or 0.0)
+    if timeline is not None:
+        mission_s = timeline.at(summary.last_t_s or 0.0) - timeline.at(summary.first_t_s or 0.0)
+        pacing = (
+            f"{mission_s:.1f} mission s (recorded at {timeline.rate:.3g}x; "
+            f"{timeline.source}) at --pace {pace:g}"
+        )
+    else:
+        pacing = f"{span:.1f} s recorded, at {speed:g}x"
+    total = sum(v.frames for v in vehicles.values())
     interrupted = False
     try:  # from here on, Ctrl-C (even before the loop starts) ends cleanly with 130
         say(
             f"serving {len(vehicles)} vehicle(s) (system ids {', '.join(map(str, vehicles))}) "
-            f"from {summary.path} to {spec.canonical}: {span:.1f} s recorded at {speed:g}x"
+            f"from {summary.path} to {spec.canonical}: {pacing}"
         )
-        stats = run_async(lambda: serve_frames(spec, frames, say=say))
+        with ProgressBars(quiet=quiet or as_json, plain_lines=False) as bars:
+            update = bars.task(f"{_PROG} --serve", total, " frames")
+            stats = run_async(lambda: serve_frames(spec, frames, say=say, progress=update))
     except LinkError as exc:
         return _error(str(exc))
     except KeyboardInterrupt:
@@ -305,7 +344,9 @@ def _serve_command(path: Path, url: str, speed: float, *, quiet: bool, as_json: 
     result = {
         "tlog": str(summary.path),
         "url": spec.canonical,
-        "speed": speed,
+        "speed": None if pace is not None else speed,
+        "pace": pace,
+        "clock": timeline.source if timeline is not None else "tlog time",
         "records": summary.records,
         "skipped": [list(r) for r in summary.skipped],
         "vehicles": list(vehicles),

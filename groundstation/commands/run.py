@@ -174,7 +174,25 @@ def build_config(argv: list[str]) -> DaemonConfig:
     args = vars(parser.parse_args(argv))
     path = args.pop("config", None)
     data = load_config_file(path) if path else {}
-    return resolve(parse_config(data, {spelling[dest]: value for dest, value in args.items()}))
+    flags = {spelling[dest]: value for dest, value in args.items()}
+    config = resolve(parse_config(data, flags))
+    return _free_ports_for_sim(config, asked="--detections" in flags or "detections" in data)
+
+
+def _free_ports_for_sim(config: DaemonConfig, *, asked: bool) -> DaemonConfig:
+    """With ``sim:N`` nothing outside this process needs a fixed port: the built-in
+    vehicles play the camera themselves, so the detection feed, unless the user named its
+    address, listens on a free port (printed at start) instead of 14600, and two ``sim:N``
+    runs can run side by side. (The vehicles' TCP ports and the control API, by default,
+    are free ports already.)"""
+    import dataclasses
+
+    from groundstation.daemon.config import Endpoint
+
+    feed = config.detections
+    if config.sim_count is None or asked or feed is None or feed.port == 0:
+        return config
+    return dataclasses.replace(config, detections=Endpoint(feed.host, 0))
 
 
 async def run_daemon(config: DaemonConfig, **options: Any) -> Daemon:

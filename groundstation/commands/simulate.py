@@ -12,12 +12,13 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
 from domain.limits import MAX_FLEET
 from groundstation.commands.argtypes import positive_float
+from groundstation.commands.progress_bars import ProgressBars, TaskUpdate
 from groundstation.storage import (
     StorageError,
     atomic_write_bytes,
@@ -100,33 +101,6 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
-class _Progress:
-    """Progress on stderr: a rewritten line on a terminal, quarter marks otherwise."""
-
-    def __init__(self, label: str, quiet: bool) -> None:
-        self.label = label
-        self.quiet = quiet
-        self.tty = sys.stderr.isatty()
-        self.next_mark = 0.25
-
-    def __call__(self, t_s: float, duration_s: float) -> None:
-        if self.quiet or duration_s <= 0:
-            return
-        fraction = t_s / duration_s
-        if self.tty:
-            end = "\n" if fraction >= 1.0 else ""
-            print(
-                f"\r{self.label}: t = {t_s:6.0f} / {duration_s:.0f} s",
-                end=end,
-                file=sys.stderr,
-                flush=True,
-            )
-        elif fraction >= self.next_mark - 1e-9:
-            print(f"{self.label}: t = {t_s:.0f} / {duration_s:.0f} s", file=sys.stderr)
-            while self.next_mark <= fraction + 1e-9:
-                self.next_mark += 0.25
-
-
 def run(argv: list[str]) -> int:
     args = _parser().parse_args(argv)
     if args.workers < 1:
@@ -159,13 +133,30 @@ def journal_lines(records: list[dict[str, Any]]) -> Iterator[bytes]:
 
 def _run_sizes(args: argparse.Namespace, scenario: Any, sizes: list[int]) -> list[dict[str, Any]]:
     """Simulate each fleet size; every file is written atomically (StorageError on failure).
-    The heavy imports happen only here, once the arguments are known to be good."""
+    The heavy imports happen only here, once the arguments are known to be good. Progress:
+    one task per fleet size (:mod:`groundstation.commands.progress_bars`)."""
+    with ProgressBars(quiet=args.quiet) as bars:
+        duration_s = args.duration or scenario.duration_s
+        updates = {  # one task per fleet size, all shown from the start
+            uavs: bars.task(f"{scenario.name} uavs={uavs} seed={args.seed}", duration_s, " s")
+            for uavs in sizes
+        }
+        return _simulate_sizes(args, scenario, sizes, updates)
+
+
+def _simulate_sizes(
+    args: argparse.Namespace,
+    scenario: Any,
+    sizes: list[int],
+    updates: dict[int, TaskUpdate],
+) -> list[dict[str, Any]]:
     from groundstation.runners.plots import plot_comparison, write_plots
     from groundstation.runners.simulate import SimulationOptions, run_simulation
 
     curves: dict[int, list[list[float]]] = {}
     rows: list[dict[str, Any]] = []
     for uavs in sizes:
+        update = updates[uavs]
         out_dir = args.out / f"uavs-{uavs}" if len(sizes) > 1 else args.out
         try:
             out_dir.mkdir(parents=True, exist_ok=True)
@@ -178,7 +169,7 @@ def _run_sizes(args: argparse.Namespace, scenario: Any, sizes: list[int]) -> lis
             num_workers=args.workers,
             deterministic=args.workers == 1,
             objective=args.objective,
-            progress=_Progress(f"{scenario.name} uavs={uavs} seed={args.seed}", args.quiet),
+            progress=_mission_progress(update),
             journal=not args.no_journal,
         )
         result = run_simulation(scenario, options)
@@ -197,6 +188,15 @@ def _run_sizes(args: argparse.Namespace, scenario: Any, sizes: list[int]) -> lis
             args.out / "comparison.png",
         )
     return rows
+
+
+def _mission_progress(update: TaskUpdate) -> Callable[[float, float], None]:
+    """The runner's ``progress(t_s, duration_s)`` -> the task's update."""
+
+    def progress(t_s: float, _duration_s: float) -> None:
+        update(t_s)
+
+    return progress
 
 
 def _print_summary(rows: list[dict[str, Any]]) -> None:

@@ -11,6 +11,7 @@ from pathlib import Path
 
 from groundstation.commands.sitl_args import DEFAULT_HOME, SitlOptions, UsageError
 from sitl.ardupilot import (
+    ArduPilotLaunch,
     CameraLink,
     ardupilot_commands,
     default_defaults_file,
@@ -20,7 +21,7 @@ from sitl.ardupilot import (
 from sitl.sitl_setup import scenario_setup
 from world.scenario import load_scenario
 
-__all__ = ["run_ardupilot", "run_camera_only"]
+__all__ = ["ardupilot_launches", "run_ardupilot", "run_camera_only"]
 
 
 def run_ardupilot(options: SitlOptions) -> int:
@@ -45,14 +46,42 @@ def run_ardupilot(options: SitlOptions) -> int:
     count = options.count or (scenario.fleet.count if scenario is not None else 1)
     home = options.home
     setup = scenario_setup(scenario, count, home or DEFAULT_HOME, home is not None)
-    launches = ardupilot_commands(
-        binary, count, options.speedup, setup.home, defaults, Path("sitl-ardupilot").resolve()
-    )
+    launches = ardupilot_launches(options, binary, defaults, count, setup.home)
     feed = setup.make_feed(options.seed, options.anonymous_detections)
     return asyncio.run(
-        launch(launches, feed, options.detections, setup.origin, options.speedup,
-               options.duration_s)
+        launch(
+            launches, feed, options.detections, setup.origin, options.speedup, options.duration_s
+        )
     )
+
+
+def ardupilot_launches(
+    options: SitlOptions,
+    binary: Path,
+    defaults: Path,
+    count: int,
+    home: tuple[float, float],
+) -> list[ArduPilotLaunch]:
+    """The SITL command lines for ``gcs sitl --ardupilot``: instance i serves TCP
+    ``--base-port`` + 10 i (ArduPilot's 5760 by default); port 0 (ephemeral, for the
+    built-in vehicles) is refused since SITL cannot report the port it took."""
+    if options.base_port == 0:
+        raise UsageError(
+            "--base-port: 0 (ephemeral) is for the built-in vehicles; "
+            "ArduPilot SITL needs a port (default 5760)"
+        )
+    try:
+        return ardupilot_commands(
+            binary,
+            count,
+            options.speedup,
+            home,
+            defaults,
+            Path("sitl-ardupilot").resolve(),
+            base_port=options.base_port,
+        )
+    except ValueError as exc:
+        raise UsageError(f"--base-port: {exc}") from None
 
 
 def run_camera_only(options: SitlOptions) -> int:

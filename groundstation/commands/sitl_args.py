@@ -30,8 +30,11 @@ class UsageError(errors.UsageError):
 
 
 def parse_udp_url(text: str, option: str) -> tuple[str, int]:
-    """``udp:HOST:PORT`` (or ``HOST:PORT``) -> (host, port)."""
-    body = text[4:] if text.startswith("udp:") else text
+    """``udp:HOST:PORT``, ``udpout:HOST:PORT`` (MAVProxy's spellings of sending) or
+    ``HOST:PORT`` -> (host, port); ``udpin:`` is refused (these addresses are sent to)."""
+    if text.lower().startswith("udpin:"):
+        raise UsageError(f"{option}: sends to udp:HOST:PORT; udpin: (listen) is not supported")
+    body = text.split(":", 1)[1] if text.lower().startswith(("udp:", "udpout:")) else text
     host, sep, port = body.rpartition(":")
     if not sep or not host or not port.isdigit() or not 0 < int(port) < 65536:
         raise UsageError(f"{option}: expected udp:HOST:PORT, got {text!r}")

@@ -6,9 +6,12 @@
     gcs target remove ICE7
     gcs target list [--json]
 
-A client of the daemon's control API (docs/control.md): ``--api URL`` (default ``$FLOE_API``
-or http://127.0.0.1:8080) and, for writes, ``--token`` (default ``$FLOE_TOKEN``; printed by
-``gcs run`` at start-up). Exit status: 0 done, 1 refused by the daemon (unknown id, outside
+A client of the daemon's control API (docs/control.md). Without ``--api URL`` (or
+``$FLOE_API``) it finds the running daemon itself: the newest live one whose
+``control.json`` is in a run folder under ``--run-dir`` (default ``runs``), and says which
+(:mod:`groundstation.commands.daemon_finder`); writes use that file's token unless
+``--token`` (or, with ``--api``/``$FLOE_API``, ``$FLOE_TOKEN``) gives one.
+Exit status: 0 done, 1 refused by the daemon (unknown id, outside
 the operating area ...) or daemon unreachable, 2 user error (bad option, missing or wrong
 token, request rejected as malformed).
 
@@ -20,7 +23,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
 import sys
 import urllib.error
 import urllib.parse
@@ -29,10 +31,10 @@ from typing import Any
 
 from domain.errors import UsageError
 
-__all__ = ["ApiClient", "ApiError", "add_api_options", "run", "table"]
+__all__ = ["ApiClient", "ApiError", "add_api_options", "connect", "run", "table"]
 
-DEFAULT_API = "http://127.0.0.1:8080"
 EXIT_REFUSED = 1
+PROBE_TIMEOUT_S = 1.0
 EXIT_USAGE = 2
 
 
@@ -49,19 +51,54 @@ def add_api_options(p: argparse.ArgumentParser) -> None:
         "--api",
         default=None,
         metavar="URL",
-        help=f"control API of the running daemon (default $FLOE_API or {DEFAULT_API})",
+        help="control API of the daemon (default $FLOE_API, else the newest running daemon "
+        "found through the control.json of its run folder)",
     )
     p.add_argument(
-        "--token", default=None, help="write token printed by 'gcs run' (default $FLOE_TOKEN)"
+        "--token",
+        default=None,
+        help="write token printed by 'gcs run' (default: the found daemon's control.json; "
+        "$FLOE_TOKEN with --api/$FLOE_API)",
+    )
+    p.add_argument(
+        "--run-dir",
+        default=None,
+        metavar="DIR",
+        help="where gcs run writes its run folders, searched for control.json (default runs)",
     )
     p.add_argument("--timeout", type=float, default=5.0, help="seconds to wait (default 5)")
+
+
+def connect(args: argparse.Namespace, prog: str) -> ApiClient:
+    """The client of the daemon chosen by ``--api``/``$FLOE_API`` or found through its
+    ``control.json`` (:func:`groundstation.commands.daemon_finder.find_daemon`); the choice
+    of a found daemon is said on stderr."""
+    from groundstation.commands.daemon_finder import find_daemon
+
+    if not (math.isfinite(args.timeout) and args.timeout > 0):
+        raise ApiError("--timeout: must be a positive number of seconds", EXIT_USAGE)
+
+    def is_live(url: str) -> bool:
+        try:
+            body = ApiClient(url, None, min(args.timeout, PROBE_TIMEOUT_S)).get("/api/server")
+        except ApiError:
+            return False
+        return isinstance(body, dict) and "limits" in body
+
+    try:
+        found = find_daemon(args.api, args.token, args.run_dir, is_live)
+    except LookupError as exc:
+        raise ApiError(str(exc), EXIT_REFUSED) from None
+    if found.note is not None:
+        print(f"{prog}: {found.note}", file=sys.stderr, flush=True)
+    return ApiClient(found.url, found.token, args.timeout)
 
 
 class ApiClient:
     """Blocking JSON client of the control API (stdlib only)."""
 
-    def __init__(self, api: str | None, token: str | None, timeout_s: float = 5.0) -> None:
-        base = (api or os.environ.get("FLOE_API") or DEFAULT_API).strip().rstrip("/")
+    def __init__(self, api: str, token: str | None, timeout_s: float = 5.0) -> None:
+        base = api.strip().rstrip("/")
         parsed = urllib.parse.urlsplit(base)
         if parsed.scheme not in ("http", "https") or not parsed.hostname:
             raise ApiError(f"--api: expected http://HOST:PORT, got {base!r}", EXIT_USAGE)
@@ -72,7 +109,7 @@ class ApiClient:
         if not (math.isfinite(timeout_s) and timeout_s > 0):
             raise ApiError("--timeout: must be a positive number of seconds", EXIT_USAGE)
         self.base = base
-        self.token = token if token is not None else os.environ.get("FLOE_TOKEN")
+        self.token = token
         self.timeout_s = timeout_s
 
     def get(self, path: str) -> Any:
@@ -81,7 +118,8 @@ class ApiClient:
     def write(self, method: str, path: str, body: dict[str, Any] | None = None) -> Any:
         if not self.token:
             raise ApiError(
-                "no token: pass the token printed by 'gcs run' with --token or FLOE_TOKEN",
+                "no token: pass the token printed by 'gcs run' with --token or FLOE_TOKEN "
+                "(a daemon found through its control.json needs neither)",
                 EXIT_USAGE,
             )
         return self.request(method, path, body)
@@ -104,8 +142,8 @@ class ApiClient:
             reason = exc.reason
             if isinstance(reason, ConnectionRefusedError):
                 raise ApiError(
-                    f"daemon not running at {self.base} (connection refused; "
-                    "start 'gcs run --http ...' or set --api/FLOE_API)",
+                    f"daemon not running at {self.base} (connection refused; start "
+                    "'gcs run', or leave out --api/FLOE_API to find the running daemon)",
                     EXIT_REFUSED,
                 ) from None
             if isinstance(reason, TimeoutError):
@@ -274,7 +312,7 @@ def _list(client: ApiClient, as_json: bool) -> int:
 
 
 def _execute(args: argparse.Namespace) -> int:
-    client = ApiClient(args.api, args.token, args.timeout)
+    client = connect(args, "gcs target")
     if args.action == "list":
         return _list(client, args.json)
     if args.action == "add":

@@ -5,8 +5,9 @@
     gcs vehicle resume uav2      # give it back to floe
     gcs vehicle list [--json]
 
-A vehicle is named by its id, its name or its MAVLink system id. Same ``--api``/``--token``
-options and exit statuses as ``gcs target`` (docs/control.md).
+A vehicle is named by its id, its name or its MAVLink system id. Same ``--api``/``--token``/
+``--run-dir`` options (the running daemon is found through its ``control.json``) and exit
+statuses as ``gcs target`` (docs/control.md).
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ import sys
 import urllib.parse
 from typing import Any
 
-from groundstation.commands.target import ApiClient, ApiError, add_api_options, table
+from groundstation.commands.target import ApiClient, ApiError, add_api_options, connect, table
 
 __all__ = ["run"]
 
@@ -102,7 +103,7 @@ def run(argv: list[str]) -> int:
     except SystemExit as exc:  # argparse already printed the usage error
         return int(exc.code or 0) if not isinstance(exc.code, str) else 2
     try:
-        client = ApiClient(args.api, args.token, args.timeout)
+        client = connect(args, "gcs vehicle")
         if args.action == "list":
             return _list(client, args.json)
         ref = urllib.parse.quote(args.id, safe="")

@@ -49,14 +49,17 @@ def make_run_dir(base: str) -> Path:
     root = Path(base)
     path = root / stamp
     k = 1
-    while path.exists():
-        k += 1
-        path = root / f"{stamp}-{k}"
-    try:
-        path.mkdir(parents=True)
-    except OSError as exc:
-        raise StorageError(f"run_dir: cannot create {path}: {describe_os_error(exc)}") from None
-    return path
+    while True:  # mkdir decides: another gcs run may take the same name at the same time
+        try:
+            path.mkdir(parents=True)
+            return path
+        except FileExistsError:
+            k += 1
+            path = root / f"{stamp}-{k}"
+        except OSError as exc:
+            raise StorageError(
+                f"run_dir: cannot create {path}: {describe_os_error(exc)}"
+            ) from None
 
 
 def _stderr_report(level: int, message: str) -> None:

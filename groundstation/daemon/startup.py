@@ -45,7 +45,7 @@ from groundstation.daemon.run_files import open_run_files
 from groundstation.daemon.signing_gate import SigningGate, load_signing_keys
 from groundstation.daemon.world import ScenarioWorld
 from groundstation.detection_feed import DetectionFeed
-from groundstation.link import LinkError, LinkUrlError, open_link
+from groundstation.link import LinkError, LinkUrlError, describe_out_link, open_link
 from groundstation.storage import StorageError, atomic_write_text
 from world.yaml_fields import check_number, load_yaml_file
 
@@ -215,13 +215,14 @@ async def run_daemon(
     elif config.mission.origin is not None:
         origin = config.mission.origin
     targets = load_targets(config.mission.targets, origin) if config.mission.targets else []
-    from groundstation.link import parse_link_url
+    from groundstation.link import parse_link_url, parse_out_url
 
-    for url in [*([] if sim is not None else config.links.vehicles), *config.links.out]:
-        try:
+    try:
+        for url in [] if sim is not None else config.links.vehicles:
             parse_link_url(url)
-        except LinkUrlError as exc:
-            raise StartError(str(exc)) from None
+        out_specs = [parse_out_url(url) for url in config.links.out]  # MAVProxy's --out
+    except LinkUrlError as exc:
+        raise StartError(str(exc)) from None
     if sim is not None:
         clock = MissionClock(config.speedup_x, source=sim.now_s)
     else:
@@ -280,7 +281,7 @@ async def run_daemon(
             daemon.world = ScenarioWorld(scenario, config.mission.seed, positions)
         try:
             links = [open_link(url, link_id=f"vehicles{i}") for i, url in enumerate(urls)]
-            outs = [open_link(url, link_id=f"out{i}") for i, url in enumerate(config.links.out)]
+            outs = [open_link(spec, link_id=f"out{i}") for i, spec in enumerate(out_specs)]
         except LinkUrlError as exc:
             raise StartError(str(exc)) from None
         journal.write(
@@ -325,6 +326,8 @@ async def run_daemon(
         )
         for url in urls:
             print_fn(f"gcs run: vehicles on {url}")
+        for spec in out_specs:
+            print_fn(f"gcs run: out link {spec.canonical}: {describe_out_link(spec)}")
         if signing_keys.enabled:
             who = ", ".join(f"{k} from {v}" for k, v in signing_keys.sources.items())
             print_fn(f"gcs run: MAVLink 2 signing on ({who})"
@@ -422,8 +425,7 @@ async def _start_control(
         print_fn(f"gcs run: {warning}")
     print_fn(
         f"gcs run: control API {daemon.control_url} token {token} "
-        f"(for gcs target/vehicle: export FLOE_API={daemon.control_url} "
-        f"FLOE_TOKEN={token})"
+        f"(gcs target/vehicle find it through {daemon.run_dir / 'control.json'})"
     )
 
 
@@ -446,7 +448,8 @@ async def _start_detection_feed(
         ) from None
     daemon.extra_stops.append(feed.stop)
     bound_host, bound_port = getattr(feed, "address", (host, port))
-    print_fn(f"gcs run: detection feed on udp:{bound_host}:{bound_port}")
+    chosen = " (a free port; --detections HOST:PORT to choose)" if port == 0 else ""
+    print_fn(f"gcs run: detection feed on udp:{bound_host}:{bound_port}{chosen}")
 
 
 def _field(item: Any, name: str) -> Any:

@@ -1,6 +1,7 @@
 """Asyncio MAVLink transports (udpin/udpout/tcp/tcpin/serial), routing and tlogs.
 
-Public entry points: :func:`parse_link_url`, :func:`open_link`, :class:`Router`,
+Public entry points: :func:`parse_link_url`, :func:`parse_out_url` (``--out``),
+:func:`open_link`, :class:`Router`,
 :class:`TlogWriter`, :class:`TlogReader`. Importing this package has no side effects.
 """
 
@@ -16,7 +17,14 @@ from groundstation.link.binding import BindingRules
 from groundstation.link.factory import open_link
 from groundstation.link.router import Router, RouterCounters
 from groundstation.link.tlog import TlogReader, TlogRecord, TlogWriter
-from groundstation.link.url import LinkKind, LinkSpec, LinkUrlError, parse_link_url
+from groundstation.link.url import (
+    LinkKind,
+    LinkSpec,
+    LinkUrlError,
+    describe_out_link,
+    parse_link_url,
+    parse_out_url,
+)
 
 __all__ = [
     "BindingRules",
@@ -34,6 +42,8 @@ __all__ = [
     "TlogReader",
     "TlogRecord",
     "TlogWriter",
+    "describe_out_link",
     "open_link",
     "parse_link_url",
+    "parse_out_url",
 ]

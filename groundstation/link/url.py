@@ -20,6 +20,11 @@ accept port 0 (an ephemeral port, used by tests) and an empty host (all interfac
 sending and connecting forms need a host and a port from 1 to 65535.
 
 Every problem raises :class:`LinkUrlError` with a one-line message naming it.
+
+``--out`` (and ``gcs replay --serve``) links are parsed by :func:`parse_out_url`, which
+follows MAVProxy's ``--out``: ``udp:`` and ``udpout:`` *send* to HOST:PORT, ``udpin:``
+listens, ``tcpin:`` serves, ``tcp:`` connects. Only ``udp:`` differs from
+:func:`parse_link_url` (where, as pymavlink's ``--master``, it listens).
 """
 
 from __future__ import annotations
@@ -31,7 +36,15 @@ from dataclasses import dataclass
 
 from domain.errors import ConfigError
 
-__all__ = ["DEFAULT_SERIAL_BAUD", "LinkKind", "LinkSpec", "LinkUrlError", "parse_link_url"]
+__all__ = [
+    "DEFAULT_SERIAL_BAUD",
+    "LinkKind",
+    "LinkSpec",
+    "LinkUrlError",
+    "describe_out_link",
+    "parse_link_url",
+    "parse_out_url",
+]
 
 DEFAULT_SERIAL_BAUD = 57600
 """Baud rate of a serial URL without one (MAVProxy's default; SiK telemetry radios)."""
@@ -211,3 +224,34 @@ def parse_link_url(url: str) -> LinkSpec:
     host = _parse_host(url, host_text, allow_empty=listens)
     port = _parse_port(url, port_text, allow_zero=listens)
     return LinkSpec(kind, url, host=host, port=port)
+
+
+def parse_out_url(url: str) -> LinkSpec:
+    """Parse an ``--out`` URL as MAVProxy's ``--out`` reads it: ``udp:HOST:PORT`` sends
+    (it is ``udpout:``); every other form as :func:`parse_link_url`.
+
+    ``LinkSpec.url`` keeps the user's text; :attr:`LinkSpec.canonical` names what is done
+    (``udp:127.0.0.1:14550`` -> ``udpout:127.0.0.1:14550``).
+    """
+    if isinstance(url, str):
+        text = url.strip()
+        scheme, sep, rest = text.partition(":")
+        if sep and scheme.lower() == "udp":
+            spec = parse_link_url("udpout:" + rest)
+            return LinkSpec(spec.kind, url, host=spec.host, port=spec.port)
+    return parse_link_url(url)
+
+
+def describe_out_link(spec: LinkSpec) -> str:
+    """One line saying what an ``--out`` link does, e.g. ``sends UDP to 127.0.0.1:14550``."""
+    host = spec.host or ""
+    where = f"[{host}]:{spec.port}" if ":" in host else f"{host}:{spec.port}"
+    if spec.kind is LinkKind.UDP_OUT:
+        return f"sends UDP to {where} (replies read from the same socket)"
+    if spec.kind is LinkKind.UDP_IN:
+        return f"listens on UDP {where}; sends to the ground stations heard there"
+    if spec.kind is LinkKind.TCP_SERVER:
+        return f"serves TCP on {where} to any number of clients"
+    if spec.kind is LinkKind.TCP_CLIENT:
+        return f"connects to TCP {where} (reconnects with back-off)"
+    return f"serial {spec.device} at {spec.baud} baud"

@@ -316,9 +316,15 @@ def load_run_data(path: Path, say: Callable[[str], None] | None = None) -> RunDa
     return data
 
 
+_SOURCE_TITLES = {"run": "gcs run", "simulate": "gcs simulate", "tlog": "tlog"}
+
+
 def _title(data: RunData) -> str:
+    """``<what wrote it> <folder or file name>, scenario S, seed N, K vehicle(s)``, e.g.
+    ``gcs run 20261121T071106Z, scenario paper-boat, 3 vehicle(s)``."""
     start = data.start or {}
-    parts = [f"{data.source} run"]
+    name = data.path.name or str(data.path)
+    parts = [f"{_SOURCE_TITLES.get(data.source, data.source)} {name}"]
     if start.get("scenario"):
         parts.append(f"scenario {start['scenario']}")
     if start.get("seed") is not None and data.source == "simulate":

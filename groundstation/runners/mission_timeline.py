@@ -1,0 +1,135 @@
+"""Mission time of a recorded run, as a function of the tlog's reception times.
+
+A tlog stamps frames with the wall clock (Unix seconds). A run recorded at a speed-up K
+(``gcs run --vehicles sim:N`` runs at 50x) went through K mission seconds per wall second,
+and not quite steadily (a loaded host slows the simulator down). Serving it back "at the
+mission's pace" (``gcs replay --serve --pace K``) needs the mission time of every frame.
+:func:`mission_timeline` finds anchors, pairs ``(unix_s, mission_s)``, from the best
+source there is:
+
+1. ``journal.jsonl`` beside the tlog (a ``gcs run`` folder): every record holds its
+   mission time ``t`` and its ``unix_s``;
+2. otherwise the vehicles' own clock: ``time_boot_ms`` of the first vehicle's messages
+   (it runs on simulated time; a reboot, where it goes back, continues from where it was);
+3. otherwise none: mission time is taken to be the tlog's own time (K = 1).
+
+Between anchors mission time is linear in Unix time; outside them it is extrapolated at
+the mean rate of all anchors. Mission time never decreases (anchors that would make it go
+back are dropped).
+"""
+
+from __future__ import annotations
+
+import bisect
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+from groundstation.link.tlog import TlogReader
+
+__all__ = ["MissionTimeline", "mission_timeline"]
+
+_MAX_ANCHORS = 200_000
+
+
+@dataclass(frozen=True)
+class MissionTimeline:
+    """Piecewise-linear ``unix_s -> mission_s``; ``source`` says where it came from."""
+
+    unix_s: tuple[float, ...]
+    mission_s: tuple[float, ...]
+    source: str
+
+    @classmethod
+    def from_anchors(cls, anchors: list[tuple[float, float]], source: str) -> MissionTimeline:
+        """Sort by Unix time, keep mission time non-decreasing and Unix time increasing."""
+        unix: list[float] = []
+        mission: list[float] = []
+        for u, m in sorted(anchors):
+            if not (math.isfinite(u) and math.isfinite(m)):
+                continue
+            if unix and (u <= unix[-1] or m < mission[-1]):
+                continue
+            unix.append(u)
+            mission.append(m)
+        return cls(tuple(unix), tuple(mission), source if unix else "tlog time (K = 1)")
+
+    @property
+    def rate(self) -> float:
+        """Mean mission seconds per Unix second (the recorded speed-up; 1 without anchors)."""
+        if len(self.unix_s) < 2 or self.unix_s[-1] <= self.unix_s[0]:
+            return 1.0
+        return (self.mission_s[-1] - self.mission_s[0]) / (self.unix_s[-1] - self.unix_s[0])
+
+    def at(self, unix_s: float) -> float:
+        """Mission time at ``unix_s``."""
+        if not self.unix_s:
+            return unix_s
+        u, m = self.unix_s, self.mission_s
+        k = bisect.bisect_right(u, unix_s)
+        if k == 0:
+            return m[0] - (u[0] - unix_s) * self.rate
+        if k == len(u):
+            return m[-1] + (unix_s - u[-1]) * self.rate
+        fraction = (unix_s - u[k - 1]) / (u[k] - u[k - 1])
+        return m[k - 1] + fraction * (m[k] - m[k - 1])
+
+
+def _journal_anchors(journal: Path) -> list[tuple[float, float]]:
+    anchors: list[tuple[float, float]] = []
+    try:
+        with journal.open(encoding="utf-8", errors="replace") as f:
+            for line in f:
+                try:
+                    record = json.loads(line)
+                except ValueError:
+                    continue
+                if not isinstance(record, dict):
+                    continue
+                t, unix = record.get("t"), record.get("unix_s")
+                if isinstance(t, int | float) and isinstance(unix, int | float):
+                    anchors.append((float(unix), float(t)))
+                    if len(anchors) >= _MAX_ANCHORS:
+                        break
+    except OSError:
+        return []
+    return anchors
+
+
+def _boot_anchors(tlog: Path, system_id: int) -> list[tuple[float, float]]:
+    """(unix_s, seconds of the vehicle's clock), continued across reboots."""
+    anchors: list[tuple[float, float]] = []
+    offset_s, last_s = 0.0, None
+    for record in TlogReader(tlog):
+        msg = record.message
+        if int(msg.get_srcSystem()) != system_id:
+            continue
+        boot_ms = getattr(msg, "time_boot_ms", None)
+        if not isinstance(boot_ms, int):
+            continue
+        boot_s = boot_ms / 1000.0
+        if last_s is not None and boot_s + offset_s < last_s - 1.0:  # rebooted
+            offset_s = last_s - boot_s
+        last_s = boot_s + offset_s
+        anchors.append((record.t_unix_s, last_s))
+        if len(anchors) >= _MAX_ANCHORS:
+            break
+    return anchors
+
+
+def mission_timeline(tlog: Path, vehicles: list[int]) -> MissionTimeline:
+    """The mission timeline of ``tlog`` (module docstring); ``vehicles``: its vehicles'
+    system ids, lowest first."""
+    journal = tlog.parent / "journal.jsonl"
+    if journal.is_file():
+        anchors = _journal_anchors(journal)
+        if len(anchors) >= 2:
+            return MissionTimeline.from_anchors(anchors, f"mission time from {journal}")
+    for system_id in vehicles[:1]:
+        anchors = _boot_anchors(tlog, system_id)
+        if len(anchors) >= 2:
+            return MissionTimeline.from_anchors(
+                anchors, f"mission time from system {system_id}'s time_boot_ms"
+            )
+    return MissionTimeline.from_anchors([], "")

@@ -1,0 +1,194 @@
+"""Vehicle side of the fence and rally mission types, as ArduPlane answers them (sans-IO).
+
+ArduPlane runs the same mission-item protocol for ``MAV_MISSION_TYPE_FENCE`` (1) and
+``MAV_MISSION_TYPE_RALLY`` (2) as for the mission, each with a store of its own:
+
+* ``MISSION_REQUEST_LIST`` of that type -> ``MISSION_COUNT`` of that type (0 until
+  something was uploaded: a freshly booted vehicle has no fence and no rally points);
+* ``MISSION_COUNT`` N -> N = 0 clears the store (``MISSION_ACK ACCEPTED``); N above the
+  capacity -> ``NO_SPACE``; otherwise ``MISSION_REQUEST`` seq 0, 1, ... (same type) until
+  the last item, then ``MISSION_ACK ACCEPTED``. Unlike the mission, the stored items are
+  replaced only when the upload completes (ArduPilot uploads into a new buffer);
+* an item whose command does not belong to the type -> ``UNSUPPORTED`` (the upload ends),
+  a wrong seq -> ``INVALID_SEQUENCE``, an item with no upload -> ``ERROR``, another ground
+  station starting an upload during one -> ``DENIED``;
+* re-request about every second; cancel after 8 s without an item
+  (``OPERATION_CANCELLED``);
+* ``MISSION_REQUEST(_INT)`` -> the stored item as ``MISSION_ITEM(_INT)`` of that type
+  (``INVALID_SEQUENCE`` beyond the end); ``MISSION_CLEAR_ALL`` -> empty, ``ACCEPTED``.
+
+The fence stays unconfigured and disabled whatever is uploaded (FENCE_ENABLE is 0), so
+SYS_STATUS keeps reporting it not present, not enabled and healthy
+(:mod:`sitl.vehicle_messages`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from groundstation.mavlink.codec import mavlink2
+
+__all__ = ["GEO_CAPACITY", "GEO_TYPES", "GeoItem", "GeoItemsServer"]
+
+M = mavlink2
+REREQUEST_S = 1.0
+UPLOAD_TIMEOUT_S = 8.0
+GEO_CAPACITY = 100
+"""Items per store (ArduPilot's limits depend on the board's storage; ~84-100 fence
+items, RALLY_TOTAL up to 100 rally points)."""
+
+_FENCE_COMMANDS = frozenset(
+    {
+        M.MAV_CMD_NAV_FENCE_RETURN_POINT,
+        M.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION,
+        M.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_EXCLUSION,
+        M.MAV_CMD_NAV_FENCE_CIRCLE_INCLUSION,
+        M.MAV_CMD_NAV_FENCE_CIRCLE_EXCLUSION,
+    }
+)
+_RALLY_COMMANDS = frozenset({M.MAV_CMD_NAV_RALLY_POINT})
+GEO_TYPES: dict[int, frozenset[int]] = {
+    M.MAV_MISSION_TYPE_FENCE: _FENCE_COMMANDS,
+    M.MAV_MISSION_TYPE_RALLY: _RALLY_COMMANDS,
+}
+"""Mission type -> the commands its items may carry."""
+
+
+@dataclass(frozen=True, slots=True)
+class GeoItem:
+    """One stored fence or rally item (lat/lon in degE7, as MISSION_ITEM_INT)."""
+
+    command: int
+    frame: int
+    params: tuple[float, float, float, float]
+    x: int
+    y: int
+    z: float
+
+
+@dataclass
+class _Upload:
+    peer: tuple[int, int]
+    count: int
+    items: list[GeoItem] = field(default_factory=list)
+    last_request_t: float = 0.0
+    last_receive_t: float = 0.0
+
+
+def _item(msg: Any) -> GeoItem:
+    params = (float(msg.param1), float(msg.param2), float(msg.param3), float(msg.param4))
+    if msg.get_type() == "MISSION_ITEM_INT":
+        x, y = int(msg.x), int(msg.y)
+    else:
+        x, y = round(float(msg.x) * 1e7), round(float(msg.y) * 1e7)
+    return GeoItem(int(msg.command), int(msg.frame), params, x, y, float(msg.z))
+
+
+class GeoItemsServer:
+    """The fence and rally stores and their upload/download (module docstring)."""
+
+    def __init__(self) -> None:
+        self.stores: dict[int, list[GeoItem]] = {t: [] for t in GEO_TYPES}
+        self._uploads: dict[int, _Upload] = {}
+
+    @staticmethod
+    def handles(mission_type: int) -> bool:
+        return mission_type in GEO_TYPES
+
+    def handle(self, msg: Any, t_s: float) -> list[Any]:
+        """Answer one mission-protocol message of the fence or rally type."""
+        kind = msg.get_type()
+        peer = (int(msg.get_srcSystem()), int(msg.get_srcComponent()))
+        mtype = int(msg.mission_type)
+        store = self.stores[mtype]
+        if kind == "MISSION_REQUEST_LIST":
+            return [M.MAVLink_mission_count_message(peer[0], peer[1], len(store), mtype)]
+        if kind == "MISSION_COUNT":
+            return self._on_count(int(msg.count), peer, mtype, t_s)
+        if kind in ("MISSION_ITEM", "MISSION_ITEM_INT"):
+            return self._on_item(msg, peer, mtype, t_s)
+        if kind in ("MISSION_REQUEST", "MISSION_REQUEST_INT"):
+            seq = int(msg.seq)
+            if not 0 <= seq < len(store):
+                return [self._ack(peer, M.MAV_MISSION_INVALID_SEQUENCE, mtype)]
+            return [self._item_message(store[seq], seq, peer, mtype, kind.endswith("_INT"))]
+        if kind == "MISSION_CLEAR_ALL":
+            if mtype in self._uploads:
+                return [self._ack(peer, M.MAV_MISSION_ERROR, mtype)]
+            store.clear()
+            return [self._ack(peer, M.MAV_MISSION_ACCEPTED, mtype)]
+        return []
+
+    def step(self, t_s: float) -> list[Any]:
+        """Re-request a missing item about every second; cancel after 8 s of silence."""
+        out: list[Any] = []
+        for mtype, up in list(self._uploads.items()):
+            if t_s - up.last_receive_t >= UPLOAD_TIMEOUT_S:
+                del self._uploads[mtype]
+                out.append(self._ack(up.peer, M.MAV_MISSION_OPERATION_CANCELLED, mtype))
+            elif t_s - up.last_request_t >= REREQUEST_S:
+                out.append(self._request(up, mtype, t_s))
+        return out
+
+    def reset(self) -> None:
+        """Forget uploads in progress (reboot); the stores are kept (EEPROM)."""
+        self._uploads.clear()
+
+    # ------------------------------------------------------------------ internals
+    @staticmethod
+    def _ack(peer: tuple[int, int], result: int, mtype: int) -> Any:
+        return M.MAVLink_mission_ack_message(peer[0], peer[1], result, mtype)
+
+    @staticmethod
+    def _request(up: _Upload, mtype: int, t_s: float) -> Any:
+        up.last_request_t = t_s
+        return M.MAVLink_mission_request_message(up.peer[0], up.peer[1], len(up.items), mtype)
+
+    def _on_count(self, count: int, peer: tuple[int, int], mtype: int, t_s: float) -> list[Any]:
+        current = self._uploads.get(mtype)
+        if current is not None and current.peer != peer:
+            return [self._ack(peer, M.MAV_MISSION_DENIED, mtype)]
+        self._uploads.pop(mtype, None)
+        if count > GEO_CAPACITY:
+            return [self._ack(peer, M.MAV_MISSION_NO_SPACE, mtype)]
+        if count == 0:
+            self.stores[mtype].clear()
+            return [self._ack(peer, M.MAV_MISSION_ACCEPTED, mtype)]
+        up = _Upload(peer, count, last_receive_t=t_s)
+        self._uploads[mtype] = up
+        return [self._request(up, mtype, t_s)]
+
+    def _on_item(self, msg: Any, peer: tuple[int, int], mtype: int, t_s: float) -> list[Any]:
+        up = self._uploads.get(mtype)
+        if up is None:
+            return [self._ack(peer, M.MAV_MISSION_ERROR, mtype)]
+        if int(msg.seq) != len(up.items):
+            return [self._ack(peer, M.MAV_MISSION_INVALID_SEQUENCE, mtype)]
+        if peer != up.peer:
+            return [self._ack(peer, M.MAV_MISSION_DENIED, mtype)]
+        if int(msg.command) not in GEO_TYPES[mtype]:
+            del self._uploads[mtype]
+            return [self._ack(peer, M.MAV_MISSION_UNSUPPORTED, mtype)]
+        up.items.append(_item(msg))
+        up.last_receive_t = t_s
+        if len(up.items) < up.count:
+            return [self._request(up, mtype, t_s)]
+        del self._uploads[mtype]
+        self.stores[mtype] = up.items
+        return [self._ack(peer, M.MAV_MISSION_ACCEPTED, mtype)]
+
+    @staticmethod
+    def _item_message(
+        item: GeoItem, seq: int, peer: tuple[int, int], mtype: int, as_int: bool
+    ) -> Any:
+        p1, p2, p3, p4 = item.params
+        if as_int:
+            return M.MAVLink_mission_item_int_message(
+                peer[0], peer[1], seq, item.frame, item.command, 0, 1,
+                p1, p2, p3, p4, item.x, item.y, item.z, mtype,
+            )  # fmt: skip
+        return M.MAVLink_mission_item_message(
+            peer[0], peer[1], seq, item.frame, item.command, 0, 1,
+            p1, p2, p3, p4, item.x * 1e-7, item.y * 1e-7, item.z, mtype,
+        )  # fmt: skip

@@ -1,0 +1,144 @@
+"""`gcs replay --serve URL --pace K`: frames spaced by mission time / K, whatever the
+speed-up the run was recorded at, so a 50x run can be watched in MAVProxy or QGroundControl.
+
+The tlogs here are written as a 50x run writes them: 10 mission seconds of frames within
+0.2 s of Unix time; mission time comes from the vehicle's time_boot_ms (a bare tlog) or the
+run's journal (a run folder)."""
+
+from __future__ import annotations
+
+import itertools
+import json
+import socket
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from groundstation.cli import main
+from groundstation.link import TlogWriter
+from groundstation.mavlink.codec import MavlinkDecoder, MavlinkEncoder, mavlink2
+from groundstation.runners.mission_timeline import MissionTimeline, mission_timeline
+from groundstation.runners.replay_serve import serving_schedule
+
+T0 = 1_790_000_000.0
+RECORDED_X = 50.0
+MISSION_S = 10.0
+STEP_S = 0.1  # mission seconds between ATTITUDE frames
+
+
+def _write_run(path: Path, *, with_boot_ms: bool = True) -> int:
+    """A 50x recording of one vehicle; returns the number of vehicle frames."""
+    encoder = MavlinkEncoder(1, 1)
+    writer = TlogWriter(path)
+    frames = 0
+    steps = round(MISSION_S / STEP_S)
+    for k in range(steps + 1):
+        t_mission = k * STEP_S
+        unix = T0 + t_mission / RECORDED_X
+        if with_boot_ms:
+            msg = mavlink2.MAVLink_attitude_message(round(1000 * (5.0 + t_mission)),
+                                                    0, 0, 0, 0, 0, 0)
+        else:
+            msg = mavlink2.MAVLink_vfr_hud_message(22, 22, 90, 50, 100, 0)
+        writer.write(encoder.encode(msg), unix)
+        frames += 1
+        if k % 10 == 0:
+            beat = mavlink2.MAVLink_heartbeat_message(
+                mavlink2.MAV_TYPE_FIXED_WING, mavlink2.MAV_AUTOPILOT_ARDUPILOTMEGA, 0, 10, 4, 3
+            )
+            writer.write(encoder.encode(beat), unix)
+            frames += 1
+    writer.close()
+    return frames
+
+
+def test_timeline_from_boot_ms_and_from_the_journal(tmp_path: Path) -> None:
+    bare = tmp_path / "bare.tlog"
+    _write_run(bare)
+    timeline = mission_timeline(bare, [1])
+    assert "time_boot_ms" in timeline.source
+    assert timeline.rate == pytest.approx(RECORDED_X, rel=1e-3)
+    assert timeline.at(T0 + 0.1) - timeline.at(T0) == pytest.approx(5.0, abs=0.01)
+    run = tmp_path / "run"
+    run.mkdir()
+    _write_run(run / "flight.tlog", with_boot_ms=False)
+    with (run / "journal.jsonl").open("w") as f:
+        for t in range(11):
+            f.write(json.dumps({"t": float(t), "unix_s": T0 + t / RECORDED_X, "event": "x"}))
+            f.write("\n")
+    timeline = mission_timeline(run / "flight.tlog", [1])
+    assert "journal.jsonl" in timeline.source
+    assert timeline.at(T0 + 0.1) == pytest.approx(5.0, abs=1e-6)
+    # no anchors: the tlog's own time (K = 1)
+    none = MissionTimeline.from_anchors([], "")
+    assert none.at(T0 + 3.0) - none.at(T0) == pytest.approx(3.0) and none.rate == 1.0
+
+
+def test_schedule_spaces_frames_by_mission_time_over_pace(tmp_path: Path) -> None:
+    path = tmp_path / "fast.tlog"
+    count = _write_run(path)
+    _, frames = serving_schedule(path, pace=10.0)
+    items = list(frames)
+    assert len(items) == count
+    assert items[-1].at_s == pytest.approx(MISSION_S / 10.0, abs=0.005)
+    for a, b in itertools.pairwise(items):
+        assert b.at_s - a.at_s == pytest.approx((b.t_s - a.t_s) / 10.0, abs=1e-9)
+    # the same tlog by its recorded wall pace (--speed 1) would take 0.2 s
+    _, by_wall = serving_schedule(path, speed=1.0)
+    assert list(by_wall)[-1].at_s == pytest.approx(MISSION_S / RECORDED_X, abs=0.001)
+
+
+@pytest.mark.timeout(60)
+def test_serve_at_pace_10_takes_a_tenth_of_the_mission_time(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = tmp_path / "fast.tlog"
+    count = _write_run(path)
+    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sock.bind(("127.0.0.1", 0))
+    sock.settimeout(0.1)
+    port = sock.getsockname()[1]
+    received: list[tuple[float, Any]] = []
+    stop = threading.Event()
+
+    def receive() -> None:
+        decoder = MavlinkDecoder()
+        while not stop.is_set():
+            try:
+                data, _ = sock.recvfrom(65536)
+            except TimeoutError:
+                continue
+            now = time.monotonic()
+            received.extend((now, m) for m in decoder.feed(data))
+
+    thread = threading.Thread(target=receive, daemon=True)
+    thread.start()
+    try:
+        status = main(["replay", str(path), "--serve", f"udp:127.0.0.1:{port}",
+                       "--pace", "10", "--json"])
+    finally:
+        time.sleep(0.2)
+        stop.set()
+        thread.join(5)
+        sock.close()
+    assert status == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["pace"] == 10.0 and "time_boot_ms" in result["clock"]
+    assert result["frames_sent"] == count == len(received)
+    # 10 mission s at --pace 10: at least ~0.9 s of wall time, on both sides of the link
+    assert result["wall_s"] >= 0.9
+    assert received[-1][0] - received[0][0] >= 0.85
+    # in recorded order: the vehicle's clock only goes forward
+    boots = [m.time_boot_ms for _, m in received if m.get_type() == "ATTITUDE"]
+    assert boots == sorted(boots) and len(boots) == round(MISSION_S / STEP_S) + 1
+
+
+def test_pace_and_speed_are_exclusive(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as info:
+        main(["replay", str(tmp_path), "--serve", "udp:127.0.0.1:9", "--pace", "2",
+              "--speed", "3"])
+    assert info.value.code == 2
+    assert "not allowed with" in capsys.readouterr().err
