@@ -194,7 +194,6 @@
       if (!entry || typeof entry.seq !== "number" || entry.seq <= app.lastSeq) continue;
       app.lastSeq = entry.seq;
       const line = entry.line || {};
-      if (line.event === "detection" || line.event === "track") continue;  // too many to list
       app.events.push(entry);
       const li = document.createElement("li");
       li.dataset.seq = entry.seq;
