@@ -6,7 +6,7 @@ page's EVENTS pane (the control server pushes only these) and ``GET /api/events?
 A line is an operator event when its ``event`` is in :data:`OPERATOR_EVENTS`, or when it is a
 ``statustext`` of severity WARNING or worse (MAV_SEVERITY <= 4), a ``clock_check`` that
 failed, or an ``arm``/``param_set`` that failed. Everything else (``track``, ``truth``,
-``detection``, ``input``, ``mode``, ``armed``, ``fly``, ``solve_request``, ``start`` ...)
+``detection``, ``input``, ``mode``, ``armed``, ``fly``, ``solve_request`` ...)
 is a state update: its effect is in the tables and the map, every line of it in the journal.
 
 **Level.** :func:`line_level`: WARNING for a problem (:data:`PROBLEM_EVENTS`, ``ok: false``,
@@ -86,6 +86,7 @@ OPERATOR_EVENTS = PROBLEM_EVENTS | frozenset(
         "released",
         "send_home",
         "autopilot_mode",
+        "start",
         "stop",
     }
 )
