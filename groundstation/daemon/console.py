@@ -65,8 +65,10 @@ class OperatorConsole:
     def __init__(self, mode: StatusMode, stdout: TextIO | None = None,
                  stderr: TextIO | None = None) -> None:
         self.mode = mode
-        self.out = Console(file=stdout or sys.stdout, highlight=False, soft_wrap=True)
-        self.err = Console(file=stderr or sys.stderr, highlight=False, soft_wrap=True)
+        # the table wraps what is too wide itself (so a redraw knows its height); the log
+        # lines are printed whole (soft_wrap) for the terminal to fold
+        self.out = Console(file=stdout or sys.stdout, highlight=False)
+        self.err = Console(file=stderr or sys.stderr, highlight=False)
         self.interactive = self.out.is_terminal and not self.out.is_dumb_terminal
         self.live_table = self.interactive and mode in (StatusMode.TABLE, StatusMode.AUTO)
         """Redraw the table in place."""

@@ -95,7 +95,7 @@ def _header(daemon: Daemon, alerts: OperatorAlerts | None) -> list[RenderableTyp
     if daemon.control_url:
         out.append(Text.assemble(
             "live map ", (f"{daemon.control_url}/", "bold cyan"),
-            f"   token: {daemon.run_dir}/control.json (also on the start line above)",
+            f"   token: {daemon.run_dir}/control.json (and on the start line)",
         ))  # fmt: skip
     plan = daemon.last_plan
     if plan is not None:
@@ -177,7 +177,8 @@ def render_status(
             tally.add(line)
     stats = daemon.router.link_stats()
     trouble = set(link_lines(stats, only_trouble=True))
-    links = [Text(text, style="yellow" if text in trouble else "") for text in link_lines(stats)]
+    links = [Text(text, style="yellow" if text in trouble else "", no_wrap=True,
+                  overflow="ellipsis") for text in link_lines(stats)]
     return Group(*_header(daemon, alerts), _vehicles(daemon, tally), _targets(daemon), *links,
                  Text(""), *_recent(list(tally.recent)))
 
