@@ -180,3 +180,19 @@ def test_console_on_a_file_has_no_escape_codes() -> None:
     assert not quiet.live_table and not quiet.event_lines and not quiet.final_table
     forced = OperatorConsole(StatusMode.TABLE, out, err)
     assert forced.final_table and forced.event_lines and not forced.live_table
+
+
+def test_event_buffer_keeps_operator_events_and_marks_problems() -> None:
+    from groundstation.daemon.control_pages import EventBuffer
+
+    buffer = EventBuffer()
+    for line in ({"t": 1.0, "event": "truth", "target": "A"},
+                 {"t": 1.0, "event": "plan", "routes": {}},
+                 {"t": 2.0, "event": "track", "target": "A"},
+                 {"t": 3.0, "event": "link_lost", "vehicle": "1"}):
+        buffer.record(line)
+    everything = buffer.since(0, 100, notable=False)["events"]
+    notable = buffer.since(0, 100, notable=True)["events"]
+    assert [e["line"]["event"] for e in everything] == ["truth", "plan", "track", "link_lost"]
+    assert [(e["line"]["event"], e.get("warning", False)) for e in notable] == [
+        ("plan", False), ("link_lost", True)]

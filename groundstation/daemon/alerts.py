@@ -164,7 +164,8 @@ def _advice(url: str, connected: bool) -> str:
         if not connected:
             return ("check the address, that the vehicle or SITL listens there and that no "
                     "other program holds its port")
-        return "connected: check that the vehicle sends MAVLink on this port"
+        return ("connected but silent: ArduPilot serves one client per TCP port, so another "
+                "ground station may hold it; else check that the vehicle sends MAVLink here")
     if url.startswith("udpout:"):
         return "check the address and that the vehicle answers at it (udpout sends first)"
     if url.startswith(("udp:", "udpin:")):

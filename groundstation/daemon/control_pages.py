@@ -9,11 +9,12 @@ server disconnects it (it reconnects and catches up with ``?since=``).
 from __future__ import annotations
 
 import asyncio
+import logging
 from collections import deque
 from typing import Any
 
 from groundstation.daemon.control_requests import jsonable
-from groundstation.daemon.log_lines import is_operator_event
+from groundstation.daemon.log_lines import is_operator_event, line_level
 
 __all__ = ["CLIENT_QUEUE", "CLIENT_QUEUE_BYTES", "EventBuffer", "PageClient"]
 
@@ -35,9 +36,12 @@ class EventBuffer:
         self.seq = 0
 
     def record(self, line: dict[str, Any]) -> dict[str, Any]:
-        """Number and keep ``line``; returns its entry ``{"seq", "line"}``."""
+        """Number and keep ``line``; returns its entry ``{"seq", "line"}`` (and
+        ``"warning": true`` for a problem, ``log_lines.line_level``)."""
         self.seq += 1
-        entry = {"seq": self.seq, "line": jsonable(line)}
+        entry: dict[str, Any] = {"seq": self.seq, "line": jsonable(line)}
+        if line_level(line) >= logging.WARNING:
+            entry["warning"] = True  # pages colour it (log_lines.line_level)
         self.events.append(entry)
         if is_operator_event(line):
             if len(self.notable) == NOTABLE_BUFFER:
