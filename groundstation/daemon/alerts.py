@@ -22,6 +22,8 @@ import logging
 from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING
 
+from groundstation.link.url import LinkKind
+
 if TYPE_CHECKING:
     from groundstation.daemon.daemon import Daemon
     from groundstation.link.base import Link
@@ -142,9 +144,14 @@ def _unheard_state(link: Link) -> str:
     if received:
         return (f"{received} frames received, no vehicle yet: it needs 3 autopilot "
                 "heartbeats and, without --origin, a position")
+    kind = link.spec.kind
+    if kind in (LinkKind.UDP_IN, LinkKind.UDP_OUT):  # datagrams: nothing to connect
+        return "nothing received"
     if link.connected:
         return "connected, nothing received"
-    return "never connected" if not link.counters.connects else "not connected"
+    if link.counters.connects:
+        return "not connected"
+    return "no client connected" if kind is LinkKind.TCP_SERVER else "never connected"
 
 
 def never_heard(daemon: Daemon) -> str | None:
@@ -152,7 +159,7 @@ def never_heard(daemon: Daemon) -> str | None:
     ``no vehicle was heard in 25.2 mission s (tcp:127.0.0.1:5999: never connected)``."""
     if daemon.sessions:
         return None
-    states = "; ".join(f"{link.spec.canonical}: {_unheard_state(link)}"
+    states = "; ".join(f"{link.spec.url}: {_unheard_state(link)}"
                        for link in daemon.router.vehicle_links)
     return (f"no vehicle was heard in {daemon.clock.now_s():.1f} mission s"
             + (f" ({states})" if states else ""))
@@ -160,7 +167,9 @@ def never_heard(daemon: Daemon) -> str | None:
 
 def _advice(url: str, connected: bool) -> str:
     """What to check for a link that heard no vehicle."""
-    if url.startswith(("tcp:", "tcpin:")):
+    if url.startswith("tcpin:"):
+        return "check that the vehicle or its bridge connects to this address and port"
+    if url.startswith("tcp:"):
         if not connected:
             return ("check the address, that the vehicle or SITL listens there and that no "
                     "other program holds its port")
