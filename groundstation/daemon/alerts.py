@@ -11,8 +11,9 @@
   counts by reason: ``no_origin``, ``outside_area`` (camera or feed), ``malformed``,
   ``out_of_order``, ``late`` (feed)) and one console warning.
 
-:func:`OperatorAlerts.check` is pure bookkeeping on what the daemon already counts; the
-daemon's task (:meth:`OperatorAlerts.run`) calls it once a mission second.
+:meth:`OperatorAlerts.check` reads only what the daemon already counts (sessions, link
+counters, dropped detections) and reports what is due; the daemon's task
+(:meth:`OperatorAlerts.run`) calls it once a mission second until the run stops.
 """
 
 from __future__ import annotations
@@ -90,7 +91,9 @@ class OperatorAlerts:
 
     # ------------------------------------------------------------------ checks
     def check(self, now_s: float) -> None:
-        """Report what is due at mission time ``now_s``."""
+        """Report what is due at mission time ``now_s`` (nothing once the run is stopping)."""
+        if self.daemon.stopping:
+            return
         self._check_links(now_s)
         if now_s >= self._next_drops_s:
             self._next_drops_s = now_s + DROPS_REPORT_S
