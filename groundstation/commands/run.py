@@ -162,7 +162,8 @@ def _parser() -> argparse.ArgumentParser:
     a(
         "--status",
         choices=[m.value for m in StatusMode],
-        help="live table (TTY), log lines, or nothing",
+        help="the console: live table (auto: on an interactive terminal), log lines, or "
+        "quiet (warnings and errors only, on stderr)",
     )
     return p
 
