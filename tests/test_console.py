@@ -160,7 +160,7 @@ def test_unreachable_tcp_in_log_mode_on_a_pipe(tmp_path: Path) -> None:
     stopped = next(i for i, line in enumerate(lines) if line.startswith("gcs run: stopped"))
     cannot = [i for i, line in enumerate(lines)
               if line.startswith(f"gcs run: link vehicles0: cannot open TCP 127.0.0.1:{port}")]
-    silent = [i for i, line in enumerate(lines) if "no vehicle heard in 10 s" in line]
+    silent = [i for i, line in enumerate(lines) if "no vehicle heard in" in line]
     assert cannot and cannot[0] < stopped
     assert silent and silent[0] < stopped
     assert err.strip().splitlines()[-1].startswith("gcs run: error: no vehicle was heard in")

@@ -111,7 +111,7 @@ def test_silent_link_and_dropped_detections_are_reported(tmp_path: Path) -> None
     tasks: list[asyncio.Task[None]] = []
     try:
         daemon = _run(tmp_path, ["--vehicles", f"tcp:127.0.0.1:{port}", "--speedup", "20",
-                                 "--duration", "45", "--http", "off",
+                                 "--duration", "50", "--http", "off",
                                  "--detections", "127.0.0.1:0"],
                       lambda d: tasks.append(asyncio.get_running_loop().create_task(
                           send_detections())), prints)
@@ -119,10 +119,11 @@ def test_silent_link_and_dropped_detections_are_reported(tmp_path: Path) -> None
         logging.getLogger("groundstation").removeHandler(keep)
     journal = read_journal(daemon.run_dir / "journal.jsonl")
     silent = [e for e in journal if e["event"] == "link_silent"]
-    # first after 10 mission s, then every 30: at ~10 and ~40 of a 45 s run
+    # first after 10 mission s, then every 30: at ~10 and ~40 of a 50 s run (a loaded host
+    # may run the check late: 1 mission s is 50 ms of wall time at 20x)
     assert [e["link"] for e in silent] == ["vehicles0", "vehicles0"]
-    assert SILENT_AFTER_S <= silent[0]["t"] < SILENT_AFTER_S + 1.5
-    assert silent[1]["t"] - silent[0]["t"] == pytest.approx(SILENT_REPEAT_S, abs=1.5)
+    assert SILENT_AFTER_S <= silent[0]["t"] < SILENT_AFTER_S + 5.0
+    assert SILENT_REPEAT_S <= silent[1]["t"] - silent[0]["t"] < SILENT_REPEAT_S + 5.0
     assert silent[0]["url"] == f"tcp:127.0.0.1:{port}" and silent[0]["connected"] is False
     drops = [e for e in journal if e["event"] == "detections_dropped"]
     assert sum(e["new"] for e in drops) == 6 and drops[-1]["total"] == 6
