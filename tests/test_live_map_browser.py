@@ -290,6 +290,9 @@ def test_live_page(driver: Any, backend: Backend, tmp_path: Path) -> None:
              "the new target in the page's table")
     wait_for(lambda: "target_added" in drv.find_element(By.ID, "events").text,
              "the target_added event on the page")
+    shown = {li.text.split()[1] for li in drv.find_elements(By.CSS_SELECTOR, "#events li")
+             if len(li.text.split()) > 1}
+    assert "target_added" in shown and not shown & {"truth", "track", "detection", "input"}
 
     def added_seq() -> int | None:
         events = get(backend.url, "/api/events?since=0&notable=1")["events"]
@@ -365,13 +368,14 @@ def check_reconnect(drv: Any, backend: FakeBackend) -> None:
     async def cut() -> None:
         for client in list(server.server.pages.clients):
             await client.ws.close()
-        server.control.emit("while_away", vehicle="uav1")  # before the page is back
+        # before the page is back; an operator event (pages get no state updates)
+        server.control.emit("target_discovered", vehicle="uav1", target="AWAY1")
 
     asyncio.run_coroutine_threadsafe(cut(), server.loop).result(5.0)
     wait_for(lambda: drv.execute_script(
         "return window.floe.connected && window.floe.connections") == connections + 1,
         "the page to reconnect")
-    wait_for(lambda: "while_away" in drv.find_element(By.ID, "events").text,
+    wait_for(lambda: "AWAY1" in drv.find_element(By.ID, "events").text,
              "the missed event on the page")
     seqs = drv.execute_script("return window.floe.events.map(e => e.seq)")
     assert seqs == sorted(set(seqs))  # nothing shown twice

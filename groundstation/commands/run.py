@@ -5,7 +5,8 @@
     gcs run --config field.yaml --vehicles /dev/ttyUSB0,57600 --scenario svalbard-2015 --advisory
 
 Every flag can be set in ``--config FILE`` (YAML, the flag's name with underscores); flags
-win. Bad input (a bad URL or config key, a port in use) is one line on stderr and exit 2.
+win. Bad input (a bad URL or config key, a port in use) is one line on stderr and exit 2; a
+run that never heard a vehicle ends with one error line and exit 1.
 See docs/daemon.md.
 """
 
@@ -21,7 +22,10 @@ if TYPE_CHECKING:
     from groundstation.daemon.config import DaemonConfig
     from groundstation.daemon.daemon import Daemon
 
-__all__ = ["build_config", "run", "run_daemon"]
+__all__ = ["EXIT_NO_VEHICLE", "build_config", "run", "run_daemon"]
+
+EXIT_NO_VEHICLE = 1
+"""``gcs run``'s exit status when the run ended without ever hearing a vehicle."""
 
 
 class _Parser(argparse.ArgumentParser):
@@ -158,7 +162,8 @@ def _parser() -> argparse.ArgumentParser:
     a(
         "--status",
         choices=[m.value for m in StatusMode],
-        help="live table (TTY), log lines, or nothing",
+        help="the console: live table (auto: on an interactive terminal), log lines, or "
+        "quiet (warnings and errors only, on stderr)",
     )
     return p
 
@@ -207,6 +212,7 @@ async def run_daemon(config: DaemonConfig, **options: Any) -> Daemon:
 
 def run(argv: list[str]) -> int:
     """Entry point of ``gcs run``; returns the exit status."""
+    from groundstation.daemon.alerts import never_heard
     from groundstation.daemon.config import ConfigError
     from groundstation.daemon.startup import StartError
     from groundstation.daemon.status import link_lines
@@ -241,4 +247,9 @@ def run(argv: list[str]) -> int:
     )
     for line in link_lines(summary.get("links", {}), only_trouble=True):
         print(f"gcs run: {line}")
+    silent = never_heard(daemon)
+    if silent is not None:
+        print(f"gcs run: error: {silent}; nothing was flown (see the warnings above and "
+              f"{daemon.run_dir}/gcs.log)", file=sys.stderr)
+        return EXIT_NO_VEHICLE
     return 0

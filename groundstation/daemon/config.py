@@ -76,7 +76,8 @@ class OnExit(StrEnum):
 
 
 class StatusMode(StrEnum):
-    """The console: live table (``auto`` on a TTY), log lines, or nothing."""
+    """The console: live table (``auto`` on an interactive terminal), log lines, or quiet
+    (warnings and errors only); see ``daemon/console.py``."""
 
     AUTO = "auto"
     TABLE = "table"

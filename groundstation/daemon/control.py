@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Any
 
 from groundstation.core import events as ev
 from groundstation.daemon.control_contract import VEHICLE_ACTIONS
+from groundstation.daemon.log_lines import is_operator_event
 
 if TYPE_CHECKING:
     from groundstation.daemon.daemon import Daemon
@@ -87,11 +88,7 @@ class DaemonController:
             "boat": {"x_m": d.boat_xy_m[0], "y_m": d.boat_xy_m[1]} if d.boat_xy_m else None,
             "fov_radius_m": d.core_config.observer.fov_radius_m,
             "plan": d.last_plan,
-            "events": [
-                line
-                for line in d.journal_file.recent
-                if line["event"] not in ("detection", "track")
-            ][-50:],
+            "events": [line for line in d.journal_file.recent if is_operator_event(line)][-50:],
         }
 
     def subscribe(self) -> AsyncIterator[dict[str, Any]]:

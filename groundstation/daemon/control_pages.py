@@ -9,23 +9,25 @@ server disconnects it (it reconnects and catches up with ``?since=``).
 from __future__ import annotations
 
 import asyncio
+import logging
 from collections import deque
 from typing import Any
 
 from groundstation.daemon.control_requests import jsonable
+from groundstation.daemon.log_lines import is_operator_event, line_level
 
-__all__ = ["CLIENT_QUEUE", "CLIENT_QUEUE_BYTES", "QUIET_EVENTS", "EventBuffer", "PageClient"]
+__all__ = ["CLIENT_QUEUE", "CLIENT_QUEUE_BYTES", "EventBuffer", "PageClient"]
 
 EVENT_BUFFER = 5000
 NOTABLE_BUFFER = 2000
-QUIET_EVENTS = frozenset({"detection", "track"})  # many per second: not pushed to pages
 CLIENT_QUEUE = 64
 CLIENT_QUEUE_BYTES = 4 * 1024 * 1024
 
 
 class EventBuffer:
     """Journal lines numbered 1, 2, ...: the last ``EVENT_BUFFER`` of all, and the last
-    ``NOTABLE_BUFFER`` without the frequent ``QUIET_EVENTS``."""
+    ``NOTABLE_BUFFER`` operator events (``log_lines.is_operator_event``: no ``track``,
+    ``truth``, ``detection`` ... state updates)."""
 
     def __init__(self) -> None:
         self.events: deque[dict[str, Any]] = deque(maxlen=EVENT_BUFFER)
@@ -34,11 +36,14 @@ class EventBuffer:
         self.seq = 0
 
     def record(self, line: dict[str, Any]) -> dict[str, Any]:
-        """Number and keep ``line``; returns its entry ``{"seq", "line"}``."""
+        """Number and keep ``line``; returns its entry ``{"seq", "line"}`` (and
+        ``"warning": true`` for a problem, ``log_lines.line_level``)."""
         self.seq += 1
-        entry = {"seq": self.seq, "line": jsonable(line)}
+        entry: dict[str, Any] = {"seq": self.seq, "line": jsonable(line)}
+        if line_level(line) >= logging.WARNING:
+            entry["warning"] = True  # pages colour it (log_lines.line_level)
         self.events.append(entry)
-        if line.get("event") not in QUIET_EVENTS:
+        if is_operator_event(line):
             if len(self.notable) == NOTABLE_BUFFER:
                 self.notable_evicted = self.notable[0]["seq"]
             self.notable.append(entry)

@@ -7,9 +7,10 @@ Messages (server -> page), one JSON object each::
     {"type": "state", "state": {...}, "seq": last event sequence number}
     {"type": "events", "events": [{"seq": n, "line": {journal line}}, ...], "dropped": k}
 
-Pages get every journal event except the frequent ``detection`` and ``track`` lines (their
-effect is in the state); ``dropped`` counts events a page will never see (too many in one
-batch, or evicted from the buffer before a reconnect). A page connecting with
+Pages get the operator events (``log_lines.is_operator_event``: not the frequent ``track``,
+``truth``, ``detection`` ... state updates, whose effect is in the state); ``dropped``
+counts events a page will never see (too many in one batch, or evicted from the buffer
+before a reconnect). A page connecting with
 ``/ws?since=N&instance=I`` first gets the buffered events after N (catch-up after a
 reconnect); without ``since``, or when ``I`` names another run of the daemon, the last
 ``CATCH_UP_EVENTS``.
@@ -36,8 +37,9 @@ from aiohttp import WSCloseCode, WSMsgType, web
 
 from groundstation.daemon.control_contract import DaemonControl
 from groundstation.daemon.control_guard import RejectLog
-from groundstation.daemon.control_pages import QUIET_EVENTS, EventBuffer, PageClient
+from groundstation.daemon.control_pages import EventBuffer, PageClient
 from groundstation.daemon.control_requests import jsonable
+from groundstation.daemon.log_lines import is_operator_event
 
 __all__ = ["CATCH_UP_EVENTS", "WS_CLOSE_TIMEOUT_S", "WS_SEND_TIMEOUT_S", "PageHub"]
 
@@ -130,7 +132,7 @@ class PageHub:
                 if not isinstance(line, dict):
                     continue
                 entry = self.buffer.record(line)
-                if self.clients and line.get("event") not in QUIET_EVENTS:
+                if self.clients and is_operator_event(line):
                     self._pending.append(entry)
                     if len(self._pending) > EVENT_BATCH_MAX:
                         self._pending_dropped += len(self._pending) - EVENT_BATCH_MAX

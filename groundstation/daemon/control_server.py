@@ -13,7 +13,7 @@ the daemon owns the state. Endpoints (all JSON; docs/control.md has curl example
     POST   /api/vehicles/ID/ACTION        ACTION: launch | resume | release
     GET    /api/events?since=N[&limit=M][&notable=1]
                                           journal events with sequence number > N
-                                          (notable=1: without detection/track lines)
+                                          (notable=1: operator events only)
     GET    /api/session                   {"write": bool, ...} for the presented token
     GET    /api/server                    limits, allowed origins, refusal counters
     GET    /ws                            WebSocket: hello, full state at once, then the

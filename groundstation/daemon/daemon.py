@@ -40,7 +40,7 @@ from groundstation.daemon.area import OperatingArea
 from groundstation.daemon.clock import MissionClock
 from groundstation.daemon.config import DaemonConfig, OnExit, OperatingCenter
 from groundstation.daemon.journal import Journal
-from groundstation.daemon.log_lines import LOGGED_EVENTS, describe_line
+from groundstation.daemon.log_lines import describe_line, line_level
 from groundstation.daemon.planning import SolverRunner
 from groundstation.daemon.reports import LinkReporter, run_summary
 from groundstation.daemon.session import VehicleSession
@@ -167,8 +167,8 @@ class Daemon:
 
     def journal(self, event: str, **fields: Any) -> None:
         line = self.journal_file.write(event, **fields)
-        if event in LOGGED_EVENTS:
-            log.info("%s", describe_line(line))
+        if (level := line_level(line)) >= logging.INFO:  # operator events; problems: WARNING
+            log.log(level, "%s", describe_line(line))
 
     def core_event(self, event: ev.Event) -> None:
         """Feed the core and carry out what it says (as the offline runner does).

@@ -1,56 +1,164 @@
-"""How journal lines reach the console and ``gcs.log``: which events are logged at INFO and
-how a line is shortened for a person (the journal keeps every value at full precision)."""
+"""Which journal lines an operator sees, how important each is, and how it reads.
+
+**Operator events.** One predicate, :func:`is_operator_event`, decides for every operator
+view: the console's log lines (``--status log``), the status table's recent pane, the live
+page's EVENTS pane (the control server pushes only these) and ``GET /api/events?notable=1``.
+A line is an operator event when its ``event`` is in :data:`OPERATOR_EVENTS`, or when it is a
+``statustext`` of severity WARNING or worse (MAV_SEVERITY <= 4), a ``clock_check`` that
+failed, or an ``arm``/``param_set`` that failed. Everything else (``track``, ``truth``,
+``detection``, ``input``, ``mode``, ``armed``, ``fly``, ``solve_request`` ...)
+is a state update: its effect is in the tables and the map, every line of it in the journal.
+
+**Level.** :func:`line_level`: WARNING for a problem (:data:`PROBLEM_EVENTS`, ``ok: false``,
+an upload that needed retries), INFO otherwise; warnings reach the console in every
+``--status`` mode.
+
+**Reading.** :func:`describe_line`: ``t=25.1 plan 1 -> T5, T8 | 2 -> T7 (optimal, 3 ms,
+period)``; other events as ``key=value`` with floats to 4 significant digits, without the
+bulky planner records (``problem``, ``result``, ``hint``) or nested mappings (the journal
+keeps every value at full precision).
+"""
 
 from __future__ import annotations
 
+import logging
+from collections.abc import Mapping
 from typing import Any
 
-__all__ = ["LOGGED_EVENTS", "describe_line", "short_value"]
+__all__ = [
+    "OPERATOR_EVENTS",
+    "PROBLEM_EVENTS",
+    "describe_line",
+    "format_routes",
+    "is_operator_event",
+    "line_level",
+    "short_value",
+]
 
-LOGGED_EVENTS = frozenset(
+PROBLEM_EVENTS = frozenset(
     {
-        "plan",
-        "upload",
-        "loiter_end",
         "link_lost",
-        "link_restored",
+        "link_silent",
+        "link_drops",
+        "link_rebound",
+        "peer_rebound",
         "override",
-        "resume",
         "battery_low",
-        "vehicle_joined",
         "reboot",
-        "launch",
-        "target_added",
-        "target_removed",
         "task_error",
-        "rtl",
-        "release",
-        "released",
-        "send_home",
-        "stop",
-        "autopilot_mode",
-        "on_ground",
-        "waiting",
+        "task_gave_up",
+        "core_error",
         "plan_failed",
         "signing_rejected",
         "no_progress",
         "landed",
         "resume_refused",
         "command_refused",
-        "link_drops",
-        "link_rebound",
-        "peer_rebound",
+        "launch_timeout",
+        "stop_wait_timeout",
+        "target_refused",
+        "detections_dropped",
+        "duplicate_target",
+        "unknown_target",
     }
 )
+"""Operator events that report something wrong: logged at WARNING."""
+
+OPERATOR_EVENTS = PROBLEM_EVENTS | frozenset(
+    {
+        "plan",
+        "upload",
+        "loiter_end",
+        "link_restored",
+        "resume",
+        "vehicle_seen",
+        "vehicle_joined",
+        "origin",
+        "launch",
+        "waiting",
+        "on_ground",
+        "target_added",
+        "target_removed",
+        "target_discovered",
+        "clipped",
+        "rtl",
+        "release",
+        "released",
+        "send_home",
+        "autopilot_mode",
+        "start",
+        "stop",
+    }
+)
+"""The events every operator view shows (plus the conditional ones of the module doc)."""
+
+MAV_SEVERITY_WARNING = 4
 
 
-def describe_line(line: dict[str, Any]) -> str:
-    skip = {"t", "unix_s", "event", "problem", "result", "hint", "request_id"}
-    parts = [f"t={line['t']:.1f}", line["event"]]
+def is_operator_event(line: Mapping[str, Any]) -> bool:
+    """True if an operator view shows ``line`` (see the module docstring)."""
+    event = line.get("event")
+    if event in OPERATOR_EVENTS:
+        return True
+    if event == "statustext":
+        severity = line.get("severity")
+        return isinstance(severity, int) and severity <= MAV_SEVERITY_WARNING
+    if event in ("clock_check", "arm", "param_set"):
+        return line.get("ok") is False
+    return False
+
+
+def line_level(line: Mapping[str, Any]) -> int:
+    """``logging.WARNING`` for a problem, ``logging.INFO`` for other operator events,
+    ``logging.DEBUG`` for state updates."""
+    if not is_operator_event(line):
+        return logging.DEBUG
+    event = line.get("event")
+    if event in PROBLEM_EVENTS or event == "statustext" or line.get("ok") is False:
+        return logging.WARNING
+    retries = line.get("retries")
+    if event == "upload" and isinstance(retries, int) and retries > 0:
+        return logging.WARNING
+    return logging.INFO
+
+
+def format_routes(routes: Mapping[str, Any]) -> str:
+    """``{"1": ["T5", "T6"], "2": []}`` -> ``1 -> T5, T6 | 2 -> -``."""
+    parts = []
+    for vehicle, route in routes.items():
+        names = ", ".join(str(t) for t in route) if isinstance(route, list) and route else "-"
+        parts.append(f"{vehicle} -> {names}")
+    return " | ".join(parts) or "no vehicle"
+
+
+_SKIP = frozenset({"t", "unix_s", "event", "problem", "result", "hint", "request_id"})
+
+
+def describe_line(line: Mapping[str, Any]) -> str:
+    """One readable line for a person (see the module docstring)."""
+    t = line.get("t")
+    head = f"t={t:.1f}" if isinstance(t, int | float) else "t=?"
+    event = str(line.get("event"))
+    if event == "plan" and isinstance(line.get("routes"), Mapping):
+        return f"{head} plan {format_routes(line['routes'])} ({_plan_detail(line)})"
+    parts = [head, event]
     for key, value in line.items():
-        if key not in skip:
-            parts.append(f"{key}={short_value(value)}")
+        if key in _SKIP or isinstance(value, Mapping):
+            continue
+        if event == "upload" and key == "retries" and value == 0:
+            continue
+        parts.append(f"{key}={short_value(value)}")
     return " ".join(parts)
+
+
+def _plan_detail(line: Mapping[str, Any]) -> str:
+    detail = [str(line.get("status", "?"))]
+    solve_s = line.get("solve_time_s")
+    if isinstance(solve_s, int | float):
+        detail.append(f"{solve_s * 1000:.0f} ms")
+    if line.get("reason"):
+        detail.append(str(line["reason"]))
+    return ", ".join(detail)
 
 
 def short_value(value: Any) -> Any:

@@ -22,7 +22,6 @@ import logging
 import platform
 import secrets
 import signal
-import sys
 from collections.abc import Callable
 from importlib.metadata import PackageNotFoundError, version
 from typing import Any
@@ -33,9 +32,11 @@ from domain.limits import MAX_COORDINATE_M, MAX_SPEED_M_S, MAX_TARGETS
 from groundstation.core import events as ev
 from groundstation.core.config import CoreConfig, ReplanPolicy, config_to_dict
 from groundstation.core.scenario_config import core_config_for
+from groundstation.daemon.alerts import OperatorAlerts
 from groundstation.daemon.clock import MissionClock
-from groundstation.daemon.config import DaemonConfig, StatusMode, resolve
+from groundstation.daemon.config import DaemonConfig, resolve
 from groundstation.daemon.config_parse import check_config
+from groundstation.daemon.console import OperatorConsole
 from groundstation.daemon.control import DaemonController
 from groundstation.daemon.control_server import ControlLimits, ControlServer, binding_warning
 from groundstation.daemon.daemon import Daemon
@@ -233,11 +234,12 @@ async def run_daemon(
     except StorageError as exc:
         raise StartError(str(exc)) from None
     run_dir, journal, tlog, effective = files.run_dir, files.journal, files.tlog, files.effective
+    console = OperatorConsole(config.status)
+    cleanups: list[Callable[[], None]] = [console.install()]
     daemon = Daemon(config, ccfg, clock, run_dir, origin, journal, tlog)
     if signing_keys.enabled:
         daemon.use_signing(SigningGate(signing_keys, config.links.gcs_system_id))
     server_started = False
-    cleanups: list[Callable[[], None]] = []
     try:
         if sim is not None:
             try:
@@ -318,8 +320,14 @@ async def run_daemon(
             )
             daemon.core_event(target)
         controller = DaemonController(daemon)
+        alerts = OperatorAlerts(daemon, {f"vehicles{i}": url for i, url in enumerate(urls)})
+
+        async def operator_alerts() -> None:
+            await alerts.run()
+
+        daemon.extra_tasks.append(operator_alerts)
         await _start_control(config, daemon, controller, print_fn)
-        await _start_detection_feed(config, daemon, print_fn)
+        await _start_detection_feed(config, daemon, alerts, print_fn)
         print_fn(
             f"gcs run: run folder {run_dir} (speed-up {clock.speedup:g}x"
             f"{', advisory' if config.advisory else ''})"
@@ -337,18 +345,11 @@ async def run_daemon(
             for sig in (signal.SIGINT, signal.SIGTERM):
                 with contextlib.suppress(NotImplementedError, RuntimeError):
                     loop.add_signal_handler(sig, daemon.request_stop, sig.name)
-        if not _use_table(config) and config.status != StatusMode.QUIET:
-            console = logging.StreamHandler(sys.stdout)
-            console.setFormatter(logging.Formatter("gcs run: %(message)s"))
-            console.setLevel(logging.INFO)
-            daemon_log = logging.getLogger("groundstation.daemon.daemon")
-            daemon_log.addHandler(console)
-            cleanups.append(lambda: daemon_log.removeHandler(console))
-        if _use_table(config):
+        if console.live_table or console.final_table:
             from groundstation.daemon.status import status_loop
 
             async def status() -> None:
-                await status_loop(daemon)
+                await status_loop(daemon, console.out, alerts, live=console.live_table)
 
             daemon.extra_tasks.append(status)
         if on_started is not None:
@@ -374,14 +375,6 @@ async def run_daemon(
         for cleanup in cleanups:
             cleanup()
         files.close()
-
-
-def _use_table(config: DaemonConfig) -> bool:
-    if config.status == StatusMode.TABLE:
-        return True
-    if config.status == StatusMode.LOG:
-        return False
-    return sys.stdout.isatty()
 
 
 async def _start_control(
@@ -423,6 +416,8 @@ async def _start_control(
     warning = binding_warning(host)
     if warning is not None:
         print_fn(f"gcs run: {warning}")
+    print_fn(f"gcs run: live map {daemon.control_url}/ (open it in a browser; the token "
+             f"below lets it command, also in {daemon.run_dir}/control.json)")
     print_fn(
         f"gcs run: control API {daemon.control_url} token {token} "
         f"(gcs target/vehicle find it through {daemon.run_dir / 'control.json'})"
@@ -430,16 +425,19 @@ async def _start_control(
 
 
 async def _start_detection_feed(
-    config: DaemonConfig, daemon: Daemon, print_fn: Callable[[str], None]
+    config: DaemonConfig, daemon: Daemon, alerts: OperatorAlerts,
+    print_fn: Callable[[str], None]
 ) -> None:
     if config.detections is None:
         return
     host, port = config.detections.host, config.detections.port
 
     def on_detection(item: Any) -> None:
-        _feed_detection(daemon, item)
+        if not _feed_detection(daemon, item):
+            alerts.no_origin += 1
 
     feed = DetectionFeed(host, port, on_detection)
+    alerts.feed_counters = lambda: dataclasses.asdict(feed.counters)
     try:
         await feed.start()
     except OSError as exc:
@@ -456,17 +454,18 @@ def _field(item: Any, name: str) -> Any:
     return item.get(name) if isinstance(item, dict) else getattr(item, name, None)
 
 
-def _feed_detection(daemon: Daemon, item: Any) -> None:
-    """One line of the detection feed (design.md) -> the core (boat or detection)."""
+def _feed_detection(daemon: Daemon, item: Any) -> bool:
+    """One line of the detection feed (design.md) -> the core (boat or detection); False
+    when it is dropped for want of a mission origin."""
     lat, lon = _field(item, "lat_deg"), _field(item, "lon_deg")
     if daemon.origin_or_none is None or lat is None or lon is None:
         daemon.detections_dropped += 1
-        return
+        return False
     x, y, _ = daemon.origin.to_local(float(lat), float(lon))
     t = daemon.clock.now_s()
     if _field(item, "kind") == "boat":
         daemon.set_boat(x, y)
-        return
+        return True
     sysid = _field(item, "vehicle")
     session = daemon.sessions.get(int(sysid)) if isinstance(sysid, int) else None
     sigma = _field(item, "sigma_m")
@@ -477,3 +476,4 @@ def _feed_detection(daemon: Daemon, item: Any) -> None:
             t, session.id if session else None, str(target) if target is not None else None, x, y, r
         )
     )
+    return True

@@ -1,23 +1,64 @@
-"""The live status table (stdout is a TTY) or plain log lines (otherwise).
+"""The live status table of ``gcs run`` (built with ``rich``).
 
-Table: one row per vehicle (id, system id, status, mode, armed, altitude, target, battery,
-link, uploads), one per target (id, position, sigma, lost, last seen), one per link
-(frames received, dropped unread, bad, foreign), then the newest journal lines. Redrawn
-once a wall second.
+Header: mission time, speed-up, advisory, the run folder, the **live map URL and where the
+token is** (``RUN/control.json``), the newest plan as readable routes
+(``1 -> T5, T6 | 2 -> T2``), links that heard no vehicle, dropped detections and signing
+refusals. Then one row per vehicle (id, system id, status, mode, armed, altitude, target,
+battery, link, uploads ok/failed, upload retries), one per target (id, position, sigma, lost,
+last seen), one line per link (frames received, dropped unread, bad, foreign) and the newest
+operator events (``log_lines.is_operator_event``; problems in colour). Redrawn once a wall
+second in place (``rich.live.Live``); the console's own lines (warnings, the start lines)
+stay above it. Colours come from ``rich``: none on a dumb terminal or a file.
 """
 
 from __future__ import annotations
 
 import asyncio
-import sys
-from typing import TYPE_CHECKING, Any, TextIO
+import io
+import logging
+from collections import Counter, deque
+from typing import TYPE_CHECKING, Any
+
+from rich import box
+from rich.console import Console, Group, RenderableType
+from rich.table import Table
+from rich.text import Text
+
+from groundstation.daemon.log_lines import (
+    describe_line,
+    format_routes,
+    is_operator_event,
+    line_level,
+)
 
 if TYPE_CHECKING:
+    from groundstation.daemon.alerts import OperatorAlerts
     from groundstation.daemon.daemon import Daemon
 
-__all__ = ["link_lines", "render_table", "status_loop"]
+__all__ = ["RECENT_LINES", "EventTally", "link_lines", "render_status", "render_table",
+           "status_loop"]
 
-_CLEAR = "\x1b[H\x1b[2J"
+RECENT_LINES = 8
+REDRAW_S = 1.0
+
+
+class EventTally:
+    """What the table counts from the journal's operator events: upload retries per
+    vehicle, and the newest ``RECENT_LINES`` events."""
+
+    def __init__(self) -> None:
+        self.retries: Counter[str] = Counter()
+        self.recent: deque[dict[str, Any]] = deque(maxlen=RECENT_LINES)
+
+    def add(self, line: dict[str, Any]) -> None:
+        if not is_operator_event(line):
+            return
+        self.recent.append(line)
+        if line.get("event") == "upload":
+            vehicle = str(line.get("vehicle"))
+            retries = line.get("retries")
+            if isinstance(retries, int):
+                self.retries[vehicle] += retries
 
 
 def _fmt(value: Any, spec: str = "") -> str:
@@ -43,62 +84,149 @@ def link_lines(stats: dict[str, dict[str, int]], only_trouble: bool = False) -> 
     return lines
 
 
-def render_table(daemon: Daemon) -> str:
-    """The status table as text."""
+def _header(daemon: Daemon, alerts: OperatorAlerts | None) -> list[RenderableType]:
     t = daemon.clock.now_s()
-    lines = [
-        f"floe gcs run  t={t:8.1f} s  speed-up {daemon.clock.speedup:g}x"
-        f"{'  ADVISORY' if daemon.config.advisory else ''}  run {daemon.run_dir}",
-        "",
-        *_signing_line(daemon),
-        f"{'vehicle':<10}{'sysid':>6} {'status':<11}{'mode':<13}{'armed':<6}{'alt m':>7}"
-        f"  {'target':<8}{'batt %':>7}  {'link':<9}{'uploads':>8}",
-    ]
+    head = Text.assemble(
+        ("floe gcs run", "bold"), f"  t={t:8.1f} s  speed-up {daemon.clock.speedup:g}x",
+        ("  ADVISORY" if daemon.config.advisory else "", "bold yellow"),
+        f"  run {daemon.run_dir}",
+    )
+    out: list[RenderableType] = [head]
+    if daemon.control_url:
+        out.append(Text.assemble(
+            "live map ", (f"{daemon.control_url}/", "bold cyan"),
+            f"   token: {daemon.run_dir}/control.json (and on the start line)",
+        ))  # fmt: skip
+    plan = daemon.last_plan
+    if plan is not None:
+        out.append(Text(f"plan t={plan['t']:.1f}: {format_routes(plan['routes'])} "
+                        f"({plan['status']}, {plan['solve_time_s'] * 1000:.0f} ms)"))
+    else:
+        out.append(Text("plan: none yet"))
+    if alerts is not None:
+        for link_id in sorted(alerts.silent):
+            out.append(Text(f"link {link_id} ({alerts.urls.get(link_id, link_id)}): no vehicle "
+                            f"heard ({alerts.link_state(link_id)})", style="bold red"))
+        drops = {k: v for k, v in alerts.drops().items() if v}
+        if drops:
+            text = ", ".join(f"{k.replace('_', ' ')} {v}" for k, v in drops.items())
+            out.append(Text(f"detections dropped: {text}", style="yellow"))
+    if daemon.signing is not None:
+        refused = daemon.signing.summary()["rejected"]
+        text = ", ".join(f"{k} {sum(v.values())}" for k, v in refused.items()) or "none"
+        out.append(Text(f"signing on; refused frames: {text}",
+                        style="yellow" if refused else ""))
+    return out
+
+
+def _vehicles(daemon: Daemon, tally: EventTally) -> Table:
+    table = Table(box=box.SIMPLE_HEAD, pad_edge=False, show_edge=False)
+    for name, justify in (("vehicle", "left"), ("sysid", "right"), ("status", "left"),
+                          ("mode", "left"), ("armed", "left"), ("alt m", "right"),
+                          ("target", "left"), ("batt %", "right"), ("link", "left"),
+                          ("uploads", "right"), ("retries", "right")):
+        table.add_column(name, justify=justify)  # type: ignore[arg-type]
     for s in sorted(daemon.sessions.values(), key=lambda s: s.system_id):
         snap = s.snapshot
-        lines.append(
-            f"{s.id:<10}{s.system_id:>6} {s.status:<11}{_fmt(snap.mode_name):<13}"
-            f"{_fmt(snap.armed):<6}{_fmt(snap.alt_m, '7.0f'):>7}  "
-            f"{_fmt(s.fly.target if s.fly else None):<8}"
-            f"{_fmt(snap.battery_remaining_pct, '7.0f'):>7}  {s.link:<9}{s.uploads_ok:>8}"
-        )
-    lines += ["", f"{'target':<10}{'x m':>9}{'y m':>9}{'sigma':>11}  {'lost':<6}{'seen s':>8}"]
+        retries = tally.retries.get(s.id, 0)
+        table.add_row(
+            s.id, str(s.system_id), s.status, _fmt(snap.mode_name), _fmt(snap.armed),
+            _fmt(snap.alt_m, ".0f"), _fmt(s.fly.target if s.fly else None),
+            _fmt(snap.battery_remaining_pct, ".0f"),
+            Text(s.link, style={"ok": "green", "lost": "bold red"}.get(s.link, "yellow")),
+            Text(f"{s.uploads_ok}/{s.uploads_failed}",
+                 style="red" if s.uploads_failed else ""),
+            Text(str(retries), style="yellow" if retries else ""),
+        )  # fmt: skip
+    if not daemon.sessions:
+        table.add_row("(none yet)", *[""] * 10)
+    return table
+
+
+def _targets(daemon: Daemon) -> Table:
+    t = daemon.clock.now_s()
+    table = Table(box=box.SIMPLE_HEAD, pad_edge=False, show_edge=False)
+    for name, justify in (("target", "left"), ("x m", "right"), ("y m", "right"),
+                          ("sigma", "right"), ("lost", "left"), ("seen s", "right")):
+        table.add_column(name, justify=justify)  # type: ignore[arg-type]
     for tr in daemon.core.observer.tracks():
         seen = None if tr.last_seen_s is None else t - tr.last_seen_s
-        lines.append(
-            f"{tr.id:<10}{tr.x_m:9.0f}{tr.y_m:9.0f}{tr.sigma:11.2f}  "
-            f"{'LOST' if tr.lost else '':<6}{_fmt(seen, '8.0f'):>8}"
-        )
-    lines += ["", *link_lines(daemon.router.link_stats())]
-    lines += ["", "recent:"]
-    recent = [
-        line
-        for line in daemon.journal_file.recent
-        if line["event"] not in ("track", "detection", "statustext", "mode")
-    ]
-    for line in recent[-8:]:
-        extra = " ".join(
-            f"{k}={v}"
-            for k, v in line.items()
-            if k not in ("t", "unix_s", "event", "problem", "result", "hint")
-        )
-        lines.append(f"  {line['t']:8.1f} {line['event']} {extra}"[:160])
-    return "\n".join(lines)
+        table.add_row(tr.id, f"{tr.x_m:.0f}", f"{tr.y_m:.0f}", f"{tr.sigma:.2f}",
+                      Text("LOST", style="bold red") if tr.lost else "", _fmt(seen, ".0f"))
+    return table
 
 
-def _signing_line(daemon: Daemon) -> list[str]:
-    """``signing: refused ...`` per vehicle@link (nothing when signing is off)."""
-    if daemon.signing is None:
-        return []
-    refused = daemon.signing.summary()["rejected"]
-    text = ", ".join(f"{k} {sum(v.values())}" for k, v in refused.items()) or "none"
-    return [f"signing on; refused frames: {text}", ""]
+def _recent(lines: list[dict[str, Any]]) -> list[RenderableType]:
+    out: list[RenderableType] = [Text("recent:", style="bold")]
+    for line in lines[-RECENT_LINES:]:
+        level = line_level(line)
+        style = "yellow" if level >= logging.WARNING else ""
+        out.append(Text("  " + describe_line(line)[:200], style=style, no_wrap=True,
+                        overflow="ellipsis"))
+    return out
 
 
-async def status_loop(daemon: Daemon, stream: TextIO | None = None) -> None:
-    """Redraw the table once a wall second until cancelled."""
-    out = stream or sys.stdout
-    while True:
-        out.write(_CLEAR + render_table(daemon) + "\n")
-        out.flush()
-        await asyncio.sleep(1.0)
+def render_status(
+    daemon: Daemon, tally: EventTally | None = None, alerts: OperatorAlerts | None = None
+) -> RenderableType:
+    """The table as a ``rich`` renderable. Without a ``tally`` the recent pane comes from
+    the journal's recent lines (operator events only)."""
+    if tally is None:
+        tally = EventTally()
+        for line in daemon.journal_file.recent:
+            tally.add(line)
+    stats = daemon.router.link_stats()
+    trouble = set(link_lines(stats, only_trouble=True))
+    links = [Text(text, style="yellow" if text in trouble else "", no_wrap=True,
+                  overflow="ellipsis") for text in link_lines(stats)]
+    return Group(*_header(daemon, alerts), _vehicles(daemon, tally), _targets(daemon), *links,
+                 Text(""), *_recent(list(tally.recent)))
+
+
+def render_table(daemon: Daemon, width: int = 160) -> str:
+    """The status table as plain text (no colour, no control codes)."""
+    buffer = io.StringIO()
+    console = Console(file=buffer, width=width, color_system=None, force_terminal=False,
+                      highlight=False)
+    console.print(render_status(daemon))
+    return buffer.getvalue()
+
+
+async def status_loop(
+    daemon: Daemon, console: Console, alerts: OperatorAlerts | None = None, *, live: bool = True
+) -> None:
+    """Redraw the table once a wall second in place until cancelled (``live``); otherwise
+    print it once when cancelled (a forced table on a file or dumb terminal). The journal is
+    followed in a child task of this one (the daemon's task tree)."""
+    tally = EventTally()
+    for line in daemon.journal_file.recent:
+        tally.add(line)
+
+    async def follow() -> None:
+        async for line in daemon.journal_file.subscribe():
+            tally.add(line)
+
+    async with asyncio.TaskGroup() as group:
+        group.create_task(follow(), name="status-journal")
+        try:
+            if live:
+                await _redraw(daemon, console, tally, alerts)
+            else:
+                await asyncio.Event().wait()
+        finally:
+            if not live:
+                console.print(render_status(daemon, tally, alerts))
+
+
+async def _redraw(daemon: Daemon, console: Console, tally: EventTally,
+                  alerts: OperatorAlerts | None) -> None:
+    from rich.live import Live
+
+    with Live(render_status(daemon, tally, alerts), console=console, auto_refresh=False,
+              redirect_stdout=True, redirect_stderr=True) as display:
+        try:
+            while True:
+                await asyncio.sleep(REDRAW_S)
+                display.update(render_status(daemon, tally, alerts), refresh=True)
+        finally:  # the last picture, as the run ends (Live draws it as it stops)
+            display.update(render_status(daemon, tally, alerts))

@@ -174,8 +174,8 @@
     if (line.vehicle !== undefined && line.vehicle !== null) parts.push("vehicle=" + line.vehicle);
     if (line.target !== undefined && line.target !== null) parts.push("target=" + line.target);
     if (line.event === "plan" && line.routes && typeof line.routes === "object") {
-      parts.push(Object.entries(line.routes).map(([v, r]) =>
-        v + ":" + (Array.isArray(r) ? r.join(",") : "")).join(" "));
+      parts.push(Object.entries(line.routes).map(([v, r]) =>  // as log_lines.format_routes
+        v + " -> " + (Array.isArray(r) && r.length ? r.join(", ") : "-")).join(" | "));
       skip.add("routes"); skip.add("problem"); skip.add("result"); skip.add("hint");
     }
     for (const [k, v] of Object.entries(line)) {
@@ -185,8 +185,6 @@
     return parts.join(" ");
   }
 
-  const WARN_EVENTS = new Set(["link_lost", "override", "battery_low", "reboot", "error"]);
-
   function onEvents(entries, dropped) {
     const list = $("events");
     const frag = document.createDocumentFragment();
@@ -194,11 +192,10 @@
       if (!entry || typeof entry.seq !== "number" || entry.seq <= app.lastSeq) continue;
       app.lastSeq = entry.seq;
       const line = entry.line || {};
-      if (line.event === "detection" || line.event === "track") continue;  // too many to list
       app.events.push(entry);
       const li = document.createElement("li");
       li.dataset.seq = entry.seq;
-      if (WARN_EVENTS.has(line.event) || line.ok === false) li.className = "ev-warn";
+      if (entry.warning) li.className = "ev-warn";  // the server's log_lines.line_level
       const text = summary(line);
       li.innerHTML = fmt(line.t, 1).padStart(7, " ") + " <b>" + esc(line.event || "?") + "</b> " + esc(text);
       li.title = JSON.stringify(line).slice(0, 2000);

@@ -1,0 +1,179 @@
+"""What the operator sees of ``gcs run``: ``gcs run`` as a subprocess on a pseudo-terminal
+(``os.openpty``) for the live table and on pipes for the log lines, bounded in time.
+
+* the table keeps the live-map URL in its header through its redraws, its recent pane holds
+  operator events only (no ``truth``/``track``/``detection`` lines), plans as routes;
+* an unreachable ``tcp:127.0.0.1:<closed port>``: its warnings on the console during the run
+  (table and log modes), a clear error line and exit status 1 at the end;
+* no escape codes on a pipe or a dumb terminal.
+"""
+
+from __future__ import annotations
+
+import fcntl
+import os
+import re
+import select
+import socket
+import struct
+import subprocess
+import sys
+import termios
+import time
+from pathlib import Path
+
+import pytest
+
+from groundstation.commands.run import EXIT_NO_VEHICLE
+
+ANSI = re.compile(r"\x1b\[[0-9;?]*[A-Za-z]")
+STATE_UPDATES = ("truth", "track", "detection", "input")
+
+
+def closed_port() -> int:
+    """A TCP port on 127.0.0.1 nothing listens on (bound, then closed)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def _env(term: str) -> dict[str, str]:
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("NO_COLOR", "FORCE_COLOR", "COLUMNS", "LINES", "TTY_COMPATIBLE")}
+    env.update(TERM=term, PYTHONWARNINGS="ignore")
+    return env
+
+
+def gcs_run_pty(args: list[str], cwd: Path, *, term: str = "xterm-256color",
+                timeout_s: float = 90.0) -> tuple[int, str]:
+    """``gcs run ARGS`` with stdin/stdout/stderr on a 160x60 pseudo-terminal; its exit
+    status and everything it wrote."""
+    master, slave = os.openpty()
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 60, 160, 0, 0))
+    proc = subprocess.Popen([sys.executable, "-m", "groundstation.cli", "run", *args],
+                            stdin=slave, stdout=slave, stderr=slave, cwd=cwd,
+                            env=_env(term), close_fds=True)
+    os.close(slave)
+    chunks: list[bytes] = []
+    end = time.monotonic() + timeout_s
+    try:
+        while time.monotonic() < end:
+            ready, _, _ = select.select([master], [], [], 0.2)
+            if ready:
+                try:
+                    data = os.read(master, 65536)
+                except OSError:  # EIO: the child closed the terminal
+                    break
+                if not data:
+                    break
+                chunks.append(data)
+            elif proc.poll() is not None:
+                break
+        code = proc.wait(timeout=max(1.0, end - time.monotonic()))
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        os.close(master)
+    return code, b"".join(chunks).decode("utf-8", "replace")
+
+
+def gcs_run_pipe(args: list[str], cwd: Path, timeout_s: float = 90.0
+                 ) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "groundstation.cli", "run", *args], cwd=cwd,
+                          capture_output=True, text=True, timeout=timeout_s, env=_env("xterm"))
+
+
+def frames(text: str) -> list[str]:
+    """The table's redraws (escape codes removed), each from its title line on."""
+    plain = ANSI.sub("", text).replace("\r", "")
+    return ["floe gcs run" + part for part in plain.split("floe gcs run")[1:]]
+
+
+def recent_pane(frame: str) -> list[str]:
+    """The lines under ``recent:`` of one frame (up to the console's next own line)."""
+    lines = frame.split("recent:", 1)[1].splitlines()[1:]
+    return [line for line in lines if line.startswith("  t=")]
+
+
+@pytest.mark.timeout(120)
+def test_table_keeps_the_live_map_url_and_shows_operator_events(tmp_path: Path) -> None:
+    code, out = gcs_run_pty(
+        ["--vehicles", "sim:2", "--scenario", "paper-boat", "--speedup", "10",
+         "--duration", "45", "--http", "127.0.0.1:0", "--detections", "off",
+         "--run-dir", str(tmp_path)], tmp_path)  # fmt: skip
+    assert code == 0, out[-3000:]
+    assert "\x1b[" in out  # a colour terminal: rich draws with escape codes
+    url = re.search(r"live map (http://127\.0\.0\.1:\d+)/", ANSI.sub("", out))
+    assert url is not None, out[:2000]
+    drawn = frames(out)
+    assert len(drawn) >= 3, f"{len(drawn)} frames"
+    for frame in drawn:  # the first draw and every redraw keep the URL and the token's place
+        header = frame.split("vehicle", 1)[0]
+        assert f"live map {url.group(1)}/" in header
+        assert "control.json" in header
+    last = drawn[-1]
+    assert re.search(r"plan t=\s*[\d.]+: 1 -> .*\| 2 -> ", last), last[:1500]
+    panes = [line for frame in drawn for line in recent_pane(frame)]
+    assert any(" plan " in line for line in panes) and any(" upload " in line for line in panes)
+    for line in panes:
+        assert line.split()[1] not in STATE_UPDATES, line
+    journal = (next(tmp_path.glob("2*")) / "journal.jsonl").read_text()
+    assert '"event":"truth"' in journal  # there were truth lines to leave out
+
+
+@pytest.mark.timeout(120)
+@pytest.mark.parametrize("mode", ["table", "log"])
+def test_unreachable_tcp_on_a_terminal_warns_and_exits_1(tmp_path: Path, mode: str) -> None:
+    port = closed_port()
+    code, out = gcs_run_pty(
+        ["--vehicles", f"tcp:127.0.0.1:{port}", "--speedup", "5", "--duration", "20",
+         "--http", "127.0.0.1:0", "--detections", "off", "--status", mode,
+         "--run-dir", str(tmp_path)], tmp_path)  # fmt: skip
+    plain = ANSI.sub("", out).replace("\r", "")
+    assert code == EXIT_NO_VEHICLE, plain[-2000:]
+    stopped = plain.index("gcs run: stopped")
+    during = plain[:stopped]
+    assert f"gcs run: link vehicles0: cannot open TCP 127.0.0.1:{port}" in during
+    assert f"gcs run: link vehicles0 (tcp:127.0.0.1:{port}): no vehicle heard in" in during
+    if mode == "table":  # in the table's header too
+        assert any(f"link vehicles0 (tcp:127.0.0.1:{port}): no vehicle heard (never "
+                   "connected)" in frame for frame in frames(during))
+    else:
+        assert not frames(plain)  # no table drawn
+        assert "\x1b[33m" in out  # the warnings in yellow on a colour terminal
+    assert re.search(r"gcs run: error: no vehicle was heard in [\d.]+ mission s "
+                     rf"\(tcp:127\.0\.0\.1:{port}: never connected\)", plain[stopped:])
+    assert "Traceback" not in plain
+
+
+@pytest.mark.timeout(120)
+def test_unreachable_tcp_in_log_mode_on_a_pipe(tmp_path: Path) -> None:
+    port = closed_port()
+    result = gcs_run_pipe(
+        ["--vehicles", f"tcp:127.0.0.1:{port}", "--speedup", "5", "--duration", "20",
+         "--http", "off", "--detections", "off", "--run-dir", str(tmp_path)], tmp_path)
+    out, err = result.stdout, result.stderr
+    assert result.returncode == EXIT_NO_VEHICLE, out + err
+    assert "\x1b" not in out + err  # no colour or cursor codes on a pipe
+    lines = out.splitlines()
+    stopped = next(i for i, line in enumerate(lines) if line.startswith("gcs run: stopped"))
+    cannot = [i for i, line in enumerate(lines)
+              if line.startswith(f"gcs run: link vehicles0: cannot open TCP 127.0.0.1:{port}")]
+    silent = [i for i, line in enumerate(lines) if "no vehicle heard in" in line]
+    assert cannot and cannot[0] < stopped
+    assert silent and silent[0] < stopped
+    assert err.strip().splitlines()[-1].startswith("gcs run: error: no vehicle was heard in")
+    assert "Traceback" not in out + err
+
+
+@pytest.mark.timeout(120)
+def test_dumb_terminal_gets_log_lines_without_escape_codes(tmp_path: Path) -> None:
+    code, out = gcs_run_pty(
+        ["--vehicles", "sim:1", "--scenario", "none", "--sim-airborne", "--speedup", "20",
+         "--duration", "30", "--http", "off", "--detections", "off",
+         "--run-dir", str(tmp_path)], tmp_path, term="dumb")  # fmt: skip
+    assert code == 0, out[-2000:]
+    assert "\x1b" not in out
+    assert "floe gcs run" not in out  # no table to redraw: log lines instead
+    assert re.search(r"gcs run: t=[\d.]+ vehicle_joined vehicle=1", out), out[-2000:]

@@ -1,0 +1,199 @@
+"""Operator views of a real daemon (in this process, built-in simulator or a closed TCP port
+on 127.0.0.1, ephemeral ports): one predicate (``log_lines.is_operator_event``) keeps
+``truth``/``track``/``detection`` lines out of ``/api/events?notable=1``, the live page's
+event pushes and the status table's recent pane; links that hear no vehicle and dropped
+detections are journalled and repeated on mission time; and the readable log lines."""
+
+from __future__ import annotations
+
+import asyncio
+import io
+import json
+import logging
+import re
+import socket
+from pathlib import Path
+from typing import Any
+
+import aiohttp
+import pytest
+
+from groundstation.commands.run import build_config, run_daemon
+from groundstation.daemon.alerts import SILENT_AFTER_S, SILENT_REPEAT_S, never_heard
+from groundstation.daemon.config import StatusMode
+from groundstation.daemon.console import ConsoleHandler, OperatorConsole
+from groundstation.daemon.daemon import Daemon
+from groundstation.daemon.journal import read_journal
+from groundstation.daemon.log_lines import describe_line, is_operator_event, line_level
+from groundstation.daemon.status import render_table
+from groundstation.detection_feed import encode_detection
+
+STATE_UPDATES = {"truth", "track", "detection", "input"}
+
+
+def _run(tmp_path: Path, args: list[str], on_started: Any = None,
+         prints: list[str] | None = None) -> Daemon:
+    config = build_config([*args, "--run-dir", str(tmp_path), "--status", "quiet"])
+    out = prints if prints is not None else []
+    return asyncio.run(asyncio.wait_for(
+        run_daemon(config, print_fn=out.append, on_started=on_started, install_signals=False),
+        90.0))
+
+
+@pytest.mark.timeout(120)
+def test_notable_events_and_page_pushes_hold_operator_events_only(tmp_path: Path) -> None:
+    notable: list[dict[str, Any]] = []
+    pushed: list[dict[str, Any]] = []
+    watchers: list[asyncio.Task[None]] = []
+
+    async def watch(daemon: Daemon) -> None:
+        while daemon.control_url is None:
+            await asyncio.sleep(0.05)
+        async with aiohttp.ClientSession(base_url=daemon.control_url) as http, \
+                http.ws_connect("/ws") as ws:
+            async for msg in ws:  # until the daemon closes the page as it stops
+                data = json.loads(msg.data)
+                if data.get("type") == "events":
+                    pushed.extend(e["line"] for e in data["events"])
+                if not daemon.stopping:
+                    async with http.get("/api/events?since=0&limit=5000&notable=1") as r:
+                        notable[:] = [e["line"] for e in (await r.json())["events"]]
+
+    def started(daemon: Daemon) -> None:
+        watchers.append(asyncio.get_running_loop().create_task(watch(daemon)))
+
+    daemon = _run(tmp_path, ["--vehicles", "sim:2", "--scenario", "paper-boat", "--speedup",
+                             "20", "--duration", "60", "--http", "127.0.0.1:0",
+                             "--detections", "off"], started)
+    journal = read_journal(daemon.run_dir / "journal.jsonl")
+    assert sum(e["event"] == "truth" for e in journal) >= 20  # there was something to leave out
+    for view in (notable, pushed):
+        events = [e["event"] for e in view]
+        assert "plan" in events and "upload" in events, events
+        assert not STATE_UPDATES & set(events), events
+        assert all(is_operator_event(e) for e in view)
+    table = render_table(daemon)
+    recent = table.split("recent:", 1)[1].splitlines()
+    assert len([x for x in recent if x.strip()]) >= 3
+    for line in recent:
+        assert not re.search(r"t=[\d.]+ (truth|track|detection|input) ", line), line
+    for watcher in watchers:
+        watcher.cancel()
+
+
+@pytest.mark.timeout(120)
+def test_silent_link_and_dropped_detections_are_reported(tmp_path: Path) -> None:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    prints: list[str] = []
+    records: list[logging.LogRecord] = []
+
+    class Keep(logging.Handler):
+        def emit(self, record: logging.LogRecord) -> None:
+            records.append(record)
+
+    keep = Keep(logging.WARNING)
+    logging.getLogger("groundstation").addHandler(keep)
+
+    async def send_detections() -> None:
+        feed = next(p for p in prints if "detection feed on udp:" in p)
+        host, feed_port = feed.rsplit("udp:", 1)[1].rsplit(":", 1)
+        loop = asyncio.get_running_loop()
+        transport, _ = await loop.create_datagram_endpoint(
+            asyncio.DatagramProtocol, remote_addr=(host, int(feed_port)))
+        for i in range(5):  # no vehicle, so no mission origin: each one is dropped
+            transport.sendto(encode_detection(float(i), 78.9, 11.9, target="A"))
+            await asyncio.sleep(0.05)
+        transport.sendto(b"not json\n")  # malformed
+        transport.close()
+
+    tasks: list[asyncio.Task[None]] = []
+    try:
+        daemon = _run(tmp_path, ["--vehicles", f"tcp:127.0.0.1:{port}", "--speedup", "20",
+                                 "--duration", "50", "--http", "off",
+                                 "--detections", "127.0.0.1:0"],
+                      lambda d: tasks.append(asyncio.get_running_loop().create_task(
+                          send_detections())), prints)
+    finally:
+        logging.getLogger("groundstation").removeHandler(keep)
+    journal = read_journal(daemon.run_dir / "journal.jsonl")
+    silent = [e for e in journal if e["event"] == "link_silent"]
+    # first after 10 mission s, then every 30: at ~10 and ~40 of a 50 s run (a loaded host
+    # may run the check late: 1 mission s is 50 ms of wall time at 20x)
+    assert [e["link"] for e in silent] == ["vehicles0", "vehicles0"]
+    assert SILENT_AFTER_S <= silent[0]["t"] < SILENT_AFTER_S + 5.0
+    assert SILENT_REPEAT_S <= silent[1]["t"] - silent[0]["t"] < SILENT_REPEAT_S + 5.0
+    assert silent[0]["url"] == f"tcp:127.0.0.1:{port}" and silent[0]["connected"] is False
+    drops = [e for e in journal if e["event"] == "detections_dropped"]
+    assert sum(e["new"] for e in drops) == 6 and drops[-1]["total"] == 6
+    assert drops[-1]["no_origin"] == 5 and drops[-1]["malformed"] == 1
+    warnings = [r.getMessage() for r in records]
+    assert sum("no vehicle heard in" in w for w in warnings) == 2
+    assert any(w.startswith("detections: 6 dropped") for w in warnings), warnings
+    assert any(f"cannot open TCP 127.0.0.1:{port}" in w for w in warnings)
+    message = never_heard(daemon)
+    assert message is not None and f"tcp:127.0.0.1:{port}: never connected" in message
+
+
+def test_operator_event_predicate_and_levels() -> None:
+    assert is_operator_event({"event": "plan"}) and is_operator_event({"event": "link_silent"})
+    for event in STATE_UPDATES | {"mode", "armed", "fly", "solve_request", "boat"}:
+        assert not is_operator_event({"event": event}), event
+    assert is_operator_event({"event": "statustext", "severity": 2})
+    assert not is_operator_event({"event": "statustext", "severity": 6})
+    assert is_operator_event({"event": "clock_check", "ok": False})
+    assert not is_operator_event({"event": "clock_check", "ok": True})
+    assert line_level({"event": "upload", "ok": True, "retries": 0}) == logging.INFO
+    assert line_level({"event": "upload", "ok": True, "retries": 5}) == logging.WARNING
+    assert line_level({"event": "upload", "ok": False, "retries": 0}) == logging.WARNING
+    assert line_level({"event": "link_lost"}) == logging.WARNING
+    assert line_level({"event": "truth"}) == logging.DEBUG
+
+
+def test_plan_and_stop_lines_read_as_text() -> None:
+    plan = {"t": 25.12, "event": "plan", "request_id": 3, "reason": "period",
+            "routes": {"1": ["T5", "T6", "T9"], "2": ["T2"], "3": []},
+            "assignments": {"1": "T5"}, "status": "optimal", "solve_time_s": 0.003,
+            "problem": {"targets": [1, 2]}, "result": {"x": 1}, "hint": None}
+    assert describe_line(plan) == (
+        "t=25.1 plan 1 -> T5, T6, T9 | 2 -> T2 | 3 -> - (optimal, 3 ms, period)")
+    stop = {"t": 60.0, "event": "stop", "reason": "duration", "plans": 7,
+            "links": {"vehicles0": {"received": 5}}, "unknown_systems": {"frames": 1}}
+    assert describe_line(stop) == "t=60.0 stop reason=duration plans=7"
+    upload = {"t": 3.4, "event": "upload", "vehicle": "1", "ok": True, "retries": 0}
+    assert describe_line(upload) == "t=3.4 upload vehicle=1 ok=True"
+
+
+def test_console_on_a_file_has_no_escape_codes() -> None:
+    out, err = io.StringIO(), io.StringIO()
+    console = OperatorConsole(StatusMode.AUTO, out, err)
+    assert not console.live_table and console.event_lines  # auto on a file: log lines
+    handler = ConsoleHandler(console.out, logging.INFO)
+    for level in (logging.INFO, logging.WARNING, logging.ERROR):
+        handler.handle(logging.LogRecord("groundstation.x", level, __file__, 1,
+                                         "problem %d " + "x" * 150, (level,), None))
+    text = out.getvalue()
+    assert "\x1b" not in text
+    assert len(text.splitlines()) == 3  # one line each, never wrapped at 80 columns
+    assert text.splitlines()[1].startswith("gcs run: problem 30 xxx")
+    quiet = OperatorConsole(StatusMode.QUIET, out, err)
+    assert not quiet.live_table and not quiet.event_lines and not quiet.final_table
+    forced = OperatorConsole(StatusMode.TABLE, out, err)
+    assert forced.final_table and forced.event_lines and not forced.live_table
+
+
+def test_event_buffer_keeps_operator_events_and_marks_problems() -> None:
+    from groundstation.daemon.control_pages import EventBuffer
+
+    buffer = EventBuffer()
+    for line in ({"t": 1.0, "event": "truth", "target": "A"},
+                 {"t": 1.0, "event": "plan", "routes": {}},
+                 {"t": 2.0, "event": "track", "target": "A"},
+                 {"t": 3.0, "event": "link_lost", "vehicle": "1"}):
+        buffer.record(line)
+    everything = buffer.since(0, 100, notable=False)["events"]
+    notable = buffer.since(0, 100, notable=True)["events"]
+    assert [e["line"]["event"] for e in everything] == ["truth", "plan", "track", "link_lost"]
+    assert [(e["line"]["event"], e.get("warning", False)) for e in notable] == [
+        ("plan", False), ("link_lost", True)]
