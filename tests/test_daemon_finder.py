@@ -54,6 +54,14 @@ def _wait_control_files(run_dir: Path, count: int, procs: list[subprocess.Popen[
     pytest.fail("no control.json within the time bound")
 
 
+def _wait_logs(logs: list[Path], text: str, timeout_s: float = 60.0) -> None:
+    deadline = time.monotonic() + timeout_s
+    while not all(text in log.read_text() for log in logs):
+        if time.monotonic() > deadline:
+            pytest.fail(f"{text!r} not in every log within the time bound")
+        time.sleep(0.1)
+
+
 def _stop(procs: list[subprocess.Popen[bytes]]) -> list[int]:
     for proc in procs:
         if proc.poll() is None:
@@ -120,6 +128,8 @@ def test_two_sim_runs_side_by_side_and_the_cli_finds_the_newest(
         assert "(a free port; --detections HOST:PORT to choose)" in text
         assert "udp:127.0.0.1:14600 " not in text
 
+    # a run stopped before it heard its vehicle exits 1 (issue 11): wait until both have
+    _wait_logs(logs, "vehicle_seen vehicle=1")
     assert _stop(procs) == [0, 0]  # both stopped cleanly
     assert target.run(["list", "--run-dir", str(run_dir)]) == 1
     err = capsys.readouterr().err.strip()

@@ -98,7 +98,9 @@ def test_silent_link_and_dropped_detections_are_reported(tmp_path: Path) -> None
 
     async def send_detections() -> None:
         feed = next(p for p in prints if "detection feed on udp:" in p)
-        host, feed_port = feed.rsplit("udp:", 1)[1].rsplit(":", 1)
+        found = re.search(r"udp:([0-9.]+):([0-9]+)", feed)
+        assert found is not None, feed
+        host, feed_port = found.group(1), found.group(2)
         loop = asyncio.get_running_loop()
         transport, _ = await loop.create_datagram_endpoint(
             asyncio.DatagramProtocol, remote_addr=(host, int(feed_port)))
