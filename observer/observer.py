@@ -25,7 +25,7 @@ from collections.abc import Mapping, Sequence
 from types import MappingProxyType
 
 from observer.config import ObserverConfig
-from observer.kalman_track import KalmanTrack
+from observer.kalman_track import KalmanBatch, KalmanTrack, load_filterpy
 from observer.linear_track import LinearTrack
 from observer.records import MeasurementOutcome, TrackSnapshot
 
@@ -71,9 +71,12 @@ class Observer:
         if not isinstance(config, ObserverConfig):
             raise TypeError(f"config must be an ObserverConfig, got {type(config).__name__}")
         self.config = config
+        if config.model == "kalman":
+            load_filterpy()  # here, not at import time: a linear observer never needs it
         self._tracks: dict[str, _Track] = {}
         self._ever_lost: dict[str, bool] = {}
         self._counters: dict[str, int] = dict.fromkeys(COUNTER_NAMES, 0)
+        self._batch = KalmanBatch()
 
     # --- targets --------------------------------------------------------------------------
     def add_target(
@@ -148,10 +151,16 @@ class Observer:
     def predict_to(self, t_s: float) -> None:
         """Advance every track to ``t_s``; a track already at or past ``t_s`` is left alone."""
         t = _finite("t_s", t_s)
-        for target_id, track in self._tracks.items():
-            if t > track.t_s:
+        due = [(tid, tr) for tid, tr in self._tracks.items() if t > tr.t_s]
+        if not due:
+            return
+        kalman = [tr for _, tr in due if isinstance(tr, KalmanTrack)]
+        if kalman:
+            self._batch.predict_to(kalman, t)  # all tracks at once (bit-identical results)
+        for target_id, track in due:
+            if not isinstance(track, KalmanTrack):
                 track.predict_to(t)
-                self._check_lost(target_id)
+            self._check_lost(target_id)
 
     # --- measurements ---------------------------------------------------------------------
     def measure(
