@@ -121,8 +121,10 @@ class KalmanTrack:
         self.grid_step_s = grid_step_s
         self.t_anchor_s = t_s  # time of the committed state kf.x, kf.P
         self.t_s = t_s  # time of the viewed estimate
-        self.x_view: np.ndarray = self.kf.x.copy()
-        self.p_view: np.ndarray = self.kf.P.copy()
+        self.x_view: np.ndarray = self.kf.x
+        self.p_view: np.ndarray = self.kf.P
+        #: ``trace(P[:2, :2])`` of the viewed estimate (m^2), kept with ``p_view``.
+        self.sigma = float(self.p_view[0, 0] + self.p_view[1, 1])
         self.last_seen_s: float | None = None
         self._full_step = (transition(grid_step_s), process_noise(q_per_s, grid_step_s))
 
@@ -142,11 +144,6 @@ class KalmanTrack:
         k_last = math.floor(t_s / h + _GRID_EPS)
         k_first = math.floor(self.t_anchor_s / h + _GRID_EPS) + 1
         return k_first, k_last, k_first * h - self.t_anchor_s
-
-    def one_grid_step_to(self, t_s: float) -> bool:
-        """True if advancing to ``t_s`` commits exactly one whole grid step (batchable)."""
-        k_first, k_last, first_dt = self._grid_steps(t_s)
-        return k_first == k_last and abs(first_dt - self.grid_step_s) <= _TINY_S
 
     def _commit_grid_until(self, t_s: float) -> None:
         h = self.grid_step_s
@@ -171,6 +168,7 @@ class KalmanTrack:
         else:  # shared, not copied: no array here is ever changed in place
             self.x_view = self.kf.x
             self.p_view = self.kf.P
+        self.sigma = float(self.p_view[0, 0] + self.p_view[1, 1])
 
     def set_process_noise(self, q_per_s: float) -> None:
         """New intensity, applied from the last committed time on."""
@@ -194,6 +192,7 @@ class KalmanTrack:
         self.kf.P = 0.5 * (self.kf.P + self.kf.P.T)
         self.x_view = self.kf.x
         self.p_view = self.kf.P
+        self.sigma = float(self.p_view[0, 0] + self.p_view[1, 1])
         self.last_seen_s = t_s
 
     # --- read-out -------------------------------------------------------------------------
@@ -203,70 +202,75 @@ class KalmanTrack:
         return float(x[0]), float(x[1]), float(x[2]), float(x[3])
 
     @property
-    def sigma(self) -> float:
-        return float(self.p_view[0, 0] + self.p_view[1, 1])
-
-    @property
     def cov_xy(self) -> tuple[float, float, float]:
         p = self.p_view
         return float(p[0, 0]), float(p[0, 1]), float(p[1, 1])
 
 
 class KalmanBatch:
-    """Advances many tracks at once: those whose next commit is one whole grid step are
-    predicted together (``x^- = F x``, ``P^- = (F P) F' + Q`` over the stacked states, see
-    the module docstring); any other track goes through :meth:`KalmanTrack.predict_to`.
+    """Advances the tracks of one observer (grid step ``h``) together: those whose next
+    commit is one whole grid step are predicted at once (``x^- = F x``,
+    ``P^- = (F P) F' + Q`` over the stacked states, see the module docstring); any other
+    track (a partial first step, a gap of several steps, another grid) goes through
+    :meth:`KalmanTrack.predict_to`.
 
     The stacks of one call are kept: when the next call advances the same tracks, untouched
     since (no correction, no new ``q``), its products start from them without re-stacking.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, grid_step_s: float) -> None:
+        self.grid_step_s = grid_step_s
+        f = transition(grid_step_s)
+        self._f, self._f_t = f, f.T.copy()
         self._tracks: list[KalmanTrack] = []
         self._rows: list[tuple[Any, Any, np.ndarray]] = []  # (kf.x, kf.P, Q) as left
         self._x = np.empty((0, 4, 1))
         self._p = np.empty((0, 4, 4))
         self._q = np.empty((0, 4, 4))
-        self._step: tuple[float, np.ndarray, np.ndarray] = (math.nan, np.eye(4), np.eye(4))
 
     def predict_to(self, tracks: Sequence[KalmanTrack], t_s: float) -> None:
         """Advance every track of ``tracks`` to ``t_s`` (tracks at or past it are left)."""
+        h = self.grid_step_s
+        k_last = math.floor(t_s / h + _GRID_EPS)
         batch: list[KalmanTrack] = []
         for track in tracks:
             if t_s <= track.t_s:
                 continue
-            if track.one_grid_step_to(t_s) and (
-                not batch or track.grid_step_s == batch[0].grid_step_s
-            ):
+            # one whole grid step, as KalmanTrack._grid_steps / _commit_grid_until decide
+            k_first = math.floor(track.t_anchor_s / h + _GRID_EPS) + 1
+            if track.grid_step_s != h:
+                track.predict_to(t_s)
+            elif k_first == k_last and abs(k_first * h - track.t_anchor_s - h) <= _TINY_S:
                 batch.append(track)
+            elif k_first > k_last and t_s - track.t_anchor_s <= _TINY_S:
+                track.t_s = t_s  # no grid point passed, still at the committed state
             else:
                 track.predict_to(t_s)
         if batch:
-            self._predict_one_step(batch, t_s)
+            self._predict_one_step(batch, t_s, k_last * h)
 
-    def _predict_one_step(self, batch: list[KalmanTrack], t_s: float) -> None:
-        h = batch[0].grid_step_s
-        if self._step[0] != h:
-            f = transition(h)
-            self._step = (h, f, f.T.copy())
-        _, f, f_t = self._step
+    def _predict_one_step(self, batch: list[KalmanTrack], t_s: float, t_grid_s: float) -> None:
         if not self._same_as_last(batch):
             self._x = np.stack([tr.kf.x for tr in batch])
             self._p = np.stack([tr.kf.P for tr in batch])
             self._q = np.stack([tr._full_step[1] for tr in batch])
-        self._x = np.matmul(f, self._x)
-        self._p = np.matmul(np.matmul(f, self._p), f_t) + self._q
-        self._tracks = batch
-        t_anchor_s = math.floor(t_s / h + _GRID_EPS) * h  # the one grid point committed
+        self._x = xs = np.matmul(self._f, self._x)
+        self._p = ps = np.matmul(np.matmul(self._f, self._p), self._f_t) + self._q
+        sigmas = (ps[:, 0, 0] + ps[:, 1, 1]).tolist()
+        on_grid = t_s - t_grid_s <= _TINY_S  # else each view is predicted on from the grid
         rows = []
         for k, tr in enumerate(batch):
-            x, p = self._x[k], self._p[k]
+            x, p = xs[k], ps[k]
             tr.kf.x = x
             tr.kf.P = p
-            tr.t_anchor_s = t_anchor_s
+            tr.t_anchor_s = t_grid_s
             tr.t_s = t_s
-            tr._refresh_view()
+            if on_grid:
+                tr.x_view, tr.p_view, tr.sigma = x, p, sigmas[k]
+            else:
+                tr._refresh_view()
             rows.append((x, p, tr._full_step[1]))
+        self._tracks = batch
         self._rows = rows
 
     def _same_as_last(self, batch: list[KalmanTrack]) -> bool:

@@ -76,7 +76,7 @@ class Observer:
         self._tracks: dict[str, _Track] = {}
         self._ever_lost: dict[str, bool] = {}
         self._counters: dict[str, int] = dict.fromkeys(COUNTER_NAMES, 0)
-        self._batch = KalmanBatch()
+        self._batch = KalmanBatch(config.max_step_s)
 
     # --- targets --------------------------------------------------------------------------
     def add_target(
@@ -157,10 +157,12 @@ class Observer:
         kalman = [tr for _, tr in due if isinstance(tr, KalmanTrack)]
         if kalman:
             self._batch.predict_to(kalman, t)  # all tracks at once (bit-identical results)
+        ever_lost = self._ever_lost
         for target_id, track in due:
             if not isinstance(track, KalmanTrack):
                 track.predict_to(t)
-            self._check_lost(target_id)
+            if not ever_lost[target_id] and self._is_lost(track):
+                ever_lost[target_id] = True
 
     # --- measurements ---------------------------------------------------------------------
     def measure(
@@ -230,7 +232,9 @@ class Observer:
             raise KeyError(f"unknown target_id {target_id!r}") from None
 
     def _is_lost(self, track: _Track) -> bool:
-        return math.sqrt(max(track.sigma, 0.0)) > self.config.fov_radius_m
+        """``sqrt(max(sigma, 0)) > fov_radius_m`` (fov_radius_m > 0)."""
+        sigma = track.sigma
+        return sigma > 0.0 and math.sqrt(sigma) > self.config.fov_radius_m
 
     def _check_lost(self, target_id: str) -> None:
         if self._is_lost(self._tracks[target_id]):
