@@ -14,7 +14,7 @@ alike; figures are medians over the rounds. CPU is user + system time.
    ``--bytecode cached`` (default) runs with a bytecode cache in a temporary folder, as an
    installed package does; ``none`` compiles floe's modules at every start (a checkout with
    PYTHONDONTWRITEBYTECODE=1).
-2. Observer prediction, one 0.1 s grid step of 10 tracks (in this process): per-track
+2. Observer prediction, one 0.1 s grid step of 10 and of 50 tracks (in this process): per-track
    filterpy ``predict`` (before), the closed form on Python floats per track (the
    alternative not taken), and today's batched product. Each is checked against filterpy's
    predict over random states and steps: largest relative difference and whether every
@@ -286,16 +286,17 @@ def main() -> int:
     for name, s in startup.items():
         print(f"   {name:<40} {s * 1000:7.0f} ms")
     accuracy = _accuracy()
-    observer = bench_observer(args.rounds)
-    print("2. observer prediction, 10 tracks, one 0.1 s grid step (CPU per step)")
+    observer = {n: bench_observer(args.rounds, n) for n in (10, 50)}
     labels = {"closed form, Python floats per track": "closed form (Python floats)",
               "batched product (now)": "batched (now)"}
-    for name, us in observer.items():
-        acc = accuracy.get(labels.get(name, ""))
-        note = "(the reference)" if acc is None else (
-            f"max rel. diff. from filterpy {acc[0]:.1e}, bit-identical: "
-            f"{'yes' if acc[1] else 'no'}")
-        print(f"   {name:<40} {us:7.1f} us  {note}")
+    for n, figures in observer.items():
+        print(f"2. observer prediction, {n} tracks, one 0.1 s grid step (CPU per step)")
+        for name, us in figures.items():
+            acc = accuracy.get(labels.get(name, ""))
+            note = "(the reference)" if acc is None else (
+                f"max rel. diff. from filterpy {acc[0]:.1e}, bit-identical: "
+                f"{'yes' if acc[1] else 'no'}")
+            print(f"   {name:<40} {us:7.1f} us  {note}")
     loop = bench_loop(args.rounds)
     print("3. gcs simulate loop in-process: paper-boat, 3 UAVs, 200 s, seed 0 (median)")
     for name, r in loop.items():
@@ -306,7 +307,7 @@ def main() -> int:
     if args.json is not None:
         args.json.write_text(json.dumps({
             "rounds": args.rounds, "bytecode": args.bytecode, "startup_cpu_s": startup,
-            "observer_step_us": observer,
+            "observer_step_us": {f"{n} tracks": v for n, v in observer.items()},
             "observer_accuracy": {k: {"max_rel_diff": v[0], "bit_identical": v[1]}
                                   for k, v in accuracy.items()},
             "simulation_loop": loop,
