@@ -2,6 +2,8 @@
 
     nice -n 10 python benchmarks/startup_bench.py [--rounds 7] [--bytecode cached|none]
         [--json benchmarks/startup_bench.json]
+    git archive <commit> | tar -x -C /tmp/old
+    nice -n 10 python benchmarks/startup_bench.py --rounds 5 --against-tree /tmp/old
 
 Every section runs its alternatives interleaved, round by round, so a busy host slows them
 alike; figures are medians over the rounds. CPU is user + system time.
@@ -21,7 +23,8 @@ alike; figures are medians over the rounds. CPU is user + system time.
    number is bit-for-bit equal.
 3. The simulation loop in this process: paper-boat, 3 UAVs, 200 mission s, seed 0, with
    the observer predicting per track (before) and batched (now); CPU seconds and the real
-   time factor (200 s / CPU s, and / wall s).
+   time factor (200 s / CPU s, and / wall s). ``--against-tree DIR`` runs only this loop,
+   in fresh interpreters alternating between the source tree in DIR and this one.
 """
 
 from __future__ import annotations
@@ -273,12 +276,46 @@ def bench_loop(rounds: int) -> dict[str, dict[str, float]]:
     return out
 
 
+_LOOP_CODE = """
+import time
+from world.scenario import load_scenario
+from groundstation.runners.simulate import SimulationOptions, run_simulation
+scenario, options = load_scenario("paper-boat"), SimulationOptions(seed=0, uavs=3)
+run_simulation(scenario, options)
+c0 = time.process_time()
+run_simulation(scenario, options)
+print(time.process_time() - c0)
+"""
+
+
+def bench_against_tree(rounds: int, tree: Path) -> dict[str, float]:
+    """Section 3 against another source tree (``git archive <commit> | tar -x -C DIR``):
+    fresh interpreters alternate between DIR and this tree; median loop CPU seconds."""
+    here = Path(__file__).resolve().parent.parent
+    samples: dict[str, list[float]] = {str(tree): [], "this tree": []}
+    for _ in range(rounds):
+        for name, root in ((str(tree), tree), ("this tree", here)):
+            env = dict(os.environ, PYTHONPATH=str(root))
+            done = subprocess.run([sys.executable, "-c", _LOOP_CODE], env=env, cwd=root,
+                                  capture_output=True, text=True, check=True, timeout=300)
+            samples[name].append(float(done.stdout.split()[-1]))
+    return {name: statistics.median(v) for name, v in samples.items()}
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--rounds", type=int, default=7)
     parser.add_argument("--bytecode", choices=("cached", "none"), default="cached")
     parser.add_argument("--json", type=Path, default=None, help="also write the figures here")
+    parser.add_argument("--against-tree", type=Path, default=None, metavar="DIR",
+                        help="only: the simulation loop of the tree in DIR against this one")
     args = parser.parse_args()
+    if args.against_tree is not None:
+        figures = bench_against_tree(args.rounds, args.against_tree.resolve())
+        print("gcs simulate loop in fresh interpreters: paper-boat, 3 UAVs, 200 s, seed 0")
+        for name, cpu_s in figures.items():
+            print(f"   {name:<40} CPU {cpu_s:.3f} s = {200.0 / cpu_s:5.0f}x real time")
+        return 0
     with tempfile.TemporaryDirectory() as tmp:
         startup = bench_startup(args.rounds, args.bytecode, Path(tmp))
     print(f"1. process start-up, CPU (user+sys), median of {args.rounds} rounds, "
