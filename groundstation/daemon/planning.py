@@ -21,8 +21,13 @@ import concurrent.futures
 import logging
 from collections.abc import Callable, Mapping, Sequence
 
+import planner.cpsat_model  # noqa: F401  (see below)
 from groundstation.core.commands import SolveRequest
 from planner import PlanResult, PlanSolver
+
+# The planner imports CP-SAT (ortools.sat and pandas, ~0.3 s of CPU) only when a solve needs
+# it; the daemon loads it at start instead, so its first large solve does not spend that
+# inside its deadline.
 
 __all__ = ["SolverRunner"]
 
