@@ -8,6 +8,7 @@ for matplotlib and ``gcs --help`` is instant.
 from __future__ import annotations
 
 import importlib
+import os
 import sys
 from collections.abc import Sequence
 
@@ -50,6 +51,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     if name not in COMMANDS:
         print(f"gcs: error: unknown command {name!r}\n\n{_usage()}", file=sys.stderr)
         return 2
+    # Before numpy loads: OpenBLAS would start a thread per core at import, 30-60 ms of CPU
+    # per process; floe's matrices are 4x4 to ~100x100, one thread is enough. A value the
+    # user set wins. (docs/architecture.md, "Start-up and simulation speed")
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     module = importlib.import_module(f"groundstation.commands.{name}")
     try:
         status: int = module.run(rest)

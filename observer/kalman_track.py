@@ -27,21 +27,58 @@ exact closed form: ``A(h)^n = A(n h)`` and, per axis,
                                          [h n(n-1)/2,         n         ]],
 
 so a long gap costs O(1).
+
+**Batched prediction** (:class:`KalmanBatch`, the hot path of the observer). Written out in
+2x2 blocks (``P = [[A, B], [C, D]]``: position, velocity), one step of eq. (8) is::
+
+    P^- = [[A + h (B + C) + h^2 D,  B + h D],
+           [C + h D,                D      ]] + Q(h)
+
+but it is evaluated as the matrix products filterpy's ``predict`` makes,
+``x^- = F x`` and ``P^- = (F P) F' + Q``, over the stack of every track that advances one
+whole grid step (one ``numpy.matmul`` each for all tracks). The scalar closed form above is
+exact maths but not the same floating point: numpy hands these 4x4 products to BLAS, whose
+kernels accumulate ``P02 + h P22`` as one fused multiply-add (OpenBLAS on x86-64 with FMA),
+which Python 3.11's float arithmetic cannot reproduce, so the closed form differs from
+filterpy's result in the last bit and a replayed journal would not be bit-for-bit the same.
+The batched products are the same BLAS products, matrix by matrix, so the results equal
+filterpy's per-track ``predict`` bit for bit (here: benchmarks/startup_bench.py counts it
+over random cases, and paper-boat journals are unchanged; tests/test_observer_batch.py
+holds them to 1e-9 relative, which holds whatever BLAS numpy uses).
+
+filterpy itself (which imports scipy.stats, ~0.6 s of CPU) is imported when a Kalman
+observer is created (:func:`load_filterpy`), not when this module is imported.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from filterpy.kalman import KalmanFilter
+
+if TYPE_CHECKING:
+    from filterpy.kalman import KalmanFilter
 
 _TINY_S = 1e-12
 _GRID_EPS = 1e-9  # in grid steps
 
 #: Measurement matrix C = [I 0].
 C = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0]])
+
+
+def load_filterpy() -> type[KalmanFilter]:
+    """filterpy's ``KalmanFilter`` class, imported on the first call (filterpy imports
+    scipy.stats: ~0.6 s of CPU that paths without a Kalman observer do not pay)."""
+    from filterpy.kalman import KalmanFilter
+
+    return KalmanFilter
+
+
+def _new_filter() -> KalmanFilter:
+    """A 4-state, 2-measurement filterpy ``KalmanFilter``."""
+    return load_filterpy()(dim_x=4, dim_z=2)
 
 
 def transition(dt_s: float) -> np.ndarray:
@@ -77,7 +114,7 @@ class KalmanTrack:
         q_per_s: float,
         grid_step_s: float,
     ) -> None:
-        self.kf = KalmanFilter(dim_x=4, dim_z=2)
+        self.kf = _new_filter()
         self.kf.x = np.asarray(state, dtype=float).reshape(4, 1)
         self.kf.P = np.diag(np.asarray(p0_diag, dtype=float))
         self.kf.H = C.copy()
@@ -85,8 +122,10 @@ class KalmanTrack:
         self.grid_step_s = grid_step_s
         self.t_anchor_s = t_s  # time of the committed state kf.x, kf.P
         self.t_s = t_s  # time of the viewed estimate
-        self.x_view: np.ndarray = self.kf.x.copy()
-        self.p_view: np.ndarray = self.kf.P.copy()
+        self.x_view: np.ndarray = self.kf.x
+        self.p_view: np.ndarray = self.kf.P
+        #: ``trace(P[:2, :2])`` of the viewed estimate (m^2), kept with ``p_view``.
+        self.sigma = float(self.p_view[0, 0] + self.p_view[1, 1])
         self.last_seen_s: float | None = None
         self._full_step = (transition(grid_step_s), process_noise(q_per_s, grid_step_s))
 
@@ -99,13 +138,19 @@ class KalmanTrack:
         self.t_s = t_s
         self._refresh_view()
 
-    def _commit_grid_until(self, t_s: float) -> None:
+    def _grid_steps(self, t_s: float) -> tuple[int, int, float]:
+        """``(k_first, k_last, first_dt)``: the grid points to commit on the way to ``t_s``
+        (none if ``k_last < k_first``) and the length of the first step."""
         h = self.grid_step_s
         k_last = math.floor(t_s / h + _GRID_EPS)
         k_first = math.floor(self.t_anchor_s / h + _GRID_EPS) + 1
+        return k_first, k_last, k_first * h - self.t_anchor_s
+
+    def _commit_grid_until(self, t_s: float) -> None:
+        h = self.grid_step_s
+        k_first, k_last, first_dt = self._grid_steps(t_s)
         if k_last < k_first:
             return
-        first_dt = k_first * h - self.t_anchor_s
         if abs(first_dt - h) <= _TINY_S:  # the common case: one whole grid step
             self.kf.predict(F=self._full_step[0], Q=self._full_step[1])
         elif first_dt > _TINY_S:
@@ -121,9 +166,10 @@ class KalmanTrack:
             a = transition(dt)
             self.x_view = a @ self.kf.x
             self.p_view = a @ self.kf.P @ a.T + process_noise(self.q_per_s, dt)
-        else:
-            self.x_view = self.kf.x.copy()
-            self.p_view = self.kf.P.copy()
+        else:  # shared, not copied: no array here is ever changed in place
+            self.x_view = self.kf.x
+            self.p_view = self.kf.P
+        self.sigma = float(self.p_view[0, 0] + self.p_view[1, 1])
 
     def set_process_noise(self, q_per_s: float) -> None:
         """New intensity, applied from the last committed time on."""
@@ -145,8 +191,9 @@ class KalmanTrack:
         self.t_anchor_s = t_s
         self.kf.update(np.array([x_m, y_m]), R=r_m2 * np.eye(2))
         self.kf.P = 0.5 * (self.kf.P + self.kf.P.T)
-        self.x_view = self.kf.x.copy()
-        self.p_view = self.kf.P.copy()
+        self.x_view = self.kf.x
+        self.p_view = self.kf.P
+        self.sigma = float(self.p_view[0, 0] + self.p_view[1, 1])
         self.last_seen_s = t_s
 
     # --- read-out -------------------------------------------------------------------------
@@ -156,10 +203,81 @@ class KalmanTrack:
         return float(x[0]), float(x[1]), float(x[2]), float(x[3])
 
     @property
-    def sigma(self) -> float:
-        return float(self.p_view[0, 0] + self.p_view[1, 1])
-
-    @property
     def cov_xy(self) -> tuple[float, float, float]:
         p = self.p_view
         return float(p[0, 0]), float(p[0, 1]), float(p[1, 1])
+
+
+class KalmanBatch:
+    """Advances the tracks of one observer (grid step ``h``) together: those whose next
+    commit is one whole grid step are predicted at once (``x^- = F x``,
+    ``P^- = (F P) F' + Q`` over the stacked states, see the module docstring); any other
+    track (a partial first step, a gap of several steps, another grid) goes through
+    :meth:`KalmanTrack.predict_to`.
+
+    The stacks of one call are kept: when the next call advances the same tracks, untouched
+    since (no correction, no new ``q``), its products start from them without re-stacking.
+    """
+
+    def __init__(self, grid_step_s: float) -> None:
+        self.grid_step_s = grid_step_s
+        f = transition(grid_step_s)
+        self._f, self._f_t = f, f.T.copy()
+        self._tracks: list[KalmanTrack] = []
+        self._rows: list[tuple[Any, Any, np.ndarray]] = []  # (kf.x, kf.P, Q) as left
+        self._x = np.empty((0, 4, 1))
+        self._p = np.empty((0, 4, 4))
+        self._q = np.empty((0, 4, 4))
+
+    def predict_to(self, tracks: Sequence[KalmanTrack], t_s: float) -> None:
+        """Advance every track of ``tracks`` to ``t_s`` (tracks at or past it are left)."""
+        h = self.grid_step_s
+        k_last = math.floor(t_s / h + _GRID_EPS)
+        batch: list[KalmanTrack] = []
+        for track in tracks:
+            if t_s <= track.t_s:
+                continue
+            # one whole grid step, as KalmanTrack._grid_steps / _commit_grid_until decide
+            k_first = math.floor(track.t_anchor_s / h + _GRID_EPS) + 1
+            if track.grid_step_s != h:
+                track.predict_to(t_s)
+            elif k_first == k_last and abs(k_first * h - track.t_anchor_s - h) <= _TINY_S:
+                batch.append(track)
+            elif k_first > k_last and t_s - track.t_anchor_s <= _TINY_S:
+                track.t_s = t_s  # no grid point passed, still at the committed state
+            else:
+                track.predict_to(t_s)
+        if batch:
+            self._predict_one_step(batch, t_s, k_last * h)
+
+    def _predict_one_step(self, batch: list[KalmanTrack], t_s: float, t_grid_s: float) -> None:
+        if not self._same_as_last(batch):
+            self._x = np.stack([tr.kf.x for tr in batch])
+            self._p = np.stack([tr.kf.P for tr in batch])
+            self._q = np.stack([tr._full_step[1] for tr in batch])
+        self._x = xs = np.matmul(self._f, self._x)
+        self._p = ps = np.matmul(np.matmul(self._f, self._p), self._f_t) + self._q
+        sigmas = (ps[:, 0, 0] + ps[:, 1, 1]).tolist()
+        on_grid = t_s - t_grid_s <= _TINY_S  # else each view is predicted on from the grid
+        rows = []
+        for k, tr in enumerate(batch):
+            x, p = xs[k], ps[k]
+            tr.kf.x = x
+            tr.kf.P = p
+            tr.t_anchor_s = t_grid_s
+            tr.t_s = t_s
+            if on_grid:
+                tr.x_view, tr.p_view, tr.sigma = x, p, sigmas[k]
+            else:
+                tr._refresh_view()
+            rows.append((x, p, tr._full_step[1]))
+        self._tracks = batch
+        self._rows = rows
+
+    def _same_as_last(self, batch: list[KalmanTrack]) -> bool:
+        if len(batch) != len(self._tracks):
+            return False
+        for tr, last, (x, p, q) in zip(batch, self._tracks, self._rows, strict=True):
+            if tr is not last or tr.kf.x is not x or tr.kf.P is not p or tr._full_step[1] is not q:
+                return False
+        return True

@@ -25,7 +25,7 @@ from collections.abc import Mapping, Sequence
 from types import MappingProxyType
 
 from observer.config import ObserverConfig
-from observer.kalman_track import KalmanTrack
+from observer.kalman_track import KalmanBatch, KalmanTrack, load_filterpy
 from observer.linear_track import LinearTrack
 from observer.records import MeasurementOutcome, TrackSnapshot
 
@@ -71,9 +71,12 @@ class Observer:
         if not isinstance(config, ObserverConfig):
             raise TypeError(f"config must be an ObserverConfig, got {type(config).__name__}")
         self.config = config
+        if config.model == "kalman":
+            load_filterpy()  # here, not at import time: a linear observer never needs it
         self._tracks: dict[str, _Track] = {}
         self._ever_lost: dict[str, bool] = {}
         self._counters: dict[str, int] = dict.fromkeys(COUNTER_NAMES, 0)
+        self._batch = KalmanBatch(config.max_step_s)
 
     # --- targets --------------------------------------------------------------------------
     def add_target(
@@ -148,10 +151,18 @@ class Observer:
     def predict_to(self, t_s: float) -> None:
         """Advance every track to ``t_s``; a track already at or past ``t_s`` is left alone."""
         t = _finite("t_s", t_s)
-        for target_id, track in self._tracks.items():
-            if t > track.t_s:
+        due = [(tid, tr) for tid, tr in self._tracks.items() if t > tr.t_s]
+        if not due:
+            return
+        kalman = [tr for _, tr in due if isinstance(tr, KalmanTrack)]
+        if kalman:
+            self._batch.predict_to(kalman, t)  # all tracks at once (bit-identical results)
+        ever_lost = self._ever_lost
+        for target_id, track in due:
+            if not isinstance(track, KalmanTrack):
                 track.predict_to(t)
-                self._check_lost(target_id)
+            if not ever_lost[target_id] and self._is_lost(track):
+                ever_lost[target_id] = True
 
     # --- measurements ---------------------------------------------------------------------
     def measure(
@@ -221,7 +232,9 @@ class Observer:
             raise KeyError(f"unknown target_id {target_id!r}") from None
 
     def _is_lost(self, track: _Track) -> bool:
-        return math.sqrt(max(track.sigma, 0.0)) > self.config.fov_radius_m
+        """``sqrt(max(sigma, 0)) > fov_radius_m`` (fov_radius_m > 0)."""
+        sigma = track.sigma
+        return sigma > 0.0 and math.sqrt(sigma) > self.config.fov_radius_m
 
     def _check_lost(self, target_id: str) -> None:
         if self._is_lost(self._tracks[target_id]):

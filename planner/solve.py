@@ -17,12 +17,15 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING
 
-from planner.cpsat_model import CpSatRun
 from planner.exact_dp import dp_is_cheap, solve_dp
 from planner.heuristics import LocalSearch, RouteCoster, best_insertion, greedy
 from planner.instance import Instance, build_instance
 from planner.problem import PlanningProblem, PlanResult, PlanStatus
+
+if TYPE_CHECKING:
+    from planner.cpsat_model import CpSatRun
 
 POSITION_MODEL_MAX_TARGETS = 30
 
@@ -142,6 +145,8 @@ class PlanSolver:
         if method == "heuristic" or self._stop.is_set():
             hit = not self._stop.is_set()
             return self._result(inst, routes, PlanStatus.FALLBACK, "greedy+ils", start, hit)
+        from planner.cpsat_model import CpSatRun  # lazy: ortools.sat (and pandas) cost ~0.3 s
+
         run = CpSatRun(inst, kind)
         run.add_hint(routes)
         with self._lock:

@@ -26,7 +26,7 @@ Guidance produces the turn rate ``u``:
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 from domain.geodesy import wrap_pi
 
@@ -82,19 +82,21 @@ def step_kinematics(state: UavState, turn_rate_rad_s: float, dt_s: float) -> Uav
     """Advance eq. (1) by ``dt_s`` at constant ``turn_rate_rad_s`` (exact arc)."""
     v = state.speed_m_s
     psi0 = state.heading_rad
+    # UavState(...) rather than dataclasses.replace: this runs every step of every UAV
     if abs(turn_rate_rad_s) < 1e-9:
-        return replace(
-            state,
-            x_m=state.x_m + v * math.cos(psi0) * dt_s,
-            y_m=state.y_m + v * math.sin(psi0) * dt_s,
+        return UavState(
+            state.x_m + v * math.cos(psi0) * dt_s,
+            state.y_m + v * math.sin(psi0) * dt_s,
+            psi0,
+            v,
         )
     psi1 = psi0 + turn_rate_rad_s * dt_s
     radius = v / turn_rate_rad_s
-    return replace(
-        state,
-        x_m=state.x_m + radius * (math.sin(psi1) - math.sin(psi0)),
-        y_m=state.y_m - radius * (math.cos(psi1) - math.cos(psi0)),
-        heading_rad=wrap_pi(psi1),
+    return UavState(
+        state.x_m + radius * (math.sin(psi1) - math.sin(psi0)),
+        state.y_m - radius * (math.cos(psi1) - math.cos(psi0)),
+        wrap_pi(psi1),
+        v,
     )
 
 

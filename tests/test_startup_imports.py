@@ -1,0 +1,107 @@
+"""What start-up imports: heavy libraries load only on the paths that use them.
+
+Each check runs in a fresh interpreter and reads its ``sys.modules`` (a behaviour test,
+not a timing test): ``ortools.sat`` and ``pandas`` (~0.3 s of CPU) only when a solve reaches
+CP-SAT, filterpy and scipy (~0.5 s) only when a Kalman observer exists, matplotlib only when
+something is drawn.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+HEAVY = ("ortools", "pandas", "filterpy", "scipy", "matplotlib")
+
+_REPORT = """
+import json, sys
+print("MODULES " + json.dumps(sorted({m.split(".")[0] for m in sys.modules})), file=sys.stderr)
+"""
+
+
+def _modules_after(code: str, tmp_path: Path) -> tuple[set[str], str]:
+    """Run ``code`` in a fresh interpreter; the top-level modules it had loaded, and stdout."""
+    script = tmp_path / "probe.py"
+    script.write_text(code + "\n" + _REPORT, encoding="utf-8")
+    done = subprocess.run(
+        [sys.executable, str(script)], capture_output=True, text=True, timeout=120, check=False
+    )
+    assert done.returncode == 0, done.stderr
+    line = [ln for ln in done.stderr.splitlines() if ln.startswith("MODULES ")][-1]
+    return set(json.loads(line.removeprefix("MODULES "))), done.stdout
+
+
+def _problem_3x10(path: Path) -> Path:
+    uavs = [{"id": f"u{k}", "x": 1500.0, "y": 0.0, "heading": h}
+            for k, h in enumerate((0.0, 1.5708, 3.1416))]
+    targets = [{"id": f"t{k}", "x": 150.0 * k, "y": 1400.0 - 130.0 * k, "sigma": 5.0 + 3.0 * k}
+               for k in range(10)]
+    path.write_text(json.dumps({"uavs": uavs, "targets": targets, "turn_radius": 105.0}),
+                    encoding="utf-8")
+    return path
+
+
+def test_import_planner_loads_no_cp_sat_and_no_pandas(tmp_path: Path) -> None:
+    loaded, _ = _modules_after("import planner", tmp_path)
+    assert "planner" in loaded and "numpy" in loaded
+    assert not loaded & {"ortools", "pandas", "filterpy", "scipy", "matplotlib"}
+
+
+def test_gcs_plan_3x10_loads_no_cp_sat_and_no_pandas(tmp_path: Path) -> None:
+    problem = _problem_3x10(tmp_path / "p.json")
+    code = (
+        "import sys\nfrom groundstation.cli import main\n"
+        f"status = main(['plan', {str(problem)!r}])\nassert status == 0, status\n"
+    )
+    loaded, out = _modules_after(code, tmp_path)
+    result = json.loads(out)
+    assert result["status"] == "optimal"
+    assert sorted(t for r in result["routes"].values() for t in r) == sorted(
+        f"t{k}" for k in range(10)
+    )
+    assert not loaded & set(HEAVY)
+
+
+def test_a_solve_that_needs_cp_sat_still_imports_it(tmp_path: Path) -> None:
+    problem = _problem_3x10(tmp_path / "p.json")
+    code = (
+        "import json\nfrom planner import PlanSolver, problem_from_dict\n"
+        f"p = problem_from_dict(json.load(open({str(problem)!r})))\n"
+        "r = PlanSolver(p, method='position', deterministic=True).solve()\n"
+        "print(r.solver)\n"
+    )
+    loaded, out = _modules_after(code, tmp_path)
+    assert out.strip().startswith("cp-sat/position")
+    assert "ortools" in loaded
+
+
+@pytest.mark.parametrize(("model", "filterpy_loaded"), [("linear", False), ("kalman", True)])
+def test_filterpy_loads_with_a_kalman_observer_only(
+    tmp_path: Path, model: str, filterpy_loaded: bool
+) -> None:
+    code = (
+        "import groundstation.core\nfrom observer import Observer, ObserverConfig\n"
+        f"obs = Observer(ObserverConfig(model={model!r}))\n"
+        "obs.add_target('A', 0.0, 1.0, 2.0)\nobs.predict_to(3.0)\n"
+    )
+    loaded, _ = _modules_after(code, tmp_path)
+    assert ("filterpy" in loaded) is filterpy_loaded
+    assert ("scipy" in loaded) is filterpy_loaded
+    assert not loaded & {"ortools", "pandas", "matplotlib"}
+
+
+def test_gcs_simulate_without_plots_loads_no_matplotlib(tmp_path: Path) -> None:
+    out = tmp_path / "sim"
+    code = (
+        "from groundstation.cli import main\n"
+        f"status = main(['simulate', '--duration', '20', '--no-plots', '--quiet', '--out', "
+        f"{str(out)!r}])\nassert status == 0, status\n"
+    )
+    loaded, _ = _modules_after(code, tmp_path)
+    assert (out / "metrics.json").is_file()
+    assert "filterpy" in loaded  # paper-boat is a Kalman scenario
+    assert not loaded & {"matplotlib", "ortools", "pandas"}
