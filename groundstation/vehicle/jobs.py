@@ -100,7 +100,7 @@ def mission_job(
     up: UploadOutcome = yield UploadMission(tuple(steps), purpose, target)
     ok, retries, error = up.ok, up.retries, up.error or ""
     if ok and current is not None:
-        result = yield SetCurrent(current, host.mission_seq())
+        result = yield SetCurrent(current, host.mission_seq(), up.items or None)
         retries += result.retries_used
         ok = result.ok
         now_seq = host.mission_seq()
