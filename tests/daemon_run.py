@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import asyncio
+import json
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -32,3 +34,41 @@ def events(journal: Journal, name: str, **match: Any) -> Journal:
 
 def after(items: Journal, t: float) -> Journal:
     return [e for e in items if e["t"] > t]
+
+
+class JournalTail:
+    """The complete lines a running daemon has appended to its journal, read incrementally
+    (a line still being written is left for the next call)."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self.lines: Journal = []
+        self._offset = 0
+        self._partial = b""
+
+    def poll(self) -> Journal:
+        """Read what was appended since the last call; every line so far."""
+        try:
+            with self.path.open("rb") as fh:
+                fh.seek(self._offset)
+                data = fh.read()
+        except FileNotFoundError:
+            return self.lines
+        self._offset += len(data)
+        *whole, self._partial = (self._partial + data).split(b"\n")
+        self.lines += [json.loads(line) for line in whole if line]
+        return self.lines
+
+
+async def stop_when(
+    daemon: Daemon, done: Callable[[Journal], bool], poll_wall_s: float = 0.2
+) -> None:
+    """Ask ``daemon`` to stop as soon as its journal satisfies ``done``: a test then waits
+    for the events it asserts on, in mission time, however slowly a loaded host runs them
+    (its ``--duration`` is only the upper bound; a wall timeout only guards a hang)."""
+    path = daemon.journal_file.path
+    assert path is not None
+    tail = JournalTail(path)
+    while not done(tail.poll()):
+        await asyncio.sleep(poll_wall_s)
+    daemon.request_stop("test: awaited events seen")
