@@ -15,13 +15,34 @@ from groundstation.daemon.journal import read_journal
 Journal = list[dict[str, Any]]
 
 
-def run_gcs(tmp_path: Path, *args: str, timeout_s: float = 70.0) -> tuple[Daemon, Journal]:
-    """Run the daemon (no control API, no detection feed, quiet) until ``--duration``;
-    return it and its journal. ``timeout_s`` (wall) bounds a run that would not stop."""
+def run_gcs(
+    tmp_path: Path,
+    *args: str,
+    timeout_s: float = 70.0,
+    until: Callable[[Journal], bool] | None = None,
+) -> tuple[Daemon, Journal]:
+    """Run the daemon (no control API, no detection feed, quiet) until ``--duration``, or
+    with ``until`` as soon as its journal satisfies it (:func:`stop_when`); return it and
+    its journal. ``timeout_s`` (wall) bounds a run that would not stop."""
     config = build_config([*args, "--run-dir", str(tmp_path), "--http", "off",
                            "--detections", "off", "--status", "quiet"])
-    daemon = asyncio.run(asyncio.wait_for(
-        run_daemon(config, print_fn=lambda _: None, install_signals=False), timeout_s))
+
+    async def main() -> Daemon:
+        watchers: list[asyncio.Task[None]] = []
+
+        def started(daemon: Daemon) -> None:
+            if until is not None:
+                watchers.append(asyncio.create_task(stop_when(daemon, until)))
+
+        try:
+            return await run_daemon(
+                config, print_fn=lambda _: None, install_signals=False, on_started=started
+            )
+        finally:
+            for watcher in watchers:
+                watcher.cancel()
+
+    daemon = asyncio.run(asyncio.wait_for(main(), timeout_s))
     return daemon, read_journal(daemon.run_dir / "journal.jsonl")
 
 
@@ -61,7 +82,7 @@ class JournalTail:
 
 
 async def stop_when(
-    daemon: Daemon, done: Callable[[Journal], bool], poll_wall_s: float = 0.2
+    daemon: Daemon, done: Callable[[Journal], bool], poll_wall_s: float = 0.05
 ) -> None:
     """Ask ``daemon`` to stop as soon as its journal satisfies ``done``: a test then waits
     for the events it asserts on, in mission time, however slowly a loaded host runs them
