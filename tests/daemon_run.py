@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import asyncio
+import json
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -13,13 +15,34 @@ from groundstation.daemon.journal import read_journal
 Journal = list[dict[str, Any]]
 
 
-def run_gcs(tmp_path: Path, *args: str, timeout_s: float = 70.0) -> tuple[Daemon, Journal]:
-    """Run the daemon (no control API, no detection feed, quiet) until ``--duration``;
-    return it and its journal. ``timeout_s`` (wall) bounds a run that would not stop."""
+def run_gcs(
+    tmp_path: Path,
+    *args: str,
+    timeout_s: float = 70.0,
+    until: Callable[[Journal], bool] | None = None,
+) -> tuple[Daemon, Journal]:
+    """Run the daemon (no control API, no detection feed, quiet) until ``--duration``, or
+    with ``until`` as soon as its journal satisfies it (:func:`stop_when`); return it and
+    its journal. ``timeout_s`` (wall) bounds a run that would not stop."""
     config = build_config([*args, "--run-dir", str(tmp_path), "--http", "off",
                            "--detections", "off", "--status", "quiet"])
-    daemon = asyncio.run(asyncio.wait_for(
-        run_daemon(config, print_fn=lambda _: None, install_signals=False), timeout_s))
+
+    async def main() -> Daemon:
+        watchers: list[asyncio.Task[None]] = []
+
+        def started(daemon: Daemon) -> None:
+            if until is not None:
+                watchers.append(asyncio.create_task(stop_when(daemon, until)))
+
+        try:
+            return await run_daemon(
+                config, print_fn=lambda _: None, install_signals=False, on_started=started
+            )
+        finally:
+            for watcher in watchers:
+                watcher.cancel()
+
+    daemon = asyncio.run(asyncio.wait_for(main(), timeout_s))
     return daemon, read_journal(daemon.run_dir / "journal.jsonl")
 
 
@@ -32,3 +55,41 @@ def events(journal: Journal, name: str, **match: Any) -> Journal:
 
 def after(items: Journal, t: float) -> Journal:
     return [e for e in items if e["t"] > t]
+
+
+class JournalTail:
+    """The complete lines a running daemon has appended to its journal, read incrementally
+    (a line still being written is left for the next call)."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self.lines: Journal = []
+        self._offset = 0
+        self._partial = b""
+
+    def poll(self) -> Journal:
+        """Read what was appended since the last call; every line so far."""
+        try:
+            with self.path.open("rb") as fh:
+                fh.seek(self._offset)
+                data = fh.read()
+        except FileNotFoundError:
+            return self.lines
+        self._offset += len(data)
+        *whole, self._partial = (self._partial + data).split(b"\n")
+        self.lines += [json.loads(line) for line in whole if line]
+        return self.lines
+
+
+async def stop_when(
+    daemon: Daemon, done: Callable[[Journal], bool], poll_wall_s: float = 0.05
+) -> None:
+    """Ask ``daemon`` to stop as soon as its journal satisfies ``done``: a test then waits
+    for the events it asserts on, in mission time, however slowly a loaded host runs them
+    (its ``--duration`` is only the upper bound; a wall timeout only guards a hang)."""
+    path = daemon.journal_file.path
+    assert path is not None
+    tail = JournalTail(path)
+    while not done(tail.poll()):
+        await asyncio.sleep(poll_wall_s)
+    daemon.request_stop("test: awaited events seen")

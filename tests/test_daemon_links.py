@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from daemon_run import events
+from daemon_run import Journal, events, stop_when
 
 from groundstation.commands.embedded_sim import build_embedded_sim
 from groundstation.commands.run import build_config, run_daemon
@@ -22,7 +22,17 @@ from groundstation.daemon.journal import read_journal
 from world.scenario import load_scenario
 
 
-@pytest.mark.timeout(60)
+def _two_vehicles_done(journal: Journal) -> bool:
+    """What the test asserts on, all seen: both vehicles flying a verified target mission,
+    T1 and T2 seen by the daemon's camera, and the clock checked for both vehicles."""
+    return all(
+        events(journal, "upload", vehicle=vid, ok=True, purpose="target")
+        and events(journal, "clock_check", vehicle=vid)
+        for vid in ("1", "2")
+    ) and {"T1", "T2"} <= {e["target"] for e in events(journal, "detection", accepted=True)}
+
+
+@pytest.mark.timeout(90)
 def test_two_vehicles_on_one_udp_link_with_a_virtual_camera(tmp_path: Path) -> None:
     scenario = load_scenario("svalbard-2015")
     sim = build_embedded_sim(
@@ -32,26 +42,42 @@ def test_two_vehicles_on_one_udp_link_with_a_virtual_camera(tmp_path: Path) -> N
     # the simulator's shared UDP socket also sends to a dead address (as `gcs sitl --out`)
     server.options.out = ("127.0.0.1", 9)
 
+    # The simulator runs on its own clock here (an external simulator, not the daemon's
+    # mission clock): on a loaded host it falls behind the daemon's monotonic x 40 (0.44 of
+    # it measured on a quiet 2-core machine), so the daemon runs until the events asserted
+    # on have happened, not for a fixed mission time; --duration (1200 s = 30 wall s) and
+    # the wall timeout only bound a run that never gets there.
     async def main() -> Daemon:
         await server.start()
         runner = asyncio.create_task(server.run())
+        watcher: asyncio.Task[None] | None = None
+
+        def started(daemon: Daemon) -> None:
+            nonlocal watcher
+            watcher = asyncio.create_task(stop_when(daemon, _two_vehicles_done))
+
         try:
             config = build_config(
                 [
                     "--vehicles", f"udpout:127.0.0.1:{server.udp_port}",
-                    "--scenario", "svalbard-2015", "--speedup", "40", "--duration", "260",
+                    "--scenario", "svalbard-2015", "--speedup", "40", "--duration", "1200",
                     "--run-dir", str(tmp_path), "--http", "off", "--detections", "off",
                     "--status", "quiet",
                 ]
             )  # fmt: skip
-            return await run_daemon(config, print_fn=lambda _: None, install_signals=False)
+            return await run_daemon(
+                config, print_fn=lambda _: None, install_signals=False, on_started=started
+            )
         finally:
+            if watcher is not None:
+                watcher.cancel()
             server.stop()
             await runner
             await server.close()
 
-    daemon = asyncio.run(asyncio.wait_for(main(), 50.0))
+    daemon = asyncio.run(asyncio.wait_for(main(), 80.0))
     journal = read_journal(daemon.run_dir / "journal.jsonl")
+    assert daemon.stop_reason == "test: awaited events seen", daemon.stop_reason
     assert not events(journal, "task_error")
     assert {s.system_id for s in daemon.sessions.values()} == {1, 2}
     assert daemon.router.link_for(1) is daemon.router.link_for(2)  # one link, two vehicles

@@ -170,3 +170,41 @@ def test_reboot_mid_upload(boot_s: float, code: TransferCode) -> None:
     result = drive(lb, MissionUpload(1, 1, items), tel, reboot_after_sends=2, boot_s=boot_s)
     assert result.code is code and result.retryable
     assert lb.vehicle.reboots == 1
+
+
+def test_set_current_on_a_waypoint_passed_at_once_is_confirmed_at_once() -> None:
+    """Issue 11 on the simulator: re-upload while flying to A=(0, 1500) a waypoint B=(0, 600)
+    that the plane (near y=300, heading north) is already past, seen from A (ArduPlane
+    cross-tracks from the previous waypoint); set current 1 is confirmed by MISSION_CURRENT
+    moving on to the loiter, without waiting out the 6 s window."""
+    lb = make()
+    tel = VehicleTelemetry(1, ORIGIN)
+
+    def to(x_m: float, y_m: float) -> list[Any]:
+        return build_mission_items(
+            [Waypoint(x_m, y_m, 100.0), LoiterUnlimited(x_m, y_m, 100.0, radius_m=120)], ORIGIN
+        )
+
+    assert drive(lb, MissionUpload(1, 1, to(0.0, 1500.0)), tel).ok
+    assert drive(lb, SetCurrent(1, 1, 1, mission_count=3), tel).ok
+    texts: list[str] = []
+    while (tel.snapshot().y_m or 0.0) < 300.0:
+        for msg in lb.advance(0.5, 0.1):
+            tel.receive(msg, lb.t_s)
+    assert tel.snapshot().mission_current_seq == 1
+    items = to(0.0, 600.0)
+    assert drive(lb, MissionUpload(1, 1, items), tel).ok
+    t0_s = lb.t_s
+    original = tel.receive
+
+    def keep_texts(msg: Any, t_s: float) -> list[Any]:
+        events = original(msg, t_s)
+        texts.extend(e.text for e in events if isinstance(e, StatusText))
+        return events
+
+    tel.receive = keep_texts  # type: ignore[method-assign]
+    sc = drive(lb, SetCurrent(1, 1, 1, known_current_seq=1, mission_count=len(items)), tel)
+    assert any(t.startswith("Passed waypoint #1") for t in texts), texts
+    assert sc.ok and sc.retries_used == 0, sc
+    assert lb.t_s - t0_s < 0.5
+    assert tel.snapshot().mission_current_seq == 2

@@ -220,6 +220,34 @@ def test_launch_only_when_asked_and_the_guard_lets_it_through() -> None:
     assert rig.c.launch() == (False, "vehicle v1 is active, not on the ground")
 
 
+def _launching_in_manual() -> Rig:
+    rig = Rig(auto_answer=False)
+    rig.snap = replace(rig.snap, **ON_GROUND)
+    rig.run(5.0, mode=ArduPlaneMode.MANUAL, mode_name="MANUAL")
+    ok, _ = rig.c.launch()
+    rig._collect(rig.c.take_outputs())
+    assert ok and rig.c.state is S.LAUNCHING and isinstance(rig.pending, io.UploadMission)
+    return rig
+
+
+def test_the_mode_it_waited_in_on_the_ground_is_no_override_while_launching() -> None:
+    # issue 11 at 200x: the launch exchanges took longer than the 2 s override grace in
+    # mission time, and the plane's MANUAL from before the launch was taken for an operator's
+    rig = _launching_in_manual()
+    rig.run(10.0, mode=ArduPlaneMode.MANUAL, mode_name="MANUAL")  # the upload takes 10 s
+    assert not rig.journal("override") and rig.c.state is S.LAUNCHING
+    rig.auto_answer = True
+    rig.auto()
+    rig.run(10.0, **{**FLYING, "landed_state": None})
+    assert rig.journal("vehicle_joined")[0].fields["how"] == "launched"
+
+
+def test_another_mode_while_launching_is_still_an_override() -> None:
+    rig = _launching_in_manual()
+    rig.run(5.0, mode=ArduPlaneMode.FBWA, mode_name="FBWA")
+    assert [o.fields["reason"] for o in rig.journal("override")] == ["mode FBWA"]
+
+
 # ------------------------------------------------------------------ flying to targets
 def test_fly_uploads_sets_current_and_counts() -> None:
     rig = active_rig()
@@ -278,6 +306,18 @@ def test_set_current_decided_on_result_codes(
     message = "COMMAND_ACK ACCEPTED but MISSION_CURRENT never showed 1"  # never grepped
     rig.answer(TransferResult(False, code, message, remote_code=remote))
     assert rig.journal("upload")[-1].fields["ok"] is ok
+
+
+def test_set_current_after_a_target_upload_knows_the_mission_it_sets() -> None:
+    # issue 11: the machine may then take a later item shown after its ACK as confirmation
+    # (a waypoint passed at once) instead of waiting out its window
+    rig = active_rig()
+    rig.auto_answer = False
+    rig.fly()
+    rig.answer(io.UploadOutcome(True, 0, None, 4))
+    request = rig.pending
+    assert isinstance(request, io.SetCurrent)
+    assert request.seq == 1 and request.mission_count == 4
 
 
 # ------------------------------------------------------------------ the guard

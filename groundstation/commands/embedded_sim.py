@@ -98,14 +98,19 @@ def build_embedded_sim(
         raise ConfigError(f"sim_fault: {exc}") from None
 
     speedup = config.speedup_x
+    # The simulated clock is the daemon's mission clock: one tick must never move it more
+    # than 0.5 s (ArduPlane answers within a 20 ms loop; a transfer times out after 1.5 s).
+    # Above 100x the tick gets shorter instead of longer: at 200x, 5 ms ticks of 1 s made
+    # every round trip look like 1-2 s to the daemon (12 of 12 target uploads failed).
     step_s = max(0.05, min(0.5, speedup * SIM_TICK_S))
+    tick_s = min(SIM_TICK_S, step_s / speedup)
     options = ServerOptions(
         speedup=speedup,
         host="127.0.0.1",
         base_port=0,
-        tick_s=SIM_TICK_S,
+        tick_s=tick_s,
         max_step_s=step_s,
-        max_stall_s=SIM_TICK_S,
+        max_stall_s=tick_s,
         signing_keys=dict(signing_keys or {}),
     )
     return EmbeddedSim(SitlServer(configs, options, faults, None), setup.origin, specs)

@@ -14,6 +14,17 @@ equal to ``seq`` must not count.) Silence before the ACK resends the command wit
 ``confirmation`` + 1; after the ACK nothing is resent (a resend would restart the item).
 Defaults 1.0 s x 5: MISSION_CURRENT streams at ~1 Hz, so a 6 s window sees ~6 of them.
 
+**Moved past.** After the ACK, a ``MISSION_CURRENT`` on a later item of the mission
+(``seq < current < mission_count``, when the caller gives ``mission_count``) confirms too:
+the vehicle started ``seq`` and has already finished it. ArduPlane does this with a
+waypoint: ``DO_SET_MISSION_CURRENT`` starts the item while it still cross-tracks from the
+previous waypoint (``next_wp_crosstrack`` is cleared only after the item started), so a
+re-uploaded waypoint that lies behind that line is "Passed" at once, and the only
+``MISSION_CURRENT`` showing ``seq`` may come before the ACK (ambiguous, ignored). Without
+this rule such a set-current waited out its whole window (6 s) and was reported as 5
+retries. It relies on the link keeping the vehicle's order (every MAVLink transport does):
+a ``MISSION_CURRENT`` arriving after the ACK was sent after the command was handled.
+
 Any other command (:class:`CommandLong`) and PARAM_SET (:class:`ParamSet`) are in
 :mod:`groundstation.mavlink.vehicle_commands`.
 """
@@ -145,6 +156,7 @@ class SetCurrent(TransferBase[SetCurrentState]):
         seq: int,
         *,
         known_current_seq: int | None = None,
+        mission_count: int | None = None,
         use_command: bool = True,
         timeout_s: float = SET_CURRENT_TIMEOUT_S,
         retries: int = DEFAULT_RETRIES,
@@ -162,7 +174,12 @@ class SetCurrent(TransferBase[SetCurrentState]):
         )
         if not 0 <= seq <= _UINT16_MAX:
             raise LocalProtocolError(f"seq must be in 0..65535, got {seq}")
+        if mission_count is not None and not seq < mission_count <= _UINT16_MAX + 1:
+            raise LocalProtocolError(
+                f"mission_count must be in {seq + 1}..65536 for seq {seq}, got {mission_count}"
+            )
         self.seq = seq
+        self.mission_count = mission_count
         self.use_command = use_command
         self._confirmation = 0
         self._seen_other_seq = known_current_seq is not None and known_current_seq != seq
@@ -214,6 +231,13 @@ class SetCurrent(TransferBase[SetCurrentState]):
             return []
         if current != self.seq:
             self._seen_other_seq = True
+            if self._moved_past(current):
+                return self._finish(
+                    TransferCode.SUCCESS,
+                    f"current item {self.seq} (COMMAND_ACK; MISSION_CURRENT already on item "
+                    f"{current}: the vehicle started it and moved on)",
+                    remote_code="MAV_RESULT_ACCEPTED",
+                )
             return []
         if self._state is SetCurrentState.CONFIRMING:
             how = "COMMAND_ACK and MISSION_CURRENT"
@@ -222,6 +246,14 @@ class SetCurrent(TransferBase[SetCurrentState]):
         else:
             return []  # possibly stale: the vehicle may have been on seq already
         return self._finish(TransferCode.SUCCESS, f"current item {self.seq} ({how})")
+
+    def _moved_past(self, current: int) -> bool:
+        """After the ACK: ``current`` is a later item of the mission we set (see module)."""
+        return (
+            self._state is SetCurrentState.CONFIRMING
+            and self.mission_count is not None
+            and self.seq < current < self.mission_count
+        )
 
     def _command(self) -> MAVLinkMessage:
         if not self.use_command:

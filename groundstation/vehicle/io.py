@@ -143,8 +143,12 @@ class Download:
 
 @dataclass(frozen=True, eq=False)
 class SetCurrent:
+    """Make ``seq`` current. ``mission_count``: the items of the mission just verified
+    (lets a later item, shown after the ACK, confirm: a waypoint passed at once)."""
+
     seq: int
     known_current_seq: int | None
+    mission_count: int | None = None
 
 
 @dataclass(frozen=True, eq=False)

@@ -92,15 +92,17 @@ def mission_job(
 ) -> Generator[Exchange | Pause, Any, bool]:
     """Upload ``steps`` verified; then set ``current`` and make sure of AUTO.
 
-    The loiter end of a target mission is watched from the verified upload on. A
-    set-current that timed out after the vehicle ACCEPTED it, with the vehicle already on a
-    later item of ours (a waypoint passed at once), counts as done (decided on the result's
-    code and ``remote_code``, never on its message)."""
+    The loiter end of a target mission is watched from the verified upload on. The
+    set-current is given the mission's item count, so the machine itself confirms a
+    waypoint passed at once (a later item of ours shown after its ACK). A set-current that
+    still timed out after the vehicle ACCEPTED it, with the vehicle on a later item of ours,
+    counts as done too (decided on the result's code and ``remote_code``, never on its
+    message)."""
     host.disarm_loiter_end()
     up: UploadOutcome = yield UploadMission(tuple(steps), purpose, target)
     ok, retries, error = up.ok, up.retries, up.error or ""
     if ok and current is not None:
-        result = yield SetCurrent(current, host.mission_seq())
+        result = yield SetCurrent(current, host.mission_seq(), up.items or None)
         retries += result.retries_used
         ok = result.ok
         now_seq = host.mission_seq()

@@ -84,6 +84,8 @@ class ControllerState:
         self._loiter_end_pending_s: float | None = None
         self._expected: dict[int, float] = {}
         self._own_mode: int | None = None
+        # the mode it waited in on the ground (MANUAL...): kept while launching, no override
+        self._ground_mode: int | None = None
         self._left_taken = False  # seen out of AUTO/GUIDED since the override
         self._battery_reported = False
         self._rates_at_s = -math.inf
