@@ -426,7 +426,7 @@ def _parse_observer(f: Fields) -> ObserverSpec:
 def _parse_planner(f: Fields) -> PlannerSpec:
     spec = PlannerSpec(
         tau=f.number("tau", 0.5, minimum=0.0, maximum=1.0),
-        objective=f.string("objective", "sequence", choices=("sequence", "arrival")),
+        objective=f.string("objective", "sequence", choices=("sequence", "arrival", "latency")),
         time_limit_s=f.number("time_limit_s", 2.0, minimum=0.0, exclusive_minimum=True),
         min_sigma_fraction=f.number("min_sigma_fraction", 0.1, minimum=0.0, maximum=1.0),
     )
