@@ -1,79 +1,189 @@
-"""The paper's simulation study, over many seeds: fleet sizes, objectives, speed.
+"""The paper's simulation study over many seeds: planner variants against a baseline, paired.
 
-    python benchmarks/paper_study.py --seeds 20 --uavs 1,3,5 --objectives sequence,arrival
+    nice -n 10 python benchmarks/paper_study.py --uavs 1-6 --seeds 20 \\
+        --variants sequence:0.5,arrival:0.5,arrival:0,latency --base sequence:0.5
 
-For every (objective, fleet size) it runs ``paper-boat`` for each seed in virtual time and
-prints how many runs are *bounded* (design.md: the maximum of the average uncertainty over
-the second half is at most 1.5 times its maximum over the first half), the mean and median
-of the run-average uncertainty, visits, lost targets, and the real-time factor (simulated
-seconds per wall second, planning included). Runs go to a process pool (one per core).
+Every run is ``paper-boat`` (or ``--scenario``) in virtual time through the same code as
+``gcs simulate``; variant k and the base see the same icebergs for a seed (paired runs). A
+variant is ``objective[:tau][+option...]``; options: ``old-idle`` (the idle-UAV rule before
+issue 12: nearest target even if another UAV flies there). For each (fleet size, variant)
+it prints the run-average uncertainty (mean over seeds), the paired difference to the base
+in % (mean of the per-seed ratio - 1, with a 95 % t interval) and wins/losses (seeds where
+the variant is lower/higher), then the bounded rates over seeds with 95 % Wilson intervals:
+``trend`` (metrics.json ``bounded_trend``: the robust trend of the second half, relative to
+its level, at most 0.25) and ``ratio`` (the first definition, ``bounded``). ``--json``
+writes every run's figures; ``--report FILE`` prints the tables again from such a file.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import statistics
 import sys
+from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
+from dataclasses import replace
 from typing import Any
 
-from groundstation.runners.simulate import SimulationOptions, run_simulation
-from world.scenario import load_scenario
+Job = tuple[str, str, int, int, float | None]
 
 
-def _one(job: tuple[str, str, int, int, float | None]) -> dict[str, Any]:
-    scenario_name, objective, uavs, seed, duration = job
-    scenario = load_scenario(scenario_name)
-    options = SimulationOptions(seed=seed, uavs=uavs, objective=objective,
-                                duration_s=duration, snapshot_times_s=(1.0,))
-    m = run_simulation(scenario, options).metrics
+def _old_idle_assignment(inst: Any, routes: Sequence[Sequence[int]]) -> dict[str, str]:
+    """The idle-UAV rule before issue 12: nearest kept target by Dubins distance, shared or not."""
+    out: dict[str, str] = {}
+    if inst.n == 0:
+        return out
+    for u, route in enumerate(routes):
+        if not route:
+            out[inst.problem.uavs[u].id] = inst.target_id(int(inst.d[u, inst.m :].argmin()))
+    return out
+
+
+def parse_variant(text: str) -> tuple[str, float | None, set[str]]:
+    """``objective[:tau][+option...]`` -> (objective, tau or None, options)."""
+    head, *options = text.split("+")
+    objective, _, tau = head.partition(":")
+    return objective, (float(tau) if tau else None), set(options)
+
+
+def _one(job: Job) -> dict[str, Any]:
+    import planner.solve
+    from groundstation.runners.simulate import SimulationOptions, run_simulation
+    from world.scenario import load_scenario
+
+    scenario_name, variant, uavs, seed, duration = job
+    objective, tau, options = parse_variant(variant)
+    original = planner.solve.idle_assignment
+    if "old-idle" in options:
+        planner.solve.idle_assignment = _old_idle_assignment  # type: ignore[assignment]
+    try:
+        scenario = load_scenario(scenario_name)
+        spec = replace(scenario.planner, objective=objective,
+                       tau=scenario.planner.tau if tau is None else tau)
+        scenario = replace(scenario, planner=spec)
+        m = run_simulation(scenario, SimulationOptions(
+            seed=seed, uavs=uavs, duration_s=duration, snapshot_times_s=(1.0,))).metrics
+    finally:
+        planner.solve.idle_assignment = original
     return {
-        "objective": objective, "uavs": uavs, "seed": seed, "bounded": m["bounded"],
-        "ratio": m["boundedness_ratio"], "mean": m["mean_uncertainty"],
-        "max": m["max_uncertainty"], "visits": len(m["visits"]),
-        "lost": len(m["lost_targets"]), "rtf": m["realtime_factor"],
+        "variant": variant, "uavs": uavs, "seed": seed, "duration_s": m["duration_s"],
+        "mean": m["mean_uncertainty"], "max": m["max_uncertainty"],
+        "bounded": m["bounded"], "ratio": m["boundedness_ratio"],
+        "bounded_trend": m["bounded_trend"], "trend": m["trend"],
+        "visits": len(m["visits"]), "lost": len(m["lost_targets"]), "rtf": m["realtime_factor"],
         "solve_median_s": m["solve_time_s"]["median"], "solve_max_s": m["solve_time_s"]["max"],
     }
+
+
+def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
+    """95 % Wilson score interval of a proportion k / n."""
+    if n == 0:
+        return 0.0, 1.0
+    p = k / n
+    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
+    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+    return max(0.0, centre - half), min(1.0, centre + half)
+
+
+def paired(diffs: Sequence[float]) -> tuple[float, float]:
+    """Mean and half-width of the 95 % t interval."""
+    from scipy.stats import t as student_t
+
+    if len(diffs) < 2:
+        return (diffs[0] if diffs else 0.0), math.inf
+    sd = statistics.stdev(diffs)
+    return statistics.fmean(diffs), float(student_t.ppf(0.975, len(diffs) - 1)) * sd / math.sqrt(
+        len(diffs)
+    )
+
+
+def _rate(rows: list[dict[str, Any]], key: str) -> str:
+    values = [r[key] for r in rows if r[key] is not None]
+    k = sum(bool(v) for v in values)
+    lo, hi = wilson(k, len(values))
+    return f"{k}/{len(values)} [{100 * lo:.0f}-{100 * hi:.0f} %]"
+
+
+def report(rows: list[dict[str, Any]], base: str) -> str:
+    """Markdown tables: paired differences to `base`, bounded rates."""
+    variants = list(dict.fromkeys(r["variant"] for r in rows))
+    sizes = sorted({r["uavs"] for r in rows})
+    cell = {(r["variant"], r["uavs"], r["seed"]): r for r in rows}
+    lines = [
+        "| UAVs | variant | mean sigma (m^2) | vs " + base + " (95 % CI) | wins/losses |"
+        " bounded: trend | bounded: ratio | visits |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for uavs in sizes:
+        for variant in variants:
+            group = [r for r in rows if r["variant"] == variant and r["uavs"] == uavs]
+            if not group:
+                continue
+            mean = statistics.fmean(r["mean"] for r in group)
+            compare = "-"
+            wins = "-"
+            if variant != base:
+                pairs = [(r["mean"], cell[(base, uavs, r["seed"])]["mean"]) for r in group
+                         if (base, uavs, r["seed"]) in cell]
+                diffs = [100.0 * (v / b - 1.0) for v, b in pairs if b > 0]
+                if diffs:
+                    avg, half = paired(diffs)
+                    compare = f"{avg:+.1f} % [{avg - half:+.1f}, {avg + half:+.1f}]"
+                    wins = f"{sum(v < b for v, b in pairs)}/{sum(v > b for v, b in pairs)}"
+            lines.append(
+                f"| {uavs} | {variant} | {mean:,.0f} | {compare} | {wins} |"
+                f" {_rate(group, 'bounded_trend')} | {_rate(group, 'bounded')} |"
+                f" {statistics.fmean(r['visits'] for r in group):.1f} |"
+            )
+    return "\n".join(lines)
+
+
+def _sizes(text: str) -> list[int]:
+    out: list[int] = []
+    for part in text.split(","):
+        lo, _, hi = part.partition("-")
+        out.extend(range(int(lo), int(hi or lo) + 1))
+    return out
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scenario", default="paper-boat")
     parser.add_argument("--seeds", type=int, default=20)
-    parser.add_argument("--uavs", default="1,3")
-    parser.add_argument("--objectives", default="sequence,arrival")
+    parser.add_argument("--first-seed", type=int, default=0)
+    parser.add_argument("--uavs", default="1,3,5", help="fleet sizes: 1,3,5 or 1-6")
+    parser.add_argument("--variants", default="sequence:0.5,latency")
+    parser.add_argument("--base", default=None, help="variant the others are paired with "
+                        "(default: the first)")
     parser.add_argument("--duration", type=float, default=None)
     parser.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
     parser.add_argument("--json", help="also write every run's figures to this file")
+    parser.add_argument("--report", help="print the tables from a --json file and exit")
     args = parser.parse_args()
-    jobs = [
-        (args.scenario, objective, int(uavs), seed, args.duration)
-        for objective in args.objectives.split(",")
-        for uavs in args.uavs.split(",")
-        for seed in range(args.seeds)
+    variants = args.variants.split(",")
+    base = args.base or variants[0]
+    if args.report:
+        with open(args.report, encoding="utf-8") as handle:
+            rows = json.load(handle)
+        print(report(rows, base))
+        return 0
+    if base not in variants:
+        variants.insert(0, base)
+    jobs: list[Job] = [
+        (args.scenario, variant, uavs, seed, args.duration)
+        for uavs in _sizes(args.uavs)
+        for variant in variants
+        for seed in range(args.first_seed, args.first_seed + args.seeds)
     ]
     print(f"{len(jobs)} runs of {args.scenario} on {args.jobs} process(es)...", file=sys.stderr)
     with ProcessPoolExecutor(max_workers=args.jobs) as pool:
-        rows = list(pool.map(_one, jobs))
-    print(f"{'objective':>9} {'uavs':>4} {'bounded':>9} {'mean sigma':>11} {'median':>9}"
-          f" {'max sigma':>10} {'visits':>6} {'lost':>5} {'x realtime':>10}"
-          f" {'solve med/max ms':>17}")
-    for objective in args.objectives.split(","):
-        for uavs in (int(u) for u in args.uavs.split(",")):
-            group = [r for r in rows if r["objective"] == objective and r["uavs"] == uavs]
-            means = [r["mean"] for r in group]
-            print(
-                f"{objective:>9} {uavs:>4} {sum(r['bounded'] for r in group):>4}/{len(group):<4}"
-                f" {statistics.fmean(means):>11.0f} {statistics.median(means):>9.0f}"
-                f" {statistics.fmean(r['max'] for r in group):>10.0f}"
-                f" {statistics.fmean(r['visits'] for r in group):>6.1f}"
-                f" {statistics.fmean(r['lost'] for r in group):>5.1f}"
-                f" {statistics.median(r['rtf'] for r in group):>10.0f}"
-                f" {1000 * statistics.median(r['solve_median_s'] for r in group):>8.1f}"
-                f"/{1000 * max(r['solve_max_s'] for r in group):<8.1f}"
-            )
+        rows = list(pool.map(_one, jobs, chunksize=4))
+    print(report(rows, base))
+    rtf = statistics.median(r["rtf"] for r in rows)
+    print(f"\nmedian real-time factor {rtf:.0f}x", file=sys.stderr)
     if args.json:
         with open(args.json, "w", encoding="utf-8") as handle:
             json.dump(rows, handle, indent=1)

@@ -31,6 +31,8 @@ def test_three_uavs_keep_uncertainty_bounded_where_one_cannot() -> None:
     one = [simulate("paper-boat", 1, seed) for seed in range(4)]
     three = [simulate("paper-boat", 3, seed) for seed in range(4)]
     assert not any(m["bounded"] for m in one)
+    assert not any(m["bounded_trend"] for m in one)  # the trend test (metrics.trend_growth)
+    assert all(m["trend"] > 0.5 for m in one)
     assert sum(m["bounded"] for m in three) >= 3
     for m1, m3 in zip(one, three, strict=True):
         assert m3["mean_uncertainty"] < m1["mean_uncertainty"] / 3
