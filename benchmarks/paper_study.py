@@ -6,13 +6,18 @@
 Every run is ``paper-boat`` (or ``--scenario``) in virtual time through the same code as
 ``gcs simulate``; variant k and the base see the same icebergs for a seed (paired runs). A
 variant is ``objective[:tau][+option...]``; options: ``old-idle`` (the idle-UAV rule before
-issue 12: nearest target even if another UAV flies there). For each (fleet size, variant)
-it prints the run-average uncertainty (mean over seeds), the paired difference to the base
-in % (mean of the per-seed ratio - 1, with a 95 % t interval) and wins/losses (seeds where
-the variant is lower/higher), then the bounded rates over seeds with 95 % Wilson intervals:
-``trend`` (metrics.json ``bounded_trend``: the robust trend of the second half, relative to
-its level, at most 0.25) and ``ratio`` (the first definition, ``bounded``). ``--json``
-writes every run's figures; ``--report FILE`` prints the tables again from such a file.
+issue 12: nearest target even if another UAV flies there). ``--still``: icebergs that do
+not drift (a level control for the bounded statistic); ``--commit-loiter S``: the daemon's
+policy (event-based, committed, S-second loiters) instead of the scenario's.
+
+For each (fleet size, variant) it prints the run-average uncertainty (mean over seeds), the
+paired difference to the base in % (mean of the per-seed ratio - 1, with a 95 % t interval)
+and wins/losses (seeds where the variant is lower/higher), then the bounded rates over
+seeds with 95 % Wilson intervals: ``trend`` (metrics.json ``bounded_trend``: the robust
+trend of the second half, relative to its level, at most 0.5) and ``ratio`` (the first
+definition, ``bounded``), and a last table of how many runs each trend bound would pass.
+``--json`` writes every run's figures; ``--report FILE`` prints the tables again from such
+a file.
 """
 
 from __future__ import annotations
@@ -28,7 +33,7 @@ from concurrent.futures import ProcessPoolExecutor
 from dataclasses import replace
 from typing import Any
 
-Job = tuple[str, str, int, int, float | None]
+Job = tuple[str, str, int, int, float | None, bool, float | None]
 
 
 def _old_idle_assignment(inst: Any, routes: Sequence[Sequence[int]]) -> dict[str, str]:
@@ -54,16 +59,24 @@ def _one(job: Job) -> dict[str, Any]:
     from groundstation.runners.simulate import SimulationOptions, run_simulation
     from world.scenario import load_scenario
 
-    scenario_name, variant, uavs, seed, duration = job
+    scenario_name, variant, uavs, seed, duration, still, loiter_s = job
     objective, tau, options = parse_variant(variant)
     original = planner.solve.idle_assignment
     if "old-idle" in options:
-        planner.solve.idle_assignment = _old_idle_assignment  # type: ignore[assignment]
+        planner.solve.idle_assignment = _old_idle_assignment
     try:
         scenario = load_scenario(scenario_name)
         spec = replace(scenario.planner, objective=objective,
                        tau=scenario.planner.tau if tau is None else tau)
         scenario = replace(scenario, planner=spec)
+        if loiter_s is not None:  # the daemon's policy: event-based, committed, loiters
+            scenario = replace(
+                scenario, policy=replace(scenario.policy, replan="event", period_s=None,
+                                         commit=True),
+                fleet=replace(scenario.fleet, loiter_s=loiter_s))
+        if still and scenario.random_targets is not None:
+            scenario = replace(scenario, random_targets=replace(
+                scenario.random_targets, vx_m_s=(0.0, 0.0), vy_m_s=(0.0, 0.0)))
         m = run_simulation(scenario, SimulationOptions(
             seed=seed, uavs=uavs, duration_s=duration, snapshot_times_s=(1.0,))).metrics
     finally:
@@ -88,16 +101,23 @@ def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
     return max(0.0, centre - half), min(1.0, centre + half)
 
 
+def t_quantile_975(df: int) -> float:
+    """Student's t 97.5 % quantile: exact for df <= 30 (table), Cornish-Fisher above."""
+    table = (12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228, 2.201,
+             2.179, 2.160, 2.145, 2.131, 2.120, 2.110, 2.101, 2.093, 2.086, 2.080, 2.074,
+             2.069, 2.064, 2.060, 2.056, 2.052, 2.048, 2.045, 2.042)
+    if df <= len(table):
+        return table[df - 1]
+    z = 1.959964
+    return z + (z**3 + z) / (4 * df) + (5 * z**5 + 16 * z**3 + 3 * z) / (96 * df**2)
+
+
 def paired(diffs: Sequence[float]) -> tuple[float, float]:
     """Mean and half-width of the 95 % t interval."""
-    from scipy.stats import t as student_t
-
     if len(diffs) < 2:
         return (diffs[0] if diffs else 0.0), math.inf
-    sd = statistics.stdev(diffs)
-    return statistics.fmean(diffs), float(student_t.ppf(0.975, len(diffs) - 1)) * sd / math.sqrt(
-        len(diffs)
-    )
+    half = t_quantile_975(len(diffs) - 1) * statistics.stdev(diffs) / math.sqrt(len(diffs))
+    return statistics.fmean(diffs), half
 
 
 def _rate(rows: list[dict[str, Any]], key: str) -> str:
@@ -141,6 +161,21 @@ def report(rows: list[dict[str, Any]], base: str) -> str:
     return "\n".join(lines)
 
 
+def threshold_table(rows: list[dict[str, Any]], bounds: Sequence[float]) -> str:
+    """Runs whose trend is at most each bound (bounded), per (variant, fleet size)."""
+    lines = ["| UAVs | variant | median trend | " + " | ".join(f"trend <= {b:g}" for b in bounds)
+             + " |", "|---|---|---|" + "---|" * len(bounds)]
+    for uavs in sorted({r["uavs"] for r in rows}):
+        for variant in dict.fromkeys(r["variant"] for r in rows):
+            trends = [r["trend"] for r in rows if r["variant"] == variant and r["uavs"] == uavs
+                      and r["trend"] is not None]
+            if not trends:
+                continue
+            counts = " | ".join(f"{sum(t <= b for t in trends)}/{len(trends)}" for b in bounds)
+            lines.append(f"| {uavs} | {variant} | {statistics.median(trends):.2f} | {counts} |")
+    return "\n".join(lines)
+
+
 def _sizes(text: str) -> list[int]:
     out: list[int] = []
     for part in text.split(","):
@@ -159,6 +194,13 @@ def main() -> int:
     parser.add_argument("--base", default=None, help="variant the others are paired with "
                         "(default: the first)")
     parser.add_argument("--duration", type=float, default=None)
+    parser.add_argument("--still", action="store_true", help="icebergs that do not drift "
+                        "(a level control for the bounded statistic)")
+    parser.add_argument("--commit-loiter", type=float, default=None, metavar="S",
+                        help="the daemon's policy instead of the scenario's: event-based "
+                        "replanning, commitment, loiters of S seconds")
+    parser.add_argument("--thresholds", default="0.25,0.4,0.5,0.6",
+                        help="trend bounds to count runs against (last table)")
     parser.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
     parser.add_argument("--json", help="also write every run's figures to this file")
     parser.add_argument("--report", help="print the tables from a --json file and exit")
@@ -169,11 +211,13 @@ def main() -> int:
         with open(args.report, encoding="utf-8") as handle:
             rows = json.load(handle)
         print(report(rows, base))
+        print()
+        print(threshold_table(rows, [float(x) for x in args.thresholds.split(",")]))
         return 0
     if base not in variants:
         variants.insert(0, base)
     jobs: list[Job] = [
-        (args.scenario, variant, uavs, seed, args.duration)
+        (args.scenario, variant, uavs, seed, args.duration, args.still, args.commit_loiter)
         for uavs in _sizes(args.uavs)
         for variant in variants
         for seed in range(args.first_seed, args.first_seed + args.seeds)
@@ -182,6 +226,8 @@ def main() -> int:
     with ProcessPoolExecutor(max_workers=args.jobs) as pool:
         rows = list(pool.map(_one, jobs, chunksize=4))
     print(report(rows, base))
+    print()
+    print(threshold_table(rows, [float(x) for x in args.thresholds.split(",")]))
     rtf = statistics.median(r["rtf"] for r in rows)
     print(f"\nmedian real-time factor {rtf:.0f}x", file=sys.stderr)
     if args.json:

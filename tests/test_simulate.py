@@ -192,3 +192,17 @@ def test_cli_full_disk_is_one_line_and_leaves_no_half_file(
     assert err == f"gcs simulate: error: cannot write {tmp_path / 'metrics.json'}: " \
         "No space left on device"
     assert list(tmp_path.iterdir()) == []  # no empty metrics.json, no temporary file
+
+
+@pytest.mark.parametrize("objective", ["sequence", "latency"])
+def test_first_plan_sends_each_uav_to_its_own_iceberg(objective: str) -> None:
+    """At t = 0 the three UAVs leave the boat together; the idle-UAV rule once sent idle
+    ones to the nearest iceberg, the one another UAV already flew to (all three to one)."""
+    options = SimulationOptions(seed=0, uavs=3, duration_s=12.0, snapshot_times_s=NO_SNAPSHOTS,
+                                objective=objective, journal=True)
+    run = run_simulation(load_scenario("paper-boat"), options)
+    plans = [r for r in run.journal if r["event"] == "plan"]
+    assert len(plans) >= 2  # t = 0, 5 and 10 s
+    for plan in plans:
+        targets = list(plan["assignments"].values())
+        assert len(targets) == 3 and len(set(targets)) == 3, plan["assignments"]
