@@ -6,18 +6,23 @@
 Every run is ``paper-boat`` (or ``--scenario``) in virtual time through the same code as
 ``gcs simulate``; variant k and the base see the same icebergs for a seed (paired runs). A
 variant is ``objective[:tau][+option...]``; options: ``old-idle`` (the idle-UAV rule before
-issue 12: nearest target even if another UAV flies there). ``--still``: icebergs that do
-not drift (a level control for the bounded statistic); ``--commit-loiter S``: the daemon's
-policy (event-based, committed, S-second loiters) instead of the scenario's.
+issue 12: nearest target even if another UAV flies there), ``point30`` (the planner sees
+every sigma predicted 30 s ahead) and ``growth`` (time-integrated uncertainty with each
+track's growth, linearised; both in growth_weights.py, for the latency objective).
+``--still``: icebergs that do not drift (a level control for the bounded statistic);
+``--commit-loiter S``: the daemon's policy (event-based, committed, S-second loiters)
+instead of the scenario's.
 
 For each (fleet size, variant) it prints the run-average uncertainty (mean over seeds), the
 paired difference to the base in % (mean of the per-seed ratio - 1, with a 95 % t interval)
 and wins/losses (seeds where the variant is lower/higher), then the bounded rates over
 seeds with 95 % Wilson intervals: ``trend`` (metrics.json ``bounded_trend``: the robust
 trend of the second half, relative to its level, at most 0.5) and ``ratio`` (the first
-definition, ``bounded``), and a last table of how many runs each trend bound would pass.
+definition, ``bounded``); a table of how many runs each trend bound would pass; and the
+revisits (a target visited again: share within 40 s, median and 90th percentile gap).
 ``--json`` writes every run's figures; ``--report FILE`` prints the tables again from such
-a file.
+a file (``--base`` may name another of its variants). The commands and figures of
+docs/planner.md ("Choosing the objective", "Bounded") come from here; use ``nice -n 10``.
 """
 
 from __future__ import annotations
@@ -55,17 +60,24 @@ def parse_variant(text: str) -> tuple[str, float | None, set[str]]:
 
 
 def _one(job: Job) -> dict[str, Any]:
+    from growth_weights import growth_solver, point_solver
+
+    import groundstation.runners.simulate as simulate
     import planner.solve
     from groundstation.runners.simulate import SimulationOptions, run_simulation
     from world.scenario import load_scenario
 
     scenario_name, variant, uavs, seed, duration, still, loiter_s = job
     objective, tau, options = parse_variant(variant)
-    original = planner.solve.idle_assignment
+    original_idle, original_solve = planner.solve.idle_assignment, simulate.solve_plan
+    scenario = load_scenario(scenario_name)
     if "old-idle" in options:
         planner.solve.idle_assignment = _old_idle_assignment
+    if "point30" in options:
+        simulate.solve_plan = point_solver(scenario.observer.q_per_s, 30.0)
+    if "growth" in options:
+        simulate.solve_plan = growth_solver(scenario.observer.q_per_s)
     try:
-        scenario = load_scenario(scenario_name)
         spec = replace(scenario.planner, objective=objective,
                        tau=scenario.planner.tau if tau is None else tau)
         scenario = replace(scenario, planner=spec)
@@ -80,9 +92,16 @@ def _one(job: Job) -> dict[str, Any]:
         m = run_simulation(scenario, SimulationOptions(
             seed=seed, uavs=uavs, duration_s=duration, snapshot_times_s=(1.0,))).metrics
     finally:
-        planner.solve.idle_assignment = original
+        planner.solve.idle_assignment, simulate.solve_plan = original_idle, original_solve
+    last_seen: dict[str, float] = {}
+    gaps: list[float] = []
+    for visit in m["visits"]:
+        if visit["target"] in last_seen:
+            gaps.append(visit["t_s"] - last_seen[visit["target"]])
+        last_seen[visit["target"]] = visit["t_s"]
     return {
         "variant": variant, "uavs": uavs, "seed": seed, "duration_s": m["duration_s"],
+        "revisit_gaps_s": gaps,
         "mean": m["mean_uncertainty"], "max": m["max_uncertainty"],
         "bounded": m["bounded"], "ratio": m["boundedness_ratio"],
         "bounded_trend": m["bounded_trend"], "trend": m["trend"],
@@ -176,6 +195,24 @@ def threshold_table(rows: list[dict[str, Any]], bounds: Sequence[float]) -> str:
     return "\n".join(lines)
 
 
+def revisit_table(rows: list[dict[str, Any]]) -> str:
+    """Revisits (a target visited again): share within 40 s of the last visit, median and
+    90th percentile of the gap, over every run of a (variant, fleet size)."""
+    lines = ["| UAVs | variant | revisits | within 40 s | median gap (s) | 90th pct gap (s) |",
+             "|---|---|---|---|---|---|"]
+    for uavs in sorted({r["uavs"] for r in rows}):
+        for variant in dict.fromkeys(r["variant"] for r in rows):
+            gaps = sorted(g for r in rows if r["variant"] == variant and r["uavs"] == uavs
+                          for g in r.get("revisit_gaps_s", []))
+            if not gaps:
+                continue
+            q90 = gaps[min(len(gaps) - 1, int(0.9 * len(gaps)))]
+            lines.append(f"| {uavs} | {variant} | {len(gaps)} |"
+                         f" {100 * sum(g < 40.0 for g in gaps) / len(gaps):.0f} % |"
+                         f" {statistics.median(gaps):.0f} | {q90:.0f} |")
+    return "\n".join(lines)
+
+
 def _sizes(text: str) -> list[int]:
     out: list[int] = []
     for part in text.split(","):
@@ -213,6 +250,8 @@ def main() -> int:
         print(report(rows, base))
         print()
         print(threshold_table(rows, [float(x) for x in args.thresholds.split(",")]))
+        print()
+        print(revisit_table(rows))
         return 0
     if base not in variants:
         variants.insert(0, base)
@@ -228,6 +267,8 @@ def main() -> int:
     print(report(rows, base))
     print()
     print(threshold_table(rows, [float(x) for x in args.thresholds.split(",")]))
+    print()
+    print(revisit_table(rows))
     rtf = statistics.median(r["rtf"] for r in rows)
     print(f"\nmedian real-time factor {rtf:.0f}x", file=sys.stderr)
     if args.json:
