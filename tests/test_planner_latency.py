@@ -9,15 +9,19 @@ then straight legs), over the targets the 10 % rule keeps.
 from __future__ import annotations
 
 import itertools
+import json
 import math
 import random
 from collections.abc import Mapping, Sequence
+from pathlib import Path
 
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from groundstation.commands.plan import run
 from planner import (
+    Objective,
     PlanningProblem,
     TargetEstimate,
     UavPose,
@@ -71,7 +75,8 @@ def brute_force(p: PlanningProblem) -> float:
 def magnitude(p: PlanningProblem) -> float:
     """Size of L's terms: every target reached after n of the longest legs."""
     targets = kept(p)
-    longest = max((leg_m(p, a, b) for a in (*p.uavs, *targets) for b in targets), default=0.0)
+    starts: list[UavPose | TargetEstimate] = [*p.uavs, *targets]
+    longest = max((leg_m(p, a, b) for a in starts for b in targets), default=0.0)
     return max(1e-9, sum(t.sigma for t in targets) * len(targets) * longest / p.speed_m_s)
 
 
@@ -95,7 +100,7 @@ def problems(draw: st.DrawFn, max_targets: int = 6) -> PlanningProblem:
         turn_radius_m=draw(st.sampled_from([1.0, 105.0, 300.0])),
         tau=draw(st.sampled_from([0.0, 0.5, 1.0])),  # ignored by latency
         mu=draw(st.one_of(st.none(), st.floats(0.001, 10))),  # ignored by latency
-        objective="latency",
+        objective=Objective.LATENCY,
         speed_m_s=draw(st.sampled_from([10.0, 22.0])),
     )
 
@@ -105,7 +110,7 @@ def test_latency_by_hand() -> None:
     p = PlanningProblem(
         uavs=(UavPose("u", 0.0, 0.0, 0.0),),
         targets=(TargetEstimate("a", 100.0, 0.0, 4.0), TargetEstimate("b", 200.0, 0.0, 2.0)),
-        turn_radius_m=1.0, tau=0.5, mu=3.0, objective="latency", speed_m_s=20.0,
+        turn_radius_m=1.0, tau=0.5, mu=3.0, objective=Objective.LATENCY, speed_m_s=20.0,
     )
     r = solve_plan(p)
     assert r.routes == {"u": ["a", "b"]}
@@ -136,7 +141,7 @@ def test_cpsat_alone_is_exact_for_weighted_hops(objective: str, seed: int) -> No
                            rng.uniform(-3, 3)) for k in range(2)),
         targets=tuple(TargetEstimate(f"t{k}", rng.uniform(0, 1500), rng.uniform(0, 1500),
                                      rng.uniform(1, 100)) for k in range(7)),
-        turn_radius_m=105.0, tau=0.0, objective=objective,
+        turn_radius_m=105.0, tau=0.0, objective=Objective(objective),
     )
     inst = build_instance(p)
     outcome = CpSatRun(inst, "circuit").solve(20.0)
@@ -153,7 +158,7 @@ def test_latency_is_arrival_at_tau_zero_rescaled(p: PlanningProblem) -> None:
     L* = (J* + (N - 1) S) d_avg / V."""
     lat = solve_plan(p)
     arr = solve_plan(PlanningProblem(p.uavs, p.targets, p.turn_radius_m, tau=0.0,
-                                     objective="arrival", speed_m_s=p.speed_m_s))
+                                     objective=Objective.ARRIVAL, speed_m_s=p.speed_m_s))
     inst = build_instance(p)
     shifted = (arr.objective + (inst.n_nodes - 1) * inst.sigma.sum()) * inst.d_avg
     assert close(lat.objective, shifted / p.speed_m_s, p)
@@ -175,7 +180,7 @@ def fleets(draw: st.DrawFn) -> PlanningProblem:
     targets = tuple(TargetEstimate(f"t{k}", draw(xy), draw(xy), draw(st.floats(1.0, 1e4)))
                     for k in range(n))
     return PlanningProblem(uavs, targets, 105.0, tau=draw(st.sampled_from([0.0, 0.5, 0.9])),
-                           objective=draw(st.sampled_from(["sequence", "arrival", "latency"])))
+                           objective=draw(st.sampled_from(list(Objective))))
 
 
 @settings(max_examples=80, deadline=None)
@@ -211,3 +216,20 @@ def test_idle_uavs_take_the_closest_free_targets() -> None:
     free = sorted((t for t in ("A", "B", "C") if t != first),
                   key=lambda t: {"A": 3000.0, "B": 2700.0, "C": 2400.0}[t])
     assert r.idle == {"u2": free[0], "u3": free[1]}
+
+
+def test_gcs_plan_latency(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """`gcs plan` accepts the latency objective and reports J = f1 = L, f2 = 0, mu = 0."""
+    problem = {
+        "uavs": [{"id": "u", "x": 0.0, "y": 0.0, "heading": 0.0}],
+        "targets": [{"id": "a", "x": 100.0, "y": 0.0, "sigma": 4.0},
+                    {"id": "b", "x": 200.0, "y": 0.0, "sigma": 2.0}],
+        "turn_radius": 1.0, "objective": "latency", "speed_m_s": 20.0,
+    }
+    path = tmp_path / "p.json"
+    path.write_text(json.dumps(problem))
+    assert run([str(path)]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["routes"] == {"u": ["a", "b"]} and out["status"] == "optimal"
+    assert out["objective"] == pytest.approx(40.0) and out["f1"] == pytest.approx(40.0)
+    assert out["f2"] == 0.0 and out["mu"] == 0.0
