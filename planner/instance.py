@@ -14,10 +14,22 @@ Writing H_i for the hop count p_i, F1 = (N - 1) S - sum_i sigma_i H_i with S = s
 "arrival" replaces the hop count by the arrival time in units of the mean hop time:
 H_i = (D_i / speed) / (d_avg / speed) = D_i / d_avg, D_i = path length (m) to target i,
 i.e. F1' = sum_i sigma_i (N - 1 - arrival_i / T_hop), T_hop = d_avg / speed_m_s. (If
-d_avg = 0 every D_i is 0 and H_i = 0.) Both are "cumulative hop" objectives with hop
-length h_ij = 1 (sequence) or h_ij = d_ij / d_avg (arrival), and a path's cost can be
-summed over arcs: arc (i -> j) costs tau mu d_ij + (1 - tau) h_ij R_j, where R_j is the sigma
-of j and of every target after it on the path.
+d_avg = 0 every D_i is 0 and H_i = 0.)
+
+"latency" (sigma-weighted arrival time, m^2 s) has no distance term, no tau and no mu:
+
+    J = L = sum_i sigma_i a_i,   a_i = D_i / speed_m_s   (s).
+
+L is the first-order time-integrated uncertainty: if every track kept its sigma_i until the
+visit and dropped to 0 then, integral_0^T sum_i sigma_i(t) dt = sum_i sigma_i a_i for any
+horizon T past the last arrival. (The distance is in a_i already; "arrival" with tau > 0
+counts it twice.) Here H_i = a_i, the hop length is h_ij = d_ij / speed_m_s, tau is taken
+as 0, mu is reported as 0, the constant is 0; F1 = L and F2 = 0.
+
+All three are "cumulative hop" objectives and a path's cost is a sum over its arcs: arc
+(i -> j) costs a d_ij + b h_ij R_j, where R_j is the sigma of j and of every target after it
+on the path, a = tau mu (`arc_weight`), b = 1 - tau, h_ij = 1 (sequence), d_ij / d_avg
+(arrival) or d_ij / speed_m_s (latency); J = constant + sum of arc costs.
 
 mu = F1max / F2avg unless given; F2avg = d_avg (N - m); F1max = sum_k sigma_(k) (N - t_k),
 sigma sorted descending, t_k = 2 + k // m; mu = 1 if either is 0.
@@ -33,7 +45,7 @@ import numpy as np
 import numpy.typing as npt
 
 from planner.dubins import dubins_distance_to_point
-from planner.problem import PlanningProblem, ProblemError
+from planner.problem import Objective, PlanningProblem, ProblemError
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -65,19 +77,31 @@ class Instance:
     m: int
     n: int
     d: FloatArray  # N x N distances (m)
-    hop: FloatArray  # N x N hop lengths (1 or d / d_avg)
+    hop: FloatArray  # N x N hop lengths (1, d / d_avg or d / speed_m_s)
     sigma: FloatArray  # length n, kept targets
-    mu: float
+    mu: float  # 0 for latency
     d_avg: float
-    tau: float
+    tau: float  # the problem's tau; 0 for latency
 
     @property
     def n_nodes(self) -> int:
         return self.m + self.n
 
     @property
+    def latency(self) -> bool:
+        """The latency objective: J = sum sigma_i a_i, no constant, no distance term."""
+        return self.problem.objective == Objective.LATENCY
+
+    @property
+    def unit_hops(self) -> bool:
+        """Every hop length is 1 (the sequence objective)."""
+        return self.problem.objective == Objective.SEQUENCE
+
+    @property
     def constant(self) -> float:
-        """-(1 - tau) (N - 1) S: the route-independent part of J."""
+        """The route-independent part of J: -(1 - tau) (N - 1) S, or 0 for latency."""
+        if self.latency:
+            return 0.0
         return -(1.0 - self.tau) * (self.n_nodes - 1) * float(self.sigma.sum())
 
     def arc_weight(self) -> FloatArray:
@@ -100,8 +124,8 @@ class Instance:
         return cost
 
     def evaluate(self, routes: Sequence[Sequence[int]]) -> tuple[float, float, float]:
-        """(J, F1, F2) of a full plan (one route per UAV)."""
-        f1 = (self.n_nodes - 1) * float(self.sigma.sum())
+        """(J, F1, F2) of a full plan (one route per UAV); for latency (L, L, 0)."""
+        weighted = 0.0  # sum_i sigma_i H_i
         dist = 0.0
         m = self.m
         for u, route in enumerate(routes):
@@ -111,8 +135,11 @@ class Instance:
                 node = m + k
                 hops += self.hop[prev, node]
                 dist += self.d[prev, node]
-                f1 -= self.sigma[k] * hops
+                weighted += self.sigma[k] * hops
                 prev = node
+        if self.latency:
+            return weighted, weighted, 0.0
+        f1 = (self.n_nodes - 1) * float(self.sigma.sum()) - weighted
         f2 = self.mu * dist
         return -(1.0 - self.tau) * f1 + self.tau * f2, f1, f2
 
@@ -148,8 +175,12 @@ def build_instance(problem: PlanningProblem) -> Instance:
         f1m = f1_max(sigma.tolist(), m, size) if m else 0.0
         f2avg = d_avg * (size - m)
         mu = f1m / f2avg if f1m != 0.0 and f2avg != 0.0 else 1.0
-    if problem.objective == "arrival":
+    tau = problem.tau
+    if problem.objective == Objective.ARRIVAL:
         hop = d / d_avg if d_avg > 0.0 else np.zeros_like(d)
+    elif problem.objective == Objective.LATENCY:
+        hop = d / problem.speed_m_s
+        tau, mu = 0.0, 0.0
     else:
         hop = np.ones_like(d)
     if not math.isfinite(mu):
@@ -165,5 +196,5 @@ def build_instance(problem: PlanningProblem) -> Instance:
         sigma=sigma,
         mu=mu,
         d_avg=d_avg,
-        tau=problem.tau,
+        tau=tau,
     )

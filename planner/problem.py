@@ -6,7 +6,7 @@ Problem JSON (all planar metres, headings in radians counter-clockwise from +x):
      "targets": [{"id": "t1", "x": 10, "y": 5, "sigma": 3.0}, ...],
      "turn_radius": 105.0, "tau": 0.5,
      "mu": null | float, "min_sigma_fraction": 0.1, "time_limit_s": 5.0,
-     "objective": "sequence" | "arrival", "speed_m_s": 22.0}
+     "objective": "sequence" | "arrival" | "latency", "speed_m_s": 22.0}
 
 `uavs`, `targets` and `turn_radius` are required; any other key is an error.
 """
@@ -24,11 +24,14 @@ from domain.limits import MAX_FLEET, MAX_TARGETS
 
 
 class Objective(StrEnum):
-    """The objective: the paper's ``sequence`` (position-weighted uncertainty) or
-    ``arrival`` (uncertainty at the predicted arrival time)."""
+    """The objective (equations in planner.instance and docs/planner.md): the paper's
+    ``sequence`` (uncertainty weighted by position in the sequence), ``arrival`` (the same
+    with the position replaced by the arrival time in mean hops, plus the distance term) or
+    ``latency`` (sum of sigma times arrival time in seconds: no distance term, no tau/mu)."""
 
     SEQUENCE = "sequence"
     ARRIVAL = "arrival"
+    LATENCY = "latency"
 
 
 class PlanStatus(StrEnum):

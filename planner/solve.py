@@ -59,15 +59,34 @@ def hint_routes(inst: Instance, hint: Mapping[str, Sequence[str]]) -> list[list[
 
 
 def idle_assignment(inst: Instance, routes: Sequence[Sequence[int]]) -> dict[str, str]:
-    """Idle-UAV rule: a UAV with an empty route goes to its nearest kept target (Dubins)."""
+    """Idle-UAV rule: UAVs whose route is empty get distinct targets no route starts with.
+
+    Repeatedly the closest pair (idle UAV, free target) by Dubins distance is matched (ties:
+    UAV, then target, in input order), where a target is free if it is no route's first
+    target and no idle UAV has it yet. Only when no free target is left (more UAVs than
+    kept targets) does an idle UAV share one: its nearest kept target. Sending an idle UAV
+    where another UAV already flies sent all three UAVs to one iceberg at t = 0 of
+    paper-boat (docs/planner.md, "Idle UAVs").
+    """
     out: dict[str, str] = {}
     if inst.n == 0:
         return out
-    for u, route in enumerate(routes):
-        if not route:
-            row = inst.d[u, inst.m :]
-            out[inst.problem.uavs[u].id] = inst.target_id(int(row.argmin()))
-    return out
+    m = inst.m
+    idle = [u for u, route in enumerate(routes) if not route]
+    taken = {route[0] for route in routes if route}
+    pairs = sorted(
+        (float(inst.d[u, m + k]), u, k) for u in idle for k in range(inst.n) if k not in taken
+    )
+    for _, u, k in pairs:
+        if k in taken or inst.problem.uavs[u].id in out:
+            continue
+        out[inst.problem.uavs[u].id] = inst.target_id(k)
+        taken.add(k)
+    for u in idle:
+        uav_id = inst.problem.uavs[u].id
+        if uav_id not in out:
+            out[uav_id] = inst.target_id(int(inst.d[u, m:].argmin()))
+    return {inst.problem.uavs[u].id: out[inst.problem.uavs[u].id] for u in idle}
 
 
 class PlanSolver:

@@ -41,6 +41,7 @@ events:
   - {t_s: 70, kind: resume, vehicle: "2"}
   - {t_s: 90, kind: battery_low, vehicle: "3"}
 observer: {model: kalman, q_per_s: 0.01, iceberg_q_per_s: 0.0005}
+planner: {objective: sequence, tau: 0.5}   # tau matters to it (the default, latency, has none)
 policy: {replan: event, commit: true}
 """
 

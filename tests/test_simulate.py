@@ -31,6 +31,8 @@ def test_three_uavs_keep_uncertainty_bounded_where_one_cannot() -> None:
     one = [simulate("paper-boat", 1, seed) for seed in range(4)]
     three = [simulate("paper-boat", 3, seed) for seed in range(4)]
     assert not any(m["bounded"] for m in one)
+    assert not any(m["bounded_trend"] for m in one)  # the trend test (metrics.trend_growth)
+    assert all(m["trend"] > 0.5 for m in one)
     assert sum(m["bounded"] for m in three) >= 3
     for m1, m3 in zip(one, three, strict=True):
         assert m3["mean_uncertainty"] < m1["mean_uncertainty"] / 3
@@ -190,3 +192,17 @@ def test_cli_full_disk_is_one_line_and_leaves_no_half_file(
     assert err == f"gcs simulate: error: cannot write {tmp_path / 'metrics.json'}: " \
         "No space left on device"
     assert list(tmp_path.iterdir()) == []  # no empty metrics.json, no temporary file
+
+
+@pytest.mark.parametrize("objective", ["sequence", "latency"])
+def test_first_plan_sends_each_uav_to_its_own_iceberg(objective: str) -> None:
+    """At t = 0 the three UAVs leave the boat together; the idle-UAV rule once sent idle
+    ones to the nearest iceberg, the one another UAV already flew to (all three to one)."""
+    options = SimulationOptions(seed=0, uavs=3, duration_s=12.0, snapshot_times_s=NO_SNAPSHOTS,
+                                objective=objective, journal=True)
+    run = run_simulation(load_scenario("paper-boat"), options)
+    plans = [r for r in run.journal if r["event"] == "plan"]
+    assert len(plans) >= 2  # t = 0, 5 and 10 s
+    for plan in plans:
+        targets = list(plan["assignments"].values())
+        assert len(targets) == 3 and len(set(targets)) == 3, plan["assignments"]

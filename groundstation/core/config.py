@@ -76,7 +76,7 @@ class CoreConfig:
     loiter_s: float = 30.0
     loiter_radius_m: float = 120.0
     tau: float = 0.5
-    objective: Objective = Objective.SEQUENCE
+    objective: Objective = Objective.LATENCY  # docs/planner.md, "Choosing the objective"
     time_limit_s: float = 2.0
     min_sigma_fraction: float = 0.1
     retarget_threshold_m: float = 50.0
