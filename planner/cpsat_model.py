@@ -30,9 +30,13 @@ import threading
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+import numpy as np
+import numpy.typing as npt
 from ortools.sat.python import cp_model
 
 from planner.instance import Instance
+
+BoolArray = npt.NDArray[np.bool_]
 
 _MAX_COEF = 1e8  # largest scaled objective coefficient
 
@@ -53,7 +57,14 @@ class CpSatOutcome:
 class CpSatRun:
     """Build one model; solve() may be interrupted by stop() from another thread."""
 
-    def __init__(self, inst: Instance, model: str = "auto") -> None:
+    def __init__(
+        self,
+        inst: Instance,
+        model: str = "auto",
+        keep: tuple[BoolArray, BoolArray] | None = None,
+    ) -> None:
+        """`keep` (position model): (first[u, j], arc[p, i, j]) masks of the variables to
+        create (planner.bound.keep_columns: the others cannot improve on the hint)."""
         if model == "auto":
             model = (
                 "position" if inst.problem.objective == "sequence" and inst.n <= 25 else "circuit"
@@ -70,6 +81,7 @@ class CpSatRun:
         self.arcs: dict[tuple[int, int, int], cp_model.IntVar] = {}  # (i, j, p), p=0 circuit
         self.empty: dict[int, cp_model.IntVar] = {}  # circuit: UAV u -> depot
         self.last: dict[int, cp_model.IntVar] = {}  # circuit: target i -> depot
+        self.keep = keep
         if model == "position":
             self._build_position()
         else:
@@ -93,9 +105,12 @@ class CpSatRun:
         into: list[list[cp_model.IntVar]] = [[] for _ in range(n)]
         at: list[list[list[cp_model.IntVar]]] = [[[] for _ in range(n + 1)] for _ in range(n)]
         out: list[list[list[cp_model.IntVar]]] = [[[] for _ in range(n + 1)] for _ in range(n)]
+        keep_first, keep_arc = self.keep if self.keep is not None else (None, None)
         for u in range(m):
             lits = []
             for j in range(n):
+                if keep_first is not None and not keep_first[u, j]:
+                    continue
                 var = md.new_bool_var(f"a_{u}_{j}")
                 self.first[(u, j)] = var
                 lits.append(var)
@@ -105,9 +120,11 @@ class CpSatRun:
                 obj_coefs.append(round(scale * (w[u, m + j] + b * sigma[j])))
             md.add_at_most_one(lits)
         for p in range(2, n + 1):
+            if keep_arc is not None and not keep_arc[p].any():
+                continue
             for i in range(n):
                 for j in range(n):
-                    if i == j:
+                    if i == j or (keep_arc is not None and not keep_arc[p, i, j]):
                         continue
                     var = md.new_bool_var(f"z_{i}_{j}_{p}")
                     self.arcs[(i, j, p)] = var
@@ -125,7 +142,8 @@ class CpSatRun:
         for p in range(2, n + 1):
             here = [v for j in range(n) for v in at[j][p]]
             before = [v for j in range(n) for v in at[j][p - 1]]
-            md.add(_sum(here) <= _sum(before))
+            if here:
+                md.add(_sum(here) <= _sum(before))
         md.minimize(cp_model.LinearExpr.weighted_sum(obj_vars, obj_coefs))
 
     def _build_circuit(self) -> None:
