@@ -120,7 +120,8 @@ def _arc_index(n: int) -> tuple[IntArray, IntArray]:
 
 
 def lp_bound(inst: Instance, layers: int, time_limit_s: float) -> LpBound | None:
-    """Solve the layered LP with P = `layers` positions; None if HiGHS does not finish."""
+    """Solve the layered LP with P = `layers` positions (at least 2 when n >= 2); None if
+    HiGHS does not finish within `time_limit_s`."""
     import time
 
     from scipy.optimize import linprog
@@ -135,7 +136,7 @@ def lp_bound(inst: Instance, layers: int, time_limit_s: float) -> LpBound | None
     hop = inst.hop
     sigma = inst.sigma
     hm = h_min(inst)
-    layers = min(layers, n)
+    layers = max(min(layers, n), min(2, n))  # with n >= 2 the absorbing layer needs P >= 2
     absorbing = layers < n
     # -- columns: a[u, j] (u-major), then z[i, j, p] for p = 2..P, arcs i-major within p
     ai, aj = np.divmod(np.arange(m * n, dtype=np.int64), n)
