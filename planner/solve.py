@@ -186,7 +186,7 @@ class PlanSolver:
         if method == "auto":
             sequence = problem.objective == "sequence"
             kind = "position" if sequence and n <= POSITION_MODEL_MAX_TARGETS else "circuit"
-        mid = kind == "position"
+        mid = n <= POSITION_MODEL_MAX_TARGETS  # CP-SAT usually proves these: it gets the time
         if method != "heuristic" and not self.deterministic:
             load_lp(limit)
         # -- heuristic start
@@ -217,7 +217,8 @@ class PlanSolver:
             routes, best_cost = ls.run(routes, 10**9, patience=patience)
         if method == "heuristic" or stop():
             hit = not stop()
-            return self._result(inst, routes, PlanStatus.FALLBACK, "greedy+ils", start, hit, None)
+            bound = in_arc_bound(inst)
+            return self._result(inst, routes, PlanStatus.FALLBACK, "greedy+ils", start, hit, bound)
         # -- proven lower bound
         lp = self._lp(inst, mid, end, limit)
         bound = in_arc_bound(inst)
@@ -312,10 +313,12 @@ class PlanSolver:
         hit: bool,
         bound: float | None,
     ) -> PlanResult:
-        """`bound` None: proven optimal (bound = objective)."""
+        """`bound`: a proven lower bound on J; ignored (= the objective) when optimal."""
         objective, f1, f2 = inst.evaluate(routes)
-        if status is PlanStatus.OPTIMAL or bound is None:
+        if status is PlanStatus.OPTIMAL:
             bound = objective
+        elif bound is None:
+            bound = in_arc_bound(inst)
         bound = min(bound, objective)
         uavs = inst.problem.uavs
         return PlanResult(

@@ -158,6 +158,7 @@ def check_bound_and_gap(p: PlanningProblem, **kw: object) -> PlanStatus:
         assert r.bound == r.objective and r.gap == 0.0
     else:
         assert r.gap is not None and r.gap >= 0.0
+        assert r.bound < r.objective  # an unproven plan never claims a zero gap here
     if dp_is_cheap(inst.m, inst.n) and inst.n:
         assert r.bound <= optimum(inst) + slack(inst, r.objective)
     d = result_to_dict(r)
