@@ -204,7 +204,10 @@ class PlanSolver:
             if hinted is not None and ls.coster.total(hinted) < best_cost:
                 routes, best_cost = hinted, ls.coster.total(hinted)
         # mid-size: CP-SAT usually proves optimality, keep the search short; large: the ILS
-        # does the work (CP-SAT rarely improves a good plan within seconds).
+        # does the work (CP-SAT rarely improves a good plan within seconds). The LP runs
+        # early (after 30 % of the limit) so that the local search after it absorbs any
+        # overrun of the LP under load; then the search goes on to 70 % of the limit, and
+        # to the end unless the circuit model (<= 60 targets) can still be built and run.
         ls_share = 0.1 if mid else 0.7
         if method == "heuristic":
             ls_share = 1.0
@@ -212,7 +215,8 @@ class PlanSolver:
             iterations = 30 if mid else max(5, 600 // max(n, 1))
             routes, best_cost = ls.run(routes, iterations)
         else:
-            ls_end[0] = min(end, start + ls_share * limit)
+            first = ls_share if mid or method == "heuristic" else 0.3
+            ls_end[0] = min(end, start + first * limit)
             patience = 20 if mid else None
             routes, best_cost = ls.run(routes, 10**9, patience=patience)
         if method == "heuristic" or stop():
@@ -224,6 +228,9 @@ class PlanSolver:
         bound = in_arc_bound(inst)
         if lp is not None:
             bound = max(bound, lp.value)
+        if not mid and not self.deterministic:
+            ls_end[0] = min(end, start + ls_share * limit)
+            routes, best_cost = ls.run(routes, 10**9)
         # -- CP-SAT where it pays, else the local search goes on to the deadline
         use_cpsat = mid or method in ("position", "circuit")
         if not use_cpsat and not self.deterministic and n <= CIRCUIT_MODEL_MAX_TARGETS:
@@ -249,6 +256,8 @@ class PlanSolver:
                 return None
             return lp_bound(inst, layers, max(10.0 * limit, 10.0))
         budget = min(end - self.clock(), 0.25 * limit if not mid else 0.4 * limit)
+        if budget <= 0.0:
+            return None
         layers = n if mid else min(n, max(4, -(-2 * n // m)))
         while layers >= 3 and lp_seconds(lp_columns(n, m, layers)) > budget:
             layers -= 1 if layers <= 8 else max(1, layers // 4)
