@@ -5,9 +5,9 @@ C = Instance.constant, w = tau mu d, b = 1 - tau >= 0, hops h >= 0 and R_j the s
 of every target after it (planner.instance). Equivalently the variable part is
 sum_arcs w_ij + b sum_j sigma_j H_j, where H_j = the hops summed along the path up to j.
 Along a path, the target at position p (p = 1 for a UAV's first target) reached over the arc
-(i -> j) has H_j = h_ij if p = 1 and H_j >= h_ij + (p - 1) h_min otherwise, where h_min is the
-smallest hop of any usable arc (UAV -> target or target -> target). For the sequence objective
-every hop is 1 and this is an equality: H_j = p.
+(i -> j) has H_j = h_ij if p = 1 and H_j = H_i + h_ij >= L[p - 1, i] + h_ij otherwise, where
+L[q, i] bounds the hops of any walk reaching i at position q or later (hops_to_reach). For
+the sequence objective every hop is 1 and this is an equality: H_j = p.
 
 Two bounds, both valid for every objective:
 
@@ -17,7 +17,7 @@ Two bounds, both valid for every objective:
       J >= C + sum_j min_i (w_ij + b h_ij sigma_j) + b h_min sum_k sigma_(k) (k // m).
 * ``lp_bound``: the layered (position-indexed) LP relaxation. Columns a[u, j] (UAV u flies
   first to j; cost w_uj + b h_uj sigma_j) and z[i, j, p] (j is reached from i at position p,
-  p = 2..P; cost w_ij + b sigma_j (h_ij + (p - 1) h_min)); rows: every target entered once
+  p = 2..P; cost w_ij + b sigma_j (h_ij + L[p - 1, i])); rows: every target entered once
   (= 1), at most one first target per UAV (<= 1), and leaving i into layer p needs i in layer
   p - 1: sum_j z[i, j, p] <= in(i, p - 1). With P < n the last layer is absorbing ("position
   >= P"; its arcs cost as at P, and they may also leave from layer P itself), which keeps the
@@ -95,6 +95,25 @@ def in_arc_bound(inst: Instance) -> float:
     return inst.constant + entry + b * h_min(inst) * _round_robin_extra(inst)
 
 
+def hops_to_reach(inst: Instance) -> FloatArray:
+    """L[p, i] (p = 1..n, row 0 unused): a lower bound on the hops H_i summed along any path
+    that reaches target i at position p or later. With W_p(i) the fewest hops of a walk of
+    exactly p arcs from some UAV to i (W_1(i) = min_u h_ui, W_p(i) = min_k W_(p-1)(k) + h_ki),
+    L[p] = min over q >= p of W_q (a suffix minimum, so it also holds for the absorbing
+    layer). For the sequence objective L[p, i] = p; for hop lengths that differ (arrival)
+    it is much stronger than p h_min."""
+    m, n = inst.m, inst.n
+    walk = np.empty((n + 1, n))
+    walk[0] = np.inf
+    walk[1] = inst.hop[:m, m:].min(axis=0)
+    tt = inst.hop[m:, m:].copy()
+    np.fill_diagonal(tt, np.inf)
+    for p in range(2, n + 1):
+        walk[p] = (walk[p - 1][:, None] + tt).min(axis=0)
+    walk[1:] = np.minimum.accumulate(walk[1:][::-1], axis=0)[::-1]
+    return np.maximum(walk, 0.0)
+
+
 def lp_columns(n: int, m: int, layers: int) -> int:
     """Number of LP columns with `layers` positions."""
     return m * n + max(layers - 1, 0) * n * max(n - 1, 0)
@@ -135,7 +154,7 @@ def lp_bound(inst: Instance, layers: int, time_limit_s: float) -> LpBound | None
     w = inst.arc_weight()
     hop = inst.hop
     sigma = inst.sigma
-    hm = h_min(inst)
+    reach = hops_to_reach(inst)
     layers = max(min(layers, n), min(2, n))  # with n >= 2 the absorbing layer needs P >= 2
     absorbing = layers < n
     # -- columns: a[u, j] (u-major), then z[i, j, p] for p = 2..P, arcs i-major within p
@@ -147,7 +166,7 @@ def lp_bound(inst: Instance, layers: int, time_limit_s: float) -> LpBound | None
     p_of = np.repeat(np.arange(2, layers + 1, dtype=np.int64), n_arc)
     zi = np.tile(ti, layers - 1)
     zj = np.tile(tj, layers - 1)
-    cost_z = w[m + zi, m + zj] + b * sigma[zj] * (hop[m + zi, m + zj] + (p_of - 1) * hm)
+    cost_z = w[m + zi, m + zj] + b * sigma[zj] * (hop[m + zi, m + zj] + reach[p_of - 1, zi])
     cost = np.concatenate([cost_a, cost_z])
     n_a = m * n
     col_z = n_a + np.arange(n_z, dtype=np.int64)
