@@ -52,6 +52,7 @@ class CpSatOutcome:
     wall_time_s: float
     stopped: bool
     model: str
+    bound: float | None = None  # proven lower bound on J (constant included), if known
 
 
 class CpSatRun:
@@ -82,6 +83,10 @@ class CpSatRun:
         self.empty: dict[int, cp_model.IntVar] = {}  # circuit: UAV u -> depot
         self.last: dict[int, cp_model.IntVar] = {}  # circuit: target i -> depot
         self.keep = keep
+        # objective bound -> J: J >= (scaled bound - slack) / scale + constant, slack the
+        # largest total rounding error of the coefficients a solution can use (None: unknown)
+        self.scale = 1.0
+        self.slack: float | None = None
         if model == "position":
             self._build_position()
         else:
@@ -145,6 +150,7 @@ class CpSatRun:
             if here:
                 md.add(_sum(here) <= _sum(before))
         md.minimize(cp_model.LinearExpr.weighted_sum(obj_vars, obj_coefs))
+        self.scale, self.slack = scale, 0.5 * n  # exactly n variables are 1
 
     def _build_circuit(self) -> None:
         inst, md = self.inst, self.model
@@ -186,6 +192,7 @@ class CpSatRun:
             for j in range(n):
                 terms.append(round(scale * b * sigma[j]) * pos[j])
             md.minimize(sum(terms))
+            self.scale, self.slack = scale, 0.5 * n + 0.5 * n * n  # n arcs, positions <= n
             self._pos = pos
             return
         total = float(sigma.sum())
@@ -302,7 +309,13 @@ class CpSatRun:
             status = "feasible"
         else:
             return CpSatOutcome("none", None, solver.wall_time, stopped, self.kind)
-        return CpSatOutcome(status, self._routes(solver), solver.wall_time, stopped, self.kind)
+        bound = None
+        if self.slack is not None:
+            raw = float(solver.best_objective_bound)
+            if abs(raw) < 1e18:
+                bound = (raw - self.slack) / self.scale + self.inst.constant
+        routes = self._routes(solver)
+        return CpSatOutcome(status, routes, solver.wall_time, stopped, self.kind, bound)
 
     def _routes(self, solver: cp_model.CpSolver) -> list[list[int]]:
         succ: dict[int, int] = {}

@@ -308,6 +308,8 @@ class PlanSolver:
             return self._result(inst, routes, PlanStatus.FALLBACK, "greedy+ils", start, hit, bound)
         if coster.total(outcome.routes) <= best_cost:
             routes = outcome.routes
+        if outcome.bound is not None:
+            bound = max(bound, outcome.bound)
         hit = outcome.status != "optimal" and not outcome.stopped
         status = PlanStatus(outcome.status)
         return self._result(inst, routes, status, name, start, hit, bound)

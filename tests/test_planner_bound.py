@@ -271,3 +271,24 @@ def test_old_record_without_bound_reads_as_none() -> None:
     back = result_from_record(old)
     assert back.bound is None and back.gap is None
     assert replace(back, bound=r.bound, gap=r.gap) == r
+
+
+@pytest.mark.parametrize("model", ["position", "circuit"])
+@pytest.mark.parametrize("seconds", [0.02, 5.0])
+def test_cp_sat_bound_never_exceeds_the_optimum(model: str, seconds: float) -> None:
+    """CP-SAT's objective bound, turned back into J with the coefficients' rounding slack,
+    stays below the DP optimum whether CP-SAT stops early or proves (then it is tight)."""
+    from planner.cpsat_model import CpSatRun
+    from planner.heuristics import greedy
+
+    for seed in range(2):
+        inst = build_instance(random_problem(200 + seed, 3, 11))
+        best = optimum(inst)
+        run = CpSatRun(inst, model)
+        run.add_hint(greedy(inst))
+        out = run.solve(seconds)
+        if out.bound is None:
+            continue
+        assert out.bound <= best + slack(inst, best)
+        if out.status == "optimal":
+            assert best - out.bound <= 1e-6 * abs(best)
