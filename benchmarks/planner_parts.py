@@ -58,8 +58,10 @@ def dp_rows(seeds: int) -> None:
 
 def lp_rows(seeds: int) -> None:
     warm_up()
-    print(f"{'objective':>9} {'size':>6} {'P':>3} {'lp_s med':>8} {'lp_s max':>8} "
-          f"{'lp_gap% med':>11} {'lp_gap% max':>11} {'in-arc gap% med':>15}")
+    print(
+        f"{'objective':>9} {'size':>6} {'P':>3} {'lp_s med':>8} {'lp_s max':>8} "
+        f"{'lp_gap% med':>11} {'lp_gap% max':>11} {'in-arc gap% med':>15}"
+    )
     for objective, m, n, layers in LP_CASES:
         refs, insts = [], []
         for seed in range(seeds):
