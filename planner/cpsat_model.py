@@ -33,9 +33,13 @@ import threading
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+import numpy as np
+import numpy.typing as npt
 from ortools.sat.python import cp_model
 
 from planner.instance import Instance
+
+BoolArray = npt.NDArray[np.bool_]
 
 _MAX_COEF = 1e8  # largest scaled objective coefficient
 _SIGMA_STEPS = 1e7  # flow model: sigma in integer units of 1e-7 of the total
@@ -54,12 +58,20 @@ class CpSatOutcome:
     wall_time_s: float
     stopped: bool
     model: str
+    bound: float | None = None  # proven lower bound on J (constant included), if known
 
 
 class CpSatRun:
     """Build one model; solve() may be interrupted by stop() from another thread."""
 
-    def __init__(self, inst: Instance, model: str = "auto") -> None:
+    def __init__(
+        self,
+        inst: Instance,
+        model: str = "auto",
+        keep: tuple[BoolArray, BoolArray] | None = None,
+    ) -> None:
+        """`keep` (position model): (first[u, j], arc[p, i, j]) masks of the variables to
+        create (planner.bound.keep_columns: the others cannot improve on the hint)."""
         if model == "auto":
             model = (
                 "position" if inst.unit_hops and inst.n <= 25 else "circuit"
@@ -76,6 +88,11 @@ class CpSatRun:
         self.arcs: dict[tuple[int, int, int], cp_model.IntVar] = {}  # (i, j, p), p=0 circuit
         self.empty: dict[int, cp_model.IntVar] = {}  # circuit: UAV u -> depot
         self.last: dict[int, cp_model.IntVar] = {}  # circuit: target i -> depot
+        self.keep = keep
+        # objective bound -> J: J >= (scaled bound - slack) / scale + constant, slack the
+        # largest total rounding error of the coefficients a solution can use (None: unknown)
+        self.scale = 1.0
+        self.slack: float | None = None
         if model == "position":
             self._build_position()
         else:
@@ -99,9 +116,12 @@ class CpSatRun:
         into: list[list[cp_model.IntVar]] = [[] for _ in range(n)]
         at: list[list[list[cp_model.IntVar]]] = [[[] for _ in range(n + 1)] for _ in range(n)]
         out: list[list[list[cp_model.IntVar]]] = [[[] for _ in range(n + 1)] for _ in range(n)]
+        keep_first, keep_arc = self.keep if self.keep is not None else (None, None)
         for u in range(m):
             lits = []
             for j in range(n):
+                if keep_first is not None and not keep_first[u, j]:
+                    continue
                 var = md.new_bool_var(f"a_{u}_{j}")
                 self.first[(u, j)] = var
                 lits.append(var)
@@ -111,9 +131,11 @@ class CpSatRun:
                 obj_coefs.append(round(scale * (w[u, m + j] + b * sigma[j])))
             md.add_at_most_one(lits)
         for p in range(2, n + 1):
+            if keep_arc is not None and not keep_arc[p].any():
+                continue
             for i in range(n):
                 for j in range(n):
-                    if i == j:
+                    if i == j or (keep_arc is not None and not keep_arc[p, i, j]):
                         continue
                     var = md.new_bool_var(f"z_{i}_{j}_{p}")
                     self.arcs[(i, j, p)] = var
@@ -131,8 +153,10 @@ class CpSatRun:
         for p in range(2, n + 1):
             here = [v for j in range(n) for v in at[j][p]]
             before = [v for j in range(n) for v in at[j][p - 1]]
-            md.add(_sum(here) <= _sum(before))
+            if here:
+                md.add(_sum(here) <= _sum(before))
         md.minimize(cp_model.LinearExpr.weighted_sum(obj_vars, obj_coefs))
+        self.scale, self.slack = scale, 0.5 * n  # exactly n variables are 1
 
     def _build_circuit(self) -> None:
         inst, md = self.inst, self.model
@@ -174,6 +198,7 @@ class CpSatRun:
             for j in range(n):
                 terms.append(round(scale * b * sigma[j]) * pos[j])
             md.minimize(sum(terms))
+            self.scale, self.slack = scale, 0.5 * n + 0.5 * n * n  # n arcs, positions <= n
             self._pos = pos
             return
         total = float(sigma.sum())
@@ -300,7 +325,13 @@ class CpSatRun:
             status = "feasible"
         else:
             return CpSatOutcome("none", None, solver.wall_time, stopped, self.kind)
-        return CpSatOutcome(status, self._routes(solver), solver.wall_time, stopped, self.kind)
+        bound = None
+        if self.slack is not None:
+            raw = float(solver.best_objective_bound)
+            if abs(raw) < 1e18:
+                bound = (raw - self.slack) / self.scale + self.inst.constant
+        routes = self._routes(solver)
+        return CpSatOutcome(status, routes, solver.wall_time, stopped, self.kind, bound)
 
     def _routes(self, solver: cp_model.CpSolver) -> list[list[int]]:
         succ: dict[int, int] = {}

@@ -112,7 +112,9 @@ def greedy(inst: Instance, coster: RouteCoster | None = None) -> Routes:
 
 
 class LocalSearch:
-    """Iterated local search. `should_stop` is polled between moves."""
+    """Iterated local search. `should_stop` (the caller's stop flag and deadline) is polled
+    after every improving move and once per outer loop of every neighbourhood scan, so a
+    deadline ends even the first descent within one scan row (O(n) route costs)."""
 
     def __init__(
         self,
@@ -124,6 +126,7 @@ class LocalSearch:
         self.coster = RouteCoster(inst)
         self.rng = random.Random(seed)
         self.should_stop = should_stop or (lambda: False)
+        self.moves = 0  # improving moves applied (tests: the deadline is polled)
 
     # -- descent -------------------------------------------------------------------------
     def descend(self, routes: Routes) -> Routes:
@@ -166,12 +169,15 @@ class LocalSearch:
                     routes[v] = routes[v][:p] + option + routes[v][p:]
                     costs[v] = coster.cost(v, routes[v])
                     found = True
+                    self.moves += 1
                     if self.should_stop():
                         return True
                 else:
                     routes[u] = route
                     costs[u] = saved
                     pos += 1
+                    if self.should_stop():
+                        return found
         return found
 
     def _swap(self, routes: Routes, costs: list[float]) -> bool:
@@ -179,6 +185,8 @@ class LocalSearch:
         found = False
         places = [(u, p) for u, r in enumerate(routes) for p in range(len(r))]
         for a in range(len(places)):
+            if self.should_stop():
+                return found
             for c in range(a + 1, len(places)):
                 (u, p), (v, q) = places[a], places[c]
                 if u == v:
@@ -188,6 +196,7 @@ class LocalSearch:
                     if new < costs[u] - _EPS:
                         routes[u], costs[u] = r, new
                         found = True
+                        self.moves += 1
                 else:
                     r1, r2 = list(routes[u]), list(routes[v])
                     r1[p], r2[q] = r2[q], r1[p]
@@ -195,6 +204,7 @@ class LocalSearch:
                     if n1 + n2 < costs[u] + costs[v] - _EPS:
                         routes[u], routes[v], costs[u], costs[v] = r1, r2, n1, n2
                         found = True
+                        self.moves += 1
         return found
 
     def _two_opt(self, routes: Routes, costs: list[float]) -> bool:
@@ -203,6 +213,8 @@ class LocalSearch:
         for u, route in enumerate(routes):
             size = len(route)
             for i in range(size - 1):
+                if self.should_stop():
+                    return found
                 for j in range(i + 2, size + 1):
                     r = routes[u]
                     cand = r[:i] + r[i:j][::-1] + r[j:]
@@ -210,6 +222,7 @@ class LocalSearch:
                     if new < costs[u] - _EPS:
                         routes[u], costs[u] = cand, new
                         found = True
+                        self.moves += 1
         return found
 
     def _tails(self, routes: Routes, costs: list[float]) -> bool:
@@ -218,6 +231,8 @@ class LocalSearch:
         m = len(routes)
         for u in range(m):
             for v in range(u + 1, m):
+                if self.should_stop():
+                    return found
                 for i in range(len(routes[u]) + 1):
                     for j in range(len(routes[v]) + 1):
                         r1, r2 = routes[u], routes[v]
@@ -229,6 +244,7 @@ class LocalSearch:
                         if n1 + n2 < costs[u] + costs[v] - _EPS:
                             routes[u], routes[v], costs[u], costs[v] = c1, c2, n1, n2
                             found = True
+                            self.moves += 1
         return found
 
     # -- perturbation ----------------------------------------------------------------------

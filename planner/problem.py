@@ -106,6 +106,21 @@ class PlanResult:
     excluded: list[str]
     solve_time_s: float
     hit_time_limit: bool
+    bound: float | None = None  # proven lower bound on `objective` (= it when optimal)
+    gap: float | None = None  # plan_gap(objective, bound)
+
+
+def plan_gap(objective: float, bound: float | None) -> float | None:
+    """(objective - bound) / |objective|, at least 0: how far above the optimum the plan can
+    be. 0 when bound == objective (also at objective 0); None without a bound, or when the
+    objective is 0 and the bound below it (no relative figure exists)."""
+    if bound is None or not math.isfinite(bound) or not math.isfinite(objective):
+        return None
+    if bound >= objective:
+        return 0.0
+    if objective == 0.0:
+        return None
+    return (objective - bound) / abs(objective)
 
 
 _TOP_KEYS = {
@@ -269,4 +284,6 @@ def result_to_dict(r: PlanResult) -> dict[str, Any]:
         "idle": dict(r.idle),
         "excluded": list(r.excluded),
         "solve_time_s": r.solve_time_s,
+        "bound": r.bound if r.bound is not None and math.isfinite(r.bound) else None,
+        "gap": r.gap,
     }

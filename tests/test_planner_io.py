@@ -39,6 +39,8 @@ OUTPUT_KEYS = {
     "idle",
     "excluded",
     "solve_time_s",
+    "bound",
+    "gap",
 }
 
 

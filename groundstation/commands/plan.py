@@ -83,8 +83,8 @@ def run(argv: list[str]) -> int:
         deterministic=args.deterministic,
     )
     out = result_to_dict(result)
-    for key in ("objective", "f1", "f2", "mu"):
-        if not math.isfinite(out[key]):
+    for key in ("objective", "f1", "f2", "mu", "bound", "gap"):
+        if out[key] is not None and not math.isfinite(out[key]):
             out[key] = None
     print(json.dumps(out))
     return 0

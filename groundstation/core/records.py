@@ -50,7 +50,13 @@ def result_to_record(result: PlanResult) -> dict[str, Any]:
     return {**result_to_dict(result), "hit_time_limit": result.hit_time_limit}
 
 
+def _optional_float(value: Any) -> float | None:
+    return None if value is None else float(value)
+
+
 def result_from_record(data: Mapping[str, Any]) -> PlanResult:
+    """Inverse of :func:`result_to_record`; records written before ``bound`` and ``gap``
+    existed read as None (no bound known)."""
     try:
         return PlanResult(
             status=PlanStatus(str(data["status"])),
@@ -64,6 +70,8 @@ def result_from_record(data: Mapping[str, Any]) -> PlanResult:
             excluded=[str(t) for t in data.get("excluded", [])],
             solve_time_s=float(data["solve_time_s"]),
             hit_time_limit=bool(data.get("hit_time_limit", False)),
+            bound=_optional_float(data.get("bound")),
+            gap=_optional_float(data.get("gap")),
         )
     except (KeyError, TypeError, ValueError, AttributeError) as exc:
         raise RecordError(f"bad plan result record: {exc}") from exc
@@ -112,6 +120,7 @@ def command_to_record(command: Command) -> dict[str, Any]:
             "routes": command.result.routes, "assignments": dict(command.assignments),
             "solve_time_s": command.result.solve_time_s, "status": command.result.status,
             "objective": command.result.objective,
+            "bound": command.result.bound, "gap": command.result.gap,
             "reason": command.reason,
             "problem": problem_to_dict(command.problem),
             "hint": {k: list(v) for k, v in command.hint.items()},

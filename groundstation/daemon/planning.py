@@ -40,10 +40,12 @@ class SolverRunner:
         seed: int = 0,
         on_error: Callable[[SolveRequest, str], None] | None = None,
     ) -> None:
-        # The planner imports CP-SAT (ortools.sat and pandas, ~0.3 s of CPU) only when a solve
-        # needs it; the daemon's solver loads it here, at start, so that its first large
-        # solve does not spend that time inside its deadline.
-        import planner.cpsat_model  # noqa: F401
+        # The planner imports CP-SAT (ortools.sat and pandas, ~0.3 s of CPU) and scipy's LP
+        # (~0.3-0.5 s) only when a solve needs them; the daemon's solver loads both here, at
+        # start, so that its first large solve does not spend that time inside its deadline.
+        from planner.solve import warm_up
+
+        warm_up()
 
         self.on_solved = on_solved
         self.on_error = on_error
