@@ -175,3 +175,30 @@ def test_client_socket_has_keepalive() -> None:
         await vehicle.crash()
 
     asyncio.run(main())
+
+
+@pytest.mark.parametrize("closing", [False, True])
+def test_a_peer_closing_while_the_owner_shuts_down_is_not_a_lost_link(
+    closing: bool, caplog: pytest.LogCaptureFixture
+) -> None:
+    """The embedded simulator closes its TCP ports as ``gcs run`` stops: after
+    ``begin_close`` that is logged at INFO, not warned to the operator as a lost link."""
+
+    async def main() -> None:
+        vehicle = FakeVehicle(sysid=2)
+        port = await vehicle.start()
+        got: list[Received] = []
+        link = open_link(f"tcp:127.0.0.1:{port}", on_receive=got.append, options=FAST)
+        async with link:
+            await wait_until(lambda: len(got) == 1)
+            if closing:
+                link.begin_close()
+            await vehicle.crash()
+            await wait_until(lambda: not link.connected)
+            await asyncio.sleep(0.01)
+
+    with caplog.at_level("INFO", logger="groundstation.link"):
+        asyncio.run(main())
+    lost = [r for r in caplog.records if "lost TCP" in r.getMessage()]
+    assert len(lost) == 1
+    assert lost[0].levelname == ("INFO" if closing else "WARNING")

@@ -388,6 +388,7 @@ class Daemon:
 
     def _cancel_tasks(self) -> None:
         self._finished = True
+        self.router.begin_close()
         self.supervisor.stopped = True
         for task in self._tasks:
             task.cancel()

@@ -221,6 +221,7 @@ class Link(ABC):
         self._decoders: dict[Peer | None, MavlinkDecoder] = {}
         self._queue: asyncio.Queue[Received | None] | None = None
         self._running = False
+        self.closing = False  # set by begin_close(): the owner is shutting down
         self._last_warning: dict[str, float] = {}
         opts = self.options
         self._inbox = (
@@ -277,6 +278,11 @@ class Link(ABC):
         if self.options.fair:
             self._drain_task = self._spawn(self._drain_loop(), f"drain {self.link_id}")
         log.info("link %s started (%s)", self.link_id, self.spec.canonical)
+
+    def begin_close(self) -> None:
+        """The owner is shutting down: a peer that closes from now on (the embedded
+        simulator stopping with the daemon) is expected, not a lost link to warn about."""
+        self.closing = True
 
     async def stop(self) -> None:
         """Close the transport and end ``frames()`` iterators. Idempotent. Frames still

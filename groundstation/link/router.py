@@ -177,6 +177,11 @@ class Router:
             for link in self.links:
                 link.task_group = None
 
+    def begin_close(self) -> None:
+        """The daemon is shutting down: peers closing from now on are not lost links."""
+        for link in self.links:
+            link.begin_close()
+
     async def stop(self) -> None:
         """Stop every link. Idempotent."""
         for link in reversed(self.links):

@@ -145,7 +145,8 @@ class ReconnectingLink(_StreamSink):
             exc_lost = await asyncio.shield(proto.closed)
             self._proto = None
             delay = self._backoff.next_delay_s()
-            log.warning(
+            log.log(
+                logging.INFO if self.closing else logging.WARNING,
                 "link %s: lost %s (%s); reconnecting in %.1f s",
                 self.link_id,
                 self._describe(),
