@@ -7,8 +7,6 @@ deadline tests drive PlanSolver with a fake clock and count what the solver did.
 
 from __future__ import annotations
 
-import math
-import random
 import re
 from dataclasses import replace
 from pathlib import Path
@@ -16,8 +14,9 @@ from pathlib import Path
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from planner_fixtures import problems, random_problem
 
-from planner import PlanningProblem, PlanSolver, TargetEstimate, UavPose, result_to_dict
+from planner import PlanningProblem, PlanSolver, result_to_dict
 from planner.bound import choose_layers, in_arc_bound, keep_columns, lp_bound
 from planner.exact_dp import dp_is_cheap, solve_dp
 from planner.instance import Instance, build_instance
@@ -25,22 +24,6 @@ from planner.problem import PlanStatus, plan_gap
 from planner.solve import PlanSolver as _Solver
 
 DOCS = Path(__file__).resolve().parent.parent / "docs" / "planner.md"
-
-
-def random_problem(seed: int, m: int, n: int, **kw: object) -> PlanningProblem:
-    rng = random.Random(seed)
-    return PlanningProblem(
-        uavs=tuple(
-            UavPose(f"u{k}", rng.uniform(0, 1500), rng.uniform(0, 1500), rng.uniform(-3, 3))
-            for k in range(m)
-        ),
-        targets=tuple(
-            TargetEstimate(f"t{k}", rng.uniform(0, 1500), rng.uniform(0, 1500), rng.uniform(1, 100))
-            for k in range(n)
-        ),
-        turn_radius_m=105.0,
-        **kw,  # type: ignore[arg-type]
-    )
 
 
 def optimum(inst: Instance) -> float:
@@ -52,28 +35,8 @@ def slack(inst: Instance, value: float) -> float:
     return 1e-9 * (abs(value) + abs(inst.constant) + 1.0)
 
 
-@st.composite
-def problems(draw: st.DrawFn) -> PlanningProblem:
-    m = draw(st.integers(1, 3))
-    n = draw(st.integers(1, 7))
-    xy = st.floats(0, 1500, allow_nan=False)
-    uavs = tuple(
-        UavPose(f"u{k}", draw(xy), draw(xy), draw(st.floats(-math.pi, math.pi))) for k in range(m)
-    )
-    sigma = st.one_of(st.floats(0, 100, allow_nan=False), st.just(0.0), st.just(10.0))
-    targets = tuple(TargetEstimate(f"t{k}", draw(xy), draw(xy), draw(sigma)) for k in range(n))
-    return PlanningProblem(
-        uavs=uavs,
-        targets=targets,
-        turn_radius_m=draw(st.sampled_from([1.0, 105.0, 300.0])),
-        tau=draw(st.sampled_from([0.0, 0.25, 0.5, 0.9, 1.0])),
-        mu=draw(st.one_of(st.none(), st.floats(0.001, 10))),
-        objective=draw(st.sampled_from(["sequence", "arrival", "latency"])),
-    )
-
-
 @settings(max_examples=60, deadline=None)
-@given(problems(), st.integers(1, 7))
+@given(problems(objectives=("sequence", "arrival", "latency")), st.integers(1, 7))
 def test_bounds_never_exceed_the_dp_optimum(p: PlanningProblem, layers: int) -> None:
     inst = build_instance(p)
     if inst.n == 0:

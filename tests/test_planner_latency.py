@@ -18,6 +18,7 @@ from pathlib import Path
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from planner_fixtures import problems
 
 from groundstation.commands.plan import run
 from planner import (
@@ -31,6 +32,12 @@ from planner import (
 from planner.cpsat_model import CpSatRun
 from planner.instance import build_instance
 from planner.solve import PlanSolver
+
+
+def latency_problems(max_targets: int) -> st.SearchStrategy[PlanningProblem]:
+    """Latency problems: tau and mu are drawn but ignored; sigma up to 1e5, two speeds."""
+    return problems(max_targets=max_targets, objectives=("latency",), sigma_max=1e5,
+                    taus=(0.0, 0.5, 1.0), speeds_m_s=(10.0, 22.0))
 
 
 def kept(p: PlanningProblem) -> list[TargetEstimate]:
@@ -84,27 +91,6 @@ def close(a: float, b: float, p: PlanningProblem) -> bool:
     return abs(a - b) <= 1e-6 * max(abs(a), abs(b), magnitude(p))
 
 
-@st.composite
-def problems(draw: st.DrawFn, max_targets: int = 6) -> PlanningProblem:
-    m = draw(st.integers(1, 3))
-    n = draw(st.integers(0, max_targets))
-    xy = st.floats(0, 1500, allow_nan=False)
-    uavs = tuple(
-        UavPose(f"u{k}", draw(xy), draw(xy), draw(st.floats(-math.pi, math.pi))) for k in range(m)
-    )
-    sigma = st.one_of(st.floats(0, 1e5, allow_nan=False), st.just(0.0), st.just(10.0))
-    targets = tuple(TargetEstimate(f"t{k}", draw(xy), draw(xy), draw(sigma)) for k in range(n))
-    return PlanningProblem(
-        uavs=uavs,
-        targets=targets,
-        turn_radius_m=draw(st.sampled_from([1.0, 105.0, 300.0])),
-        tau=draw(st.sampled_from([0.0, 0.5, 1.0])),  # ignored by latency
-        mu=draw(st.one_of(st.none(), st.floats(0.001, 10))),  # ignored by latency
-        objective=Objective.LATENCY,
-        speed_m_s=draw(st.sampled_from([10.0, 22.0])),
-    )
-
-
 def test_latency_by_hand() -> None:
     # UAV at the origin heading +x, targets straight ahead: a at 100 m, b at 200 m
     p = PlanningProblem(
@@ -120,7 +106,7 @@ def test_latency_by_hand() -> None:
 
 
 @settings(max_examples=50, deadline=None)
-@given(problems(max_targets=5), st.sampled_from(["auto", "dp", "circuit"]))
+@given(latency_problems(max_targets=5), st.sampled_from(["auto", "dp", "circuit"]))
 def test_every_method_matches_brute_force(p: PlanningProblem, method: str) -> None:
     best = brute_force(p)
     result = PlanSolver(p, method=method).solve()
@@ -152,7 +138,7 @@ def test_cpsat_alone_is_exact_for_weighted_hops(objective: str, seed: int) -> No
 
 
 @settings(max_examples=30, deadline=None)
-@given(problems(max_targets=6))
+@given(latency_problems(max_targets=6))
 def test_latency_is_arrival_at_tau_zero_rescaled(p: PlanningProblem) -> None:
     """J_arrival(tau = 0) = -(N - 1) S + sum sigma D / d_avg, so the optima agree:
     L* = (J* + (N - 1) S) d_avg / V."""

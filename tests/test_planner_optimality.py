@@ -15,6 +15,7 @@ from collections.abc import Mapping, Sequence
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from planner_fixtures import problems
 
 from planner import (
     PlanningProblem,
@@ -105,26 +106,6 @@ def magnitude(p: PlanningProblem) -> float:
 
 def close(a: float, b: float, p: PlanningProblem) -> bool:
     return abs(a - b) <= 1e-6 * max(abs(a), abs(b), magnitude(p))
-
-
-@st.composite
-def problems(draw: st.DrawFn, max_targets: int = 6) -> PlanningProblem:
-    m = draw(st.integers(1, 3))
-    n = draw(st.integers(0, max_targets))
-    xy = st.floats(0, 1500, allow_nan=False)
-    uavs = tuple(
-        UavPose(f"u{k}", draw(xy), draw(xy), draw(st.floats(-math.pi, math.pi))) for k in range(m)
-    )
-    sigma = st.one_of(st.floats(0, 100, allow_nan=False), st.just(0.0), st.just(10.0))
-    targets = tuple(TargetEstimate(f"t{k}", draw(xy), draw(xy), draw(sigma)) for k in range(n))
-    return PlanningProblem(
-        uavs=uavs,
-        targets=targets,
-        turn_radius_m=draw(st.sampled_from([1.0, 105.0, 300.0])),
-        tau=draw(st.sampled_from([0.0, 0.25, 0.5, 0.9, 1.0])),
-        mu=draw(st.one_of(st.none(), st.floats(0.001, 10))),
-        objective=draw(st.sampled_from(["sequence", "arrival"])),
-    )
 
 
 @settings(max_examples=60, deadline=None)

@@ -9,6 +9,7 @@ import time
 from dataclasses import replace
 
 import pytest
+from planner_fixtures import random_problem
 
 from planner import (
     PlanningProblem,
@@ -22,22 +23,6 @@ from planner import (
 from planner.heuristics import RouteCoster, best_insertion
 from planner.instance import build_instance, f1_max
 from planner.solve import hint_routes
-
-
-def random_problem(seed: int, m: int, n: int, **kw: object) -> PlanningProblem:
-    rng = random.Random(seed)
-    return PlanningProblem(
-        uavs=tuple(
-            UavPose(f"u{k}", rng.uniform(0, 1500), rng.uniform(0, 1500), rng.uniform(-3, 3))
-            for k in range(m)
-        ),
-        targets=tuple(
-            TargetEstimate(f"t{k}", rng.uniform(0, 1500), rng.uniform(0, 1500), rng.uniform(1, 100))
-            for k in range(n)
-        ),
-        turn_radius_m=105.0,
-        **kw,  # type: ignore[arg-type]
-    )
 
 
 def covers(result_routes: dict[str, list[str]], ids: set[str]) -> bool:
