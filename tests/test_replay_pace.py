@@ -142,3 +142,16 @@ def test_pace_and_speed_are_exclusive(tmp_path: Path, capsys: pytest.CaptureFixt
               "--speed", "3"])
     assert info.value.code == 2
     assert "not allowed with" in capsys.readouterr().err
+
+
+def test_anchors_are_thinned_not_cut_so_a_long_recording_keeps_its_late_drift() -> None:
+    from groundstation.runners.mission_timeline import ANCHOR_SPACING_S, _add_anchor
+
+    anchors: list[tuple[float, float]] = []
+    for k in range(300_001):  # 300 s of journal lines every 1 ms; the host slows at 200 s
+        unix_s = k * 0.001
+        _add_anchor(anchors, unix_s, 50 * unix_s if unix_s < 200 else 10_000 + 20 * (unix_s - 200))
+    assert len(anchors) <= 300 / ANCHOR_SPACING_S + 1
+    assert anchors[-1][0] > 300 - 2 * ANCHOR_SPACING_S  # anchors reach the end
+    timeline = MissionTimeline.from_anchors(anchors, "journal")
+    assert timeline.at(250.0) == pytest.approx(11_000, abs=5)  # the late, slower rate is kept

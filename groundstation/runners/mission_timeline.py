@@ -30,7 +30,15 @@ from groundstation.link.tlog import TlogReader
 
 __all__ = ["MissionTimeline", "mission_timeline"]
 
-_MAX_ANCHORS = 200_000
+ANCHOR_SPACING_S = 0.1
+"""At most one anchor per this much wall time: a long recording keeps anchors to its end
+(the drift of a loaded host late in a run counts as much as early on) in bounded memory."""
+
+
+def _add_anchor(anchors: list[tuple[float, float]], unix_s: float, t_s: float) -> None:
+    """Append (unix_s, t_s) unless the previous anchor is less than ANCHOR_SPACING_S older."""
+    if not anchors or unix_s - anchors[-1][0] >= ANCHOR_SPACING_S:
+        anchors.append((unix_s, t_s))
 
 
 @dataclass(frozen=True)
@@ -89,9 +97,7 @@ def _journal_anchors(journal: Path) -> list[tuple[float, float]]:
                     continue
                 t, unix = record.get("t"), record.get("unix_s")
                 if isinstance(t, int | float) and isinstance(unix, int | float):
-                    anchors.append((float(unix), float(t)))
-                    if len(anchors) >= _MAX_ANCHORS:
-                        break
+                    _add_anchor(anchors, float(unix), float(t))
     except OSError:
         return []
     return anchors
@@ -112,9 +118,7 @@ def _boot_anchors(tlog: Path, system_id: int) -> list[tuple[float, float]]:
         if last_s is not None and boot_s + offset_s < last_s - 1.0:  # rebooted
             offset_s = last_s - boot_s
         last_s = boot_s + offset_s
-        anchors.append((record.t_unix_s, last_s))
-        if len(anchors) >= _MAX_ANCHORS:
-            break
+        _add_anchor(anchors, record.t_unix_s, last_s)
     return anchors
 
 
