@@ -288,7 +288,9 @@ class PlanSolver:
                 routes, best_cost = ls.run(routes, 10**9)
             hit = not stop()
             return self._result(inst, routes, PlanStatus.FALLBACK, "greedy+ils", start, hit, bound)
-        return self._cpsat(inst, kind, routes, best_cost, lp, bound, start, end, ls_share)
+        return self._cpsat(
+            inst, kind, ls.coster, routes, best_cost, lp, bound, start, end, ls_share
+        )
 
     def _lp(self, inst: Instance, mid: bool, end: float, limit: float) -> LpBound | None:
         """The layered LP, sized to its budget; None if it does not fit or finish."""
@@ -313,6 +315,7 @@ class PlanSolver:
         self,
         inst: Instance,
         kind: str,
+        coster: RouteCoster,
         routes: list[list[int]],
         best_cost: float,
         lp: LpBound | None,
@@ -323,7 +326,6 @@ class PlanSolver:
     ) -> PlanResult:
         from planner.cpsat_model import CpSatRun  # OR-Tools only when CP-SAT runs
 
-        coster = RouteCoster(inst)
         keep = None
         if kind == "position" and lp is not None and lp.layers == inst.n:
             keep = keep_columns(inst, lp, inst.constant + best_cost)
