@@ -257,3 +257,15 @@ def test_cp_sat_bound_never_exceeds_the_optimum(model: str, seconds: float) -> N
         assert out.bound <= best + slack(inst, best)
         if out.status == "optimal":
             assert best - out.bound <= 1e-6 * abs(best)
+
+
+def test_plan_journal_line_carries_bound_and_gap_once() -> None:
+    """The plan line keeps bound and gap in its `result` (non-finite as None), not twice."""
+    from groundstation.core.commands import PlanAdopted
+    from groundstation.core.records import command_to_record
+
+    p = random_problem(26, 2, 5)
+    r = PlanSolver(p).solve()
+    line = command_to_record(PlanAdopted(1.0, 7, p, r, {}, {}, "test"))
+    assert "bound" not in line and "gap" not in line
+    assert line["result"]["bound"] == r.bound and line["result"]["gap"] == r.gap
