@@ -31,10 +31,13 @@ from collections.abc import Callable, Mapping, Sequence
 from typing import TYPE_CHECKING
 
 from planner.bound import (
+    LP_MAX_COLUMNS,
+    MIN_LAYERS,
     LpBound,
     choose_layers,
     in_arc_bound,
     keep_columns,
+    layer_cap,
     lp_bound,
     lp_columns,
 )
@@ -48,6 +51,7 @@ if TYPE_CHECKING:
 
 POSITION_MODEL_MAX_TARGETS = 30
 CIRCUIT_MODEL_MAX_TARGETS = 60  # above: the build alone eats the budget, CP-SAT never helps
+DETERMINISTIC_LP_COLUMNS = 150_000  # deterministic mode: the LP's size, not its time
 LP_SECONDS_PER_COLUMN = 4e-6  # HiGHS on the layered LP (measured 1.7-10 us with both cores busy)
 SCIPY_IMPORT_S = 0.5  # first LP in a process: importing scipy.optimize (CPU, measured 0.3-0.45)
 CIRCUIT_BUILD_S_PER_VAR = 2e-5  # Python model build, circuit model (1.3 s at 30x150)
@@ -295,19 +299,19 @@ class PlanSolver:
     def _lp(self, inst: Instance, mid: bool, end: float, limit: float) -> LpBound | None:
         """The layered LP, sized to its budget; None if it does not fit or finish."""
         m, n = inst.m, inst.n
-        if self.deterministic:
-            layers = n if mid else choose_layers(n, m, 150_000)
-            layers = min(layers, max(4, -(-2 * n // m))) if not mid else layers
-            if layers < 2:
+        cap = layer_cap(n, m, mid)
+        if self.deterministic:  # sized by columns: nothing depends on the wall clock
+            layers = choose_layers(n, m, cap, DETERMINISTIC_LP_COLUMNS)
+            if layers < MIN_LAYERS:
                 return None
             return lp_bound(inst, layers, max(10.0 * limit, 10.0))
         budget = min(end - self.clock(), 0.25 * limit if not mid else 0.4 * limit)
         if budget <= 0.0:
             return None
-        layers = n if mid else min(n, max(4, -(-2 * n // m)))
-        while layers >= 3 and lp_seconds(lp_columns(n, m, layers)) > budget:
+        layers = choose_layers(n, m, cap, LP_MAX_COLUMNS)  # then fewer until its time fits
+        while layers >= MIN_LAYERS and lp_seconds(lp_columns(n, m, layers)) > budget:
             layers -= 1 if layers <= 8 else max(1, layers // 4)
-        if layers < 3 or lp_seconds(lp_columns(n, m, layers)) > budget:
+        if layers < MIN_LAYERS:
             return None
         return lp_bound(inst, layers, budget)
 
