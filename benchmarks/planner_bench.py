@@ -95,13 +95,14 @@ def mtz_data(p: PlanningProblem) -> dict[str, Any]:
 
 def floe_one(solver: str, task: dict[str, Any], args: argparse.Namespace) -> dict[str, Any]:
     from planner import PlanSolver
+    from planner.solve import POSITION_MODEL_MAX_TARGETS
 
     m, n = parse_sizes(task["size"])[0]
     limit = args.reference_time if solver == "reference" else task["limit_s"]
     p = make_problem(m, n, task["seed"], limit)
     method = "auto"
     if solver == "cpsat":
-        method = "position" if n <= 30 else "circuit"
+        method = "position" if n <= POSITION_MODEL_MAX_TARGETS else "circuit"
     elif solver == "reference":
         method = "heuristic"
     t0 = time.perf_counter()

@@ -284,3 +284,13 @@ def test_plan_journal_line_carries_bound_and_gap_once() -> None:
     line = command_to_record(PlanAdopted(1.0, 7, p, r, {}, {}, "test"))
     assert "bound" not in line and "gap" not in line
     assert line["result"]["bound"] == r.bound and line["result"]["gap"] == r.gap
+
+
+def test_cp_sat_model_is_chosen_by_the_solver_only() -> None:
+    """CpSatRun has no "auto" choice of its own (it disagreed with planner.solve's)."""
+    from planner.cpsat_model import CpSatRun
+
+    inst = build_instance(random_problem(27, 2, 5))
+    with pytest.raises(ValueError, match="position or circuit"):
+        CpSatRun(inst, "auto")
+    assert CpSatRun(inst, "position").kind == "position"
