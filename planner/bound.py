@@ -89,8 +89,7 @@ def in_arc_bound(inst: Instance) -> float:
         return 0.0
     b = 1.0 - inst.tau
     w = inst.arc_weight()
-    into = w[:, m:] + b * inst.hop[:, m:] * inst.sigma[None, :]
-    into = into.copy()
+    into = w[:, m:] + b * inst.hop[:, m:] * inst.sigma[None, :]  # a fresh array
     into[m:, :][np.arange(n), np.arange(n)] = np.inf  # no arc j -> j
     entry = float(into.min(axis=0).sum())
     return inst.constant + entry + b * h_min(inst) * _round_robin_extra(inst)
