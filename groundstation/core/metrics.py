@@ -65,9 +65,9 @@ def trend_growth(
 
     Windows are (t_mid + k w, t_mid + (k + 1) w], k = 0, 1, ... up to the end, by sample
     time (uneven sampling is windowed by time, not by count): a window without samples is
-    skipped, the last one counts if the run reaches at least half way into it. None when the second half
-    has fewer than 3 windows (too short to tell); 0 when its mean is 0 and inf if it is 0
-    but growing.
+    skipped, the last one counts if the run reaches at least half way into it. None when
+    the second half has fewer than 3 windows (too short to tell); 0 when its mean is 0 and
+    inf if it is 0 but growing.
     """
     if len(series) < 2:
         return None
