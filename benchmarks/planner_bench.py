@@ -95,13 +95,14 @@ def mtz_data(p: PlanningProblem) -> dict[str, Any]:
 
 def floe_one(solver: str, task: dict[str, Any], args: argparse.Namespace) -> dict[str, Any]:
     from planner import PlanSolver
+    from planner.solve import POSITION_MODEL_MAX_TARGETS
 
     m, n = parse_sizes(task["size"])[0]
     limit = args.reference_time if solver == "reference" else task["limit_s"]
     p = make_problem(m, n, task["seed"], limit)
     method = "auto"
     if solver == "cpsat":
-        method = "position" if n <= 30 else "circuit"
+        method = "position" if n <= POSITION_MODEL_MAX_TARGETS else "circuit"
     elif solver == "reference":
         method = "heuristic"
     t0 = time.perf_counter()
@@ -240,19 +241,19 @@ def main() -> None:
 
 
 def _pct(values: list[float]) -> tuple[str, str]:
-    finite = [v for v in values if math.isfinite(v)]
-    if not values:
+    """Median and max as text (an unknown value counts as inf); "-" if none is finite."""
+    if not any(math.isfinite(v) for v in values):
         return "-", "-"
-    med = statistics.median(values)
-    top = max(values)
-    text = [f"{v:.3f}" if math.isfinite(v) else "inf" for v in (med, top)]
-    if not finite:
-        return "-", "-"
-    return text[0], text[1]
+    med, top = (
+        f"{v:.3f}" if math.isfinite(v) else "inf" for v in (statistics.median(values), max(values))
+    )
+    return med, top
 
 
 def report(rows: list[dict[str, Any]]) -> None:
     """Table per size and solver (see the module docstring)."""
+    from planner.problem import plan_gap
+
     best: dict[tuple[str, int], float] = {}
     for r in rows:
         if r["objective"] is not None:
@@ -280,11 +281,8 @@ def report(rows: list[dict[str, Any]]) -> None:
                     certs.append(math.inf)
                     continue
                 gaps.append(100.0 * (obj - ref) / max(abs(ref), 1e-12))
-                bound = r.get("bound")
-                if bound is None:
-                    certs.append(math.inf)
-                else:
-                    certs.append(100.0 * max(obj - bound, 0.0) / max(abs(obj), 1e-12))
+                cert = plan_gap(obj, r.get("bound"))
+                certs.append(math.inf if cert is None else 100.0 * cert)
             proven = sum(bool(r["proven"]) for r in mine)
             g_med, g_max = _pct(gaps)
             c_med, c_max = _pct(certs)

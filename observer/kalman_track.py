@@ -212,8 +212,9 @@ class KalmanBatch:
     """Advances the tracks of one observer (grid step ``h``) together: those whose next
     commit is one whole grid step are predicted at once (``x^- = F x``,
     ``P^- = (F P) F' + Q`` over the stacked states, see the module docstring); any other
-    track (a partial first step, a gap of several steps, another grid) goes through
-    :meth:`KalmanTrack.predict_to`.
+    track (a partial first step, a gap of several steps, no grid point passed) goes through
+    :meth:`KalmanTrack.predict_to`. Every track shares the batch's grid step (the
+    observer's ``max_step_s``).
 
     The stacks of one call are kept: when the next call advances the same tracks, untouched
     since (no correction, no new ``q``), its products start from them without re-stacking.
@@ -230,25 +231,21 @@ class KalmanBatch:
         self._q = np.empty((0, 4, 4))
 
     def predict_to(self, tracks: Sequence[KalmanTrack], t_s: float) -> None:
-        """Advance every track of ``tracks`` to ``t_s`` (tracks at or past it are left)."""
+        """Advance every track of ``tracks`` (all on this batch's grid step) to ``t_s``
+        (tracks at or past it are left). A track is batched when its next commit, as
+        :meth:`KalmanTrack._grid_steps` decides it, is the last one and one whole step."""
         h = self.grid_step_s
-        k_last = math.floor(t_s / h + _GRID_EPS)
         batch: list[KalmanTrack] = []
         for track in tracks:
             if t_s <= track.t_s:
                 continue
-            # one whole grid step, as KalmanTrack._grid_steps / _commit_grid_until decide
-            k_first = math.floor(track.t_anchor_s / h + _GRID_EPS) + 1
-            if track.grid_step_s != h:
-                track.predict_to(t_s)
-            elif k_first == k_last and abs(k_first * h - track.t_anchor_s - h) <= _TINY_S:
+            k_first, k_last, first_dt = track._grid_steps(t_s)
+            if k_first == k_last and abs(first_dt - h) <= _TINY_S:
                 batch.append(track)
-            elif k_first > k_last and t_s - track.t_anchor_s <= _TINY_S:
-                track.t_s = t_s  # no grid point passed, still at the committed state
             else:
                 track.predict_to(t_s)
         if batch:
-            self._predict_one_step(batch, t_s, k_last * h)
+            self._predict_one_step(batch, t_s, math.floor(t_s / h + _GRID_EPS) * h)
 
     def _predict_one_step(self, batch: list[KalmanTrack], t_s: float, t_grid_s: float) -> None:
         if not self._same_as_last(batch):

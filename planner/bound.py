@@ -46,6 +46,7 @@ IntArray = npt.NDArray[np.int64]
 BoolArray = npt.NDArray[np.bool_]
 
 LP_MAX_COLUMNS = 400_000  # above this the LP is not tried (HiGHS ~ 2 s here)
+MIN_LAYERS = 2  # P = 1 is no layered LP: below this the in-arc bound is used alone
 
 
 @dataclass(frozen=True)
@@ -88,8 +89,7 @@ def in_arc_bound(inst: Instance) -> float:
         return 0.0
     b = 1.0 - inst.tau
     w = inst.arc_weight()
-    into = w[:, m:] + b * inst.hop[:, m:] * inst.sigma[None, :]
-    into = into.copy()
+    into = w[:, m:] + b * inst.hop[:, m:] * inst.sigma[None, :]  # a fresh array
     into[m:, :][np.arange(n), np.arange(n)] = np.inf  # no arc j -> j
     entry = float(into.min(axis=0).sum())
     return inst.constant + entry + b * h_min(inst) * _round_robin_extra(inst)
@@ -119,17 +119,26 @@ def lp_columns(n: int, m: int, layers: int) -> int:
     return m * n + max(layers - 1, 0) * n * max(n - 1, 0)
 
 
-def choose_layers(n: int, m: int, max_columns: int = LP_MAX_COLUMNS) -> int:
-    """Most positions P (<= n) whose LP has at most max_columns columns; 0 if even P = 2
-    does not fit. Paths longer than ~3 n / m are rare in good plans, so P beyond that buys
-    little; the absorbing last layer keeps the bound valid."""
-    if n <= 1:
-        return 1
-    per_layer = n * (n - 1)
-    room = (max_columns - m * n) // per_layer + 1
-    if room < 2:
+def layer_cap(n: int, m: int, all_positions: bool) -> int:
+    """Most positions P worth an LP. all_positions (up to 30 targets): P = n, as CP-SAT's
+    position model fixes its variables by the reduced costs of the LP with one layer per
+    position. Otherwise P = min(n, max(4, ceil(2 n / m))): paths much longer than the
+    average n / m are rare in good plans, so more layers buy little, and the absorbing last
+    layer keeps the bound valid."""
+    if all_positions:
+        return n
+    return min(n, max(4, -(-2 * n // max(m, 1))))
+
+
+def choose_layers(n: int, m: int, cap: int, max_columns: int = LP_MAX_COLUMNS) -> int:
+    """Most positions P <= cap (see layer_cap) whose LP has at most max_columns columns;
+    0 if that is fewer than MIN_LAYERS. Callers with a time budget shrink P further."""
+    cap = min(cap, n)
+    if cap < MIN_LAYERS:
         return 0
-    return int(min(n, room))
+    room = (max_columns - m * n) // (n * (n - 1)) + 1
+    layers = min(cap, room)
+    return layers if layers >= MIN_LAYERS else 0
 
 
 def _arc_index(n: int) -> tuple[IntArray, IntArray]:

@@ -67,15 +67,15 @@ class CpSatRun:
     def __init__(
         self,
         inst: Instance,
-        model: str = "auto",
+        model: str,
         keep: tuple[BoolArray, BoolArray] | None = None,
     ) -> None:
-        """`keep` (position model): (first[u, j], arc[p, i, j]) masks of the variables to
-        create (planner.bound.keep_columns: the others cannot improve on the hint)."""
-        if model == "auto":
-            model = (
-                "position" if inst.unit_hops and inst.n <= 25 else "circuit"
-            )
+        """`model`: "position" (sequence objective only) or "circuit"; planner.solve chooses
+        (POSITION_MODEL_MAX_TARGETS). `keep` (position model): (first[u, j], arc[p, i, j])
+        masks of the variables to create (planner.bound.keep_columns: the others cannot
+        improve on the hint)."""
+        if model not in ("position", "circuit"):
+            raise ValueError(f"unknown CP-SAT model {model!r} (position or circuit)")
         if model == "position" and not inst.unit_hops:
             raise ValueError("the position model only supports the sequence objective")
         self.inst = inst

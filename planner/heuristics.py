@@ -285,17 +285,17 @@ class LocalSearch:
         self,
         start: Routes,
         iterations: int,
-        deadline: Callable[[], bool] | None = None,
+        *,
         patience: int | None = None,
     ) -> tuple[Routes, float]:
-        """ILS from `start` for at most `iterations` kicks (fewer if `deadline()` turns true
-        or `patience` kicks in a row bring no improvement); returns (best, its cost)."""
+        """ILS from `start` for at most `iterations` kicks (fewer if `should_stop()` turns
+        true or `patience` kicks in a row bring no improvement); returns (best, its cost)."""
         best = self.descend(start)
         best_cost = self.coster.total(best)
         current, current_cost = best, best_cost
         since = 0
         for _ in range(iterations):
-            if self.should_stop() or (deadline is not None and deadline()):
+            if self.should_stop():
                 break
             if patience is not None and since >= patience:
                 break

@@ -31,10 +31,13 @@ from collections.abc import Callable, Mapping, Sequence
 from typing import TYPE_CHECKING
 
 from planner.bound import (
+    LP_MAX_COLUMNS,
+    MIN_LAYERS,
     LpBound,
     choose_layers,
     in_arc_bound,
     keep_columns,
+    layer_cap,
     lp_bound,
     lp_columns,
 )
@@ -48,11 +51,14 @@ if TYPE_CHECKING:
 
 POSITION_MODEL_MAX_TARGETS = 30
 CIRCUIT_MODEL_MAX_TARGETS = 60  # above: the build alone eats the budget, CP-SAT never helps
+DETERMINISTIC_LP_COLUMNS = 150_000  # deterministic mode: the LP's size, not its time
 LP_SECONDS_PER_COLUMN = 4e-6  # HiGHS on the layered LP (measured 1.7-10 us with both cores busy)
 SCIPY_IMPORT_S = 0.5  # first LP in a process: importing scipy.optimize (CPU, measured 0.3-0.45)
 CIRCUIT_BUILD_S_PER_VAR = 2e-5  # Python model build, circuit model (1.3 s at 30x150)
+POSITION_BUILD_S_PER_VAR = 5e-6  # position model build per LP column (0.115-0.136 s at 5x30)
 ORTOOLS_IMPORT_S = 0.4  # first CP-SAT run in a process: importing OR-Tools (wall, measured)
 END_MARGIN = 0.03  # fraction of the limit kept for the result (evaluate, idle rule)
+CPSAT_STOP_S = 0.1  # CP-SAT overruns max_time_in_seconds by this much (measured 0.05-0.12 s)
 
 Clock = Callable[[], float]
 
@@ -143,6 +149,17 @@ def warm_up() -> None:
 def cpsat_import_s() -> float:
     """Wall time still to pay for importing OR-Tools' CP-SAT (0 once loaded)."""
     return 0.0 if "ortools.sat.python.cp_model" in sys.modules else ORTOOLS_IMPORT_S
+
+
+def cpsat_build_s(kind: str, m: int, n: int) -> float:
+    """Estimated wall time before CP-SAT starts searching: the Python model build (position
+    model: per column of its full LP, an upper bound as reduced-cost fixing only drops
+    variables; circuit model: per arc variable) plus OR-Tools' import if not yet loaded."""
+    if kind == "position":
+        build = POSITION_BUILD_S_PER_VAR * lp_columns(n, m, n)
+    else:
+        build = CIRCUIT_BUILD_S_PER_VAR * n * (n + m)
+    return build + cpsat_import_s()
 
 
 def lp_seconds(columns: int) -> float:
@@ -247,40 +264,54 @@ class PlanSolver:
         bound = in_arc_bound(inst)
         if lp is not None:
             bound = max(bound, lp.value)
+        if stop():  # stop() during the LP (which it cannot interrupt): no model build
+            return self._result(
+                inst, routes, PlanStatus.FALLBACK, "greedy+ils", start, False, bound
+            )
         if not mid and not self.deterministic:
             ls_end[0] = min(end, start + ls_share * limit)
             routes, best_cost = ls.run(routes, 10**9)
         # -- CP-SAT where it pays, else the local search goes on to the deadline
-        use_cpsat = mid or method in ("position", "circuit")
-        if not use_cpsat and not self.deterministic and n <= CIRCUIT_MODEL_MAX_TARGETS:
-            build_s = CIRCUIT_BUILD_S_PER_VAR * n * (n + m) + cpsat_import_s()
-            use_cpsat = end - clock() > 3.0 * build_s + 0.05
-        if self.deterministic and not mid and method == "auto":
+        # CP-SAT runs where its build (and OR-Tools' import) leaves it time to search: up to
+        # 30 targets it usually proves, so the time left need only cover the build, the stop
+        # allowance and 0.05 s; above, the circuit model must beat the local search, so 3x
+        # the build. Forced by method ("position", "circuit"); by size alone when deterministic.
+        if method in ("position", "circuit"):
+            use_cpsat = True
+        elif self.deterministic:
             use_cpsat = n <= CIRCUIT_MODEL_MAX_TARGETS
+        elif n > CIRCUIT_MODEL_MAX_TARGETS:
+            use_cpsat = False
+        else:
+            build_s = cpsat_build_s(kind, m, n)
+            need_s = build_s + CPSAT_STOP_S if mid else 3.0 * build_s
+            use_cpsat = end - clock() > need_s + 0.05
         if not use_cpsat:
             if not self.deterministic:
                 ls_end[0] = end
                 routes, best_cost = ls.run(routes, 10**9)
             hit = not stop()
             return self._result(inst, routes, PlanStatus.FALLBACK, "greedy+ils", start, hit, bound)
-        return self._cpsat(inst, kind, routes, best_cost, lp, bound, start, end, ls_share)
+        return self._cpsat(
+            inst, kind, ls.coster, routes, best_cost, lp, bound, start, end, ls_share
+        )
 
     def _lp(self, inst: Instance, mid: bool, end: float, limit: float) -> LpBound | None:
         """The layered LP, sized to its budget; None if it does not fit or finish."""
         m, n = inst.m, inst.n
-        if self.deterministic:
-            layers = n if mid else choose_layers(n, m, 150_000)
-            layers = min(layers, max(4, -(-2 * n // m))) if not mid else layers
-            if layers < 2:
+        cap = layer_cap(n, m, mid)
+        if self.deterministic:  # sized by columns: nothing depends on the wall clock
+            layers = choose_layers(n, m, cap, DETERMINISTIC_LP_COLUMNS)
+            if layers < MIN_LAYERS:
                 return None
             return lp_bound(inst, layers, max(10.0 * limit, 10.0))
         budget = min(end - self.clock(), 0.25 * limit if not mid else 0.4 * limit)
         if budget <= 0.0:
             return None
-        layers = n if mid else min(n, max(4, -(-2 * n // m)))
-        while layers >= 3 and lp_seconds(lp_columns(n, m, layers)) > budget:
+        layers = choose_layers(n, m, cap, LP_MAX_COLUMNS)  # then fewer until its time fits
+        while layers >= MIN_LAYERS and lp_seconds(lp_columns(n, m, layers)) > budget:
             layers -= 1 if layers <= 8 else max(1, layers // 4)
-        if layers < 3 or lp_seconds(lp_columns(n, m, layers)) > budget:
+        if layers < MIN_LAYERS:
             return None
         return lp_bound(inst, layers, budget)
 
@@ -288,6 +319,7 @@ class PlanSolver:
         self,
         inst: Instance,
         kind: str,
+        coster: RouteCoster,
         routes: list[list[int]],
         best_cost: float,
         lp: LpBound | None,
@@ -298,7 +330,6 @@ class PlanSolver:
     ) -> PlanResult:
         from planner.cpsat_model import CpSatRun  # OR-Tools only when CP-SAT runs
 
-        coster = RouteCoster(inst)
         keep = None
         if kind == "position" and lp is not None and lp.layers == inst.n:
             keep = keep_columns(inst, lp, inst.constant + best_cost)
@@ -312,7 +343,7 @@ class PlanSolver:
         if self.deterministic:
             budget = max(limit * (1.0 - ls_share), 0.01)
         else:
-            budget = max(end - self.clock(), 0.01)
+            budget = max(end - self.clock() - CPSAT_STOP_S, 0.01)
         outcome = run.solve(
             budget,
             num_workers=self.num_workers,

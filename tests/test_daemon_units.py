@@ -424,3 +424,30 @@ def test_solver_runner_stops_a_solver_at_its_deadline_and_answers(
     elapsed, stops = asyncio.run(asyncio.wait_for(main(), 30.0))
     assert stops == 1 and [a.status for a in answers] == ["fallback"]
     assert elapsed >= 1.5 * 0.3 + 0.5 - 0.02
+
+
+def test_solver_runner_warms_up_in_its_worker_thread_before_the_first_solve(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The planner's imports (scipy, OR-Tools) are loaded by run() in the solver's worker
+    thread, not by the constructor on the event loop (the daemon's start), and a request
+    submitted meanwhile is served after them."""
+    from groundstation.daemon import planning
+
+    calls: list[str] = []
+    monkeypatch.setattr(planning, "warm_up", lambda: calls.append(threading.current_thread().name))
+    answers: list[Any] = []
+
+    async def main() -> None:
+        runner = planning.SolverRunner(lambda req, res: answers.append(res))
+        assert calls == []
+        runner.submit(_request(1, 4, 1.0))
+        service = asyncio.create_task(runner.run())
+        while not answers:
+            await asyncio.sleep(0.01)
+        runner.close()
+        service.cancel()
+
+    asyncio.run(asyncio.wait_for(main(), 30.0))
+    assert len(calls) == 1 and calls[0].startswith("floe-solver")
+    assert [a.status for a in answers] == ["optimal"]

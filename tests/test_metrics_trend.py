@@ -100,3 +100,19 @@ def test_metrics_keep_the_old_keys_and_add_the_trend() -> None:
     short = MetricsRecorder()
     short.sample(0.0, [1.0])
     assert short.to_dict(0.0)["bounded_trend"] is None
+
+
+def test_uneven_sampling_is_windowed_by_time() -> None:
+    """Dense samples (0.1 s) in the first half, sparse (5 s) in the second: the windows are
+    10 s of mission time, not a count of samples sized from the average spacing (which
+    made one window of the whole second half: None). Linear growth sigma = t then gives
+    its exact trend, slope 1 x 200 s / the second half's mean."""
+    dense = [[0.1 * k, 0.1 * k] for k in range(2000)]
+    sparse = [[float(t), float(t)] for t in range(200, 401, 5)]
+    s = dense + sparse
+    level = sum(t for t, _ in sparse[1:]) / len(sparse[1:])
+    g = trend_growth(s)
+    assert g is not None and g == pytest.approx(200.0 / level)
+    # the same run sampled every second has the same verdict
+    even = trend_growth([[float(t), float(t)] for t in range(401)])
+    assert even is not None and abs(even - g) < 0.02

@@ -17,7 +17,14 @@ from hypothesis import strategies as st
 from planner_fixtures import problems, random_problem
 
 from planner import PlanningProblem, PlanSolver, result_to_dict
-from planner.bound import choose_layers, in_arc_bound, keep_columns, lp_bound
+from planner.bound import (
+    choose_layers,
+    in_arc_bound,
+    keep_columns,
+    layer_cap,
+    lp_bound,
+    lp_columns,
+)
 from planner.exact_dp import dp_is_cheap, solve_dp
 from planner.instance import Instance, build_instance
 from planner.problem import PlanStatus, plan_gap
@@ -205,9 +212,17 @@ def test_deterministic_mode_gives_a_bound() -> None:
 
 
 def test_choose_layers_caps_columns() -> None:
-    assert choose_layers(20, 5) == 20
-    assert 2 <= choose_layers(250, 50) < 250
-    assert choose_layers(1, 3) == 1
+    """One rule for the LP's positions: at most layer_cap, at most max_columns columns, at
+    least MIN_LAYERS (else 0: no LP)."""
+    assert layer_cap(20, 5, True) == 20 and layer_cap(20, 5, False) == 8
+    assert layer_cap(250, 50, False) == 10 and layer_cap(3, 5, False) == 3
+    assert choose_layers(20, 5, 20) == 20
+    assert choose_layers(250, 50, 250) == 7  # (400000 - 12500) // 62250 + 1
+    assert lp_columns(250, 50, 7) <= 400_000 < lp_columns(250, 50, 8)
+    assert choose_layers(250, 50, 5) == 5
+    assert choose_layers(250, 50, 250, 150_000) == 3
+    assert choose_layers(400, 50, 400, 150_000) == 0  # 2 layers: 179600 columns
+    assert choose_layers(1, 3, 1) == 0
 
 
 def test_output_schema_is_documented() -> None:
@@ -257,3 +272,25 @@ def test_cp_sat_bound_never_exceeds_the_optimum(model: str, seconds: float) -> N
         assert out.bound <= best + slack(inst, best)
         if out.status == "optimal":
             assert best - out.bound <= 1e-6 * abs(best)
+
+
+def test_plan_journal_line_carries_bound_and_gap_once() -> None:
+    """The plan line keeps bound and gap in its `result` (non-finite as None), not twice."""
+    from groundstation.core.commands import PlanAdopted
+    from groundstation.core.records import command_to_record
+
+    p = random_problem(26, 2, 5)
+    r = PlanSolver(p).solve()
+    line = command_to_record(PlanAdopted(1.0, 7, p, r, {}, {}, "test"))
+    assert "bound" not in line and "gap" not in line
+    assert line["result"]["bound"] == r.bound and line["result"]["gap"] == r.gap
+
+
+def test_cp_sat_model_is_chosen_by_the_solver_only() -> None:
+    """CpSatRun has no "auto" choice of its own (it disagreed with planner.solve's)."""
+    from planner.cpsat_model import CpSatRun
+
+    inst = build_instance(random_problem(27, 2, 5))
+    with pytest.raises(ValueError, match="position or circuit"):
+        CpSatRun(inst, "auto")
+    assert CpSatRun(inst, "position").kind == "position"

@@ -63,9 +63,11 @@ def trend_growth(
 ) -> float | None:
     """Relative growth of the second half predicted by its robust trend (module docstring).
 
-    Windows are [t_mid + k w, t_mid + (k + 1) w) up to the end (a last partial window counts
-    if it holds at least half a window of samples). None when the second half has fewer
-    than 3 windows (too short to tell); 0 when its mean is 0 and inf if it is 0 but growing.
+    Windows are (t_mid + k w, t_mid + (k + 1) w], k = 0, 1, ... up to the end, by sample
+    time (uneven sampling is windowed by time, not by count): a window without samples is
+    skipped, the last one counts if the run reaches at least half way into it. None when
+    the second half has fewer than 3 windows (too short to tell); 0 when its mean is 0 and
+    inf if it is 0 but growing.
     """
     if len(series) < 2:
         return None
@@ -74,14 +76,15 @@ def trend_growth(
     second = [(t, s) for t, s in series if t > t_mid]
     if not second:
         return None
-    step = (t_end - t0) / (len(series) - 1)
-    per_window = max(1, round(window_s / step)) if step > 0 else 1
+    windows: dict[int, list[tuple[float, float]]] = {}
+    for t, s in second:
+        windows.setdefault(math.ceil((t - t_mid) / window_s) - 1, []).append((t, s))
     centres: list[float] = []
     means: list[float] = []
-    for k in range(0, len(second), per_window):
-        chunk = second[k : k + per_window]
-        if 2 * len(chunk) < per_window:
-            break
+    for k in sorted(windows):
+        if t_end < t_mid + (k + 0.5) * window_s:
+            continue  # the last window, less than half covered
+        chunk = windows[k]
         centres.append(statistics.fmean(t for t, _ in chunk))
         means.append(statistics.fmean(s for _, s in chunk))
     if len(means) < 3:

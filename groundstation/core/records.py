@@ -120,7 +120,6 @@ def command_to_record(command: Command) -> dict[str, Any]:
             "routes": command.result.routes, "assignments": dict(command.assignments),
             "solve_time_s": command.result.solve_time_s, "status": command.result.status,
             "objective": command.result.objective,
-            "bound": command.result.bound, "gap": command.result.gap,
             "reason": command.reason,
             "problem": problem_to_dict(command.problem),
             "hint": {k: list(v) for k, v in command.hint.items()},

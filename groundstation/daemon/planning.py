@@ -23,6 +23,7 @@ from collections.abc import Callable, Mapping, Sequence
 
 from groundstation.core.commands import SolveRequest
 from planner import PlanResult, PlanSolver
+from planner.solve import warm_up
 
 __all__ = ["SolverRunner"]
 
@@ -40,13 +41,6 @@ class SolverRunner:
         seed: int = 0,
         on_error: Callable[[SolveRequest, str], None] | None = None,
     ) -> None:
-        # The planner imports CP-SAT (ortools.sat and pandas, ~0.3 s of CPU) and scipy's LP
-        # (~0.3-0.5 s) only when a solve needs them; the daemon's solver loads both here, at
-        # start, so that its first large solve does not spend that time inside its deadline.
-        from planner.solve import warm_up
-
-        warm_up()
-
         self.on_solved = on_solved
         self.on_error = on_error
         self.num_workers = num_workers
@@ -71,7 +65,18 @@ class SolverRunner:
         self._queue.put_nowait((request, solver))
 
     async def run(self) -> None:
-        """Serve submitted requests until cancelled (each solve a child task)."""
+        """Serve submitted requests until cancelled (each solve a child task).
+
+        First the planner's libraries are loaded in the worker thread: it imports CP-SAT
+        (ortools.sat and pandas, ~0.3 s of CPU) and scipy's LP (~0.3-0.5 s) only when a solve
+        needs them, and a first large solve would spend that time inside its deadline. Done
+        here, not in __init__, it delays neither the event loop nor the links' start;
+        requests submitted meanwhile wait in the queue."""
+        loop = asyncio.get_running_loop()
+        try:
+            await loop.run_in_executor(self._executor, warm_up)
+        except Exception as exc:  # a broken install: each solve then pays (or fails) itself
+            log.warning("planner warm-up failed: %s", exc)
         async with asyncio.TaskGroup() as solves:
             while True:
                 request, solver = await self._queue.get()
