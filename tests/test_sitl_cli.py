@@ -134,7 +134,7 @@ def test_gcs_sitl_ardupilot_honours_base_port(tmp_path: Path) -> None:
     for launch in launches:
         argv = launch.argv
         assert argv[argv.index("--base-port") + 1] == str(launch.gcs_port)
-        assert argv.index("--base-port") < argv.index("-I")  # SITL wants it before -I
+        assert argv.index("-I") < argv.index("--base-port")  # the explicit port wins
 
     default = ardupilot_launches(parse(["--ardupilot", str(binary)]), binary, defaults, 1, home)
     assert default[0].gcs_port == 5760
@@ -143,6 +143,33 @@ def test_gcs_sitl_ardupilot_honours_base_port(tmp_path: Path) -> None:
     with pytest.raises(UsageError, match="--base-port: 0"):
         ardupilot_launches(parse(["--ardupilot", str(binary), "--base-port", "0"]),
                            binary, defaults, 1, home)
+
+
+def _sitl_serial0_port(argv: list[str]) -> int:
+    """The SERIAL0 port ArduPilot's SITL_cmdline.cpp arrives at for ``argv``: options are
+    read in order; ``--base-port B`` sets the base port, ``-I i`` adds 10 i to it only if it
+    is still the default (``if (_base_port == BASE_PORT) _base_port += _instance*10``)."""
+    base_port = 5760
+    for i, arg in enumerate(argv):
+        if arg == "--base-port":
+            base_port = int(argv[i + 1])
+        elif arg == "-I" and base_port == 5760:
+            base_port += 10 * int(argv[i + 1])
+    return base_port
+
+
+@pytest.mark.parametrize("base_port", [5750, 5740, 5760, 5700, 6000])
+def test_ardupilot_instances_land_on_the_launchers_ports(tmp_path: Path, base_port: int) -> None:
+    """Read as SITL reads its command line, every instance serves the port the launcher
+    expects, also when B + 10 i is 5760 for some i > 0 (``--base-port 5750 --count 2``:
+    with ``--base-port`` before ``-I``, instance 1 ended up on 5770)."""
+    binary = tmp_path / "arduplane"
+    launches = ardupilot_commands(
+        binary, 8, 10.0, (78.93, 11.92), tmp_path / "plane.parm", tmp_path / "w",
+        base_port=base_port,
+    )
+    assert [_sitl_serial0_port(x.argv) for x in launches] == [x.gcs_port for x in launches]
+    assert [x.gcs_port for x in launches] == [base_port + 10 * i for i in range(8)]
 
 
 def test_ardupilot_launcher_keeps_children_alive_then_stops_them(
