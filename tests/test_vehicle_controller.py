@@ -308,18 +308,6 @@ def test_set_current_decided_on_result_codes(
     assert rig.journal("upload")[-1].fields["ok"] is ok
 
 
-def test_set_current_after_a_target_upload_knows_the_mission_it_sets() -> None:
-    # issue 11: the machine may then take a later item shown after its ACK as confirmation
-    # (a waypoint passed at once) instead of waiting out its window
-    rig = active_rig()
-    rig.auto_answer = False
-    rig.fly()
-    rig.answer(io.UploadOutcome(True, 0, None, 4))
-    request = rig.pending
-    assert isinstance(request, io.SetCurrent)
-    assert request.seq == 1 and request.mission_count == 4
-
-
 # ------------------------------------------------------------------ the guard
 def test_guard_refuses_a_target_upload_to_a_disarmed_vehicle() -> None:
     rig = active_rig()

@@ -93,8 +93,8 @@ def mission_job(
     """Upload ``steps`` verified; then set ``current`` and make sure of AUTO.
 
     The loiter end of a target mission is watched from the verified upload on. The
-    set-current is given the mission's item count, so the machine itself confirms a
-    waypoint passed at once (a later item of ours shown after its ACK). A set-current that
+    set-current machine itself confirms a waypoint passed at once (MISSION_ITEM_REACHED of
+    it after its ACK). A set-current that
     still timed out after the vehicle ACCEPTED it, with the vehicle on a later item of ours,
     counts as done too (decided on the result's code and ``remote_code``, never on its
     message)."""
@@ -102,7 +102,7 @@ def mission_job(
     up: UploadOutcome = yield UploadMission(tuple(steps), purpose, target)
     ok, retries, error = up.ok, up.retries, up.error or ""
     if ok and current is not None:
-        result = yield SetCurrent(current, host.mission_seq(), up.items or None)
+        result = yield SetCurrent(current, host.mission_seq())
         retries += result.retries_used
         ok = result.ok
         now_seq = host.mission_seq()
