@@ -288,10 +288,13 @@ def test_a_newer_command_during_a_retry_pause_is_flown_not_the_old_one() -> None
 @pytest.mark.parametrize(
     ("code", "remote", "seq_after", "ok"),
     [
-        (TransferCode.TIMEOUT, "MAV_RESULT_ACCEPTED", 2, True),  # ACK seen, already past
+        # ACK seen, the vehicle shows a later item: that may be a stale frame of the previous
+        # mission (a reordering link); the machine alone decides (MISSION_ITEM_REACHED)
+        (TransferCode.TIMEOUT, "MAV_RESULT_ACCEPTED", 2, False),
         (TransferCode.TIMEOUT, None, 2, False),  # no ACK: the item 2 may be the old mission's
         (TransferCode.TIMEOUT, "MAV_RESULT_ACCEPTED", 1, False),  # not moved past
         (TransferCode.DENIED, "MAV_RESULT_DENIED", 2, False),
+        (TransferCode.SUCCESS, "MAV_RESULT_ACCEPTED", 2, True),  # passed at once, confirmed
     ],
 )
 def test_set_current_decided_on_result_codes(
@@ -304,7 +307,8 @@ def test_set_current_decided_on_result_codes(
     rig.snap = replace(rig.snap, mission_current_seq=seq_after)
     rig.frame("MISSION_CURRENT")
     message = "COMMAND_ACK ACCEPTED but MISSION_CURRENT never showed 1"  # never grepped
-    rig.answer(TransferResult(False, code, message, remote_code=remote))
+    success = code is TransferCode.SUCCESS
+    rig.answer(TransferResult(success, code, message, remote_code=remote))
     assert rig.journal("upload")[-1].fields["ok"] is ok
 
 
