@@ -270,3 +270,27 @@ def test_sitl_out_takes_mavproxy_sending_spellings() -> None:
     assert parse_udp_url("127.0.0.1:14550", "--out") == ("127.0.0.1", 14550)
     with pytest.raises(UsageError, match=r"udpin: \(listen\) is not supported"):
         parse_udp_url("udpin:0.0.0.0:14550", "--out")
+
+
+@pytest.mark.parametrize(
+    ("text", "match"),
+    [
+        ("tcp:127.0.0.1:5760", r"^--out: sends to udp:HOST:PORT; tcp: \(TCP\) is not supported$"),
+        ("tcpin:0.0.0.0:5760", r"tcpin: \(TCP server\) is not supported"),
+        ("serial:/dev/ttyUSB0:57600", r"serial: \(serial port\) is not supported"),
+        ("foo bar:14550", r"got 'foo bar:14550' \(host 'foo bar' is not a valid host name"),
+        ("udp:h:99999", r"got 'udp:h:99999' \(port 99999 is outside 1\.\.65535\)$"),
+        ("udp:nohost", r"got 'udp:nohost' \(missing port"),
+        ("::1:14550", r"write IPv6 addresses in brackets"),
+    ],
+)
+def test_sitl_udp_addresses_are_read_as_out_urls(text: str, match: str) -> None:
+    """The same reading as `gcs run --out` (link.url.parse_out_url): a TCP or serial URL, a
+    host that is no host name, are one-line usage errors naming the option (a tcp: URL was
+    taken as the host 'tcp:127.0.0.1'), and a bracketed IPv6 address is an address."""
+    from groundstation.commands.sitl_args import parse_udp_url
+
+    with pytest.raises(UsageError, match=match):
+        parse_udp_url(text, "--out")
+    assert parse_udp_url("[::1]:14550", "--detections") == ("::1", 14550)
+    assert parse_udp_url("udpout://localhost:14600", "--detections") == ("localhost", 14600)
