@@ -2,15 +2,18 @@
 
 Instance i is started as sim_vehicle.py would (ArduPilot's SITL_cmdline.cpp options)::
 
-    PATH -S --model plane --speedup K --base-port B+10i -I i --home LAT,LON,ALT,HDG \
+    PATH -S --model plane --speedup K -I i --base-port B+10i --home LAT,LON,ALT,HDG \
          --defaults <tree>/Tools/autotest/models/plane.parm --sysid i+1
 
 in its own working directory (``DIR/I<i>``: SITL keeps eeprom.bin and logs in the current
 directory). Instance i serves TCP B + 10 i (SERIAL0, for the ground station; it waits
 for that client before it boots) and B + 2 + 10 i (SERIAL1), where the launcher itself reads
-positions to play the camera; B is ``base_port`` (5760, ArduPilot's default). Each instance
-is given ``--base-port B+10i`` explicitly: SITL adds 10 i for ``-I i`` only while its base
-port is still the default, so the explicit port is right in any argument order. SITL exits
+positions to play the camera; B is ``base_port`` (5760, ArduPilot's default). SITL reads its
+options in order, and ``-I i`` adds 10 i to the base port only if the base port is still the
+default at that moment (``if (_base_port == BASE_PORT) _base_port += _instance*10``). So
+``-I i`` comes first and the explicit ``--base-port B+10i`` after it overrides whatever it
+did: the other order breaks when B + 10 i happens to be 5760 for some i > 0 (``--base-port
+5750 --count 2``: instance 1 would be told 5760, then moved to 5770 by ``-I 1``). SITL exits
 when its parent goes away, so the launcher stays alive until Ctrl-C (or ``--duration``) and
 then terminates its children.
 """
@@ -88,10 +91,10 @@ def ardupilot_commands(
             "plane",
             "--speedup",
             f"{speedup:g}",
-            "--base-port",
-            str(port),
             "-I",
             str(i),
+            "--base-port",
+            str(port),
             "--home",
             f"{home[0]:.7f},{home[1]:.7f},{home_alt_m:g},{home_heading_deg:g}",
             "--defaults",

@@ -9,11 +9,14 @@ ArduPlane runs the same mission-item protocol for ``MAV_MISSION_TYPE_FENCE`` (1)
   capacity -> ``NO_SPACE``; otherwise ``MISSION_REQUEST`` seq 0, 1, ... (same type) until
   the last item, then ``MISSION_ACK ACCEPTED``. Unlike the mission, the stored items are
   replaced only when the upload completes (ArduPilot uploads into a new buffer);
-* an item whose command does not belong to the type -> ``UNSUPPORTED`` (the upload ends),
-  a wrong seq -> ``INVALID_SEQUENCE``, an item with no upload -> ``ERROR``, another ground
-  station starting an upload during one -> ``DENIED``;
-* re-request about every second; cancel after 8 s without an item
-  (``OPERATION_CANCELLED``);
+* an item whose command does not belong to the type -> ``UNSUPPORTED``, a latitude or
+  longitude out of range or not finite -> ``INVALID_PARAM5_X`` / ``INVALID_PARAM6_Y`` (the
+  upload ends; items are checked and converted by :func:`sitl.mission_store.item_from_message`
+  with the mission type), a wrong seq -> ``INVALID_SEQUENCE``, an item with no upload ->
+  ``ERROR``, another ground station starting an upload during one -> ``DENIED``;
+* re-request every ``rerequest_s``; cancel after ``upload_timeout_s`` without an item
+  (``OPERATION_CANCELLED``): the mission's own timings, given by
+  :class:`sitl.mission_protocol.MissionServer`;
 * ``MISSION_REQUEST(_INT)`` -> the stored item as ``MISSION_ITEM(_INT)`` of that type
   (``INVALID_SEQUENCE`` beyond the end); ``MISSION_CLEAR_ALL`` -> empty, ``ACCEPTED``.
 
@@ -28,73 +31,36 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from groundstation.mavlink.codec import mavlink2
+from sitl.mission_store import GEO_COMMANDS, MissionItem, item_from_message, item_to_message
 
-__all__ = ["GEO_CAPACITY", "GEO_TYPES", "GeoItem", "GeoItemsServer"]
+__all__ = ["GEO_CAPACITY", "GeoItemsServer"]
 
 M = mavlink2
-REREQUEST_S = 1.0
-UPLOAD_TIMEOUT_S = 8.0
 GEO_CAPACITY = 100
 """Items per store (ArduPilot's limits depend on the board's storage; ~84-100 fence
 items, RALLY_TOTAL up to 100 rally points)."""
-
-_FENCE_COMMANDS = frozenset(
-    {
-        M.MAV_CMD_NAV_FENCE_RETURN_POINT,
-        M.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION,
-        M.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_EXCLUSION,
-        M.MAV_CMD_NAV_FENCE_CIRCLE_INCLUSION,
-        M.MAV_CMD_NAV_FENCE_CIRCLE_EXCLUSION,
-    }
-)
-_RALLY_COMMANDS = frozenset({M.MAV_CMD_NAV_RALLY_POINT})
-GEO_TYPES: dict[int, frozenset[int]] = {
-    M.MAV_MISSION_TYPE_FENCE: _FENCE_COMMANDS,
-    M.MAV_MISSION_TYPE_RALLY: _RALLY_COMMANDS,
-}
-"""Mission type -> the commands its items may carry."""
-
-
-@dataclass(frozen=True, slots=True)
-class GeoItem:
-    """One stored fence or rally item (lat/lon in degE7, as MISSION_ITEM_INT)."""
-
-    command: int
-    frame: int
-    params: tuple[float, float, float, float]
-    x: int
-    y: int
-    z: float
-
 
 @dataclass
 class _Upload:
     peer: tuple[int, int]
     count: int
-    items: list[GeoItem] = field(default_factory=list)
+    items: list[MissionItem] = field(default_factory=list)
     last_request_t: float = 0.0
     last_receive_t: float = 0.0
-
-
-def _item(msg: Any) -> GeoItem:
-    params = (float(msg.param1), float(msg.param2), float(msg.param3), float(msg.param4))
-    if msg.get_type() == "MISSION_ITEM_INT":
-        x, y = int(msg.x), int(msg.y)
-    else:
-        x, y = round(float(msg.x) * 1e7), round(float(msg.y) * 1e7)
-    return GeoItem(int(msg.command), int(msg.frame), params, x, y, float(msg.z))
 
 
 class GeoItemsServer:
     """The fence and rally stores and their upload/download (module docstring)."""
 
-    def __init__(self) -> None:
-        self.stores: dict[int, list[GeoItem]] = {t: [] for t in GEO_TYPES}
+    def __init__(self, *, rerequest_s: float, upload_timeout_s: float) -> None:
+        self.rerequest_s = rerequest_s
+        self.upload_timeout_s = upload_timeout_s
+        self.stores: dict[int, list[MissionItem]] = {t: [] for t in GEO_COMMANDS}
         self._uploads: dict[int, _Upload] = {}
 
     @staticmethod
     def handles(mission_type: int) -> bool:
-        return mission_type in GEO_TYPES
+        return mission_type in GEO_COMMANDS
 
     def handle(self, msg: Any, t_s: float) -> list[Any]:
         """Answer one mission-protocol message of the fence or rally type."""
@@ -112,7 +78,7 @@ class GeoItemsServer:
             seq = int(msg.seq)
             if not 0 <= seq < len(store):
                 return [self._ack(peer, M.MAV_MISSION_INVALID_SEQUENCE, mtype)]
-            return [self._item_message(store[seq], seq, peer, mtype, kind.endswith("_INT"))]
+            return [item_to_message(store[seq], seq, peer, kind.endswith("_INT"), False, mtype)]
         if kind == "MISSION_CLEAR_ALL":
             if mtype in self._uploads:
                 return [self._ack(peer, M.MAV_MISSION_ERROR, mtype)]
@@ -121,13 +87,14 @@ class GeoItemsServer:
         return []
 
     def step(self, t_s: float) -> list[Any]:
-        """Re-request a missing item about every second; cancel after 8 s of silence."""
+        """Re-request a missing item every ``rerequest_s``; cancel after
+        ``upload_timeout_s`` of silence."""
         out: list[Any] = []
         for mtype, up in list(self._uploads.items()):
-            if t_s - up.last_receive_t >= UPLOAD_TIMEOUT_S:
+            if t_s - up.last_receive_t >= self.upload_timeout_s:
                 del self._uploads[mtype]
                 out.append(self._ack(up.peer, M.MAV_MISSION_OPERATION_CANCELLED, mtype))
-            elif t_s - up.last_request_t >= REREQUEST_S:
+            elif t_s - up.last_request_t >= self.rerequest_s:
                 out.append(self._request(up, mtype, t_s))
         return out
 
@@ -167,28 +134,14 @@ class GeoItemsServer:
             return [self._ack(peer, M.MAV_MISSION_INVALID_SEQUENCE, mtype)]
         if peer != up.peer:
             return [self._ack(peer, M.MAV_MISSION_DENIED, mtype)]
-        if int(msg.command) not in GEO_TYPES[mtype]:
+        item, result = item_from_message(msg, mtype)
+        if item is None:
             del self._uploads[mtype]
-            return [self._ack(peer, M.MAV_MISSION_UNSUPPORTED, mtype)]
-        up.items.append(_item(msg))
+            return [self._ack(peer, result, mtype)]
+        up.items.append(item)
         up.last_receive_t = t_s
         if len(up.items) < up.count:
             return [self._request(up, mtype, t_s)]
         del self._uploads[mtype]
         self.stores[mtype] = up.items
         return [self._ack(peer, M.MAV_MISSION_ACCEPTED, mtype)]
-
-    @staticmethod
-    def _item_message(
-        item: GeoItem, seq: int, peer: tuple[int, int], mtype: int, as_int: bool
-    ) -> Any:
-        p1, p2, p3, p4 = item.params
-        if as_int:
-            return M.MAVLink_mission_item_int_message(
-                peer[0], peer[1], seq, item.frame, item.command, 0, 1,
-                p1, p2, p3, p4, item.x, item.y, item.z, mtype,
-            )  # fmt: skip
-        return M.MAVLink_mission_item_message(
-            peer[0], peer[1], seq, item.frame, item.command, 0, 1,
-            p1, p2, p3, p4, item.x * 1e-7, item.y * 1e-7, item.z, mtype,
-        )  # fmt: skip

@@ -37,7 +37,9 @@ __all__ = ["MissionEvents", "MissionServer"]
 
 M = mavlink2
 REREQUEST_S = 1.0
+"""Re-request a missing item after this long (simulated s; also the fence and rally's)."""
 UPLOAD_TIMEOUT_S = 8.0
+"""Cancel an upload after this long without an item (simulated s; also fence and rally)."""
 
 
 @dataclass
@@ -62,7 +64,7 @@ class MissionServer:
         self._last_receive_t = 0.0
         self._request_warning_sent = False
         self._item_warning_sent = False
-        self.geo = GeoItemsServer()
+        self.geo = GeoItemsServer(rerequest_s=REREQUEST_S, upload_timeout_s=UPLOAD_TIMEOUT_S)
 
     def _ack(self, peer: tuple[int, int], result: int, mission_type: int = 0) -> Any:
         return M.MAVLink_mission_ack_message(peer[0], peer[1], result, mission_type)

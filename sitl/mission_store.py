@@ -6,8 +6,14 @@ answers are converted on the way in and out, as ArduPilot does. Index 0 is home.
 
 Validation follows ArduPilot's ``mavlink_int_to_mission_cmd``: an unknown command is
 ``MAV_MISSION_UNSUPPORTED``, a location command in an unsupported frame (e.g. BODY_NED) is
-``MAV_MISSION_UNSUPPORTED_FRAME``, |lat| > 90 deg is ``MAV_MISSION_INVALID_PARAM5_X`` and
-|lon| > 180 deg is ``MAV_MISSION_INVALID_PARAM6_Y``.
+``MAV_MISSION_UNSUPPORTED_FRAME``, |lat| > 90 deg (or not finite) is
+``MAV_MISSION_INVALID_PARAM5_X`` and |lon| > 180 deg ``MAV_MISSION_INVALID_PARAM6_Y``.
+
+The fence and rally mission types (:mod:`sitl.geo_items`) go through the same conversion
+with their ``mission_type``: only that type's commands (:data:`GEO_COMMANDS`), each a
+location checked for latitude and longitude, as ArduPilot's
+``convert_MISSION_ITEM_to_MISSION_ITEM_INT`` does for them; their parameters, frame and z
+are kept as sent (z zeroed when not finite).
 """
 
 from __future__ import annotations
@@ -20,6 +26,7 @@ from groundstation.mavlink.codec import mavlink2
 
 __all__ = [
     "COMMAND_NAMES",
+    "GEO_COMMANDS",
     "LOCATION_COMMANDS",
     "MAX_MISSION_ITEMS",
     "MissionItem",
@@ -45,6 +52,21 @@ LOCATION_COMMANDS = frozenset(
     }
 )
 """Commands whose x/y/z are a location (checked for frame and range)."""
+
+GEO_COMMANDS: dict[int, frozenset[int]] = {
+    M.MAV_MISSION_TYPE_FENCE: frozenset(
+        {
+            M.MAV_CMD_NAV_FENCE_RETURN_POINT,
+            M.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION,
+            M.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_EXCLUSION,
+            M.MAV_CMD_NAV_FENCE_CIRCLE_INCLUSION,
+            M.MAV_CMD_NAV_FENCE_CIRCLE_EXCLUSION,
+        }
+    ),
+    M.MAV_MISSION_TYPE_RALLY: frozenset({M.MAV_CMD_NAV_RALLY_POINT}),
+}
+"""Fence and rally mission types -> the commands their items may carry (all locations)."""
+_LATLON_COMMANDS = LOCATION_COMMANDS.union(*GEO_COMMANDS.values())
 
 COMMAND_NAMES: dict[int, str] = {
     M.MAV_CMD_NAV_WAYPOINT: "WP",
@@ -224,30 +246,51 @@ def stored_form(item: MissionItem) -> MissionItem:
     )
 
 
-def item_from_message(msg: Any) -> tuple[MissionItem | None, int]:
-    """Convert a MISSION_ITEM or MISSION_ITEM_INT to its stored form; returns
-    (item, MAV_MISSION_RESULT). NaN parameters are accepted (QGroundControl sends NaN for
-    "unchanged" yaw), as ArduPilot does; they are dropped or zeroed by :func:`stored_form`."""
+def _latlon_e7(msg: Any, is_int: bool) -> tuple[int, int] | int:
+    """The item's latitude/longitude in degE7, or the MAV_MISSION_RESULT refusing them."""
+    if is_int:
+        lat_deg, lon_deg = int(msg.x) * 1e-7, int(msg.y) * 1e-7
+    else:
+        lat_deg, lon_deg = float(msg.x), float(msg.y)
+    if not _finite(lat_deg) or abs(lat_deg) > 90.0:
+        return M.MAV_MISSION_INVALID_PARAM5_X
+    if not _finite(lon_deg) or abs(lon_deg) > 180.0:
+        return M.MAV_MISSION_INVALID_PARAM6_Y
+    return round(lat_deg * 1e7), round(lon_deg * 1e7)
+
+
+def item_from_message(
+    msg: Any, mission_type: int = M.MAV_MISSION_TYPE_MISSION
+) -> tuple[MissionItem | None, int]:
+    """Convert a MISSION_ITEM or MISSION_ITEM_INT of ``mission_type`` to its stored form;
+    returns (item, MAV_MISSION_RESULT). NaN parameters are accepted (QGroundControl sends
+    NaN for "unchanged" yaw), as ArduPilot does; they are dropped or zeroed by
+    :func:`stored_form`. Fence and rally items: see the module docstring."""
     is_int = msg.get_type() == "MISSION_ITEM_INT"
     command = int(msg.command)
-    if command not in COMMAND_NAMES:
-        return None, M.MAV_MISSION_UNSUPPORTED
     params = (float(msg.param1), float(msg.param2), float(msg.param3), float(msg.param4))
     z = float(msg.z)
+    if mission_type != M.MAV_MISSION_TYPE_MISSION:
+        if command not in GEO_COMMANDS.get(mission_type, frozenset()):
+            return None, M.MAV_MISSION_UNSUPPORTED
+        latlon = _latlon_e7(msg, is_int)
+        if isinstance(latlon, int):
+            return None, latlon
+        x, y = latlon
+        return MissionItem(
+            command, int(msg.frame), *params, x=x, y=y, z=z if _finite(z) else 0.0
+        ), M.MAV_MISSION_ACCEPTED
+    if command not in COMMAND_NAMES:
+        return None, M.MAV_MISSION_UNSUPPORTED
     if command in LOCATION_COMMANDS:
-        if is_int:
-            lat_deg, lon_deg = int(msg.x) * 1e-7, int(msg.y) * 1e-7
-        else:
-            lat_deg, lon_deg = float(msg.x), float(msg.y)
-        if not _finite(lat_deg) or abs(lat_deg) > 90.0:
-            return None, M.MAV_MISSION_INVALID_PARAM5_X
-        if not _finite(lon_deg) or abs(lon_deg) > 180.0:
-            return None, M.MAV_MISSION_INVALID_PARAM6_Y
+        latlon = _latlon_e7(msg, is_int)
+        if isinstance(latlon, int):
+            return None, latlon
         if not _finite(z) or abs(z) >= LOCATION_ALT_MAX_M:
             return None, M.MAV_MISSION_INVALID_PARAM7
         if int(msg.frame) not in _GLOBAL_FRAMES:
             return None, M.MAV_MISSION_UNSUPPORTED_FRAME
-        x, y = round(lat_deg * 1e7), round(lon_deg * 1e7)
+        x, y = latlon
     else:
         fx, fy = float(msg.x), float(msg.y)
         x = int(fx) if _finite(fx) and abs(fx) < 2**31 else 0
@@ -257,9 +300,15 @@ def item_from_message(msg: Any) -> tuple[MissionItem | None, int]:
 
 
 def item_to_message(
-    item: MissionItem, seq: int, target: tuple[int, int], as_int: bool, current: bool
+    item: MissionItem,
+    seq: int,
+    target: tuple[int, int],
+    as_int: bool,
+    current: bool,
+    mission_type: int = M.MAV_MISSION_TYPE_MISSION,
 ) -> Any:
-    """MISSION_ITEM_INT (``as_int``) or MISSION_ITEM for a download answer."""
+    """MISSION_ITEM_INT (``as_int``) or MISSION_ITEM of ``mission_type`` for a download
+    answer."""
     common = (
         target[0],
         target[1],
@@ -274,12 +323,12 @@ def item_to_message(
         item.param4,
     )
     if as_int:
-        return M.MAVLink_mission_item_int_message(*common, item.x, item.y, item.z, 0)
-    if item.command in LOCATION_COMMANDS:
+        return M.MAVLink_mission_item_int_message(*common, item.x, item.y, item.z, mission_type)
+    if item.command in _LATLON_COMMANDS:
         fx, fy = item.x * 1e-7, item.y * 1e-7
     else:
         fx, fy = float(item.x), float(item.y)
-    return M.MAVLink_mission_item_message(*common, fx, fy, item.z, 0)
+    return M.MAVLink_mission_item_message(*common, fx, fy, item.z, mission_type)
 
 
 class MissionStore:

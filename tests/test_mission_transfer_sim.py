@@ -175,8 +175,8 @@ def test_reboot_mid_upload(boot_s: float, code: TransferCode) -> None:
 def test_set_current_on_a_waypoint_passed_at_once_is_confirmed_at_once() -> None:
     """Issue 11 on the simulator: re-upload while flying to A=(0, 1500) a waypoint B=(0, 600)
     that the plane (near y=300, heading north) is already past, seen from A (ArduPlane
-    cross-tracks from the previous waypoint); set current 1 is confirmed by MISSION_CURRENT
-    moving on to the loiter, without waiting out the 6 s window."""
+    cross-tracks from the previous waypoint); set current 1 is confirmed by the vehicle's
+    MISSION_ITEM_REACHED 1 after its ACK, without waiting out the 6 s window."""
     lb = make()
     tel = VehicleTelemetry(1, ORIGIN)
 
@@ -186,7 +186,7 @@ def test_set_current_on_a_waypoint_passed_at_once_is_confirmed_at_once() -> None
         )
 
     assert drive(lb, MissionUpload(1, 1, to(0.0, 1500.0)), tel).ok
-    assert drive(lb, SetCurrent(1, 1, 1, mission_count=3), tel).ok
+    assert drive(lb, SetCurrent(1, 1, 1), tel).ok
     texts: list[str] = []
     while (tel.snapshot().y_m or 0.0) < 300.0:
         for msg in lb.advance(0.5, 0.1):
@@ -203,7 +203,7 @@ def test_set_current_on_a_waypoint_passed_at_once_is_confirmed_at_once() -> None
         return events
 
     tel.receive = keep_texts  # type: ignore[method-assign]
-    sc = drive(lb, SetCurrent(1, 1, 1, known_current_seq=1, mission_count=len(items)), tel)
+    sc = drive(lb, SetCurrent(1, 1, 1, known_current_seq=1), tel)
     assert any(t.startswith("Passed waypoint #1") for t in texts), texts
     assert sc.ok and sc.retries_used == 0, sc
     assert lb.t_s - t0_s < 0.5

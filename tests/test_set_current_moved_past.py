@@ -7,8 +7,11 @@ waypoint, so a re-uploaded waypoint behind that finish line is "Passed" in the s
 The vehicle then showed ``MISSION_CURRENT`` = seq only *before* its COMMAND_ACK (ambiguous
 when it was already on seq: ignored as possibly stale) and seq + 1 after it; the machine
 waited for ``MISSION_CURRENT`` = seq that never came, timed out after 6 mission s (5 silent
-"retries", nothing resent) and the job took the timeout as done. Now a later item of the
-mission shown after the ACK confirms (``mission_count``).
+"retries", nothing resent) and the job took the timeout as done. Now the vehicle's
+``MISSION_ITEM_REACHED`` of seq after the ACK confirms (ArduPlane sends it when the item
+completes). A later ``MISSION_CURRENT`` after the ACK does not: on a link that reorders
+(UDP, two masters merged by MAVProxy or mavlink-router) it may be a stale frame of the
+previous mission.
 
 Sans-IO: the machine is fed the exact message order seen in the tlog, in mission time.
 """
@@ -19,7 +22,6 @@ import pytest
 from test_mission_transfer_fake import GCS_COMP, GCS_SYS, VEH_COMP, VEH_SYS, via_wire
 
 from groundstation.mavlink.codec import MAVLinkMessage, mavlink2
-from groundstation.mavlink.errors import LocalProtocolError
 from groundstation.mavlink.mission_commands import SetCurrent, SetCurrentState
 from groundstation.mavlink.mission_transfer import Finished, TransferCode, TransferResult
 
@@ -79,50 +81,75 @@ def run(
 
 
 def test_a_waypoint_passed_at_once_is_confirmed_at_once() -> None:
-    sc = SetCurrent(VEH_SYS, VEH_COMP, 1, known_current_seq=1, mission_count=3)
+    sc = SetCurrent(VEH_SYS, VEH_COMP, 1, known_current_seq=1)
     result, end_s = run(sc, passed_at_once())
     assert result.ok and result.code is TransferCode.SUCCESS
     assert result.retries_used == 0
-    assert end_s == pytest.approx(0.06)  # at the first MISSION_CURRENT after the ACK
-    assert "moved on" in result.message
+    assert end_s == pytest.approx(0.06)  # at the MISSION_ITEM_REACHED 1 after the ACK
+    assert "MISSION_ITEM_REACHED 1" in result.message
 
 
-def test_without_the_mission_count_it_waits_out_the_window_as_before() -> None:
-    # the old behaviour, still what a caller that does not know the mission gets: this is
+def test_without_the_item_reached_it_waits_out_the_window() -> None:
+    # MISSION_ITEM_REACHED lost: the later MISSION_CURRENT alone is no confirmation; this is
     # what the journal showed as "retries=5" (6 mission s, nothing resent)
+    script = [(t, m) for t, m in passed_at_once() if m.get_type() != "MISSION_ITEM_REACHED"]
     sc = SetCurrent(VEH_SYS, VEH_COMP, 1, known_current_seq=1, timeout_s=1.0, retries=5)
-    result, end_s = run(sc, passed_at_once())
+    result, end_s = run(sc, script)
     assert result.code is TransferCode.TIMEOUT and result.remote_code == "MAV_RESULT_ACCEPTED"
     assert result.retries_used == 5
     assert end_s == pytest.approx(0.06 + 6 * 1.0)
 
 
+def test_a_stale_later_mission_current_after_the_ack_does_not_confirm() -> None:
+    # The vehicle held item 2 of its previous mission (the last target's unlimited loiter);
+    # floe uploaded [home, loiter, loiter] and sets 1. A MISSION_CURRENT 2 sent before the
+    # command but delivered after the ACK (a reordering link) satisfies 1 < 2 < 3; it must
+    # not confirm (the loiter end of item 1 would be read from it at once). The real
+    # MISSION_CURRENT 1 that follows does.
+    sc = SetCurrent(VEH_SYS, VEH_COMP, 1, known_current_seq=2)
+    script = [(0.05, ack()), (0.08, current(2, 3)), (0.9, current(1, 3))]
+    result, end_s = run(sc, script)
+    assert result.ok and "COMMAND_ACK and MISSION_CURRENT" in result.message
+    assert end_s == pytest.approx(0.9)
+
+    sc = SetCurrent(VEH_SYS, VEH_COMP, 1, known_current_seq=2, retries=2)
+    result, _ = run(sc, [(0.05, ack()), (0.08, current(2, 3)), (1.0, current(2, 3))])
+    assert result.code is TransferCode.TIMEOUT
+
+
+def test_item_reached_counts_only_after_the_ack_and_only_for_seq() -> None:
+    # before the ACK it may be the previous mission's item 1 ending; after it, another
+    # item's MISSION_ITEM_REACHED says nothing about ours
+    reached = wire(M.MAVLink_mission_item_reached_message(1))
+    sc = SetCurrent(VEH_SYS, VEH_COMP, 1, known_current_seq=1, retries=1)
+    result, _ = run(sc, [(0.05, reached), (0.1, ack())])
+    assert result.code is TransferCode.TIMEOUT
+    other = wire(M.MAVLink_mission_item_reached_message(2))
+    sc = SetCurrent(VEH_SYS, VEH_COMP, 1, known_current_seq=1, retries=1)
+    result, _ = run(sc, [(0.05, ack()), (0.1, other), (0.2, current(2))])
+    assert result.code is TransferCode.TIMEOUT
+
+
 def test_a_later_item_before_the_ack_is_no_confirmation() -> None:
     # before the ACK a MISSION_CURRENT may predate our command: the vehicle could have been
     # on item 2 already. Then the command is resent, as for silence.
-    sc = SetCurrent(VEH_SYS, VEH_COMP, 1, known_current_seq=1, mission_count=3, retries=1)
+    sc = SetCurrent(VEH_SYS, VEH_COMP, 1, known_current_seq=1, retries=1)
     result, _ = run(sc, [(0.05, current(2)), (0.5, current(2))])
     assert result.code is TransferCode.TIMEOUT and result.remote_code is None
 
 
-@pytest.mark.parametrize("shown", [0, 3, 7])
-def test_after_the_ack_only_a_later_item_of_the_mission_confirms(shown: int) -> None:
-    # 0: before our item; 3 and 7: beyond the 3 items we uploaded (an overwritten item still
-    # flown shows seq > total, design.md): none of them is "started item 1 and moved on"
-    sc = SetCurrent(VEH_SYS, VEH_COMP, 1, known_current_seq=2, mission_count=3, retries=2)
+@pytest.mark.parametrize("shown", [0, 2, 3, 7])
+def test_after_the_ack_no_other_mission_current_confirms(shown: int) -> None:
+    # 0: before our item; 2: a later item (stale or not, it cannot tell); 3 and 7: beyond
+    # the 3 items we uploaded (an overwritten item still flown shows seq > total, design.md)
+    sc = SetCurrent(VEH_SYS, VEH_COMP, 1, known_current_seq=2, retries=2)
     result, _ = run(sc, [(0.05, ack()), (0.1, current(shown)), (1.0, current(shown))])
     assert result.code is TransferCode.TIMEOUT
     assert sc.state is SetCurrentState.DONE
 
 
 def test_the_equal_item_after_the_ack_still_confirms() -> None:
-    sc = SetCurrent(VEH_SYS, VEH_COMP, 1, known_current_seq=1, mission_count=3)
+    sc = SetCurrent(VEH_SYS, VEH_COMP, 1, known_current_seq=1)
     result, end_s = run(sc, [(0.05, ack()), (0.3, current(1))])
     assert result.ok and "COMMAND_ACK and MISSION_CURRENT" in result.message
     assert end_s == pytest.approx(0.3)
-
-
-@pytest.mark.parametrize("count", [0, 1, 65537])
-def test_a_mission_count_that_cannot_hold_seq_is_a_local_error(count: int) -> None:
-    with pytest.raises(LocalProtocolError, match="mission_count"):
-        SetCurrent(VEH_SYS, VEH_COMP, 1, mission_count=count)

@@ -134,7 +134,7 @@ def test_gcs_sitl_ardupilot_honours_base_port(tmp_path: Path) -> None:
     for launch in launches:
         argv = launch.argv
         assert argv[argv.index("--base-port") + 1] == str(launch.gcs_port)
-        assert argv.index("--base-port") < argv.index("-I")  # SITL wants it before -I
+        assert argv.index("-I") < argv.index("--base-port")  # the explicit port wins
 
     default = ardupilot_launches(parse(["--ardupilot", str(binary)]), binary, defaults, 1, home)
     assert default[0].gcs_port == 5760
@@ -143,6 +143,33 @@ def test_gcs_sitl_ardupilot_honours_base_port(tmp_path: Path) -> None:
     with pytest.raises(UsageError, match="--base-port: 0"):
         ardupilot_launches(parse(["--ardupilot", str(binary), "--base-port", "0"]),
                            binary, defaults, 1, home)
+
+
+def _sitl_serial0_port(argv: list[str]) -> int:
+    """The SERIAL0 port ArduPilot's SITL_cmdline.cpp arrives at for ``argv``: options are
+    read in order; ``--base-port B`` sets the base port, ``-I i`` adds 10 i to it only if it
+    is still the default (``if (_base_port == BASE_PORT) _base_port += _instance*10``)."""
+    base_port = 5760
+    for i, arg in enumerate(argv):
+        if arg == "--base-port":
+            base_port = int(argv[i + 1])
+        elif arg == "-I" and base_port == 5760:
+            base_port += 10 * int(argv[i + 1])
+    return base_port
+
+
+@pytest.mark.parametrize("base_port", [5750, 5740, 5760, 5700, 6000])
+def test_ardupilot_instances_land_on_the_launchers_ports(tmp_path: Path, base_port: int) -> None:
+    """Read as SITL reads its command line, every instance serves the port the launcher
+    expects, also when B + 10 i is 5760 for some i > 0 (``--base-port 5750 --count 2``:
+    with ``--base-port`` before ``-I``, instance 1 ended up on 5770)."""
+    binary = tmp_path / "arduplane"
+    launches = ardupilot_commands(
+        binary, 8, 10.0, (78.93, 11.92), tmp_path / "plane.parm", tmp_path / "w",
+        base_port=base_port,
+    )
+    assert [_sitl_serial0_port(x.argv) for x in launches] == [x.gcs_port for x in launches]
+    assert [x.gcs_port for x in launches] == [base_port + 10 * i for i in range(8)]
 
 
 def test_ardupilot_launcher_keeps_children_alive_then_stops_them(
@@ -243,3 +270,27 @@ def test_sitl_out_takes_mavproxy_sending_spellings() -> None:
     assert parse_udp_url("127.0.0.1:14550", "--out") == ("127.0.0.1", 14550)
     with pytest.raises(UsageError, match=r"udpin: \(listen\) is not supported"):
         parse_udp_url("udpin:0.0.0.0:14550", "--out")
+
+
+@pytest.mark.parametrize(
+    ("text", "match"),
+    [
+        ("tcp:127.0.0.1:5760", r"^--out: sends to udp:HOST:PORT; tcp: \(TCP\) is not supported$"),
+        ("tcpin:0.0.0.0:5760", r"tcpin: \(TCP server\) is not supported"),
+        ("serial:/dev/ttyUSB0:57600", r"serial: \(serial port\) is not supported"),
+        ("foo bar:14550", r"got 'foo bar:14550' \(host 'foo bar' is not a valid host name"),
+        ("udp:h:99999", r"got 'udp:h:99999' \(port 99999 is outside 1\.\.65535\)$"),
+        ("udp:nohost", r"got 'udp:nohost' \(missing port"),
+        ("::1:14550", r"write IPv6 addresses in brackets"),
+    ],
+)
+def test_sitl_udp_addresses_are_read_as_out_urls(text: str, match: str) -> None:
+    """The same reading as `gcs run --out` (link.url.parse_out_url): a TCP or serial URL, a
+    host that is no host name, are one-line usage errors naming the option (a tcp: URL was
+    taken as the host 'tcp:127.0.0.1'), and a bracketed IPv6 address is an address."""
+    from groundstation.commands.sitl_args import parse_udp_url
+
+    with pytest.raises(UsageError, match=match):
+        parse_udp_url(text, "--out")
+    assert parse_udp_url("[::1]:14550", "--detections") == ("::1", 14550)
+    assert parse_udp_url("udpout://localhost:14600", "--detections") == ("localhost", 14600)

@@ -3,6 +3,7 @@ SYS_STATUS, and the fence and rally mission types answered as ArduPlane answers 
 
 from __future__ import annotations
 
+import struct
 from typing import Any
 
 import pytest
@@ -195,3 +196,55 @@ def test_a_silent_fence_upload_is_cancelled_after_8_s() -> None:
     assert 6 <= len(rerequests) <= 9
     acks = [m for m in out if m.get_type() == "MISSION_ACK"]
     assert [(a.type, a.mission_type) for a in acks] == [(M.MAV_MISSION_OPERATION_CANCELLED, FENCE)]
+
+
+def _float_item(mission_type: int, command: int, lat: float, lon: float) -> Any:
+    return M.MAVLink_mission_item_message(
+        1, 1, 0, M.MAV_FRAME_GLOBAL, command, 0, 1, 0, 0, 0, 0, lat, lon, 100.0, mission_type
+    )
+
+
+@pytest.mark.parametrize(
+    ("mission_type", "command"),
+    [(FENCE, M.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION), (RALLY, M.MAV_CMD_NAV_RALLY_POINT)],
+)
+@pytest.mark.parametrize(
+    ("lat", "lon", "result"),
+    [
+        (float("nan"), 11.92, M.MAV_MISSION_INVALID_PARAM5_X),
+        (float("inf"), 11.92, M.MAV_MISSION_INVALID_PARAM5_X),
+        (95.0, 11.92, M.MAV_MISSION_INVALID_PARAM5_X),
+        (78.93, float("-inf"), M.MAV_MISSION_INVALID_PARAM6_Y),
+        (78.93, float("nan"), M.MAV_MISSION_INVALID_PARAM6_Y),
+    ],
+)
+def test_a_float_fence_or_rally_item_off_the_globe_is_refused_with_its_code(
+    mission_type: int, command: int, lat: float, lon: float, result: int
+) -> None:
+    # a NaN in MISSION_ITEM (float degrees) made the old conversion raise: the error was
+    # swallowed by the vehicle and the upload left unanswered. ArduPilot answers it as the
+    # mission path does, and the upload ends with nothing stored.
+    lb = make()
+    out = _upload(lb, mission_type, [_float_item(mission_type, command, lat, lon)])
+    acks = [m for m in out if m.get_type() == "MISSION_ACK"]
+    assert [(a.type, a.mission_type) for a in acks] == [(result, mission_type)]
+    assert lb.vehicle.handler_errors == 0
+    out = lb.send(M.MAVLink_mission_request_list_message(1, 1, mission_type))
+    assert [m.count for m in out if m.get_type() == "MISSION_COUNT"] == [0]
+    assert not [m for m in lb.advance(2.0) if m.get_type() == "MISSION_REQUEST"]
+
+
+def test_a_float_fence_item_is_stored_in_dege7_and_read_back_as_float() -> None:
+    lb = make()
+    item = _float_item(FENCE, M.MAV_CMD_NAV_FENCE_RETURN_POINT, 78.9312345, 11.9254321)
+    out = _upload(lb, FENCE, [item])
+    assert [a.type for a in out if a.get_type() == "MISSION_ACK"] == [M.MAV_MISSION_ACCEPTED]
+    out = lb.send(M.MAVLink_mission_request_int_message(1, 1, 0, FENCE))
+    (back,) = [m for m in out if m.get_type() == "MISSION_ITEM_INT"]
+    # MISSION_ITEM carries float32 degrees: stored as that float rounded to degE7
+    lat32, lon32 = struct.unpack("<2f", struct.pack("<2f", 78.9312345, 11.9254321))
+    assert (back.x, back.y, back.mission_type) == (round(lat32 * 1e7), round(lon32 * 1e7), FENCE)
+    out = lb.send(M.MAVLink_mission_request_message(1, 1, 0, FENCE))
+    (back_f,) = [m for m in out if m.get_type() == "MISSION_ITEM"]
+    assert (back_f.x, back_f.y) == pytest.approx((lat32, lon32), abs=1e-6)
+    assert back_f.mission_type == FENCE

@@ -22,6 +22,7 @@ from groundstation.mavlink.mission_items import MissionItem
 from groundstation.mavlink.mission_transfer import TransferCode, TransferResult
 from groundstation.mavlink.telemetry_events import (
     MissionItemReached,
+    ModeChanged,
     Rebooted,
     VehicleSnapshot,
 )
@@ -220,8 +221,8 @@ def test_launch_only_when_asked_and_the_guard_lets_it_through() -> None:
     assert rig.c.launch() == (False, "vehicle v1 is active, not on the ground")
 
 
-def _launching_in_manual() -> Rig:
-    rig = Rig(auto_answer=False)
+def _launching_in_manual(**settings: Any) -> Rig:
+    rig = Rig(auto_answer=False, **settings)
     rig.snap = replace(rig.snap, **ON_GROUND)
     rig.run(5.0, mode=ArduPlaneMode.MANUAL, mode_name="MANUAL")
     ok, _ = rig.c.launch()
@@ -246,6 +247,56 @@ def test_another_mode_while_launching_is_still_an_override() -> None:
     rig = _launching_in_manual()
     rig.run(5.0, mode=ArduPlaneMode.FBWA, mode_name="FBWA")
     assert [o.fields["reason"] for o in rig.journal("override")] == ["mode FBWA"]
+
+
+MANUAL = dict(mode=ArduPlaneMode.MANUAL, mode_name="MANUAL")
+FBWA = dict(mode=ArduPlaneMode.FBWA, mode_name="FBWA")
+
+
+def _switch(rig: Rig, old: dict[str, Any], new: dict[str, Any]) -> None:
+    """The operator switches modes: the reducer's ModeChanged with the next heartbeat."""
+    rig.t = round(rig.t + 0.25, 6)
+    change = ModeChanged(rig.t, old["mode"], new["mode"], old["mode_name"], new["mode_name"])
+    rig.frame("HEARTBEAT", change, **new)
+
+
+def test_an_operators_round_trip_through_another_mode_ends_the_launch() -> None:
+    # gap (i): MANUAL -> FBWA -> MANUAL within the override grace, before floe's AUTO. The
+    # MANUAL it comes back to is the operator's, not the one floe found it in: an override
+    # once it lasts, and floe neither arms it nor sets AUTO.
+    rig = _launching_in_manual()
+    _switch(rig, MANUAL, FBWA)
+    rig.run(1.0, **FBWA)  # shorter than the 2 s grace
+    _switch(rig, FBWA, MANUAL)
+    rig.run(4.0, **MANUAL)  # the takeoff upload is still running
+    assert [o.fields["reason"] for o in rig.journal("override")] == ["mode MANUAL"]
+    assert rig.c.state is S.OVERRIDDEN
+    rig.answer(io.UploadOutcome(True, 0, None, 3))  # the upload ends after all
+    rig.auto_answer = True
+    rig.run(20.0, **MANUAL)
+    assert rig.requests(io.Arm) == [] and rig.requests(io.SetMode) == []
+
+
+def test_manual_after_auto_was_accepted_is_an_override_not_a_relaunch() -> None:
+    # gap (ii): floe's SetMode(AUTO) was accepted, but the operator went back to MANUAL
+    # before any heartbeat showed AUTO. That MANUAL is not floe's: an override, and the
+    # launch that never flew is not started again when launch_timeout_s runs out.
+    rig = _launching_in_manual(launch_timeout_s=30.0)
+    rig.answer(io.UploadOutcome(True, 0, None, 3))
+    assert isinstance(rig.pending, io.Arm)
+    rig.snap = replace(rig.snap, armed=True)
+    rig.answer(ACCEPTED)
+    assert isinstance(rig.pending, io.SetCurrent)
+    rig.answer(ok_transfer())
+    assert isinstance(rig.pending, io.SetMode) and rig.pending.mode == ArduPlaneMode.AUTO
+    rig.answer(ACCEPTED)  # no heartbeat ever shows AUTO: the vehicle stays in MANUAL
+    rig.run(5.0, **MANUAL, armed=True)
+    assert [o.fields["reason"] for o in rig.journal("override")] == ["mode MANUAL"]
+    assert rig.c.state is S.OVERRIDDEN
+    rig.auto_answer = True
+    rig.run(60.0, **MANUAL, armed=True)
+    assert len(rig.requests(io.UploadMission)) == 1 and len(rig.requests(io.Arm)) == 1
+    assert not rig.journal("launch_timeout") and rig.c.state is S.OVERRIDDEN
 
 
 # ------------------------------------------------------------------ flying to targets
@@ -288,10 +339,13 @@ def test_a_newer_command_during_a_retry_pause_is_flown_not_the_old_one() -> None
 @pytest.mark.parametrize(
     ("code", "remote", "seq_after", "ok"),
     [
-        (TransferCode.TIMEOUT, "MAV_RESULT_ACCEPTED", 2, True),  # ACK seen, already past
+        # ACK seen, the vehicle shows a later item: that may be a stale frame of the previous
+        # mission (a reordering link); the machine alone decides (MISSION_ITEM_REACHED)
+        (TransferCode.TIMEOUT, "MAV_RESULT_ACCEPTED", 2, False),
         (TransferCode.TIMEOUT, None, 2, False),  # no ACK: the item 2 may be the old mission's
         (TransferCode.TIMEOUT, "MAV_RESULT_ACCEPTED", 1, False),  # not moved past
         (TransferCode.DENIED, "MAV_RESULT_DENIED", 2, False),
+        (TransferCode.SUCCESS, "MAV_RESULT_ACCEPTED", 2, True),  # passed at once, confirmed
     ],
 )
 def test_set_current_decided_on_result_codes(
@@ -304,20 +358,9 @@ def test_set_current_decided_on_result_codes(
     rig.snap = replace(rig.snap, mission_current_seq=seq_after)
     rig.frame("MISSION_CURRENT")
     message = "COMMAND_ACK ACCEPTED but MISSION_CURRENT never showed 1"  # never grepped
-    rig.answer(TransferResult(False, code, message, remote_code=remote))
+    success = code is TransferCode.SUCCESS
+    rig.answer(TransferResult(success, code, message, remote_code=remote))
     assert rig.journal("upload")[-1].fields["ok"] is ok
-
-
-def test_set_current_after_a_target_upload_knows_the_mission_it_sets() -> None:
-    # issue 11: the machine may then take a later item shown after its ACK as confirmation
-    # (a waypoint passed at once) instead of waiting out its window
-    rig = active_rig()
-    rig.auto_answer = False
-    rig.fly()
-    rig.answer(io.UploadOutcome(True, 0, None, 4))
-    request = rig.pending
-    assert isinstance(request, io.SetCurrent)
-    assert request.seq == 1 and request.mission_count == 4
 
 
 # ------------------------------------------------------------------ the guard

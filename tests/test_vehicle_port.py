@@ -405,3 +405,31 @@ def test_telemetry_flood_does_not_starve_the_timeout() -> None:
         assert rig.clock.now_s() == pytest.approx(2.0)
 
     run(main())
+
+
+# --------------------------------------------------------------------------- set-current
+
+
+def test_set_current_is_confirmed_by_item_reached_delivered_to_the_port() -> None:
+    """The session delivers every autopilot frame to the port; MISSION_ITEM_REACHED of the
+    item after the ACK reaches the running set-current and confirms it, a stale later
+    MISSION_CURRENT before it does not (issue 11 follow-up)."""
+
+    async def main() -> None:
+        rig = Rig(silent=True)
+        task = asyncio.create_task(rig.port.set_current(1, 2))
+        await settle(0.05)
+        ack = M.MAVLink_command_ack_message(
+            M.MAV_CMD_DO_SET_MISSION_CURRENT, M.MAV_RESULT_ACCEPTED, 0, 0, GCS_SYS, GCS_COMP
+        )
+        rig.port.deliver(from_vehicle(ack))
+        rig.port.deliver(from_vehicle(M.MAVLink_mission_current_message(2, 3)))  # stale
+        await settle(0.5)
+        assert not task.done()
+        rig.port.deliver(from_vehicle(M.MAVLink_mission_item_reached_message(1)))
+        result = await task
+        assert result.ok and result.retries_used == 0
+        assert "MISSION_ITEM_REACHED 1" in result.message
+        assert rig.clock.now_s() == pytest.approx(0.55)
+
+    run(main())

@@ -10,6 +10,7 @@ import math
 from dataclasses import dataclass
 
 from domain import errors
+from groundstation.link.url import LinkKind, LinkUrlError, parse_out_url
 
 __all__ = [
     "DEFAULT_DETECTIONS",
@@ -29,16 +30,36 @@ class UsageError(errors.UsageError):
     """Bad command-line value (the message names the option)."""
 
 
+_SCHEMES = frozenset({"udp", "udpout", "udpin", "tcp", "tcpin", "serial"})
+_NOT_SENDING = {
+    LinkKind.UDP_IN: "listen",
+    LinkKind.TCP_CLIENT: "TCP",
+    LinkKind.TCP_SERVER: "TCP server",
+    LinkKind.SERIAL: "serial port",
+}
+
+
 def parse_udp_url(text: str, option: str) -> tuple[str, int]:
     """``udp:HOST:PORT``, ``udpout:HOST:PORT`` (MAVProxy's spellings of sending) or
-    ``HOST:PORT`` -> (host, port); ``udpin:`` is refused (these addresses are sent to)."""
-    if text.lower().startswith("udpin:"):
-        raise UsageError(f"{option}: sends to udp:HOST:PORT; udpin: (listen) is not supported")
-    body = text.split(":", 1)[1] if text.lower().startswith(("udp:", "udpout:")) else text
-    host, sep, port = body.rpartition(":")
-    if not sep or not host or not port.isdigit() or not 0 < int(port) < 65536:
-        raise UsageError(f"{option}: expected udp:HOST:PORT, got {text!r}")
-    return host, int(port)
+    ``HOST:PORT`` -> (host, port): read as ``--out`` is (``link.url.parse_out_url``, a bare
+    ``HOST:PORT`` as ``udpout:``), and only a sending UDP link is accepted (these addresses
+    are sent to, so ``udpin:`` and the TCP and serial forms are refused)."""
+    stripped = text.strip()
+    scheme, _, rest = stripped.partition(":")
+    url = stripped if scheme.lower() in _SCHEMES else f"udpout:{stripped}"
+    try:
+        spec = parse_out_url(url)
+    except LinkUrlError as exc:
+        problem = str(exc)
+        for said in (url, f"udpout:{rest}"):  # parse_out_url reads udp: as udpout:
+            problem = problem.removeprefix(f"bad link URL {said!r}: ")
+        raise UsageError(f"{option}: expected udp:HOST:PORT, got {text!r} ({problem})") from None
+    if spec.kind is not LinkKind.UDP_OUT or spec.host is None or spec.port is None:
+        what = _NOT_SENDING.get(spec.kind, spec.kind.value)
+        raise UsageError(
+            f"{option}: sends to udp:HOST:PORT; {scheme.lower()}: ({what}) is not supported"
+        )
+    return spec.host, spec.port
 
 
 def parse_latlon(text: str) -> tuple[float, float]:

@@ -259,9 +259,7 @@ class VehicleSession:
         if isinstance(request, io.Download):
             return await port.download()
         if isinstance(request, io.SetCurrent):
-            return await port.set_current(
-                request.seq, request.known_current_seq, request.mission_count
-            )
+            return await port.set_current(request.seq, request.known_current_seq)
         if isinstance(request, io.SetMode):
             return await port.set_mode(int(request.mode))
         if isinstance(request, io.Arm):

@@ -247,16 +247,13 @@ class VehiclePort:
             )
         )
 
-    async def set_current(
-        self, seq: int, known_current_seq: int | None, mission_count: int | None = None
-    ) -> TransferResult:
+    async def set_current(self, seq: int, known_current_seq: int | None) -> TransferResult:
         return await self.run(
             SetCurrent(
                 self.system_id,
                 self.component_id,
                 seq,
                 known_current_seq=known_current_seq,
-                mission_count=mission_count,
                 timeout_s=max(1.0, self.timeout_s * 2 / 3),
                 retries=self.retries,
                 own_system=self._own_system,

@@ -14,16 +14,23 @@ equal to ``seq`` must not count.) Silence before the ACK resends the command wit
 ``confirmation`` + 1; after the ACK nothing is resent (a resend would restart the item).
 Defaults 1.0 s x 5: MISSION_CURRENT streams at ~1 Hz, so a 6 s window sees ~6 of them.
 
-**Moved past.** After the ACK, a ``MISSION_CURRENT`` on a later item of the mission
-(``seq < current < mission_count``, when the caller gives ``mission_count``) confirms too:
-the vehicle started ``seq`` and has already finished it. ArduPlane does this with a
-waypoint: ``DO_SET_MISSION_CURRENT`` starts the item while it still cross-tracks from the
-previous waypoint (``next_wp_crosstrack`` is cleared only after the item started), so a
-re-uploaded waypoint that lies behind that line is "Passed" at once, and the only
-``MISSION_CURRENT`` showing ``seq`` may come before the ACK (ambiguous, ignored). Without
-this rule such a set-current waited out its whole window (6 s) and was reported as 5
-retries. It relies on the link keeping the vehicle's order (every MAVLink transport does):
-a ``MISSION_CURRENT`` arriving after the ACK was sent after the command was handled.
+**Passed at once.** After the ACK, ``MISSION_ITEM_REACHED`` with ``seq`` confirms too: the
+vehicle started item ``seq`` and has already completed it (ArduPlane sends it once when an
+item completes, ``verify_command_callback``: ``if (cmd_complete)
+send_mission_item_reached_message(cmd.index)``). ArduPlane does this with a waypoint:
+``DO_SET_MISSION_CURRENT`` starts the item while it still cross-tracks from the previous
+waypoint (``next_wp_crosstrack`` is cleared only after the item started), so a re-uploaded
+waypoint that lies behind that line is "Passed" at once, and the only ``MISSION_CURRENT``
+showing ``seq`` may come before the ACK (ambiguous, ignored). Without this rule such a
+set-current waited out its whole window (6 s) and was reported as 5 retries.
+
+A ``MISSION_CURRENT`` on a later item is *not* taken as that evidence: links do not all keep
+the vehicle's order (UDP, a router or MAVProxy merging two masters such as radio and LTE can
+deliver an older frame late) and ``MISSION_CURRENT`` carries no time, so a vehicle that held
+item 2 of its previous mission could confirm a set-current 1 of the new one with a delayed
+``MISSION_CURRENT 2``. A stale ``MISSION_ITEM_REACHED seq`` after the ACK would need a frame
+sent when an earlier item ``seq`` ended to be overtaken by the whole exchange; that is the
+residual risk of this rule. Before the ACK it is ignored like ``MISSION_CURRENT``.
 
 Any other command (:class:`CommandLong`) and PARAM_SET (:class:`ParamSet`) are in
 :mod:`groundstation.mavlink.vehicle_commands`.
@@ -146,7 +153,7 @@ class SetCurrent(TransferBase[SetCurrentState]):
 
     _IDLE = SetCurrentState.IDLE
     _DONE = SetCurrentState.DONE
-    _HANDLED = frozenset({"COMMAND_ACK", "MISSION_CURRENT"})
+    _HANDLED = frozenset({"COMMAND_ACK", "MISSION_CURRENT", "MISSION_ITEM_REACHED"})
     _WHAT = "set-current"
 
     def __init__(
@@ -156,7 +163,6 @@ class SetCurrent(TransferBase[SetCurrentState]):
         seq: int,
         *,
         known_current_seq: int | None = None,
-        mission_count: int | None = None,
         use_command: bool = True,
         timeout_s: float = SET_CURRENT_TIMEOUT_S,
         retries: int = DEFAULT_RETRIES,
@@ -174,12 +180,7 @@ class SetCurrent(TransferBase[SetCurrentState]):
         )
         if not 0 <= seq <= _UINT16_MAX:
             raise LocalProtocolError(f"seq must be in 0..65535, got {seq}")
-        if mission_count is not None and not seq < mission_count <= _UINT16_MAX + 1:
-            raise LocalProtocolError(
-                f"mission_count must be in {seq + 1}..65536 for seq {seq}, got {mission_count}"
-            )
         self.seq = seq
-        self.mission_count = mission_count
         self.use_command = use_command
         self._confirmation = 0
         self._seen_other_seq = known_current_seq is not None and known_current_seq != seq
@@ -208,6 +209,8 @@ class SetCurrent(TransferBase[SetCurrentState]):
     def _on_message(self, kind: str, msg: MAVLinkMessage, now_s: float) -> list[Action]:
         if kind == "MISSION_CURRENT":
             return self._on_mission_current(msg)
+        if kind == "MISSION_ITEM_REACHED":
+            return self._on_item_reached(msg)
         if int_field(msg, "command") != mavlink2.MAV_CMD_DO_SET_MISSION_CURRENT:
             return []
         result = int_field(msg, "result", 0, _UINT8_MAX)
@@ -231,13 +234,6 @@ class SetCurrent(TransferBase[SetCurrentState]):
             return []
         if current != self.seq:
             self._seen_other_seq = True
-            if self._moved_past(current):
-                return self._finish(
-                    TransferCode.SUCCESS,
-                    f"current item {self.seq} (COMMAND_ACK; MISSION_CURRENT already on item "
-                    f"{current}: the vehicle started it and moved on)",
-                    remote_code="MAV_RESULT_ACCEPTED",
-                )
             return []
         if self._state is SetCurrentState.CONFIRMING:
             how = "COMMAND_ACK and MISSION_CURRENT"
@@ -247,12 +243,16 @@ class SetCurrent(TransferBase[SetCurrentState]):
             return []  # possibly stale: the vehicle may have been on seq already
         return self._finish(TransferCode.SUCCESS, f"current item {self.seq} ({how})")
 
-    def _moved_past(self, current: int) -> bool:
-        """After the ACK: ``current`` is a later item of the mission we set (see module)."""
-        return (
-            self._state is SetCurrentState.CONFIRMING
-            and self.mission_count is not None
-            and self.seq < current < self.mission_count
+    def _on_item_reached(self, msg: MAVLinkMessage) -> list[Action]:
+        """After the ACK, ``MISSION_ITEM_REACHED seq``: started and completed (see module)."""
+        reached = int_field(msg, "seq", 0, _UINT16_MAX)
+        if reached != self.seq or self._state is not SetCurrentState.CONFIRMING:
+            return []
+        return self._finish(
+            TransferCode.SUCCESS,
+            f"current item {self.seq} (COMMAND_ACK, then MISSION_ITEM_REACHED {self.seq}: "
+            "the vehicle started it and moved on)",
+            remote_code="MAV_RESULT_ACCEPTED",
         )
 
     def _command(self) -> MAVLinkMessage:

@@ -167,12 +167,7 @@ class VehicleController(ControllerState):
             ):
                 self._restored(t)
         mode = s.mode
-        if mode in TAKEN_MODES:
-            self._ground_mode = None  # launched (or taken) once: from now on it counts
-        # while launching, the mode it waited in on the ground is not an operator's change:
-        # the launch exchanges may outlast the override grace (several mission s at 200x)
-        ground = self.state is S.LAUNCHING and mode == self._ground_mode
-        ours = mode is not None and (self._own_mode == mode or ground)
+        ours = mode is not None and self._own_mode == mode
         given_back = self.watch.heartbeat(s, t, ours, self.state in IN_HAND)
         self._resolve_mode_change(t)
         if mode is not None and mode not in TAKEN_MODES:
@@ -391,7 +386,11 @@ class VehicleController(ControllerState):
             self.journal("on_ground", prearm_ok=s.prearm_ok)
         if self.launch_requested and s.prearm_ok and not self.s.advisory:
             self.state = S.LAUNCHING
-            self._ground_mode = s.mode
+            # the mode it waited in on the ground (MANUAL...) is floe's own while launching,
+            # not an operator's change: the launch exchanges may outlast the override grace
+            # (several mission s at 200x). Any mode change floe did not ask for ends that
+            # (_on_event); so does the launch once AUTO is accepted (launched()).
+            self._own_mode = s.mode
             self.journal("launch", altitude_m=self.alt_m)
             self._start(launch_job(self, s.heading_rad or 0.0))
 

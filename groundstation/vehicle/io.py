@@ -143,12 +143,10 @@ class Download:
 
 @dataclass(frozen=True, eq=False)
 class SetCurrent:
-    """Make ``seq`` current. ``mission_count``: the items of the mission just verified
-    (lets a later item, shown after the ACK, confirm: a waypoint passed at once)."""
+    """Make ``seq`` current (``known_current_seq``: the item the vehicle was last seen on)."""
 
     seq: int
     known_current_seq: int | None
-    mission_count: int | None = None
 
 
 @dataclass(frozen=True, eq=False)

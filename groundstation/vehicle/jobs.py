@@ -22,7 +22,6 @@ from groundstation.mavlink.mission_items import (
     Takeoff,
     Waypoint,
 )
-from groundstation.mavlink.mission_transfer import TransferCode
 from groundstation.vehicle.io import (
     Arm,
     Download,
@@ -93,27 +92,15 @@ def mission_job(
     """Upload ``steps`` verified; then set ``current`` and make sure of AUTO.
 
     The loiter end of a target mission is watched from the verified upload on. The
-    set-current is given the mission's item count, so the machine itself confirms a
-    waypoint passed at once (a later item of ours shown after its ACK). A set-current that
-    still timed out after the vehicle ACCEPTED it, with the vehicle on a later item of ours,
-    counts as done too (decided on the result's code and ``remote_code``, never on its
-    message)."""
+    set-current machine itself confirms a waypoint passed at once (MISSION_ITEM_REACHED of
+    it after its ACK); its result decides, on its code, never on its message."""
     host.disarm_loiter_end()
     up: UploadOutcome = yield UploadMission(tuple(steps), purpose, target)
     ok, retries, error = up.ok, up.retries, up.error or ""
     if ok and current is not None:
-        result = yield SetCurrent(current, host.mission_seq(), up.items or None)
+        result = yield SetCurrent(current, host.mission_seq())
         retries += result.retries_used
         ok = result.ok
-        now_seq = host.mission_seq()
-        moved_past = now_seq is not None and current < now_seq < up.items
-        if (
-            not ok
-            and result.code is TransferCode.TIMEOUT
-            and result.remote_code == "MAV_RESULT_ACCEPTED"
-            and moved_past
-        ):
-            ok = True
         error = "" if ok else f"set current {result.code.value}: {result.message}"
         if ok and purpose == "target":
             host.arm_loiter_end(current)

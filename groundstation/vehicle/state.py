@@ -12,6 +12,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+from domain.modes import ArduPlaneMode
 from groundstation.core import events as ev
 from groundstation.mavlink.evidence import LoiterEndEvidence
 from groundstation.mavlink.telemetry_events import VehicleSnapshot
@@ -83,9 +84,9 @@ class ControllerState:
         self._loiter: LoiterEndEvidence | None = None
         self._loiter_end_pending_s: float | None = None
         self._expected: dict[int, float] = {}
+        # the mode floe put the vehicle in (or, while launching, the one it waited in on the
+        # ground): a heartbeat in it is no operator's change. None: none is floe's.
         self._own_mode: int | None = None
-        # the mode it waited in on the ground (MANUAL...): kept while launching, no override
-        self._ground_mode: int | None = None
         self._left_taken = False  # seen out of AUTO/GUIDED since the override
         self._battery_reported = False
         self._rates_at_s = -math.inf
@@ -221,7 +222,11 @@ class ControllerState:
         self._retry_at_s = self.t_s + self.s.retry_assess_s
 
     def launched(self) -> None:
+        """AUTO was accepted: from now on the mode it waited in on the ground is not floe's
+        (an operator who switches back to MANUAL before a heartbeat shows AUTO overrides)."""
         self._launch_deadline_s = self.t_s + self.s.launch_timeout_s
+        if self._own_mode != ArduPlaneMode.AUTO:
+            self._own_mode = None
 
     def target_verified(self, fly: io.Fly) -> bool:
         if self.fly is not None:
