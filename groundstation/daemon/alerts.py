@@ -114,9 +114,9 @@ class OperatorAlerts:
             self.silent[link_id] = now_s
             url = self.urls.get(link_id, link_id)
             state = self.link_state(link_id)
-            self.daemon.journal_file.write(
+            self.daemon.journal(
                 "link_silent", link=link_id, url=url, silent_s=round(now_s, 1),
-                connected=link.connected, received=link.counters.frames_in,
+                connected=link.connected, received=link.counters.frames_in, logged=True,
             )  # fmt: skip
             log.warning("link %s (%s): no vehicle heard in %.0f s (%s); %s", link_id, url,
                         now_s, state, _advice(url, link.connected))
@@ -129,7 +129,8 @@ class OperatorAlerts:
             return
         self._drops_reported = total
         reasons = {k: v for k, v in drops.items() if v}
-        self.daemon.journal_file.write("detections_dropped", new=new, total=total, **reasons)
+        self.daemon.journal("detections_dropped", new=new, total=total, logged=True,
+                            **reasons)
         text = ", ".join(f"{k.replace('_', ' ')} {v}" for k, v in reasons.items())
         log.warning("detections: %d dropped in the last %.0f s (%d in all: %s)", new,
                     DROPS_REPORT_S, total, text)

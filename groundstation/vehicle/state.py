@@ -129,8 +129,9 @@ class ControllerState:
         return isinstance(request, commanding) and self.snap.reboot_suspected
 
     # ------------------------------------------------------------------ outputs
-    def journal(self, event: str, **fields: Any) -> None:
-        self._out.append(io.JournalLine(event, fields))
+    def journal(self, event: str, *, logged: bool = False, **fields: Any) -> None:
+        """``logged``: an ``io.Warn`` of this step says it to the operator."""
+        self._out.append(io.JournalLine(event, fields, logged))
 
     def _core(self, event: ev.Event) -> None:
         self._out.append(io.CoreEvent(event))
