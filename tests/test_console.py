@@ -249,3 +249,18 @@ def test_a_problem_that_warned_itself_reaches_the_console_once(tmp_path: Path) -
     assert len(said("flaky")) == 1, said("flaky")
     assert len(said("re-bound") + said("link_rebound")) == 1, records
     assert len(said("no progress") + said("no_progress")) == 1, said("progress")
+
+
+@pytest.mark.timeout(120)
+def test_log_mode_says_nothing_of_the_links_as_the_run_shuts_down(tmp_path: Path) -> None:
+    """The embedded vehicles stop with the run: no lost link, no reconnect attempt."""
+    result = gcs_run_pipe(
+        ["--vehicles", "sim:1", "--scenario", "none", "--sim-airborne", "--speedup", "20",
+         "--duration", "20", "--http", "off", "--detections", "off", "--status", "log",
+         "--run-dir", str(tmp_path)], tmp_path)  # fmt: skip
+    out = result.stdout + result.stderr
+    assert result.returncode == 0, out[-2000:]
+    assert "connected to" in out  # link state changes are shown in log mode
+    assert re.search(r"gcs run: t=[\d.]+ stop reason=duration", out), out[-2000:]
+    assert "lost TCP" not in out and "cannot open" not in out, out[-2000:]
+    assert "reconnecting" not in out

@@ -10,7 +10,9 @@ mode       the console
 ``table``  the live table (``status.py``) on stdout, redrawn in place; warnings printed above
            it. On a file or a dumb terminal (``TERM=dumb``) there is nothing to redraw: log
            lines as ``log``, and the table printed once at the end.
-``log``    one readable line per operator event (``log_lines``) and every warning, on stdout
+``log``    one readable line per operator event (``log_lines``), link state changes
+           (connected, bound) and every warning, on stdout; nothing of the links as the
+           run shuts down
 ``auto``   ``table`` on an interactive terminal (not ``TERM=dumb``), else ``log``
 ``quiet``  warnings and errors only, on stderr
 =========  ===================================================================================

@@ -390,6 +390,7 @@ class Daemon:
             self._spawn(f"vehicle {session.id}", session.run, gave_up)
         await self._stop.wait()
         await self._shutdown()
+        self.router.begin_close()  # before on_finish stops the embedded vehicles
         for finish in self.on_finish:
             finish()
         self._cancel_tasks()
