@@ -235,12 +235,13 @@ async def run_daemon(
         raise StartError(str(exc)) from None
     run_dir, journal, tlog, effective = files.run_dir, files.journal, files.tlog, files.effective
     console = OperatorConsole(config.status)
-    cleanups: list[Callable[[], None]] = [console.install()]
+    cleanups: list[Callable[[], None]] = []
     daemon = Daemon(config, ccfg, clock, run_dir, origin, journal, tlog)
-    if signing_keys.enabled:
-        daemon.use_signing(SigningGate(signing_keys, config.links.gcs_system_id))
     server_started = False
     try:
+        cleanups.append(console.install())  # detached in the finally, whatever fails
+        if signing_keys.enabled:
+            daemon.use_signing(SigningGate(signing_keys, config.links.gcs_system_id))
         if sim is not None:
             try:
                 await sim.start()
