@@ -199,3 +199,47 @@ def test_event_buffer_keeps_operator_events_and_marks_problems() -> None:
     assert [e["line"]["event"] for e in everything] == ["truth", "plan", "track", "link_lost"]
     assert [(e["line"]["event"], e.get("warning", False)) for e in notable] == [
         ("plan", False), ("link_lost", True)]
+
+
+def test_silent_link_advice_and_drops_come_from_the_link_and_the_daemon(tmp_path: Path) -> None:
+    """The advice switches on the link's kind (an upper-case ``TCP:`` is a TCP client), the
+    URL is the link's own, and the drops read the daemon's two counters."""
+    from groundstation.core.config import CoreConfig
+    from groundstation.daemon.alerts import OperatorAlerts
+    from groundstation.daemon.clock import MissionClock
+    from groundstation.daemon.config_parse import parse_config
+    from groundstation.daemon.journal import Journal
+    from groundstation.link import open_link
+
+    records: list[str] = []
+
+    class Keep(logging.Handler):
+        def emit(self, record: logging.LogRecord) -> None:
+            records.append(record.getMessage())
+
+    t = [0.0]
+    config = parse_config({"vehicles": ["udpin:127.0.0.1:0"]}, {})
+    journal = Journal(tmp_path / "journal.jsonl", lambda: t[0], lambda: 1.7e9)
+    daemon = Daemon(config, CoreConfig(), MissionClock(1.0, source=lambda: t[0]), tmp_path,
+                    None, journal, None)
+    for i, url in enumerate(("TCP:127.0.0.1:5760", "tcpin:127.0.0.1:5761",
+                             "udpout:127.0.0.1:14550")):
+        daemon.router.add_vehicle_link(open_link(url, link_id=f"vehicles{i}"))
+    daemon.detections_no_origin, daemon.detections_dropped = 3, 2
+    alerts = OperatorAlerts(daemon)
+    keep = Keep(logging.WARNING)
+    logging.getLogger("groundstation").addHandler(keep)
+    try:
+        alerts.check(SILENT_AFTER_S)
+    finally:
+        logging.getLogger("groundstation").removeHandler(keep)
+        journal.close()
+    assert [x.link_id for x in alerts.silent_links()] == ["vehicles0", "vehicles1", "vehicles2"]
+    assert len(records) == 4, records  # three silent links and the drops, once each
+    assert "(TCP:127.0.0.1:5760)" in records[0] and "no other program holds" in records[0]
+    assert "connects to this address" in records[1] and "udpout sends first" in records[2]
+    assert alerts.link_state(alerts.silent_links()[0]) == "never connected"
+    assert alerts.drops() == {"no_origin": 3, "outside_area": 2}
+    assert records[3].startswith("detections: 5 dropped")
+    lines = read_journal(tmp_path / "journal.jsonl")
+    assert [e["url"] for e in lines if e["event"] == "link_silent"][0] == "TCP:127.0.0.1:5760"

@@ -148,6 +148,9 @@ class Daemon:
         self._wall_start = time.perf_counter()
         self._cpu_start = time.process_time()
         self.detections_dropped = 0
+        """Detections outside the operating area (camera or feed), dropped."""
+        self.detections_no_origin = 0
+        """Feed detections dropped because no mission origin was known yet."""
         self.internal_error: str | None = None
         self.supervisor = Supervisor(clock.now_s, self.journal, self._on_bug)
         self.signing: SigningGate | None = None

@@ -104,9 +104,9 @@ def _header(daemon: Daemon, alerts: OperatorAlerts | None) -> list[RenderableTyp
     else:
         out.append(Text("plan: none yet"))
     if alerts is not None:
-        for link_id in sorted(alerts.silent):
-            out.append(Text(f"link {link_id} ({alerts.urls.get(link_id, link_id)}): no vehicle "
-                            f"heard ({alerts.link_state(link_id)})", style="bold red"))
+        for link in alerts.silent_links():
+            out.append(Text(f"link {link.link_id} ({link.spec.url}): no vehicle heard "
+                            f"({alerts.link_state(link)})", style="bold red"))
         drops = {k: v for k, v in alerts.drops().items() if v}
         if drops:
             text = ", ".join(f"{k.replace('_', ' ')} {v}" for k, v in drops.items())
