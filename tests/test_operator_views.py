@@ -242,4 +242,5 @@ def test_silent_link_advice_and_drops_come_from_the_link_and_the_daemon(tmp_path
     assert alerts.drops() == {"no_origin": 3, "outside_area": 2}
     assert records[3].startswith("detections: 5 dropped")
     lines = read_journal(tmp_path / "journal.jsonl")
-    assert [e["url"] for e in lines if e["event"] == "link_silent"][0] == "TCP:127.0.0.1:5760"
+    assert [e["url"] for e in lines if e["event"] == "link_silent"] == [
+        "TCP:127.0.0.1:5760", "tcpin:127.0.0.1:5761", "udpout:127.0.0.1:14550"]
