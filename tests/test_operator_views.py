@@ -244,3 +244,21 @@ def test_silent_link_advice_and_drops_come_from_the_link_and_the_daemon(tmp_path
     lines = read_journal(tmp_path / "journal.jsonl")
     assert [e["url"] for e in lines if e["event"] == "link_silent"] == [
         "TCP:127.0.0.1:5760", "tcpin:127.0.0.1:5761", "udpout:127.0.0.1:14550"]
+
+
+def test_upload_retries_are_counted_by_the_controller() -> None:
+    """The table's retries column reads the controller's count (every upload job's
+    retries), not the journal subscription that may drop lines."""
+    from test_vehicle_controller import active_rig
+
+    from groundstation.vehicle import io as vio
+
+    rig = active_rig()
+    before = rig.c.upload_retries
+    rig.auto_answer = False
+    rig.fly("A")
+    rig.answer(vio.UploadOutcome(False, 5, "upload timeout", 3))  # 5 retries, then failed
+    assert rig.c.upload_retries == before + 5 and rig.c.uploads_failed == 1
+    rig.auto_answer = True
+    rig.run(5.0)  # retried and flown: no retry this time
+    assert rig.c.uploads_ok >= 1 and rig.c.upload_retries == before + 5

@@ -118,6 +118,10 @@ class VehicleSession:
         return self.controller.uploads_failed
 
     @property
+    def upload_retries(self) -> int:
+        return self.controller.upload_retries
+
+    @property
     def upload_delays_s(self) -> list[float]:
         return self.controller.upload_delays_s
 

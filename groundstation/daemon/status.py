@@ -16,7 +16,7 @@ from __future__ import annotations
 import asyncio
 import io
 import logging
-from collections import Counter, deque
+from collections import deque
 from typing import TYPE_CHECKING, Any
 
 from rich import box
@@ -43,22 +43,15 @@ REDRAW_S = 1.0
 
 
 class EventTally:
-    """What the table counts from the journal's operator events: upload retries per
-    vehicle, and the newest ``RECENT_LINES`` events."""
+    """The newest ``RECENT_LINES`` operator events of the journal (the recent pane). The
+    table's counts come from the controllers, never from this lossy subscription."""
 
     def __init__(self) -> None:
-        self.retries: Counter[str] = Counter()
         self.recent: deque[dict[str, Any]] = deque(maxlen=RECENT_LINES)
 
     def add(self, line: dict[str, Any]) -> None:
-        if not is_operator_event(line):
-            return
-        self.recent.append(line)
-        if line.get("event") == "upload":
-            vehicle = str(line.get("vehicle"))
-            retries = line.get("retries")
-            if isinstance(retries, int):
-                self.retries[vehicle] += retries
+        if is_operator_event(line):
+            self.recent.append(line)
 
 
 def _fmt(value: Any, spec: str = "") -> str:
@@ -119,7 +112,7 @@ def _header(daemon: Daemon, alerts: OperatorAlerts | None) -> list[RenderableTyp
     return out
 
 
-def _vehicles(daemon: Daemon, tally: EventTally) -> Table:
+def _vehicles(daemon: Daemon) -> Table:
     table = Table(box=box.SIMPLE_HEAD, pad_edge=False, show_edge=False)
     for name, justify in (("vehicle", "left"), ("sysid", "right"), ("status", "left"),
                           ("mode", "left"), ("armed", "left"), ("alt m", "right"),
@@ -128,7 +121,7 @@ def _vehicles(daemon: Daemon, tally: EventTally) -> Table:
         table.add_column(name, justify=justify)  # type: ignore[arg-type]
     for s in sorted(daemon.sessions.values(), key=lambda s: s.system_id):
         snap = s.snapshot
-        retries = tally.retries.get(s.id, 0)
+        retries = s.upload_retries
         table.add_row(
             s.id, str(s.system_id), s.status, _fmt(snap.mode_name), _fmt(snap.armed),
             _fmt(snap.alt_m, ".0f"), _fmt(s.fly.target if s.fly else None),
@@ -179,7 +172,7 @@ def render_status(
     trouble = set(link_lines(stats, only_trouble=True))
     links = [Text(text, style="yellow" if text in trouble else "", no_wrap=True,
                   overflow="ellipsis") for text in link_lines(stats)]
-    return Group(*_header(daemon, alerts), _vehicles(daemon, tally), _targets(daemon), *links,
+    return Group(*_header(daemon, alerts), _vehicles(daemon), _targets(daemon), *links,
                  Text(""), *_recent(list(tally.recent)))
 
 

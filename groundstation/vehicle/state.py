@@ -71,6 +71,8 @@ class ControllerState:
         self.fly: FlyRecord | None = None
         self.uploads_ok = 0
         self.uploads_failed = 0
+        self.upload_retries = 0
+        """Retries of every upload job (transfers and set-currents), for the table."""
         self.upload_delays_s: list[float] = []
         self.last_loiter_end_s: float | None = None
         self.foreign_frames = 0
@@ -237,6 +239,9 @@ class ControllerState:
         if fly.clipped:
             self.journal("clipped", target=fly.command.target, x_m=fly.x_m, y_m=fly.y_m)
         return True
+
+    def count_retries(self, retries: int) -> None:
+        self.upload_retries += retries
 
     def target_failed(self, fly: io.Fly) -> bool:
         """Whether to try again: not when overtaken, out of the plan or link lost."""
