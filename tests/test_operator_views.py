@@ -17,6 +17,7 @@ from typing import Any
 
 import aiohttp
 import pytest
+from daemon_run import status_text
 
 from groundstation.commands.run import build_config, run_daemon
 from groundstation.daemon.alerts import SILENT_AFTER_S, SILENT_REPEAT_S, never_heard
@@ -25,7 +26,6 @@ from groundstation.daemon.console import ConsoleHandler, OperatorConsole
 from groundstation.daemon.daemon import Daemon
 from groundstation.daemon.journal import read_journal
 from groundstation.daemon.log_lines import describe_line, is_operator_event, line_level
-from groundstation.daemon.status import render_table
 from groundstation.detection_feed import encode_detection
 
 STATE_UPDATES = {"truth", "track", "detection", "input"}
@@ -72,7 +72,7 @@ def test_notable_events_and_page_pushes_hold_operator_events_only(tmp_path: Path
         assert "plan" in events and "upload" in events, events
         assert not STATE_UPDATES & set(events), events
         assert all(is_operator_event(e) for e in view)
-    table = render_table(daemon)
+    table = status_text(daemon)
     recent = table.split("recent:", 1)[1].splitlines()
     assert len([x for x in recent if x.strip()]) >= 3
     for line in recent:

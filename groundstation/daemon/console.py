@@ -89,9 +89,7 @@ class OperatorConsole:
             level = logging.INFO if self.event_lines and name == "groundstation" else (
                 logging.WARNING)
             handler = ConsoleHandler(console, level)
-            logger = logging.getLogger(name)
-            if logger.getEffectiveLevel() > level:
-                logger.setLevel(level)
+            logger = logging.getLogger(name)  # its level: gcs.log's (INFO, run_files)
             logger.addHandler(handler)
             attached.append((logger, handler))
 

@@ -14,9 +14,9 @@ stay above it. Colours come from ``rich``: none on a dumb terminal or a file.
 from __future__ import annotations
 
 import asyncio
-import io
 import logging
 from collections import deque
+from collections.abc import Iterable
 from typing import TYPE_CHECKING, Any
 
 from rich import box
@@ -35,8 +35,7 @@ if TYPE_CHECKING:
     from groundstation.daemon.alerts import OperatorAlerts
     from groundstation.daemon.daemon import Daemon
 
-__all__ = ["RECENT_LINES", "EventTally", "link_lines", "render_status", "render_table",
-           "status_loop"]
+__all__ = ["RECENT_LINES", "EventTally", "link_lines", "render_status", "status_loop"]
 
 RECENT_LINES = 8
 REDRAW_S = 1.0
@@ -48,6 +47,14 @@ class EventTally:
 
     def __init__(self) -> None:
         self.recent: deque[dict[str, Any]] = deque(maxlen=RECENT_LINES)
+
+    @classmethod
+    def from_lines(cls, lines: Iterable[dict[str, Any]]) -> EventTally:
+        """A tally seeded with journal lines (the journal's recent ones, at the start)."""
+        tally = cls()
+        for line in lines:
+            tally.add(line)
+        return tally
 
     def add(self, line: dict[str, Any]) -> None:
         if is_operator_event(line):
@@ -149,9 +156,9 @@ def _targets(daemon: Daemon) -> Table:
     return table
 
 
-def _recent(lines: list[dict[str, Any]]) -> list[RenderableType]:
+def _recent(lines: Iterable[dict[str, Any]]) -> list[RenderableType]:
     out: list[RenderableType] = [Text("recent:", style="bold")]
-    for line in lines[-RECENT_LINES:]:
+    for line in lines:
         level = line_level(line)
         style = "yellow" if level >= logging.WARNING else ""
         out.append(Text("  " + describe_line(line)[:200], style=style, no_wrap=True,
@@ -160,29 +167,15 @@ def _recent(lines: list[dict[str, Any]]) -> list[RenderableType]:
 
 
 def render_status(
-    daemon: Daemon, tally: EventTally | None = None, alerts: OperatorAlerts | None = None
+    daemon: Daemon, tally: EventTally, alerts: OperatorAlerts | None = None
 ) -> RenderableType:
-    """The table as a ``rich`` renderable. Without a ``tally`` the recent pane comes from
-    the journal's recent lines (operator events only)."""
-    if tally is None:
-        tally = EventTally()
-        for line in daemon.journal_file.recent:
-            tally.add(line)
+    """The table as a ``rich`` renderable; the recent pane from ``tally``."""
     stats = daemon.router.link_stats()
     trouble = set(link_lines(stats, only_trouble=True))
     links = [Text(text, style="yellow" if text in trouble else "", no_wrap=True,
                   overflow="ellipsis") for text in link_lines(stats)]
     return Group(*_header(daemon, alerts), _vehicles(daemon), _targets(daemon), *links,
-                 Text(""), *_recent(list(tally.recent)))
-
-
-def render_table(daemon: Daemon, width: int = 160) -> str:
-    """The status table as plain text (no colour, no control codes)."""
-    buffer = io.StringIO()
-    console = Console(file=buffer, width=width, color_system=None, force_terminal=False,
-                      highlight=False)
-    console.print(render_status(daemon))
-    return buffer.getvalue()
+                 Text(""), *_recent(tally.recent))
 
 
 async def status_loop(
@@ -191,9 +184,7 @@ async def status_loop(
     """Redraw the table once a wall second in place until cancelled (``live``); otherwise
     print it once when cancelled (a forced table on a file or dumb terminal). The journal is
     followed in a child task of this one (the daemon's task tree)."""
-    tally = EventTally()
-    for line in daemon.journal_file.recent:
-        tally.add(line)
+    tally = EventTally.from_lines(daemon.journal_file.recent)
 
     async def follow() -> None:
         async for line in daemon.journal_file.subscribe():
