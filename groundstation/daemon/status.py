@@ -29,6 +29,7 @@ from groundstation.daemon.log_lines import (
     format_routes,
     is_operator_event,
     line_level,
+    plan_detail,
 )
 
 if TYPE_CHECKING:
@@ -100,7 +101,7 @@ def _header(daemon: Daemon, alerts: OperatorAlerts | None) -> list[RenderableTyp
     plan = daemon.last_plan
     if plan is not None:
         out.append(Text(f"plan t={plan['t']:.1f}: {format_routes(plan['routes'])} "
-                        f"({plan['status']}, {plan['solve_time_s'] * 1000:.0f} ms)"))
+                        f"({plan_detail(plan)})"))
     else:
         out.append(Text("plan: none yet"))
     if alerts is not None:
