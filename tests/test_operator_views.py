@@ -151,6 +151,11 @@ def test_operator_event_predicate_and_levels() -> None:
     assert line_level({"event": "upload", "ok": False, "retries": 0}) == logging.WARNING
     assert line_level({"event": "link_lost"}) == logging.WARNING
     assert line_level({"event": "truth"}) == logging.DEBUG
+    # one line_level call serves the views that need both (EventBuffer, page pushes)
+    for line in ({"event": "plan"}, {"event": "truth"}, {"event": "statustext", "severity": 6},
+                 {"event": "statustext", "severity": 3}, {"event": "clock_check", "ok": False},
+                 {"event": "mode", "ok": False}, {"event": "arm", "ok": False}):
+        assert (line_level(line) > logging.DEBUG) == is_operator_event(line), line
 
 
 def test_plan_and_stop_lines_read_as_text() -> None:

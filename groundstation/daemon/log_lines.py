@@ -111,7 +111,8 @@ def is_operator_event(line: Mapping[str, Any]) -> bool:
 
 def line_level(line: Mapping[str, Any]) -> int:
     """``logging.WARNING`` for a problem, ``logging.INFO`` for other operator events,
-    ``logging.DEBUG`` for state updates."""
+    ``logging.DEBUG`` for state updates: above DEBUG exactly when :func:`is_operator_event`
+    (one call serves a view that needs both)."""
     if not is_operator_event(line):
         return logging.DEBUG
     event = line.get("event")
