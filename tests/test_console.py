@@ -264,3 +264,31 @@ def test_log_mode_says_nothing_of_the_links_as_the_run_shuts_down(tmp_path: Path
     assert re.search(r"gcs run: t=[\d.]+ stop reason=duration", out), out[-2000:]
     assert "lost TCP" not in out and "cannot open" not in out, out[-2000:]
     assert "reconnecting" not in out
+
+
+def test_a_start_that_fails_leaves_no_console_handler(tmp_path: Path,
+                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    """A failure once the Daemon exists (here: turning signing on) detaches the console, so
+    a later run in the same process prints each line once."""
+    import asyncio
+    import logging
+
+    from groundstation.commands.run import build_config, run_daemon
+    from groundstation.daemon.console import FLOE_LOGGERS, ConsoleHandler
+    from groundstation.daemon.daemon import Daemon
+
+    def boom(self: Daemon, gate: object) -> None:
+        raise RuntimeError("signing gate failed")
+
+    monkeypatch.setattr(Daemon, "use_signing", boom)
+    phrase = tmp_path / "phrase.txt"
+    phrase.write_text("correct horse battery staple\n")
+    config = build_config(["--vehicles", f"tcp:127.0.0.1:{closed_port()}", "--http", "off",
+                           "--detections", "off", "--status", "log", "--duration", "1",
+                           "--signing-passphrase-file", str(phrase),
+                           "--run-dir", str(tmp_path)])
+    with pytest.raises(RuntimeError, match="signing gate failed"):
+        asyncio.run(run_daemon(config, print_fn=lambda _: None, install_signals=False))
+    for name in FLOE_LOGGERS:
+        handlers = logging.getLogger(name).handlers
+        assert not [h for h in handlers if isinstance(h, ConsoleHandler)], name
