@@ -93,3 +93,19 @@ async def stop_when(
     while not done(tail.poll()):
         await asyncio.sleep(poll_wall_s)
     daemon.request_stop("test: awaited events seen")
+
+
+def status_text(daemon: Daemon, width: int = 160) -> str:
+    """The status table as ``gcs run`` draws it (its recent pane seeded from the journal's
+    recent lines, as ``status_loop`` does), in plain text."""
+    import io
+
+    from rich.console import Console
+
+    from groundstation.daemon.status import EventTally, render_status
+
+    buffer = io.StringIO()
+    console = Console(file=buffer, width=width, color_system=None, force_terminal=False,
+                      highlight=False)
+    console.print(render_status(daemon, EventTally.from_lines(daemon.journal_file.recent)))
+    return buffer.getvalue()

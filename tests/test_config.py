@@ -275,3 +275,18 @@ def test_core_and_planner_closed_sets_are_enums_spelt_as_before() -> None:
     assert result_from_record(record).status is PlanStatus.FEASIBLE
     with pytest.raises(RecordError):
         result_from_record({**record, "status": "great"})
+
+
+def test_detections_default_is_resolved_by_config_resolve() -> None:
+    """Unset: 127.0.0.1:14600 for real links, a free port with sim:N; given: as given."""
+    from groundstation.daemon.config import DETECTIONS_UNSET, Endpoint
+
+    unset = parse_config({"vehicles": ["sim:2"]}, {})
+    assert unset.detections == DETECTIONS_UNSET and "detections" not in unset.to_dict()
+    assert resolve(unset).detections == Endpoint("127.0.0.1", 0)
+    assert resolve(resolve(unset)) == resolve(unset)
+    real = resolve(parse_config({"vehicles": ["tcp:127.0.0.1:5760"]}, {}))
+    assert real.detections == Endpoint("127.0.0.1", 14600)
+    given = build_config(["--vehicles", "sim:1", "--detections", "127.0.0.1:14600"])
+    assert given.detections == Endpoint("127.0.0.1", 14600)
+    assert build_config(["--vehicles", "sim:1", "--detections", "off"]).detections is None

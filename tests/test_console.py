@@ -179,3 +179,116 @@ def test_dumb_terminal_gets_log_lines_without_escape_codes(tmp_path: Path) -> No
     assert "\x1b" not in out
     assert "floe gcs run" not in out  # no table to redraw: log lines instead
     assert re.search(r"gcs run: t=[\d.]+ vehicle_joined vehicle=1", out), out[-2000:]
+
+
+def test_a_problem_that_warned_itself_reaches_the_console_once(tmp_path: Path) -> None:
+    """task_error, link_rebound and no_progress: one console line each (the journal line's
+    log, or the site's own words with ``Daemon.journal(..., logged=True)``)."""
+    import asyncio
+    import logging
+    from types import SimpleNamespace
+
+    from test_vehicle_controller import active_rig
+
+    from groundstation.core.config import CoreConfig
+    from groundstation.daemon.clock import MissionClock
+    from groundstation.daemon.config_parse import parse_config
+    from groundstation.daemon.daemon import Daemon
+    from groundstation.daemon.journal import Journal, read_journal
+    from groundstation.daemon.session import VehicleSession
+    from groundstation.vehicle import io as vio
+
+    records: list[logging.LogRecord] = []
+
+    class Keep(logging.Handler):
+        def emit(self, record: logging.LogRecord) -> None:
+            records.append(record)
+
+    def said(word: str) -> list[str]:
+        return [r.getMessage() for r in records if word in r.getMessage()]
+
+    async def main() -> Daemon:
+        t = [0.0]
+        config = parse_config({"vehicles": ["udpin:127.0.0.1:0"]}, {})
+        journal = Journal(tmp_path / "journal.jsonl", lambda: t[0], lambda: 1.7e9)
+        daemon = Daemon(config, CoreConfig(), MissionClock(1.0, source=lambda: t[0]),
+                        tmp_path, None, journal, None)
+        failed: list[int] = []
+
+        async def flaky() -> None:
+            if not failed:
+                failed.append(1)
+                raise ConnectionResetError("peer went away")
+
+        await daemon.supervisor.supervise("flaky", flaky)
+        assert daemon.router.on_notice is not None
+        daemon.router.on_notice("link_rebound", {"system_id": 1, "link": "vehicles1",
+                                                 "previous": "vehicles0"})
+        rig = active_rig(progress_timeout_s=60.0)
+        rig.fly("A", x_m=3000.0)
+        rig.run(65.0)  # circling far away: no progress
+        host = SimpleNamespace(host=daemon, id="v1")
+        VehicleSession._carry_out(host, [o for o in rig.out  # type: ignore[arg-type]
+                                         if isinstance(o, vio.JournalLine | vio.Warn)])
+        daemon.journal_file.close()
+        return daemon
+
+    keep = Keep(logging.INFO)
+    logger = logging.getLogger("groundstation")
+    level = logger.level
+    logger.addHandler(keep)
+    logger.setLevel(logging.INFO)
+    try:
+        asyncio.run(main())
+    finally:
+        logger.removeHandler(keep)
+        logger.setLevel(level)
+    journal = [e["event"] for e in read_journal(tmp_path / "journal.jsonl")]
+    for event in ("task_error", "link_rebound", "no_progress"):
+        assert event in journal, journal
+    assert len(said("flaky")) == 1, said("flaky")
+    assert len(said("re-bound") + said("link_rebound")) == 1, records
+    assert len(said("no progress") + said("no_progress")) == 1, said("progress")
+
+
+@pytest.mark.timeout(120)
+def test_log_mode_says_nothing_of_the_links_as_the_run_shuts_down(tmp_path: Path) -> None:
+    """The embedded vehicles stop with the run: no lost link, no reconnect attempt."""
+    result = gcs_run_pipe(
+        ["--vehicles", "sim:1", "--scenario", "none", "--sim-airborne", "--speedup", "20",
+         "--duration", "20", "--http", "off", "--detections", "off", "--status", "log",
+         "--run-dir", str(tmp_path)], tmp_path)  # fmt: skip
+    out = result.stdout + result.stderr
+    assert result.returncode == 0, out[-2000:]
+    assert "connected to" in out  # link state changes are shown in log mode
+    assert re.search(r"gcs run: t=[\d.]+ stop reason=duration", out), out[-2000:]
+    assert "lost TCP" not in out and "cannot open" not in out, out[-2000:]
+    assert "reconnecting" not in out
+
+
+def test_a_start_that_fails_leaves_no_console_handler(tmp_path: Path,
+                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    """A failure once the Daemon exists (here: turning signing on) detaches the console, so
+    a later run in the same process prints each line once."""
+    import asyncio
+    import logging
+
+    from groundstation.commands.run import build_config, run_daemon
+    from groundstation.daemon.console import FLOE_LOGGERS, ConsoleHandler
+    from groundstation.daemon.daemon import Daemon
+
+    def boom(self: Daemon, gate: object) -> None:
+        raise RuntimeError("signing gate failed")
+
+    monkeypatch.setattr(Daemon, "use_signing", boom)
+    phrase = tmp_path / "phrase.txt"
+    phrase.write_text("correct horse battery staple\n")
+    config = build_config(["--vehicles", f"tcp:127.0.0.1:{closed_port()}", "--http", "off",
+                           "--detections", "off", "--status", "log", "--duration", "1",
+                           "--signing-passphrase-file", str(phrase),
+                           "--run-dir", str(tmp_path)])
+    with pytest.raises(RuntimeError, match="signing gate failed"):
+        asyncio.run(run_daemon(config, print_fn=lambda _: None, install_signals=False))
+    for name in FLOE_LOGGERS:
+        handlers = logging.getLogger(name).handlers
+        assert not [h for h in handlers if isinstance(h, ConsoleHandler)], name

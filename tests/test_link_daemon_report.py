@@ -6,12 +6,14 @@ from __future__ import annotations
 import asyncio
 from pathlib import Path
 
+from daemon_run import status_text
+
 from groundstation.core.config import CoreConfig
 from groundstation.daemon.clock import MissionClock
 from groundstation.daemon.config_parse import parse_config
 from groundstation.daemon.daemon import Daemon
 from groundstation.daemon.journal import Journal, read_journal
-from groundstation.daemon.status import link_lines, render_table
+from groundstation.daemon.status import link_lines
 from groundstation.link import open_link
 
 
@@ -59,7 +61,7 @@ def test_link_drops_are_journalled_when_they_grow_and_shown(tmp_path: Path) -> N
             "link vehicles0: received 900, dropped 150, bad 0, foreign 2"
         ]
         assert len(link_lines(stats)) == 2
-        table = render_table(daemon)
+        table = status_text(daemon)
         assert "link vehicles0: received 900, dropped 150, bad 0, foreign 2" in table
         assert "link vehicles1: received 0, dropped 0" in table
 

@@ -17,6 +17,7 @@ from typing import Any
 
 import aiohttp
 import pytest
+from daemon_run import status_text
 
 from groundstation.commands.run import build_config, run_daemon
 from groundstation.daemon.alerts import SILENT_AFTER_S, SILENT_REPEAT_S, never_heard
@@ -25,7 +26,6 @@ from groundstation.daemon.console import ConsoleHandler, OperatorConsole
 from groundstation.daemon.daemon import Daemon
 from groundstation.daemon.journal import read_journal
 from groundstation.daemon.log_lines import describe_line, is_operator_event, line_level
-from groundstation.daemon.status import render_table
 from groundstation.detection_feed import encode_detection
 
 STATE_UPDATES = {"truth", "track", "detection", "input"}
@@ -72,7 +72,7 @@ def test_notable_events_and_page_pushes_hold_operator_events_only(tmp_path: Path
         assert "plan" in events and "upload" in events, events
         assert not STATE_UPDATES & set(events), events
         assert all(is_operator_event(e) for e in view)
-    table = render_table(daemon)
+    table = status_text(daemon)
     recent = table.split("recent:", 1)[1].splitlines()
     assert len([x for x in recent if x.strip()]) >= 3
     for line in recent:
@@ -132,7 +132,9 @@ def test_silent_link_and_dropped_detections_are_reported(tmp_path: Path) -> None
     assert drops[-1]["no_origin"] == 5 and drops[-1]["malformed"] == 1
     warnings = [r.getMessage() for r in records]
     assert sum("no vehicle heard in" in w for w in warnings) == 2
-    assert any(w.startswith("detections: 6 dropped") for w in warnings), warnings
+    # one or two reports (the datagrams may straddle a 10 s report), ending with all six
+    assert any(w.startswith("detections: ") and "(6 in all: no origin 5, malformed 1)" in w
+               for w in warnings), warnings
     assert any(f"cannot open TCP 127.0.0.1:{port}" in w for w in warnings)
     message = never_heard(daemon)
     assert message is not None and f"tcp:127.0.0.1:{port}: never connected" in message
@@ -151,6 +153,11 @@ def test_operator_event_predicate_and_levels() -> None:
     assert line_level({"event": "upload", "ok": False, "retries": 0}) == logging.WARNING
     assert line_level({"event": "link_lost"}) == logging.WARNING
     assert line_level({"event": "truth"}) == logging.DEBUG
+    # one line_level call serves the views that need both (EventBuffer, page pushes)
+    for line in ({"event": "plan"}, {"event": "truth"}, {"event": "statustext", "severity": 6},
+                 {"event": "statustext", "severity": 3}, {"event": "clock_check", "ok": False},
+                 {"event": "mode", "ok": False}, {"event": "arm", "ok": False}):
+        assert (line_level(line) > logging.DEBUG) == is_operator_event(line), line
 
 
 def test_plan_and_stop_lines_read_as_text() -> None:
@@ -199,3 +206,66 @@ def test_event_buffer_keeps_operator_events_and_marks_problems() -> None:
     assert [e["line"]["event"] for e in everything] == ["truth", "plan", "track", "link_lost"]
     assert [(e["line"]["event"], e.get("warning", False)) for e in notable] == [
         ("plan", False), ("link_lost", True)]
+
+
+def test_silent_link_advice_and_drops_come_from_the_link_and_the_daemon(tmp_path: Path) -> None:
+    """The advice switches on the link's kind (an upper-case ``TCP:`` is a TCP client), the
+    URL is the link's own, and the drops read the daemon's two counters."""
+    from groundstation.core.config import CoreConfig
+    from groundstation.daemon.alerts import OperatorAlerts
+    from groundstation.daemon.clock import MissionClock
+    from groundstation.daemon.config_parse import parse_config
+    from groundstation.daemon.journal import Journal
+    from groundstation.link import open_link
+
+    records: list[str] = []
+
+    class Keep(logging.Handler):
+        def emit(self, record: logging.LogRecord) -> None:
+            records.append(record.getMessage())
+
+    t = [0.0]
+    config = parse_config({"vehicles": ["udpin:127.0.0.1:0"]}, {})
+    journal = Journal(tmp_path / "journal.jsonl", lambda: t[0], lambda: 1.7e9)
+    daemon = Daemon(config, CoreConfig(), MissionClock(1.0, source=lambda: t[0]), tmp_path,
+                    None, journal, None)
+    for i, url in enumerate(("TCP:127.0.0.1:5760", "tcpin:127.0.0.1:5761",
+                             "udpout:127.0.0.1:14550")):
+        daemon.router.add_vehicle_link(open_link(url, link_id=f"vehicles{i}"))
+    daemon.detections_no_origin, daemon.detections_dropped = 3, 2
+    alerts = OperatorAlerts(daemon)
+    keep = Keep(logging.WARNING)
+    logging.getLogger("groundstation").addHandler(keep)
+    try:
+        alerts.check(SILENT_AFTER_S)
+    finally:
+        logging.getLogger("groundstation").removeHandler(keep)
+        journal.close()
+    assert [x.link_id for x in alerts.silent_links()] == ["vehicles0", "vehicles1", "vehicles2"]
+    assert len(records) == 4, records  # three silent links and the drops, once each
+    assert "(TCP:127.0.0.1:5760)" in records[0] and "no other program holds" in records[0]
+    assert "connects to this address" in records[1] and "udpout sends first" in records[2]
+    assert alerts.link_state(alerts.silent_links()[0]) == "never connected"
+    assert alerts.drops() == {"no_origin": 3, "outside_area": 2}
+    assert records[3].startswith("detections: 5 dropped")
+    lines = read_journal(tmp_path / "journal.jsonl")
+    assert [e["url"] for e in lines if e["event"] == "link_silent"] == [
+        "TCP:127.0.0.1:5760", "tcpin:127.0.0.1:5761", "udpout:127.0.0.1:14550"]
+
+
+def test_upload_retries_are_counted_by_the_controller() -> None:
+    """The table's retries column reads the controller's count (every upload job's
+    retries), not the journal subscription that may drop lines."""
+    from test_vehicle_controller import active_rig
+
+    from groundstation.vehicle import io as vio
+
+    rig = active_rig()
+    before = rig.c.upload_retries
+    rig.auto_answer = False
+    rig.fly("A")
+    rig.answer(vio.UploadOutcome(False, 5, "upload timeout", 3))  # 5 retries, then failed
+    assert rig.c.upload_retries == before + 5 and rig.c.uploads_failed == 1
+    rig.auto_answer = True
+    rig.run(5.0)  # retried and flown: no retry this time
+    assert rig.c.uploads_ok >= 1 and rig.c.upload_retries == before + 5

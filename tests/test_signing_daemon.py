@@ -10,13 +10,12 @@ import itertools
 from pathlib import Path
 
 import pytest
-from daemon_run import events, run_gcs
+from daemon_run import events, run_gcs, status_text
 
 from domain.geodesy import GeoOrigin
 from groundstation.commands.run import build_config, run_daemon
 from groundstation.daemon.daemon import Daemon
 from groundstation.daemon.journal import read_journal
-from groundstation.daemon.status import render_table
 from groundstation.mavlink.signing import key_from_passphrase
 from sitl.server import ServerOptions, SitlServer
 from sitl.vehicle import VehicleConfig
@@ -53,7 +52,7 @@ def test_signed_round_trip_with_the_built_in_vehicle(tmp_path: Path) -> None:
     start = events(journal, "start")[0]
     assert start["signing"] == {"keys": {"all": str(phrase)}, "setup": False}
     assert start["config"]["signing"]["passphrase_file"] == str(phrase)
-    assert "signing on; refused frames: none" in render_table(daemon)
+    assert "signing on; refused frames: none" in status_text(daemon)
     no_key_in_run_folder(daemon, tmp_path)
 
 

@@ -95,7 +95,8 @@ def _parser() -> argparse.ArgumentParser:
         metavar="S",
         help="a request's headers (then its body) must arrive within S seconds (default 5)",
     )
-    a("--detections", metavar="HOST:PORT|off", help="detection feed UDP (default 127.0.0.1:14600)")
+    a("--detections", metavar="HOST:PORT|off",
+      help="detection feed UDP (default 127.0.0.1:14600; with sim:N a free port, printed)")
     a("--run-dir", metavar="DIR", help="parent of the run folders (default runs)")
     a("--journal", metavar="FILE", help="journal path (default RUN/journal.jsonl)")
     a("--gcs-system-id", type=int, metavar="ID", help="floe's MAVLink system id (default 245)")
@@ -180,24 +181,7 @@ def build_config(argv: list[str]) -> DaemonConfig:
     path = args.pop("config", None)
     data = load_config_file(path) if path else {}
     flags = {spelling[dest]: value for dest, value in args.items()}
-    config = resolve(parse_config(data, flags))
-    return _free_ports_for_sim(config, asked="--detections" in flags or "detections" in data)
-
-
-def _free_ports_for_sim(config: DaemonConfig, *, asked: bool) -> DaemonConfig:
-    """With ``sim:N`` nothing outside this process needs a fixed port: the built-in
-    vehicles play the camera themselves, so the detection feed, unless the user named its
-    address, listens on a free port (printed at start) instead of 14600, and two ``sim:N``
-    runs can run side by side. (The vehicles' TCP ports and the control API, by default,
-    are free ports already.)"""
-    import dataclasses
-
-    from groundstation.daemon.config import Endpoint
-
-    feed = config.detections
-    if config.sim_count is None or asked or feed is None or feed.port == 0:
-        return config
-    return dataclasses.replace(config, detections=Endpoint(feed.host, 0))
+    return resolve(parse_config(data, flags))
 
 
 async def run_daemon(config: DaemonConfig, **options: Any) -> Daemon:

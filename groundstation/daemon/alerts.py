@@ -46,24 +46,16 @@ _FEED_REASONS = ("malformed", "out_of_order", "late")
 
 
 class OperatorAlerts:
-    """See the module docstring. ``urls``: link id -> the URL the operator gave;
-    ``feed_counters``: the detection feed's counters (None without a feed)."""
+    """See the module docstring."""
 
-    def __init__(
-        self,
-        daemon: Daemon,
-        urls: Mapping[str, str],
-        feed_counters: Callable[[], Mapping[str, int]] | None = None,
-    ) -> None:
+    def __init__(self, daemon: Daemon) -> None:
         self.daemon = daemon
-        self.urls = dict(urls)
-        self.feed_counters = feed_counters
-        self.no_origin = 0
-        """Feed detections dropped because no mission origin is known yet (startup counts)."""
+        self.feed_counters: Callable[[], Mapping[str, int]] | None = None
+        """The detection feed's counters (set when the feed starts; None without one)."""
         self.heard: set[str] = set()
         """Vehicle links a vehicle was ever bound to."""
-        self.silent: dict[str, float] = {}
-        """Links reported silent -> mission s of the last report."""
+        self.silent: set[str] = set()
+        """Vehicle links reported silent (until a vehicle is heard on one)."""
         self._next_silent_s: dict[str, float] = {}
         self._next_drops_s = DROPS_REPORT_S
         self._drops_reported = 0
@@ -72,22 +64,22 @@ class OperatorAlerts:
     def drops(self) -> dict[str, int]:
         """Dropped detections by reason (see the module docstring)."""
         d = self.daemon
-        out = {"no_origin": self.no_origin,
-               "outside_area": max(0, d.detections_dropped - self.no_origin)}
+        out = {"no_origin": d.detections_no_origin, "outside_area": d.detections_dropped}
         if self.feed_counters is not None:
             counters = self.feed_counters()
             for reason in _FEED_REASONS:
                 out[reason] = int(counters.get(reason, 0))
         return out
 
-    def link_state(self, link_id: str) -> str:
+    def link_state(self, link: Link) -> str:
         """What an operator can tell of a vehicle link: heard, connected, frames in."""
-        link = next((x for x in self.daemon.router.vehicle_links if x.link_id == link_id), None)
-        if link is None:
-            return "unknown link"
-        if link_id in self.heard:
+        if link.link_id in self.heard:
             return "vehicle heard"
         return _unheard_state(link)
+
+    def silent_links(self) -> list[Link]:
+        """The vehicle links reported silent, in the router's order."""
+        return [x for x in self.daemon.router.vehicle_links if x.link_id in self.silent]
 
     # ------------------------------------------------------------------ checks
     def check(self, now_s: float) -> None:
@@ -105,21 +97,21 @@ class OperatorAlerts:
             link = router.link_for(sysid)
             if link is not None:
                 self.heard.add(link.link_id)
-                self.silent.pop(link.link_id, None)
+                self.silent.discard(link.link_id)
         for link in router.vehicle_links:
             link_id = link.link_id
             if link_id in self.heard or now_s < self._next_silent_s.get(link_id, SILENT_AFTER_S):
                 continue
             self._next_silent_s[link_id] = now_s + SILENT_REPEAT_S
-            self.silent[link_id] = now_s
-            url = self.urls.get(link_id, link_id)
-            state = self.link_state(link_id)
-            self.daemon.journal_file.write(
+            self.silent.add(link_id)
+            url = link.spec.url
+            state = self.link_state(link)
+            self.daemon.journal(
                 "link_silent", link=link_id, url=url, silent_s=round(now_s, 1),
-                connected=link.connected, received=link.counters.frames_in,
+                connected=link.connected, received=link.counters.frames_in, logged=True,
             )  # fmt: skip
             log.warning("link %s (%s): no vehicle heard in %.0f s (%s); %s", link_id, url,
-                        now_s, state, _advice(url, link.connected))
+                        now_s, state, _advice(link))
 
     def _check_drops(self) -> None:
         drops = self.drops()
@@ -129,7 +121,8 @@ class OperatorAlerts:
             return
         self._drops_reported = total
         reasons = {k: v for k, v in drops.items() if v}
-        self.daemon.journal_file.write("detections_dropped", new=new, total=total, **reasons)
+        self.daemon.journal("detections_dropped", new=new, total=total, logged=True,
+                            **reasons)
         text = ", ".join(f"{k.replace('_', ' ')} {v}" for k, v in reasons.items())
         log.warning("detections: %d dropped in the last %.0f s (%d in all: %s)", new,
                     DROPS_REPORT_S, total, text)
@@ -168,19 +161,22 @@ def never_heard(daemon: Daemon) -> str | None:
             + (f" ({states})" if states else ""))
 
 
-def _advice(url: str, connected: bool) -> str:
-    """What to check for a link that heard no vehicle."""
-    if url.startswith("tcpin:"):
-        return "check that the vehicle or its bridge connects to this address and port"
-    if url.startswith("tcp:"):
-        if not connected:
+def _advice(link: Link) -> str:
+    """What to check for a link that heard no vehicle (by the kind of link)."""
+    match link.spec.kind:
+        case LinkKind.TCP_SERVER:
+            return "check that the vehicle or its bridge connects to this address and port"
+        case LinkKind.TCP_CLIENT if not link.connected:
             return ("check the address, that the vehicle or SITL listens there and that no "
                     "other program holds its port")
-        return ("connected but silent: ArduPilot serves one client per TCP port, so another "
-                "ground station may hold it; else check that the vehicle sends MAVLink here")
-    if url.startswith("udpout:"):
-        return "check the address and that the vehicle answers at it (udpout sends first)"
-    if url.startswith(("udp:", "udpin:")):
-        return "check that the vehicle or its radio sends to this address and port"
-    return "check the device, its cable or radio, and the baud rate"
+        case LinkKind.TCP_CLIENT:
+            return ("connected but silent: ArduPilot serves one client per TCP port, so "
+                    "another ground station may hold it; else check that the vehicle sends "
+                    "MAVLink here")
+        case LinkKind.UDP_OUT:
+            return "check the address and that the vehicle answers at it (udpout sends first)"
+        case LinkKind.UDP_IN:
+            return "check that the vehicle or its radio sends to this address and port"
+        case _:
+            return "check the device, its cable or radio, and the baud rate"
 

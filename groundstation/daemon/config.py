@@ -111,6 +111,11 @@ class Endpoint:
         return f"{self.host}:{self.port}"
 
 
+DETECTIONS_UNSET = Endpoint("", -1)
+"""``detections`` not given (no parsed address has port -1): :func:`resolve` picks it."""
+DETECTIONS_DEFAULT = Endpoint("127.0.0.1", 14600)
+
+
 @dataclass(frozen=True, slots=True)
 class VehicleSettings:
     """Per-vehicle settings (``fleet.settings`` / ``vehicle_settings: {SYSID: {...}}``)."""
@@ -261,7 +266,8 @@ class DaemonConfig:
     records: RecordsConfig = field(default_factory=RecordsConfig)
     signing: SigningConfig = field(default_factory=SigningConfig)
     sim: SimConfig = field(default_factory=SimConfig)
-    detections: Endpoint | None = Endpoint("127.0.0.1", 14600)
+    detections: Endpoint | None = DETECTIONS_UNSET
+    """The detection feed's UDP address; None: off (unset: see :func:`resolve`)."""
     speedup: float | None = None
     advisory: bool = False
     status: StatusMode = StatusMode.AUTO
@@ -288,6 +294,8 @@ class DaemonConfig:
         settings without their unset keys. ``parse_config(c.to_dict(), {}) == c``."""
         out = {f.name: _plain(getattr(self, f.name)) for f in dataclasses.fields(self)}
         out["detections"] = _off(self.detections)
+        if self.detections == DETECTIONS_UNSET:  # unresolved: left to resolve() again
+            del out["detections"]
         return out
 
 
@@ -322,15 +330,20 @@ def resolve(config: DaemonConfig) -> DaemonConfig:
 
     * ``speedup``: 50 with ``sim:N``, else 1;
     * ``mission.scenario``: ``default`` with ``sim:N`` when unset (``none``: none);
-    * ``fleet.launch``: on for ``sim:N`` unless its vehicles start airborne, else off."""
+    * ``fleet.launch``: on for ``sim:N`` unless its vehicles start airborne, else off;
+    * ``detections``: 127.0.0.1:14600, but with ``sim:N`` a free port (127.0.0.1:0, printed
+      at start): the built-in vehicles play the camera, nothing outside needs the address,
+      and two ``sim:N`` runs can run side by side."""
     sim = config.sim_count is not None
-    mission, fleet = config.mission, config.fleet
+    mission, fleet, detections = config.mission, config.fleet, config.detections
+    if detections == DETECTIONS_UNSET:
+        detections = Endpoint("127.0.0.1", 0) if sim else DETECTIONS_DEFAULT
     if sim and mission.scenario is None:
         mission = dataclasses.replace(mission, scenario="default")
     if fleet.launch is None:
         fleet = dataclasses.replace(fleet, launch=sim and not config.sim.airborne)
     return dataclasses.replace(
-        config, speedup=config.speedup_x, mission=mission, fleet=fleet
+        config, speedup=config.speedup_x, mission=mission, fleet=fleet, detections=detections
     )
 
 

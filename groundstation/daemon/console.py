@@ -10,7 +10,9 @@ mode       the console
 ``table``  the live table (``status.py``) on stdout, redrawn in place; warnings printed above
            it. On a file or a dumb terminal (``TERM=dumb``) there is nothing to redraw: log
            lines as ``log``, and the table printed once at the end.
-``log``    one readable line per operator event (``log_lines``) and every warning, on stdout
+``log``    one readable line per operator event (``log_lines``), link state changes
+           (connected, bound) and every warning, on stdout; nothing of the links as the
+           run shuts down
 ``auto``   ``table`` on an interactive terminal (not ``TERM=dumb``), else ``log``
 ``quiet``  warnings and errors only, on stderr
 =========  ===================================================================================
@@ -87,9 +89,7 @@ class OperatorConsole:
             level = logging.INFO if self.event_lines and name == "groundstation" else (
                 logging.WARNING)
             handler = ConsoleHandler(console, level)
-            logger = logging.getLogger(name)
-            if logger.getEffectiveLevel() > level:
-                logger.setLevel(level)
+            logger = logging.getLogger(name)  # its level: gcs.log's (INFO, run_files)
             logger.addHandler(handler)
             attached.append((logger, handler))
 

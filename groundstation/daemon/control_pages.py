@@ -14,7 +14,7 @@ from collections import deque
 from typing import Any
 
 from groundstation.daemon.control_requests import jsonable
-from groundstation.daemon.log_lines import is_operator_event, line_level
+from groundstation.daemon.log_lines import line_level
 
 __all__ = ["CLIENT_QUEUE", "CLIENT_QUEUE_BYTES", "EventBuffer", "PageClient"]
 
@@ -35,15 +35,18 @@ class EventBuffer:
         self.notable_evicted = 0  # seq of the newest notable event no longer buffered
         self.seq = 0
 
-    def record(self, line: dict[str, Any]) -> dict[str, Any]:
+    def record(self, line: dict[str, Any], level: int | None = None) -> dict[str, Any]:
         """Number and keep ``line``; returns its entry ``{"seq", "line"}`` (and
-        ``"warning": true`` for a problem, ``log_lines.line_level``)."""
+        ``"warning": true`` for a problem). ``level``: the line's ``log_lines.line_level``
+        when the caller has it (above DEBUG exactly for an operator event)."""
+        if level is None:
+            level = line_level(line)
         self.seq += 1
         entry: dict[str, Any] = {"seq": self.seq, "line": jsonable(line)}
-        if line_level(line) >= logging.WARNING:
-            entry["warning"] = True  # pages colour it (log_lines.line_level)
+        if level >= logging.WARNING:
+            entry["warning"] = True  # pages colour it
         self.events.append(entry)
-        if is_operator_event(line):
+        if level > logging.DEBUG:  # an operator event
             if len(self.notable) == NOTABLE_BUFFER:
                 self.notable_evicted = self.notable[0]["seq"]
             self.notable.append(entry)

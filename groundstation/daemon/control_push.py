@@ -39,7 +39,7 @@ from groundstation.daemon.control_contract import DaemonControl
 from groundstation.daemon.control_guard import RejectLog
 from groundstation.daemon.control_pages import EventBuffer, PageClient
 from groundstation.daemon.control_requests import jsonable
-from groundstation.daemon.log_lines import is_operator_event
+from groundstation.daemon.log_lines import line_level
 
 __all__ = ["CATCH_UP_EVENTS", "WS_CLOSE_TIMEOUT_S", "WS_SEND_TIMEOUT_S", "PageHub"]
 
@@ -131,8 +131,9 @@ class PageHub:
             async for line in self.control.subscribe():
                 if not isinstance(line, dict):
                     continue
-                entry = self.buffer.record(line)
-                if self.clients and is_operator_event(line):
+                level = line_level(line)  # once per line: above DEBUG for operator events
+                entry = self.buffer.record(line, level)
+                if self.clients and level > logging.DEBUG:
                     self._pending.append(entry)
                     if len(self._pending) > EVENT_BATCH_MAX:
                         self._pending_dropped += len(self._pending) - EVENT_BATCH_MAX

@@ -148,6 +148,9 @@ class Daemon:
         self._wall_start = time.perf_counter()
         self._cpu_start = time.process_time()
         self.detections_dropped = 0
+        """Detections outside the operating area (camera or feed), dropped."""
+        self.detections_no_origin = 0
+        """Feed detections dropped because no mission origin was known yet."""
         self.internal_error: str | None = None
         self.supervisor = Supervisor(clock.now_s, self.journal, self._on_bug)
         self.signing: SigningGate | None = None
@@ -165,9 +168,17 @@ class Daemon:
         assert self.origin_or_none is not None
         return self.origin_or_none
 
-    def journal(self, event: str, **fields: Any) -> None:
+    def journal(self, event: str, *, logged: bool = False, **fields: Any) -> None:
+        """Write a journal line; an operator event also reaches the console, once.
+
+        The rule that keeps every problem to one console line: the journal line of an
+        operator event is logged at its :func:`line_level` (a problem at WARNING), unless
+        its site already told the operator in its own words and passes ``logged=True``
+        (supervision, the core's failure, the vehicle controller's warnings, the alerts).
+        The link layer never warns of what it notifies (``link_rebound``, ``peer_rebound``):
+        its notice is journalled here and told by its line."""
         line = self.journal_file.write(event, **fields)
-        if (level := line_level(line)) >= logging.INFO:  # operator events; problems: WARNING
+        if not logged and (level := line_level(line)) >= logging.INFO:
             log.log(level, "%s", describe_line(line))
 
     def core_event(self, event: ev.Event) -> None:
@@ -186,7 +197,7 @@ class Daemon:
             pending = self.core.handle(event)
         except Exception:
             log.exception("decision core failed on %s", type(event).__name__)
-            self.journal("core_error", input=type(event).__name__)
+            self.journal("core_error", input=type(event).__name__, logged=True)
             return
         for command in pending:
             self._execute(command)
@@ -382,6 +393,7 @@ class Daemon:
             self._spawn(f"vehicle {session.id}", session.run, gave_up)
         await self._stop.wait()
         await self._shutdown()
+        self.router.begin_close()  # before on_finish stops the embedded vehicles
         for finish in self.on_finish:
             finish()
         self._cancel_tasks()

@@ -32,6 +32,7 @@ __all__ = [
     "format_routes",
     "is_operator_event",
     "line_level",
+    "plan_detail",
     "short_value",
 ]
 
@@ -110,7 +111,8 @@ def is_operator_event(line: Mapping[str, Any]) -> bool:
 
 def line_level(line: Mapping[str, Any]) -> int:
     """``logging.WARNING`` for a problem, ``logging.INFO`` for other operator events,
-    ``logging.DEBUG`` for state updates."""
+    ``logging.DEBUG`` for state updates: above DEBUG exactly when :func:`is_operator_event`
+    (one call serves a view that needs both)."""
     if not is_operator_event(line):
         return logging.DEBUG
     event = line.get("event")
@@ -140,7 +142,7 @@ def describe_line(line: Mapping[str, Any]) -> str:
     head = f"t={t:.1f}" if isinstance(t, int | float) else "t=?"
     event = str(line.get("event"))
     if event == "plan" and isinstance(line.get("routes"), Mapping):
-        return f"{head} plan {format_routes(line['routes'])} ({_plan_detail(line)})"
+        return f"{head} plan {format_routes(line['routes'])} ({plan_detail(line)})"
     parts = [head, event]
     for key, value in line.items():
         if key in _SKIP or isinstance(value, Mapping):
@@ -151,7 +153,8 @@ def describe_line(line: Mapping[str, Any]) -> str:
     return " ".join(parts)
 
 
-def _plan_detail(line: Mapping[str, Any]) -> str:
+def plan_detail(line: Mapping[str, Any]) -> str:
+    """``optimal, 3 ms, period``: a plan's status, solve time and reason (if any)."""
     detail = [str(line.get("status", "?"))]
     solve_s = line.get("solve_time_s")
     if isinstance(solve_s, int | float):

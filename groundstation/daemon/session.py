@@ -49,7 +49,7 @@ class SessionHost(Protocol):
 
     def core_event(self, event: ev.Event) -> None: ...
 
-    def journal(self, event: str, **fields: Any) -> None: ...
+    def journal(self, event: str, *, logged: bool = False, **fields: Any) -> None: ...
 
     def clip(self, x_m: float, y_m: float) -> tuple[float, float, bool]: ...
 
@@ -116,6 +116,10 @@ class VehicleSession:
     @property
     def uploads_failed(self) -> int:
         return self.controller.uploads_failed
+
+    @property
+    def upload_retries(self) -> int:
+        return self.controller.upload_retries
 
     @property
     def upload_delays_s(self) -> list[float]:
@@ -204,7 +208,7 @@ class VehicleSession:
     def _carry_out(self, outputs: list[io.Output]) -> None:
         for out in outputs:
             if isinstance(out, io.JournalLine):
-                self.host.journal(out.event, vehicle=self.id, **out.fields)
+                self.host.journal(out.event, vehicle=self.id, logged=out.logged, **out.fields)
             elif isinstance(out, io.CoreEvent):
                 self.host.core_event(out.event)
             elif isinstance(out, io.Warn):

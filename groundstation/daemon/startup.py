@@ -17,6 +17,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import dataclasses
+import functools
 import json
 import logging
 import platform
@@ -189,6 +190,9 @@ async def run_daemon(
     check_config(config)
     config = resolve(config)
     signing_keys = load_signing_keys(config)
+    from planner.solve import warm_up
+
+    warm_up()  # the solver's libraries (~0.6 s of CPU) before any clock starts: no mission time
     scenario = None
     if config.mission.scenario_to_load is not None:
         from world.scenario import load_scenario
@@ -235,12 +239,13 @@ async def run_daemon(
         raise StartError(str(exc)) from None
     run_dir, journal, tlog, effective = files.run_dir, files.journal, files.tlog, files.effective
     console = OperatorConsole(config.status)
-    cleanups: list[Callable[[], None]] = [console.install()]
+    cleanups: list[Callable[[], None]] = []
     daemon = Daemon(config, ccfg, clock, run_dir, origin, journal, tlog)
-    if signing_keys.enabled:
-        daemon.use_signing(SigningGate(signing_keys, config.links.gcs_system_id))
     server_started = False
     try:
+        cleanups.append(console.install())  # detached in the finally, whatever fails
+        if signing_keys.enabled:
+            daemon.use_signing(SigningGate(signing_keys, config.links.gcs_system_id))
         if sim is not None:
             try:
                 await sim.start()
@@ -320,7 +325,7 @@ async def run_daemon(
             )
             daemon.core_event(target)
         controller = DaemonController(daemon)
-        alerts = OperatorAlerts(daemon, {f"vehicles{i}": url for i, url in enumerate(urls)})
+        alerts = OperatorAlerts(daemon)
 
         async def operator_alerts() -> None:
             await alerts.run()
@@ -432,11 +437,7 @@ async def _start_detection_feed(
         return
     host, port = config.detections.host, config.detections.port
 
-    def on_detection(item: Any) -> None:
-        if not _feed_detection(daemon, item):
-            alerts.no_origin += 1
-
-    feed = DetectionFeed(host, port, on_detection)
+    feed = DetectionFeed(host, port, functools.partial(_feed_detection, daemon))
     alerts.feed_counters = lambda: dataclasses.asdict(feed.counters)
     try:
         await feed.start()
@@ -454,18 +455,18 @@ def _field(item: Any, name: str) -> Any:
     return item.get(name) if isinstance(item, dict) else getattr(item, name, None)
 
 
-def _feed_detection(daemon: Daemon, item: Any) -> bool:
-    """One line of the detection feed (design.md) -> the core (boat or detection); False
-    when it is dropped for want of a mission origin."""
+def _feed_detection(daemon: Daemon, item: Any) -> None:
+    """One line of the detection feed (design.md) -> the core (boat or detection); without
+    a mission origin it is dropped and counted (``daemon.detections_no_origin``)."""
     lat, lon = _field(item, "lat_deg"), _field(item, "lon_deg")
     if daemon.origin_or_none is None or lat is None or lon is None:
-        daemon.detections_dropped += 1
-        return False
+        daemon.detections_no_origin += 1
+        return
     x, y, _ = daemon.origin.to_local(float(lat), float(lon))
     t = daemon.clock.now_s()
     if _field(item, "kind") == "boat":
         daemon.set_boat(x, y)
-        return True
+        return
     sysid = _field(item, "vehicle")
     session = daemon.sessions.get(int(sysid)) if isinstance(sysid, int) else None
     sigma = _field(item, "sigma_m")
@@ -476,4 +477,3 @@ def _feed_detection(daemon: Daemon, item: Any) -> bool:
             t, session.id if session else None, str(target) if target is not None else None, x, y, r
         )
     )
-    return True

@@ -14,9 +14,9 @@ stay above it. Colours come from ``rich``: none on a dumb terminal or a file.
 from __future__ import annotations
 
 import asyncio
-import io
 import logging
-from collections import Counter, deque
+from collections import deque
+from collections.abc import Iterable
 from typing import TYPE_CHECKING, Any
 
 from rich import box
@@ -29,36 +29,37 @@ from groundstation.daemon.log_lines import (
     format_routes,
     is_operator_event,
     line_level,
+    plan_detail,
 )
 
 if TYPE_CHECKING:
     from groundstation.daemon.alerts import OperatorAlerts
     from groundstation.daemon.daemon import Daemon
 
-__all__ = ["RECENT_LINES", "EventTally", "link_lines", "render_status", "render_table",
-           "status_loop"]
+__all__ = ["RECENT_LINES", "EventTally", "link_lines", "render_status", "status_loop"]
 
 RECENT_LINES = 8
 REDRAW_S = 1.0
 
 
 class EventTally:
-    """What the table counts from the journal's operator events: upload retries per
-    vehicle, and the newest ``RECENT_LINES`` events."""
+    """The newest ``RECENT_LINES`` operator events of the journal (the recent pane). The
+    table's counts come from the controllers, never from this lossy subscription."""
 
     def __init__(self) -> None:
-        self.retries: Counter[str] = Counter()
         self.recent: deque[dict[str, Any]] = deque(maxlen=RECENT_LINES)
 
+    @classmethod
+    def from_lines(cls, lines: Iterable[dict[str, Any]]) -> EventTally:
+        """A tally seeded with journal lines (the journal's recent ones, at the start)."""
+        tally = cls()
+        for line in lines:
+            tally.add(line)
+        return tally
+
     def add(self, line: dict[str, Any]) -> None:
-        if not is_operator_event(line):
-            return
-        self.recent.append(line)
-        if line.get("event") == "upload":
-            vehicle = str(line.get("vehicle"))
-            retries = line.get("retries")
-            if isinstance(retries, int):
-                self.retries[vehicle] += retries
+        if is_operator_event(line):
+            self.recent.append(line)
 
 
 def _fmt(value: Any, spec: str = "") -> str:
@@ -100,13 +101,13 @@ def _header(daemon: Daemon, alerts: OperatorAlerts | None) -> list[RenderableTyp
     plan = daemon.last_plan
     if plan is not None:
         out.append(Text(f"plan t={plan['t']:.1f}: {format_routes(plan['routes'])} "
-                        f"({plan['status']}, {plan['solve_time_s'] * 1000:.0f} ms)"))
+                        f"({plan_detail(plan)})"))
     else:
         out.append(Text("plan: none yet"))
     if alerts is not None:
-        for link_id in sorted(alerts.silent):
-            out.append(Text(f"link {link_id} ({alerts.urls.get(link_id, link_id)}): no vehicle "
-                            f"heard ({alerts.link_state(link_id)})", style="bold red"))
+        for link in alerts.silent_links():
+            out.append(Text(f"link {link.link_id} ({link.spec.url}): no vehicle heard "
+                            f"({alerts.link_state(link)})", style="bold red"))
         drops = {k: v for k, v in alerts.drops().items() if v}
         if drops:
             text = ", ".join(f"{k.replace('_', ' ')} {v}" for k, v in drops.items())
@@ -119,7 +120,7 @@ def _header(daemon: Daemon, alerts: OperatorAlerts | None) -> list[RenderableTyp
     return out
 
 
-def _vehicles(daemon: Daemon, tally: EventTally) -> Table:
+def _vehicles(daemon: Daemon) -> Table:
     table = Table(box=box.SIMPLE_HEAD, pad_edge=False, show_edge=False)
     for name, justify in (("vehicle", "left"), ("sysid", "right"), ("status", "left"),
                           ("mode", "left"), ("armed", "left"), ("alt m", "right"),
@@ -128,7 +129,7 @@ def _vehicles(daemon: Daemon, tally: EventTally) -> Table:
         table.add_column(name, justify=justify)  # type: ignore[arg-type]
     for s in sorted(daemon.sessions.values(), key=lambda s: s.system_id):
         snap = s.snapshot
-        retries = tally.retries.get(s.id, 0)
+        retries = s.upload_retries
         table.add_row(
             s.id, str(s.system_id), s.status, _fmt(snap.mode_name), _fmt(snap.armed),
             _fmt(snap.alt_m, ".0f"), _fmt(s.fly.target if s.fly else None),
@@ -156,9 +157,9 @@ def _targets(daemon: Daemon) -> Table:
     return table
 
 
-def _recent(lines: list[dict[str, Any]]) -> list[RenderableType]:
+def _recent(lines: Iterable[dict[str, Any]]) -> list[RenderableType]:
     out: list[RenderableType] = [Text("recent:", style="bold")]
-    for line in lines[-RECENT_LINES:]:
+    for line in lines:
         level = line_level(line)
         style = "yellow" if level >= logging.WARNING else ""
         out.append(Text("  " + describe_line(line)[:200], style=style, no_wrap=True,
@@ -167,29 +168,15 @@ def _recent(lines: list[dict[str, Any]]) -> list[RenderableType]:
 
 
 def render_status(
-    daemon: Daemon, tally: EventTally | None = None, alerts: OperatorAlerts | None = None
+    daemon: Daemon, tally: EventTally, alerts: OperatorAlerts | None = None
 ) -> RenderableType:
-    """The table as a ``rich`` renderable. Without a ``tally`` the recent pane comes from
-    the journal's recent lines (operator events only)."""
-    if tally is None:
-        tally = EventTally()
-        for line in daemon.journal_file.recent:
-            tally.add(line)
+    """The table as a ``rich`` renderable; the recent pane from ``tally``."""
     stats = daemon.router.link_stats()
     trouble = set(link_lines(stats, only_trouble=True))
     links = [Text(text, style="yellow" if text in trouble else "", no_wrap=True,
                   overflow="ellipsis") for text in link_lines(stats)]
-    return Group(*_header(daemon, alerts), _vehicles(daemon, tally), _targets(daemon), *links,
-                 Text(""), *_recent(list(tally.recent)))
-
-
-def render_table(daemon: Daemon, width: int = 160) -> str:
-    """The status table as plain text (no colour, no control codes)."""
-    buffer = io.StringIO()
-    console = Console(file=buffer, width=width, color_system=None, force_terminal=False,
-                      highlight=False)
-    console.print(render_status(daemon))
-    return buffer.getvalue()
+    return Group(*_header(daemon, alerts), _vehicles(daemon), _targets(daemon), *links,
+                 Text(""), *_recent(tally.recent))
 
 
 async def status_loop(
@@ -198,9 +185,7 @@ async def status_loop(
     """Redraw the table once a wall second in place until cancelled (``live``); otherwise
     print it once when cancelled (a forced table on a file or dumb terminal). The journal is
     followed in a child task of this one (the daemon's task tree)."""
-    tally = EventTally()
-    for line in daemon.journal_file.recent:
-        tally.add(line)
+    tally = EventTally.from_lines(daemon.journal_file.recent)
 
     async def follow() -> None:
         async for line in daemon.journal_file.subscribe():

@@ -41,7 +41,10 @@ class RestartPolicy:
 
 
 class _Journal(Protocol):
-    def __call__(self, event: str, **fields: Any) -> None: ...
+    """``Daemon.journal``: the supervisor warns in its own words, so its lines pass
+    ``logged=True`` (told once on the console)."""
+
+    def __call__(self, event: str, *, logged: bool = False, **fields: Any) -> None: ...
 
 
 class Supervisor:
@@ -85,14 +88,16 @@ class Supervisor:
                         "task %s failed %d times within %.0f s (last: %s): given up",
                         name, restarts, self.policy.window_s, _one_line(exc),
                     )
-                    self._journal("task_gave_up", task=name, error=repr(exc), failures=restarts)
+                    self._journal("task_gave_up", task=name, error=repr(exc), failures=restarts,
+                                  logged=True)
                     self.given_up.append(name)
                     if on_give_up is not None:
                         on_give_up()
                     return
                 log.warning("task %s: %s; restart %d", name, _one_line(exc), restarts)
                 self._journal(
-                    "task_error", task=name, error=repr(exc), restarts=restarts, expected=True
+                    "task_error", task=name, error=repr(exc), restarts=restarts, expected=True,
+                    logged=True,
                 )
                 await asyncio.sleep(min(5.0, self.policy.pause_step_s * restarts))
             except Exception as exc:
@@ -106,6 +111,7 @@ class Supervisor:
                     error=repr(exc),
                     bug=True,
                     traceback=traceback.format_exception(exc)[-6:],
+                    logged=True,
                 )
                 self._on_bug(name, exc)
                 return

@@ -354,7 +354,7 @@ class Link(ABC):
 
     def _notice(self, event: str, **fields: Any) -> None:
         """Tell the layer above something worth journalling (a binding moved)."""
-        log.info("link %s: %s %s", self.link_id, event, fields)
+        log.debug("link %s: %s %s", self.link_id, event, fields)  # the journal line tells it
         if self.on_notice is not None:
             try:
                 self.on_notice(event, {"link": self.link_id, **fields})

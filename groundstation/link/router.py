@@ -263,7 +263,8 @@ class Router:
         elif verdict is Verdict.REBOUND:
             self.counters.rebinds += 1
             old = previous.link_id if previous is not None else None
-            log.warning("system %d re-bound from link %s to %s", rx.system_id, old, link.link_id)
+            # told by the daemon's journal line (one console line per problem)
+            log.debug("system %d re-bound from link %s to %s", rx.system_id, old, link.link_id)
             self._notice(
                 "link_rebound", {"system_id": rx.system_id, "link": link.link_id, "previous": old}
             )

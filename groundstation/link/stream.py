@@ -124,6 +124,8 @@ class ReconnectingLink(_StreamSink):
             except asyncio.CancelledError:
                 raise
             except Exception as exc:
+                if self.closing:  # the daemon is shutting down: no retry, nothing to say
+                    return
                 delay = self._backoff.next_delay_s()
                 self._warn(
                     "connect",
@@ -144,9 +146,10 @@ class ReconnectingLink(_StreamSink):
             self._ever_connected = True
             exc_lost = await asyncio.shield(proto.closed)
             self._proto = None
+            if self.closing:  # the peer closed as the daemon shuts down: no lost link
+                return
             delay = self._backoff.next_delay_s()
-            log.log(
-                logging.INFO if self.closing else logging.WARNING,
+            log.warning(
                 "link %s: lost %s (%s); reconnecting in %.1f s",
                 self.link_id,
                 self._describe(),

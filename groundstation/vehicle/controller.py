@@ -243,7 +243,7 @@ class VehicleController(ControllerState):
         ):
             self._leave(
                 "no_progress", t, S.CONNECTING, target=self.fly.target if self.fly else None,
-                distance_m=round(progress[0], 1), since_s=round(progress[1], 2),
+                distance_m=round(progress[0], 1), since_s=round(progress[1], 2), logged=True,
             )  # fmt: skip
             self._hold_until_s = t + self.s.progress_timeout_s
             self._out.append(
@@ -266,7 +266,8 @@ class VehicleController(ControllerState):
         if checked is None:
             return
         ratio, ok = checked
-        self.journal("clock_check", vehicle_s_per_mission_s=round(ratio, 3), ok=ok)
+        self.journal("clock_check", vehicle_s_per_mission_s=round(ratio, 3), ok=ok,
+                     logged=not ok)  # a failed check: the io.Warn below tells it
         if not ok:
             self._out.append(
                 io.Warn(

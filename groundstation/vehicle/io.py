@@ -192,6 +192,8 @@ class CoreEvent:
 class JournalLine:
     event: str
     fields: dict[str, Any] = field(default_factory=dict)
+    logged: bool = False
+    """A :class:`Warn` of the same step tells the operator (the line is not logged again)."""
 
 
 @dataclass(frozen=True)

@@ -72,6 +72,8 @@ class ControllerState:
         self.fly: FlyRecord | None = None
         self.uploads_ok = 0
         self.uploads_failed = 0
+        self.upload_retries = 0
+        """Retries of every upload job (transfers and set-currents), for the table."""
         self.upload_delays_s: list[float] = []
         self.last_loiter_end_s: float | None = None
         self.foreign_frames = 0
@@ -130,8 +132,9 @@ class ControllerState:
         return isinstance(request, commanding) and self.snap.reboot_suspected
 
     # ------------------------------------------------------------------ outputs
-    def journal(self, event: str, **fields: Any) -> None:
-        self._out.append(io.JournalLine(event, fields))
+    def journal(self, event: str, *, logged: bool = False, **fields: Any) -> None:
+        """``logged``: an ``io.Warn`` of this step says it to the operator."""
+        self._out.append(io.JournalLine(event, fields, logged))
 
     def _core(self, event: ev.Event) -> None:
         self._out.append(io.CoreEvent(event))
@@ -241,6 +244,9 @@ class ControllerState:
         if fly.clipped:
             self.journal("clipped", target=fly.command.target, x_m=fly.x_m, y_m=fly.y_m)
         return True
+
+    def count_retries(self, retries: int) -> None:
+        self.upload_retries += retries
 
     def target_failed(self, fly: io.Fly) -> bool:
         """Whether to try again: not when overtaken, out of the plan or link lost."""
