@@ -17,6 +17,7 @@ from typing import Any
 
 import pytest
 from daemon_run import events
+from environment import need
 
 from groundstation import storage
 from groundstation.commands import run as run_cmd
@@ -134,8 +135,7 @@ def test_journal_outage_mid_run(
 def test_journal_on_dev_full_is_refused_at_start(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    if not os.path.exists("/dev/full"):
-        pytest.skip("needs /dev/full")
+    need(os.path.exists("/dev/full"), "needs /dev/full")
     code = run_cmd.run(["--vehicles", "sim:1", "--journal", "/dev/full",
                         "--run-dir", str(tmp_path / "runs"), "--http", "off",
                         "--detections", "off", "--status", "quiet", "--duration", "1"])  # fmt: skip

@@ -10,6 +10,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from environment import need
 
 from groundstation.link import TlogReader, TlogWriter
 from groundstation.mavlink.codec import MavlinkEncoder
@@ -83,8 +84,7 @@ def test_records_reach_the_os_before_close(tmp_path: Path) -> None:
 
 
 def test_write_errors_are_counted_not_raised(tmp_path: Path) -> None:
-    if not os.path.exists("/dev/full"):
-        pytest.skip("needs /dev/full")
+    need(os.path.exists("/dev/full"), "needs /dev/full")
     w = TlogWriter("/dev/full", append=True)
     assert w.write(frames()[0], T0) is False
     assert w.write(frames()[0], T0) is False

@@ -31,6 +31,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from environment import need
 from test_control_fake import ServerThread
 
 pytestmark = pytest.mark.browser
@@ -58,10 +59,7 @@ def _missing() -> str | None:
 @pytest.fixture(scope="module")
 def driver(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Any]:
     reason = _missing()
-    if reason is not None:
-        if os.environ.get("CI"):
-            pytest.fail(f"live-page browser test cannot run: {reason}")
-        pytest.skip(reason)
+    need(reason is None, f"live-page browser test: {reason}")
     from selenium import webdriver
     from selenium.webdriver.chrome.service import Service
 

@@ -169,19 +169,24 @@ def test_tcp_per_vehicle_with_distinct_system_ids(mav2: None) -> None:
 
 
 def test_base_port_layout_is_base_plus_10i() -> None:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        base = probe.getsockname()[1]
-    if base > 60000:
-        base -= 1000
-    server = SitlServer(configs(2), ServerOptions(speedup=5.0, base_port=base))
-    try:
-        with ServerThread(server):
-            assert server.tcp_ports == [base, base + 10]
-    except AssertionError as exc:  # the probed port may be taken meanwhile: not our bug
-        if "Address already in use" in str(exc):
-            pytest.skip("port raced")
-        raise
+    """Vehicle i listens on base + 10 i. The base is a probed free port; another process may
+    take it (or base + 10) before the server binds, so a taken port means another probe
+    (at most 5), never a skipped check."""
+    for _attempt in range(5):
+        with socket.socket() as probe:
+            probe.bind(("127.0.0.1", 0))
+            base = probe.getsockname()[1]
+        if base > 60000:
+            base -= 1000
+        server = SitlServer(configs(2), ServerOptions(speedup=5.0, base_port=base))
+        try:
+            with ServerThread(server):
+                assert server.tcp_ports == [base, base + 10]
+                return
+        except AssertionError as exc:
+            if "Address already in use" not in str(exc):
+                raise
+    pytest.fail("5 probed base ports were all taken before the server bound them")
 
 
 def test_wait_for_client_boots_on_connect(mav2: None) -> None:
