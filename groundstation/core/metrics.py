@@ -27,9 +27,11 @@ from __future__ import annotations
 
 import math
 import statistics
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
+
+from observer import TrackSnapshot
 
 __all__ = [
     "BOUNDED_RATIO",
@@ -130,6 +132,22 @@ class MetricsRecorder:
         values = list(sigmas)
         mean = sum(values) / len(values) if values else 0.0
         self.series.append([round(t_s, 6), mean])
+
+    def sample_tracks(
+        self,
+        t_s: float,
+        tracks: Sequence[TrackSnapshot],
+        truth: Mapping[str, tuple[float, float]],
+    ) -> None:
+        """The once-a-mission-second sample of a run: mean sigma over ``tracks``, lost
+        tracks, and each track's distance to its true position where ``truth`` knows it."""
+        self.sample(t_s, (tr.sigma for tr in tracks))
+        for tr in tracks:
+            if tr.lost:
+                self.mark_lost(tr.id)
+            if tr.id in truth:
+                tx, ty = truth[tr.id]
+                self.error(tr.id, math.hypot(tr.x_m - tx, tr.y_m - ty))
 
     def error(self, target: str, error_m: float) -> None:
         if math.isfinite(error_m):

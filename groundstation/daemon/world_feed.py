@@ -4,7 +4,6 @@ mission second, and the periodic ``track`` and ``truth`` lines reports draw."""
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from typing import Any, Protocol
 
@@ -71,16 +70,9 @@ class WorldFeed:
 
     def sample(self, t_s: float) -> None:
         """Every mission second: mean sigma, lost tracks, estimation error against truth."""
-        tracks = self.core.observer.tracks()
-        self.metrics.sample(t_s, (tr.sigma for tr in tracks))
         world = self._world()
         truth = world.truth() if world is not None else {}
-        for tr in tracks:
-            if tr.lost:
-                self.metrics.mark_lost(tr.id)
-            if tr.id in truth:
-                tx, ty = truth[tr.id]
-                self.metrics.error(tr.id, math.hypot(tr.x_m - tx, tr.y_m - ty))
+        self.metrics.sample_tracks(t_s, self.core.observer.tracks(), truth)
 
     def journal_tracks(self) -> None:
         """``track`` lines of every estimate and, for simulated targets, ``truth`` lines."""

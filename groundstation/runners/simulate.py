@@ -302,14 +302,9 @@ class _Simulation:
 
     def sample(self, t_s: float) -> None:
         tracks = self.core.observer.tracks()
-        self.metrics.sample(t_s, (tr.sigma for tr in tracks))
         truth = self.world.true_positions()
+        self.metrics.sample_tracks(t_s, tracks, truth)
         for tr in tracks:
-            if tr.lost:
-                self.metrics.mark_lost(tr.id)
-            if tr.id in truth:
-                tx, ty = truth[tr.id]
-                self.metrics.error(tr.id, math.hypot(tr.x_m - tx, tr.y_m - ty))
             self.run.target_estimates.setdefault(tr.id, []).append((t_s, tr.x_m, tr.y_m,
                                                                     tr.sigma))
         for target, (x, y) in truth.items():
