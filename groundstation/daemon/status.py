@@ -120,13 +120,18 @@ def _header(daemon: Daemon, alerts: OperatorAlerts | None) -> list[RenderableTyp
     return out
 
 
-def _vehicles(daemon: Daemon) -> Table:
+def _table(*columns: str) -> Table:
+    """A borderless table; a column named with a trailing ``>`` is right-aligned."""
     table = Table(box=box.SIMPLE_HEAD, pad_edge=False, show_edge=False)
-    for name, justify in (("vehicle", "left"), ("sysid", "right"), ("status", "left"),
-                          ("mode", "left"), ("armed", "left"), ("alt m", "right"),
-                          ("target", "left"), ("batt %", "right"), ("link", "left"),
-                          ("uploads", "right"), ("retries", "right")):
-        table.add_column(name, justify=justify)  # type: ignore[arg-type]
+    for column in columns:
+        name = column.removesuffix(">")
+        table.add_column(name, justify="right" if name != column else "left")
+    return table
+
+
+def _vehicles(daemon: Daemon) -> Table:
+    table = _table("vehicle", "sysid>", "status", "mode", "armed", "alt m>", "target",
+                   "batt %>", "link", "uploads>", "retries>")
     for s in sorted(daemon.sessions.values(), key=lambda s: s.system_id):
         snap = s.snapshot
         retries = s.upload_retries
@@ -146,10 +151,7 @@ def _vehicles(daemon: Daemon) -> Table:
 
 def _targets(daemon: Daemon) -> Table:
     t = daemon.clock.now_s()
-    table = Table(box=box.SIMPLE_HEAD, pad_edge=False, show_edge=False)
-    for name, justify in (("target", "left"), ("x m", "right"), ("y m", "right"),
-                          ("sigma", "right"), ("lost", "left"), ("seen s", "right")):
-        table.add_column(name, justify=justify)  # type: ignore[arg-type]
+    table = _table("target", "x m>", "y m>", "sigma>", "lost", "seen s>")
     for tr in daemon.core.observer.tracks():
         seen = None if tr.last_seen_s is None else t - tr.last_seen_s
         table.add_row(tr.id, f"{tr.x_m:.0f}", f"{tr.y_m:.0f}", f"{tr.sigma:.2f}",
