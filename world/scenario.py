@@ -27,6 +27,7 @@ from domain.limits import (
     MAX_TARGETS,
 )
 from world.fault_spec import FaultError, parse_fault_spec
+from world.wind import MAX_WIND_M_S, WindSpec
 from world.yaml_fields import FieldError, Fields, load_yaml_file, load_yaml_text
 
 __all__ = [
@@ -176,6 +177,7 @@ class Scenario:
     events: tuple[ScriptedEvent, ...] = field(default=())
     faults: tuple[str, ...] = field(default=())
     source: str = ""
+    wind: WindSpec = field(default_factory=WindSpec)
 
     def launch_point(self) -> tuple[float, float]:
         """Where the UAVs start: the given point, else the boat, else the origin."""
@@ -249,6 +251,7 @@ def parse_scenario(data: Any, *, source: str = "") -> Scenario:
         _parse_event(Fields(item, f"events[{i}]")) for i, item in enumerate(top.items("events"))
     )
     faults = _parse_faults(top.items("faults"))
+    wind = _parse_wind(top.sub("wind"))
     top.done()
     ids = [t.id for t in targets] + [e.target.id for e in events if e.target is not None]
     duplicates = sorted({i for i in ids if ids.count(i) > 1})
@@ -271,6 +274,7 @@ def parse_scenario(data: Any, *, source: str = "") -> Scenario:
         events=tuple(sorted(events, key=lambda e: e.t_s)),
         faults=faults,
         source=source,
+        wind=wind,
     )
 
 
@@ -445,6 +449,19 @@ def _parse_policy(f: Fields) -> PolicySpec:
     commit = f.boolean("commit", replan == "event")
     f.done()
     return PolicySpec(replan=replan, period_s=period, commit=commit)
+
+
+def _parse_wind(f: Fields) -> WindSpec:
+    """``wind: {speed_m_s, from_deg, gust_m_s, gust_tau_s}`` (world/wind.py); absent: calm."""
+    spec = WindSpec(
+        speed_m_s=f.number("speed_m_s", 0.0, minimum=0.0, maximum=MAX_WIND_M_S),
+        from_deg=f.number("from_deg", 0.0, minimum=0.0, maximum=360.0) % 360.0,
+        gust_m_s=f.number("gust_m_s", 0.0, minimum=0.0, maximum=MAX_WIND_M_S),
+        gust_tau_s=f.number("gust_tau_s", 5.0, minimum=0.0, exclusive_minimum=True,
+                            maximum=MAX_DURATION_S),
+    )
+    f.done()
+    return spec
 
 
 def _parse_event(f: Fields) -> ScriptedEvent:
