@@ -1,26 +1,54 @@
-"""Fixed-wing UAV kinematics (the paper's eq. 1) and lateral guidance.
+"""Fixed-wing UAV kinematics in wind (the paper's eq. 1 plus the wind triangle) and lateral
+guidance as ArduPlane's L1 controller flies it.
 
-Kinematics, a Dubins car at constant airspeed ``V``::
+Kinematics, a Dubins car at constant *airspeed* ``V`` (TECS holds it) in the ENU wind
+``w = (w_x, w_y)`` (the air moves towards it; :mod:`domain.wind_triangle`)::
 
-    x' = V cos(psi),   y' = V sin(psi),   psi' = u,   |u| <= V / R_min
+    x' = V cos(psi) + w_x,   y' = V sin(psi) + w_y,   psi' = u,   |u| <= V / R_min
 
-integrated exactly over a step of constant turn rate (a circular arc), so the step size does
-not bend the flown path.
+``psi`` is the air heading and ``u`` the air-relative turn rate, limited by the bank
+angle: ``R_min`` is the still-air turn radius. For a step of constant ``u`` and constant
+``w`` the motion is the air-relative circular arc plus the drift ``w dt``, integrated
+exactly, so the step size does not bend the flown path::
 
-Guidance produces the turn rate ``u``:
+    x1 = x0 + (V / u) (sin psi1 - sin psi0) + w_x dt,   psi1 = psi0 + u dt
+    y1 = y0 - (V / u) (cos psi1 - cos psi0) + w_y dt
 
-* to a point: proportional heading control towards the bearing of the point, saturated at
-  the maximum turn rate. That is the turn-then-straight Dubins path whenever the point lies
-  outside the turning circle; a point inside the circle on the turning side cannot be
-  reached by turning, so the aircraft flies straight until it can.
-* on a circle (loiter): the vector field of Nelson et al. (2007). With ``d`` the distance to
-  the centre, ``gamma`` the bearing from the centre to the aircraft and ``lam`` = +1 for
-  counter-clockwise (-1 clockwise) circling, the commanded course is::
+(straight when ``u = 0``). The ground velocity is ``v_g = V (cos psi, sin psi) + w`` and
+the ground course ``chi = atan2(v_g)``.
+
+Guidance produces ``u``, steering the *ground* course as L1 does, so the ground track goes
+where it is sent and the aircraft crabs into the wind:
+
+* to a point: the desired course is the bearing ``beta`` of the point, the desired heading
+  its crab heading ``psi_d = beta + asin(w_perp / V)`` (``w_perp = w x u_beta``), and
+  ``u = sat(k_psi wrap(psi_d - psi))``, saturated at the maximum turn rate. In still air
+  that is the turn-then-straight Dubins path whenever the point lies outside the turning
+  circle; a point inside the circle on the turning side cannot be reached by turning, so
+  the aircraft flies straight until it can (the same test in wind: a heuristic there, the
+  ground path of a turn being a trochoid).
+* on a circle (loiter): the vector field of Nelson et al. (2007) on the ground course. With
+  ``d`` the distance to the centre, ``gamma`` the bearing from the centre to the aircraft
+  and ``lam`` = +1 for counter-clockwise (-1 clockwise) circling, the commanded course is::
 
       chi_d = gamma + lam * (pi/2 + atan(k_orbit * (d - r) / r))
 
-  which points at the centre far away and along the tangent on the circle; the turn rate
-  adds the circle's own rate ``lam * V / d`` as feed-forward.
+  which points at the centre far away and along the tangent on the circle. The heading
+  command is its crab heading ``psi_d``, and the turn rate adds the circle's own rate as
+  feed-forward. Flying a ground circle of radius ``d`` at ground speed ``V_g`` needs the
+  course rate ``chi' = lam V_g / d``; since ``psi = chi + asin(w_perp(chi) / V)`` and
+  ``d w_perp / d chi = w_par``, ``d psi / d chi = V_g / a`` with ``a = sqrt(V^2 - w_perp^2)``
+  the airspeed's share along the course, so::
+
+      u = sat(k_psi wrap(psi_d - psi) + lam V_g^2 / (max(d, r) a)),   V_g = w_par + a
+
+  (``w_par``, ``w_perp`` taken along ``chi_d``; in still air ``lam V / max(d, r)``). The
+  flown ground circle stays round (ArduPlane's loiter corrects for wind the same way) and
+  the bank varies round it; where the downwind side would need more than ``V / R_min``
+  (``r < (V + |w|)^2 R_min / V^2``) the turn saturates and the circle bulges downwind.
+
+Still air (``w = (0, 0)``, the default) runs exactly the still-air arithmetic, so calm runs
+are bit for bit what they were before wind existed.
 """
 
 from __future__ import annotations
@@ -29,12 +57,15 @@ import math
 from dataclasses import dataclass
 
 from domain.geodesy import wrap_pi
+from domain.wind_triangle import crab_heading_rad
 
 __all__ = [
+    "CALM",
     "LoiterCommand",
     "PointCommand",
     "UavState",
     "distance_to_circle_m",
+    "ground_velocity_m_s",
     "max_turn_rate_rad_s",
     "step_kinematics",
     "turn_rate_to_circle",
@@ -44,10 +75,15 @@ __all__ = [
 _HEADING_GAIN_PER_S = 2.0
 _ORBIT_GAIN = 2.0
 
+CALM: tuple[float, float] = (0.0, 0.0)
+"""Still air: the default wind of every function here."""
+
 
 @dataclass(frozen=True)
 class UavState:
-    """Planar pose and airspeed of a UAV in the local ENU frame."""
+    """Planar pose of a UAV in the local ENU frame: ``heading_rad`` is the air heading
+    (where the nose points) and ``speed_m_s`` the airspeed; in wind the ground velocity is
+    :func:`ground_velocity_m_s`."""
 
     x_m: float
     y_m: float
@@ -78,37 +114,61 @@ def max_turn_rate_rad_s(speed_m_s: float, min_turn_radius_m: float) -> float:
     return speed_m_s / min_turn_radius_m
 
 
-def step_kinematics(state: UavState, turn_rate_rad_s: float, dt_s: float) -> UavState:
-    """Advance eq. (1) by ``dt_s`` at constant ``turn_rate_rad_s`` (exact arc)."""
+def ground_velocity_m_s(
+    state: UavState, wind_xy_m_s: tuple[float, float] = CALM
+) -> tuple[float, float]:
+    """v_g = V (cos psi, sin psi) + w."""
+    return (state.speed_m_s * math.cos(state.heading_rad) + wind_xy_m_s[0],
+            state.speed_m_s * math.sin(state.heading_rad) + wind_xy_m_s[1])
+
+
+def step_kinematics(
+    state: UavState,
+    turn_rate_rad_s: float,
+    dt_s: float,
+    *,
+    wind_xy_m_s: tuple[float, float] = CALM,
+) -> UavState:
+    """Advance by ``dt_s`` at constant ``turn_rate_rad_s`` in the constant wind
+    ``wind_xy_m_s``: the exact air-relative arc plus ``w dt`` (module docstring)."""
     v = state.speed_m_s
     psi0 = state.heading_rad
+    wx, wy = wind_xy_m_s
+    drift_x, drift_y = (0.0, 0.0) if wx == 0.0 and wy == 0.0 else (wx * dt_s, wy * dt_s)
     # UavState(...) rather than dataclasses.replace: this runs every step of every UAV
     if abs(turn_rate_rad_s) < 1e-9:
-        return UavState(
-            state.x_m + v * math.cos(psi0) * dt_s,
-            state.y_m + v * math.sin(psi0) * dt_s,
-            psi0,
-            v,
-        )
+        x1 = state.x_m + v * math.cos(psi0) * dt_s
+        y1 = state.y_m + v * math.sin(psi0) * dt_s
+        if drift_x or drift_y:
+            x1, y1 = x1 + drift_x, y1 + drift_y
+        return UavState(x1, y1, psi0, v)
     psi1 = psi0 + turn_rate_rad_s * dt_s
     radius = v / turn_rate_rad_s
-    return UavState(
-        state.x_m + radius * (math.sin(psi1) - math.sin(psi0)),
-        state.y_m - radius * (math.cos(psi1) - math.cos(psi0)),
-        wrap_pi(psi1),
-        v,
-    )
+    x1 = state.x_m + radius * (math.sin(psi1) - math.sin(psi0))
+    y1 = state.y_m - radius * (math.cos(psi1) - math.cos(psi0))
+    if drift_x or drift_y:
+        x1, y1 = x1 + drift_x, y1 + drift_y
+    return UavState(x1, y1, wrap_pi(psi1), v)
 
 
 def turn_rate_to_point(
-    state: UavState, x_m: float, y_m: float, min_turn_radius_m: float
+    state: UavState,
+    x_m: float,
+    y_m: float,
+    min_turn_radius_m: float,
+    *,
+    wind_xy_m_s: tuple[float, float] = CALM,
 ) -> float:
-    """Saturated proportional turn rate towards a point (see module docstring)."""
+    """Saturated proportional turn rate that points the ground course at a point, crabbing
+    into ``wind_xy_m_s`` (see module docstring)."""
     u_max = max_turn_rate_rad_s(state.speed_m_s, min_turn_radius_m)
     dx, dy = x_m - state.x_m, y_m - state.y_m
     if math.hypot(dx, dy) < 1e-6:
         return 0.0
-    err = wrap_pi(math.atan2(dy, dx) - state.heading_rad)
+    bearing = math.atan2(dy, dx)
+    if wind_xy_m_s[0] != 0.0 or wind_xy_m_s[1] != 0.0:
+        bearing = crab_heading_rad(bearing, wind_xy_m_s, state.speed_m_s)
+    err = wrap_pi(bearing - state.heading_rad)
     side = 1.0 if err >= 0.0 else -1.0
     # centre of the turning circle on the side we would turn to
     cx = state.x_m - side * min_turn_radius_m * math.sin(state.heading_rad)
@@ -119,10 +179,16 @@ def turn_rate_to_point(
 
 
 def turn_rate_to_circle(
-    state: UavState, command: LoiterCommand, min_turn_radius_m: float
+    state: UavState,
+    command: LoiterCommand,
+    min_turn_radius_m: float,
+    *,
+    wind_xy_m_s: tuple[float, float] = CALM,
 ) -> float:
-    """Vector-field turn rate that converges onto the loiter circle."""
-    u_max = max_turn_rate_rad_s(state.speed_m_s, min_turn_radius_m)
+    """Vector-field turn rate that converges onto the loiter circle over ground, with the
+    circle's feed-forward at ground speed in ``wind_xy_m_s`` (module docstring)."""
+    v = state.speed_m_s
+    u_max = max_turn_rate_rad_s(v, min_turn_radius_m)
     radius = max(command.radius_m, min_turn_radius_m)
     lam = -1.0 if command.clockwise else 1.0
     dx, dy = state.x_m - command.x_m, state.y_m - command.y_m
@@ -131,8 +197,17 @@ def turn_rate_to_circle(
         return 0.0
     gamma = math.atan2(dy, dx)
     chi_d = gamma + lam * (math.pi / 2.0 + math.atan(_ORBIT_GAIN * (d - radius) / radius))
-    err = wrap_pi(chi_d - state.heading_rad)
-    feed_forward = lam * state.speed_m_s / max(d, radius)
+    wx, wy = wind_xy_m_s
+    if wx == 0.0 and wy == 0.0:
+        err = wrap_pi(chi_d - state.heading_rad)
+        feed_forward = lam * v / max(d, radius)
+    else:
+        err = wrap_pi(crab_heading_rad(chi_d, wind_xy_m_s, v) - state.heading_rad)
+        c, s = math.cos(chi_d), math.sin(chi_d)
+        w_perp = wx * s - wy * c
+        along = math.sqrt(max(v * v - w_perp * w_perp, (1e-3 * v) ** 2))
+        ground = max(wx * c + wy * s + along, 0.0)
+        feed_forward = lam * ground * ground / (max(d, radius) * along)
     return max(-u_max, min(u_max, _HEADING_GAIN_PER_S * err + feed_forward))
 
 

@@ -18,7 +18,10 @@ A vehicle flies to where its first target is predicted to be on arrival::
 
     t_arr = D(pose, p) / V,   p <- p_hat + v_hat * t_arr      (two fixed-point iterations)
 
-with ``D`` the Dubins distance from the vehicle's pose and ``V`` its airspeed.
+with ``D`` the Dubins distance from the vehicle's pose and ``V`` its airspeed
+(:meth:`DecisionCore.travel_time_s`). The command carries the predicted arrival at the aim
+point it settled on, ``eta = t + D(pose, p) / V`` (one more evaluation at the final ``p``:
+the iteration stops before ``t_arr`` is recomputed there).
 """
 
 from __future__ import annotations
@@ -401,17 +404,23 @@ class DecisionCore:
         if unchanged and not self.config.policy.commit:
             return None
         record.target, record.aim_xy_m = target, aim
+        eta_s = t_s + self.travel_time_s(record, *aim)
         return FlyToTarget(t_s, record.id, target, aim[0], aim[1], self.config.loiter_s,
-                           self.config.loiter_radius_m, route)
+                           self.config.loiter_radius_m, route, eta_s=eta_s)
+
+    def travel_time_s(self, record: VehicleRecord, x_m: float, y_m: float) -> float:
+        """Predicted time (s) for ``record`` to fly from its pose to (x_m, y_m): the Dubins
+        distance at its airspeed (still air)."""
+        d = dubins_distance_to_point(record.x_m, record.y_m, record.heading_rad, x_m, y_m,
+                                     self.config.turn_radius_m)
+        return d / max(record.speed_m_s, 1.0)
 
     def aim_point(self, record: VehicleRecord, target: str) -> tuple[float, float]:
         """Where ``target`` is predicted to be when ``record`` arrives (module docstring)."""
         track = self.observer.track(target)
         x, y = track.x_m, track.y_m
         for _ in range(2):
-            d = dubins_distance_to_point(record.x_m, record.y_m, record.heading_rad, x, y,
-                                         self.config.turn_radius_m)
-            t_arr = d / max(record.speed_m_s, 1.0)
+            t_arr = self.travel_time_s(record, x, y)
             x, y = track.x_m + track.vx_m_s * t_arr, track.y_m + track.vy_m_s * t_arr
         return x, y
 

@@ -21,6 +21,10 @@
 * the first definition (``bounded``, ``boundedness_ratio``: the second half's maximum at
   most 1.5 times the first half's) stays for comparison: it passes growing runs and fails
   level ones whose first half was unusually good.
+* ``arrival_error_s`` {median, p90}, ``arrival_bias_s`` and ``arrivals``: the core's
+  predicted arrival at each aim point against the flown one (:mod:`.arrivals`); frontends
+  feed it with :meth:`MetricsRecorder.fly`, :meth:`~MetricsRecorder.position` and
+  :meth:`~MetricsRecorder.abandoned`.
 """
 
 from __future__ import annotations
@@ -31,6 +35,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+from groundstation.core.arrivals import ArrivalTracker
 from observer import TrackSnapshot
 
 __all__ = [
@@ -126,6 +131,7 @@ class MetricsRecorder:
     visits: list[dict[str, Any]] = field(default_factory=list)
     solve_times_s: list[float] = field(default_factory=list)
     plans: int = 0
+    arrivals: ArrivalTracker = field(default_factory=ArrivalTracker)
     _last_seen_s: dict[str, float] = field(default_factory=dict)
 
     def sample(self, t_s: float, sigmas: Iterable[float]) -> None:
@@ -162,6 +168,19 @@ class MetricsRecorder:
     def mark_lost(self, target: str) -> None:
         self.lost.add(target)
 
+    def fly(self, t_s: float, vehicle: str, target: str, x_m: float, y_m: float,
+            eta_s: float | None, fov_radius_m: float) -> None:
+        """A FlyToTarget the vehicle was actually given (arrival error)."""
+        self.arrivals.commanded(t_s, vehicle, target, x_m, y_m, eta_s, fov_radius_m)
+
+    def position(self, t_s: float, vehicle: str, x_m: float, y_m: float) -> None:
+        """Where ``vehicle`` is (true position offline, telemetry in the daemon)."""
+        self.arrivals.position(t_s, vehicle, x_m, y_m)
+
+    def abandoned(self, vehicle: str) -> None:
+        """``vehicle`` was released or sent home: its last FlyToTarget will not be flown."""
+        self.arrivals.abandoned(vehicle)
+
     def plan(self, solve_time_s: float) -> None:
         self.plans += 1
         self.solve_times_s.append(solve_time_s)
@@ -188,4 +207,5 @@ class MetricsRecorder:
             "boundedness_ratio": ratio if math.isfinite(ratio) else None,
             "trend": trend if trend is not None and math.isfinite(trend) else None,
             "bounded_trend": None if trend is None else trend <= TREND_BOUND,
+            **self.arrivals.to_dict(),
         }

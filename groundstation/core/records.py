@@ -138,7 +138,7 @@ def command_to_record(command: Command) -> dict[str, Any]:
             "event": "fly", "t": command.t_s, "vehicle": command.vehicle,
             "target": command.target, "x_m": command.x_m, "y_m": command.y_m,
             "loiter_s": command.loiter_s, "loiter_radius_m": command.loiter_radius_m,
-            "route": list(command.route),
+            "route": list(command.route), "eta_s": command.eta_s,
         }
     if isinstance(command, ReleaseVehicle):
         return {"event": "release", "t": command.t_s, "vehicle": command.vehicle,

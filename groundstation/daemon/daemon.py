@@ -193,6 +193,8 @@ class Daemon:
             event, ev.Tick | ev.Telemetry | ev.Detection | ev.PlanSolved | ev.BoatPosition
         ):
             self._kick.set()
+        elif isinstance(event, ev.Telemetry):  # the arrival-error metric follows telemetry
+            self.metrics.position(event.t_s, event.vehicle, event.x_m, event.y_m)
         try:
             pending = self.core.handle(event)
         except Exception:
@@ -237,7 +239,11 @@ class Daemon:
             session = self.by_name.get(command.vehicle)
             if session is not None and not self.config.advisory:
                 session.command_fly(command)
+                self.metrics.fly(command.t_s, command.vehicle, command.target, command.x_m,
+                                 command.y_m, command.eta_s,
+                                 self.core.config.observer.fov_radius_m)
         elif isinstance(command, ReleaseVehicle | SendHome):
+            self.metrics.abandoned(command.vehicle)
             session = self.by_name.get(command.vehicle)
             if session is not None:
                 session.release(command.reason, home=isinstance(command, SendHome))

@@ -90,11 +90,27 @@ def _draw_snapshot(ax: Any, run: SimulationRun, snap: MapSnapshot) -> None:
     if boat:
         ax.plot([p[0] for p in boat], [p[1] for p in boat], color="navy", lw=2, alpha=0.6)
         ax.plot(boat[-1][0], boat[-1][1], "s", color="navy", ms=9, label="boat")
+    _draw_wind(ax, run)
     ax.set_title(f"t = {snap.t_s:.0f} s")
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("east (m)")
     ax.set_ylabel("north (m)")
     ax.grid(True, alpha=0.3)
+
+
+def _draw_wind(ax: Any, run: SimulationRun) -> None:
+    """The mean wind as an arrow (pointing where the air goes) in the top-right corner."""
+    wind = run.scenario.wind
+    if wind.speed_m_s <= 0.0:
+        return
+    wx, wy = wind.mean_xy_m_s
+    length_pt = 28.0
+    ux, uy = wx / wind.speed_m_s, wy / wind.speed_m_s
+    ax.annotate("", xy=(0.9, 0.85), xycoords="axes fraction",
+                xytext=(-ux * length_pt, -uy * length_pt), textcoords="offset points",
+                arrowprops={"arrowstyle": "-|>", "color": "tab:red", "lw": 2})
+    ax.annotate(f"wind {wind.describe()}", xy=(0.98, 0.98), xycoords="axes fraction",
+                ha="right", va="top", fontsize=7, color="tab:red")
 
 
 def plot_map(run: SimulationRun, path: Path) -> Path:

@@ -11,6 +11,10 @@ It executes a :class:`FlyToTarget` the way floe's ArduPlane mission does
 
 A released vehicle (operator override) or one sent home holds on a circle where it is or
 over the launch point, and is no longer commanded.
+
+It flies at constant airspeed in the wind it is given for each step, with ArduPlane-like
+guidance that steers the ground course (crabbing, loiter circles round over ground:
+:mod:`world.dynamics`).
 """
 
 from __future__ import annotations
@@ -19,6 +23,7 @@ import math
 from dataclasses import dataclass
 
 from world.dynamics import (
+    CALM,
     LoiterCommand,
     UavState,
     distance_to_circle_m,
@@ -63,18 +68,21 @@ class OfflineVehicle:
         self.phase = "hold"
         self.target = None
 
-    def step(self, t_s: float, dt_s: float) -> bool:
-        """Advance by ``dt_s`` ending at ``t_s + dt_s``; True when a loiter (or pass) ended."""
+    def step(self, t_s: float, dt_s: float,
+             wind_xy_m_s: tuple[float, float] = CALM) -> bool:
+        """Advance by ``dt_s`` ending at ``t_s + dt_s`` in the wind ``wind_xy_m_s`` (ENU,
+        constant over the step); True when a loiter (or pass) ended."""
         ended = False
         s = self.state
         if self.aim_xy_m is None:
             rate = 0.0
         elif self.phase == "transit" and self.loiter_s <= 0.0:
-            rate = turn_rate_to_point(s, *self.aim_xy_m, self.turn_radius_m)
+            rate = turn_rate_to_point(s, *self.aim_xy_m, self.turn_radius_m,
+                                      wind_xy_m_s=wind_xy_m_s)
         else:
             circle = LoiterCommand(*self.aim_xy_m, self.loiter_radius_m)
-            rate = turn_rate_to_circle(s, circle, self.turn_radius_m)
-        self.state = step_kinematics(s, rate, dt_s)
+            rate = turn_rate_to_circle(s, circle, self.turn_radius_m, wind_xy_m_s=wind_xy_m_s)
+        self.state = step_kinematics(s, rate, dt_s, wind_xy_m_s=wind_xy_m_s)
         t_next = t_s + dt_s
         if self.aim_xy_m is None:
             return False

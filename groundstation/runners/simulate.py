@@ -7,10 +7,15 @@ paper). Each step, in order:
    world and the core;
 2. the core gets a ``Tick`` and may ask for a plan; requests are solved inline (the same
    planner the daemon runs in a worker thread) and the answer goes back as ``PlanSolved``;
-3. the vehicles fly what they were told for one step; loiter ends become events;
+3. the vehicles fly what they were told for one step, at their airspeed in the scenario's
+   wind (``WindField(scenario.wind, seed)``, sampled at the middle of the step and held
+   over it); loiter ends become events;
 4. the world moves (icebergs, boat); the camera measures what lies in a UAV's field of
    view at its rate, and the measurements reach the core as ``Detection`` events;
 5. every second of mission time the metrics are sampled.
+
+The core hears each vehicle's pose and airspeed (as ArduPlane's telemetry tells them); the
+arrival-error metric follows the vehicles' true positions (:mod:`groundstation.core.arrivals`).
 
 No clock is read except to report the wall time the run took.
 """
@@ -61,8 +66,9 @@ from planner import solve_plan
 from world.dynamics import UavState
 from world.model import Boat, Camera, Iceberg, World
 from world.scenario import Scenario, ScriptedEvent, resolve_targets
+from world.wind import WindField, WindSpec
 
-__all__ = ["SimulationOptions", "SimulationRun", "run_simulation"]
+__all__ = ["SimulationOptions", "SimulationRun", "run_simulation", "wind_record"]
 
 
 @dataclass(frozen=True)
@@ -115,6 +121,8 @@ class _Simulation:
         self.duration_s = options.duration_s or scenario.duration_s
         self.core = DecisionCore(core_config_for(scenario, options.objective))
         self.metrics = MetricsRecorder()
+        self.fov_radius_m = self.core.config.observer.fov_radius_m
+        self.wind = WindField(scenario.wind, options.seed)
         self.run = SimulationRun(scenario, options, metrics={})
         targets = resolve_targets(scenario, self.rng)
         boat = scenario.boat
@@ -148,6 +156,7 @@ class _Simulation:
                 "policy": self.core.config.policy.describe(),
                 "objective": self.core.config.objective,
                 "duration_s": self.duration_s,
+                "wind": wind_record(scenario.wind),
                 "core_config": config_to_dict(self.core.config),
             })
 
@@ -174,14 +183,18 @@ class _Simulation:
             if vehicle.commanded:
                 vehicle.command_fly(command.x_m, command.y_m, command.loiter_s,
                                     command.loiter_radius_m, command.target)
+                self.metrics.fly(command.t_s, command.vehicle, command.target, command.x_m,
+                                 command.y_m, command.eta_s, self.fov_radius_m)
         elif isinstance(command, SendHome):
             vehicle = self.vehicles[command.vehicle]
             vehicle.commanded = False
+            self.metrics.abandoned(command.vehicle)
             vehicle.command_hold(*self.scenario.launch_point(), vehicle.loiter_radius_m)
             self.log(command.t_s, "send_home", vehicle=command.vehicle)
         elif isinstance(command, ReleaseVehicle):
             vehicle = self.vehicles[command.vehicle]
             vehicle.commanded = False
+            self.metrics.abandoned(command.vehicle)
             vehicle.command_hold(vehicle.state.x_m, vehicle.state.y_m, vehicle.loiter_radius_m)
             self.log(command.t_s, "release", vehicle=command.vehicle, reason=command.reason)
         return []
@@ -256,6 +269,7 @@ class _Simulation:
             t_s = k * self.dt_s
             self.apply_script(t_s)
             for vehicle in self.vehicles.values():
+                self.metrics.position(t_s, vehicle.id, vehicle.state.x_m, vehicle.state.y_m)
                 if not vehicle.lost:
                     self.feed(self.telemetry(t_s, vehicle))
             if self.world.boat is not None and self.core.config.priority_gain > 0:
@@ -268,8 +282,11 @@ class _Simulation:
                     self.options.progress(t_s, self.duration_s)
             if k == steps:
                 break
+            wind_xy_m_s = self.wind.at(t_s + 0.5 * self.dt_s)
             for vehicle in self.vehicles.values():
-                if vehicle.step(t_s, self.dt_s) and not vehicle.lost and vehicle.commanded:
+                if vehicle.step(t_s, self.dt_s, wind_xy_m_s) and not vehicle.lost and (
+                    vehicle.commanded
+                ):
                     if self.options.journal:
                         self.run.journal.append({"event": "loiter_end", "t": t_s + self.dt_s,
                                                  "vehicle": vehicle.id})
@@ -296,6 +313,7 @@ class _Simulation:
         metrics["duration_s"] = self.duration_s
         metrics["policy"] = self.core.config.policy.describe()
         metrics["objective"] = self.core.config.objective
+        metrics["wind"] = wind_record(self.scenario.wind)
         metrics["observer_counters"] = dict(self.core.observer.counters)
         self.run.metrics = metrics
         return self.run
@@ -341,6 +359,11 @@ class _Simulation:
                 truth=dict(truth),
                 boat_xy_m=(boat.x_m, boat.y_m) if boat else None,
             ))
+
+
+def wind_record(spec: WindSpec) -> dict[str, float]:
+    """The run's wind as metrics.json and the journal's ``start`` line give it."""
+    return {"speed_m_s": spec.speed_m_s, "from_deg": spec.from_deg, "gust_m_s": spec.gust_m_s}
 
 
 def run_simulation(scenario: Scenario, options: SimulationOptions | None = None) -> SimulationRun:
