@@ -78,32 +78,50 @@ def max_turn_rate_rad_s(speed_m_s: float, min_turn_radius_m: float) -> float:
     return speed_m_s / min_turn_radius_m
 
 
-def step_kinematics(state: UavState, turn_rate_rad_s: float, dt_s: float) -> UavState:
-    """Advance eq. (1) by ``dt_s`` at constant ``turn_rate_rad_s`` (exact arc)."""
+def step_kinematics(
+    state: UavState,
+    turn_rate_rad_s: float,
+    dt_s: float,
+    *,
+    wind_xy_m_s: tuple[float, float] = (0.0, 0.0),
+) -> UavState:
+    """Advance eq. (1) by ``dt_s`` at constant ``turn_rate_rad_s`` (exact arc), drifted by
+    ``wind_xy_m_s * dt_s`` (placeholder for wt/wind-sim's version)."""
     v = state.speed_m_s
     psi0 = state.heading_rad
+    wx, wy = wind_xy_m_s
     # UavState(...) rather than dataclasses.replace: this runs every step of every UAV
     if abs(turn_rate_rad_s) < 1e-9:
-        return UavState(
+        new = UavState(
             state.x_m + v * math.cos(psi0) * dt_s,
             state.y_m + v * math.sin(psi0) * dt_s,
             psi0,
             v,
         )
-    psi1 = psi0 + turn_rate_rad_s * dt_s
-    radius = v / turn_rate_rad_s
-    return UavState(
-        state.x_m + radius * (math.sin(psi1) - math.sin(psi0)),
-        state.y_m - radius * (math.cos(psi1) - math.cos(psi0)),
-        wrap_pi(psi1),
-        v,
-    )
+    else:
+        psi1 = psi0 + turn_rate_rad_s * dt_s
+        radius = v / turn_rate_rad_s
+        new = UavState(
+            state.x_m + radius * (math.sin(psi1) - math.sin(psi0)),
+            state.y_m - radius * (math.cos(psi1) - math.cos(psi0)),
+            wrap_pi(psi1),
+            v,
+        )
+    if wx == 0.0 and wy == 0.0:
+        return new
+    return UavState(new.x_m + wx * dt_s, new.y_m + wy * dt_s, new.heading_rad, v)
 
 
 def turn_rate_to_point(
-    state: UavState, x_m: float, y_m: float, min_turn_radius_m: float
+    state: UavState,
+    x_m: float,
+    y_m: float,
+    min_turn_radius_m: float,
+    *,
+    wind_xy_m_s: tuple[float, float] = (0.0, 0.0),
 ) -> float:
-    """Saturated proportional turn rate towards a point (see module docstring)."""
+    """Saturated proportional turn rate towards a point (see module docstring);
+    ``wind_xy_m_s`` is accepted and not yet used (placeholder for wt/wind-sim)."""
     u_max = max_turn_rate_rad_s(state.speed_m_s, min_turn_radius_m)
     dx, dy = x_m - state.x_m, y_m - state.y_m
     if math.hypot(dx, dy) < 1e-6:
@@ -119,9 +137,14 @@ def turn_rate_to_point(
 
 
 def turn_rate_to_circle(
-    state: UavState, command: LoiterCommand, min_turn_radius_m: float
+    state: UavState,
+    command: LoiterCommand,
+    min_turn_radius_m: float,
+    *,
+    wind_xy_m_s: tuple[float, float] = (0.0, 0.0),
 ) -> float:
-    """Vector-field turn rate that converges onto the loiter circle."""
+    """Vector-field turn rate that converges onto the loiter circle; ``wind_xy_m_s`` is
+    accepted and not yet used (placeholder for wt/wind-sim)."""
     u_max = max_turn_rate_rad_s(state.speed_m_s, min_turn_radius_m)
     radius = max(command.radius_m, min_turn_radius_m)
     lam = -1.0 if command.clockwise else 1.0
