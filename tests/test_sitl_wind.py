@@ -1,6 +1,7 @@
 """The built-in vehicles in wind, as ArduPlane: VFR_HUD airspeed and ground speed, ground
 velocity in GLOBAL_POSITION_INT/GPS_RAW_INT, WIND (the EKF-like estimate, EXTRA3 at
-1 Hz) and ArduPilot SITL's SIM_WIND_* parameters. Times are mission (simulated)
+1 Hz), ArduPilot SITL's SIM_WIND_* parameters, ``gcs sitl --wind`` (built-in and
+``--ardupilot``) and the embedded simulator's ``wind``. Times are mission (simulated)
 times; the socket test only bounds wall time."""
 
 from __future__ import annotations
@@ -8,13 +9,20 @@ from __future__ import annotations
 import asyncio
 import itertools
 import math
+import shutil
+from pathlib import Path
 from typing import Any
 
 import pytest
 
 from domain.geodesy import GeoOrigin
 from domain.wind_triangle import wind_vector_m_s
+from groundstation.commands import sitl as cmd
+from groundstation.commands import sitl_ardupilot
+from groundstation.commands.embedded_sim import build_embedded_sim
+from groundstation.daemon.config_parse import parse_config
 from groundstation.mavlink.codec import MavlinkDecoder, MavlinkEncoder, mavlink2
+from sitl.ardupilot import ArduPilotLaunch, ardupilot_commands, launch
 from sitl.loopback import Loopback
 from sitl.server import ServerOptions, SitlServer
 from sitl.vehicle import SimVehicle, VehicleConfig
@@ -233,3 +241,94 @@ def test_calm_vehicle_reports_as_before_and_wind_zero() -> None:
     gps, gpi = lb.take("GPS_RAW_INT"), lb.take("GLOBAL_POSITION_INT")
     assert all(g.cog == p.hdg for g, p in zip(gps, gpi, strict=False))
     assert {(w.speed, w.speed_z) for w in lb.take("WIND")} == {(0.0, 0.0)}
+
+
+# ---------------------------------------------------------- command lines
+
+
+@pytest.mark.parametrize("text", ["abc", "10", "10,400", "nan,90", "-5,90", "10,90,1,2", "99,90"])
+def test_gcs_sitl_bad_wind_is_one_line_exit_2(
+    text: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert cmd.run(["--base-port", "0", "--duration", "1", f"--wind={text}"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--wind" in err and "Traceback" not in err
+
+
+def test_gcs_sitl_wind_overrides_the_scenarios_and_seeds_like_the_icebergs(tmp_path: Path) -> None:
+    scenario = tmp_path / "s.yaml"
+    scenario.write_text(
+        "name: t\ndescription: t\nduration_s: 100\norigin: {lat_deg: 70.0, lon_deg: 20.0}\n"
+        "fleet: {count: 2}\ntargets:\n  list:\n    - {id: A, x_m: 800, y_m: 300}\n"
+        "wind: {speed_m_s: 6, from_deg: 30, gust_m_s: 1}\n",
+        encoding="utf-8",
+    )
+    base = ["--scenario", str(scenario), "--base-port", "0", "--seed", "3"]
+    configs, *_ = cmd.build(cmd.parse_options(base))
+    assert {(c.wind, c.wind_seed) for c in configs} == {(WindSpec(6.0, 30.0, 1.0), 3)}
+    configs, *_ = cmd.build(cmd.parse_options([*base, "--wind", "10,270,2"]))
+    assert {c.wind for c in configs} == {WindSpec(10.0, 270.0, 2.0)}
+    configs, *_ = cmd.build(cmd.parse_options(["--base-port", "0"]))
+    assert configs[0].wind.calm
+
+
+def test_embedded_sim_takes_a_wind(tmp_path: Path) -> None:
+    config = parse_config({"vehicles": ["sim:2"], "seed": 5, "sim_airborne": True}, {})
+    sim = build_embedded_sim(config, None, wind=WindSpec(8.0, 90.0, 1.0))
+    assert {(s.config.wind, s.config.wind_seed) for s in sim.server.slots} == {
+        (WindSpec(8.0, 90.0, 1.0), 5)}
+    assert all(s.config.wind.calm for s in build_embedded_sim(config, None).server.slots)
+
+    async def fly() -> list[tuple[float, float]]:
+        await sim.start()
+        try:
+            sim.server.tick()
+            return [v.wind.at(12.0, v.params) for v in sim.server.vehicles()]
+        finally:
+            await sim.close()
+
+    assert asyncio.run(fly()) == [WindField(WindSpec(8.0, 90.0, 1.0), 5).at(12.0)] * 2
+
+
+def test_ardupilot_sitl_gets_the_wind_in_a_second_defaults_file(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    plane = tmp_path / "plane.parm"
+    launches = ardupilot_commands(
+        tmp_path / "arduplane", 2, 10.0, (78.93, 11.92), plane, tmp_path / "w",
+        wind=WindSpec(10.0, 270.0, 2.0),
+    )
+    for x in launches:
+        wind_file = x.cwd / "floe-wind.parm"
+        assert x.argv[x.argv.index("--defaults") + 1] == f"{plane},{wind_file}"
+        lines = [ln for ln in x.wind_defaults.splitlines() if not ln.startswith("#")]
+        assert lines == ["SIM_WIND_SPD 10", "SIM_WIND_DIR 270", "SIM_WIND_TURB 2"]
+    calm = ardupilot_commands(tmp_path / "arduplane", 1, 10.0, (78.93, 11.92), plane, tmp_path)
+    assert calm[0].argv[calm[0].argv.index("--defaults") + 1] == str(plane)
+
+    # gcs sitl --ardupilot --wind: the launcher is given those command lines
+    binary = tmp_path / "arduplane"
+    binary.write_text("", encoding="utf-8")
+    plane.write_text("", encoding="utf-8")
+    seen: list[list[ArduPilotLaunch]] = []
+
+    async def fake_launch(launches: list[ArduPilotLaunch], *_: Any) -> int:
+        seen.append(launches)
+        return 0
+
+    monkeypatch.setattr(sitl_ardupilot, "launch", fake_launch)
+    argv = ["--ardupilot", str(binary), "--ardupilot-defaults", str(plane), "--detections", "none"]
+    assert cmd.run([*argv, "--wind", "12,180"]) == 0
+    assert cmd.run(argv) == 0
+    windy, default = seen
+    assert "SIM_WIND_SPD 12\nSIM_WIND_DIR 180\n" in windy[0].wind_defaults
+    assert windy[0].argv[-3] == f"{plane},{windy[0].cwd / 'floe-wind.parm'}"
+    assert default[0].wind_defaults == "" and default[0].argv[-3] == str(plane)
+
+    # the launcher writes the file into the instance's directory before starting it
+    true = shutil.which("true")
+    if true is None:
+        pytest.skip("no `true` binary")
+    one = ArduPilotLaunch(0, 1, [true], tmp_path / "run" / "I0", 1, 3, "SIM_WIND_SPD 5\n")
+    asyncio.run(launch([one], None, None, ORIGIN, 10.0, 100.0))
+    assert (one.cwd / "floe-wind.parm").read_text(encoding="ascii") == "SIM_WIND_SPD 5\n"
