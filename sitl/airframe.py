@@ -12,6 +12,16 @@ reaches 0 while descending, the aircraft stops there (``on_ground``, speed 0) an
 
 Roll for ATTITUDE is the coordinated-turn bank angle ``phi = atan(-V u / g)`` (right wing
 down positive; u is counter-clockwise positive).
+
+Wind: ``speed_m_s`` is the airspeed and ``heading_rad`` the air heading (yaw); the ground
+velocity is the air vector plus the drift ``d``, and guidance is given the wind::
+
+    v_g = V (cos psi, sin psi) + d,     d = min(1, V / V_to) w     (0 on the ground)
+
+``d`` is the wind ``w`` once the aircraft flies; below the take-off airspeed ``V_to``
+(the first seconds of a take-off, which starts at V = 0) the launcher or the wheels still
+hold it, so the wind carries it only in proportion (a plane does not blow backwards off
+the runway).
 """
 
 from __future__ import annotations
@@ -35,6 +45,8 @@ SINK_MAX_M_S = 5.0
 _ALT_GAIN_PER_S = 0.5
 _ACCEL_MAX_M_S2 = 2.0
 GLIDE_RATIO = 10.0
+TAKEOFF_AIRSPEED_M_S = 10.0
+_CALM = (0.0, 0.0)
 
 
 @dataclass(frozen=True)
@@ -64,30 +76,46 @@ class Airframe:
     climb_m_s: float = 0.0
     turn_rate_rad_s: float = 0.0
     touchdown_sink_m_s: float | None = None
+    drift_xy_m_s: tuple[float, float] = _CALM
+    """What the wind added to the ground velocity in the last step (``d`` above)."""
 
-    def step(self, guidance: Guidance, alt_cmd_m: float, speed_cmd_m_s: float, dt_s: float) -> None:
-        """Advance by ``dt_s`` following ``guidance``."""
+    def step(
+        self,
+        guidance: Guidance,
+        alt_cmd_m: float,
+        speed_cmd_m_s: float,
+        dt_s: float,
+        wind_xy_m_s: tuple[float, float] = _CALM,
+    ) -> None:
+        """Advance by ``dt_s`` following ``guidance`` in the ENU wind ``wind_xy_m_s``."""
         if guidance.kind == "ground":
             self.speed_m_s = 0.0
             self.climb_m_s = 0.0
             self.turn_rate_rad_s = 0.0
+            self.drift_xy_m_s = _CALM
             return
         self.on_ground = False
         dv = max(
             -_ACCEL_MAX_M_S2 * dt_s, min(_ACCEL_MAX_M_S2 * dt_s, speed_cmd_m_s - self.speed_m_s)
         )
         self.speed_m_s = max(0.1, self.speed_m_s + dv)
+        wind = wind_xy_m_s
+        if wind != _CALM and self.speed_m_s < TAKEOFF_AIRSPEED_M_S:
+            share = self.speed_m_s / TAKEOFF_AIRSPEED_M_S
+            wind = (share * wind[0], share * wind[1])
         state = UavState(self.x_m, self.y_m, self.heading_rad, self.speed_m_s)
+        r_min = self.min_turn_radius_m
         if guidance.kind == "point":
-            u = turn_rate_to_point(state, guidance.x_m, guidance.y_m, self.min_turn_radius_m)
+            u = turn_rate_to_point(state, guidance.x_m, guidance.y_m, r_min, wind_xy_m_s=wind)
         elif guidance.kind == "loiter":
             cmd = LoiterCommand(guidance.x_m, guidance.y_m, guidance.radius_m, guidance.clockwise)
-            u = turn_rate_to_circle(state, cmd, self.min_turn_radius_m)
+            u = turn_rate_to_circle(state, cmd, r_min, wind_xy_m_s=wind)
         else:
             u = 0.0
-        new = step_kinematics(state, u, dt_s)
+        new = step_kinematics(state, u, dt_s, wind_xy_m_s=wind)
         self.x_m, self.y_m, self.heading_rad = new.x_m, new.y_m, new.heading_rad
         self.turn_rate_rad_s = u
+        self.drift_xy_m_s = wind
         if guidance.kind == "glide":
             climb = -self.speed_m_s / GLIDE_RATIO
         else:
@@ -103,6 +131,32 @@ class Airframe:
             self.speed_m_s = 0.0
             self.climb_m_s = 0.0
             self.turn_rate_rad_s = 0.0
+            self.drift_xy_m_s = _CALM
+
+    @property
+    def ground_velocity_m_s(self) -> tuple[float, float]:
+        """(east, north) ground velocity: ``V (cos psi, sin psi) + d``."""
+        v, psi = self.speed_m_s, self.heading_rad
+        dx, dy = self.drift_xy_m_s
+        return v * math.cos(psi) + dx, v * math.sin(psi) + dy
+
+    @property
+    def ground_speed_m_s(self) -> float:
+        """|v_g| (the airspeed itself in still air)."""
+        if self.drift_xy_m_s == _CALM:
+            return self.speed_m_s
+        return math.hypot(*self.ground_velocity_m_s)
+
+    @property
+    def course_rad(self) -> float:
+        """ENU direction of the ground velocity (the heading in still air or when the
+        aircraft barely moves over ground)."""
+        if self.drift_xy_m_s == _CALM:
+            return self.heading_rad
+        vx, vy = self.ground_velocity_m_s
+        if math.hypot(vx, vy) < 0.1:
+            return self.heading_rad
+        return math.atan2(vy, vx)
 
     @property
     def roll_rad(self) -> float:

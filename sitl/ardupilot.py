@@ -8,7 +8,14 @@ Instance i is started as sim_vehicle.py would (ArduPilot's SITL_cmdline.cpp opti
 in its own working directory (``DIR/I<i>``: SITL keeps eeprom.bin and logs in the current
 directory). Instance i serves TCP B + 10 i (SERIAL0, for the ground station; it waits
 for that client before it boots) and B + 2 + 10 i (SERIAL1), where the launcher itself reads
-positions to play the camera; B is ``base_port`` (5760, ArduPilot's default). SITL reads its
+positions to play the camera; B is ``base_port`` (5760, ArduPilot's default).
+
+Wind: with ``wind`` given, instance i also reads ``DIR/I<i>/floe-wind.parm`` (SIM_WIND_SPD,
+SIM_WIND_DIR, SIM_WIND_TURB; :func:`wind_defaults_text`) after the plane defaults: SITL's
+``--defaults`` takes a comma-separated list of files, later ones overriding earlier ones
+(AP_Param::load_defaults_file). A defaults file does not override a value already saved in
+the instance's eeprom.bin (an earlier ``param set``): ``param set`` it again, or remove
+``DIR/I<i>/eeprom.bin``. SITL reads its
 options in order, and ``-I i`` adds 10 i to the base port only if the base port is still the
 default at that moment (``if (_base_port == BASE_PORT) _base_port += _instance*10``). So
 ``-I i`` comes first and the explicit ``--base-port B+10i`` after it overrides whatever it
@@ -31,6 +38,8 @@ from pathlib import Path
 from typing import Any
 
 from groundstation.mavlink.codec import MavlinkDecoder, MavlinkEncoder, mavlink2
+from sitl.sim_wind import WIND_PARAMS, wind_param_values
+from world.wind import WindSpec
 
 __all__ = [
     "DEFAULT_BASE_PORT",
@@ -40,12 +49,14 @@ __all__ = [
     "default_defaults_file",
     "launch",
     "supervise",
+    "wind_defaults_text",
 ]
 
 DEFAULT_BASE_PORT = 5760
 """ArduPilot SITL's own base port (instance i: 5760 + 10 i)."""
 CAMERA_SYSID = 250
 CAMERA_COMPID = 191
+WIND_DEFAULTS_NAME = "floe-wind.parm"
 
 
 @dataclass(frozen=True)
@@ -58,12 +69,23 @@ class ArduPilotLaunch:
     cwd: Path
     gcs_port: int
     camera_port: int
+    wind_defaults: str = ""
+    """Content of ``cwd / WIND_DEFAULTS_NAME`` to write before starting ('' for none)."""
 
 
 def default_defaults_file(binary: Path) -> Path:
     """``<tree>/Tools/autotest/models/plane.parm`` for ``<tree>/build/sitl/bin/arduplane``."""
     tree = binary.resolve().parent.parent.parent.parent
     return tree / "Tools" / "autotest" / "models" / "plane.parm"
+
+
+def wind_defaults_text(wind: WindSpec) -> str:
+    """An ArduPilot parameter file setting SITL's wind to ``wind`` (SIM_WIND_DIR: the true
+    direction it comes from; SIM_WIND_TURB: the gust standard deviation)."""
+    values = wind_param_values(wind)
+    lines = [f"# floe: {wind.describe()}"]
+    lines += [f"{name} {values[name]:g}" for name in WIND_PARAMS]
+    return "\n".join(lines) + "\n"
 
 
 def ardupilot_commands(
@@ -76,14 +98,21 @@ def ardupilot_commands(
     home_alt_m: float = 0.0,
     home_heading_deg: float = 0.0,
     base_port: int = DEFAULT_BASE_PORT,
+    wind: WindSpec | None = None,
 ) -> list[ArduPilotLaunch]:
     """The command lines of ``count`` ArduPlane SITL instances; instance i serves the
-    ground station on TCP ``base_port + 10 i``."""
+    ground station on TCP ``base_port + 10 i``; ``wind`` (None: SITL's own parameters)
+    is added as a second defaults file."""
     if not 1 <= base_port <= 65535 - 10 * count:
         raise ValueError(f"base port {base_port} leaves no room for {count} instance(s)")
     out = []
+    wind_text = wind_defaults_text(wind) if wind is not None else ""
     for i in range(count):
         port = base_port + 10 * i
+        cwd = workdir / f"I{i}"
+        defaults_arg = str(defaults)
+        if wind_text:
+            defaults_arg += f",{cwd / WIND_DEFAULTS_NAME}"
         argv = [
             str(binary),
             "-S",
@@ -98,11 +127,11 @@ def ardupilot_commands(
             "--home",
             f"{home[0]:.7f},{home[1]:.7f},{home_alt_m:g},{home_heading_deg:g}",
             "--defaults",
-            str(defaults),
+            defaults_arg,
             "--sysid",
             str(i + 1),
         ]
-        out.append(ArduPilotLaunch(i, i + 1, argv, workdir / f"I{i}", port, port + 2))
+        out.append(ArduPilotLaunch(i, i + 1, argv, cwd, port, port + 2, wind_text))
     return out
 
 
@@ -164,6 +193,8 @@ async def launch(
     procs = []
     for launch in launches:
         launch.cwd.mkdir(parents=True, exist_ok=True)
+        if launch.wind_defaults:
+            (launch.cwd / WIND_DEFAULTS_NAME).write_text(launch.wind_defaults, encoding="ascii")
         procs.append(
             await asyncio.create_subprocess_exec(
                 *launch.argv,

@@ -17,6 +17,7 @@ import math
 from dataclasses import dataclass
 
 from groundstation.mavlink.codec import mavlink2
+from world.wind import MAX_WIND_M_S
 
 __all__ = ["ParamSpec", "ParamStore", "default_param_specs"]
 
@@ -76,6 +77,10 @@ def default_param_specs(system_id: int, cruise_speed_m_s: float) -> list[ParamSp
         ParamSpec("ARMING_CHECK", 1, _INT32, 0, 1e7),
         ParamSpec("ARMING_REQUIRE", 1, _INT8, 0, 2),
         ParamSpec("SIM_SPEEDUP", 1, _REAL32, 0, 1000),
+        # ArduPilot SITL's wind (sitl.sim_wind): m/s, true degrees it comes FROM, m/s
+        ParamSpec("SIM_WIND_SPD", 0, _REAL32, 0, MAX_WIND_M_S),
+        ParamSpec("SIM_WIND_DIR", 180, _REAL32, -360, 720),
+        ParamSpec("SIM_WIND_TURB", 0, _REAL32, 0, MAX_WIND_M_S),
         ParamSpec("Q_ENABLE", 0, _INT8, 0, 2),
         ParamSpec("FLTMODE_CH", 8, _INT8, 1, 16),
         ParamSpec("FLTMODE1", 10, _INT8, 0, 25),

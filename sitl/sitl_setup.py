@@ -8,7 +8,9 @@ FBWA, ``resume`` -> the operator switches back to AUTO, ``battery_low`` -> 10 % 
 (spelt by :func:`sitl.faults.fault_spec`).
 A scenario attribute ``faults`` (a list of ``--fault`` specs), if the scenario format has
 one, is added as is. Without a scenario: origin = home, no world (no detection feed),
-vehicles start at home with headings spread over the circle.
+vehicles start at home with headings spread over the circle, calm air. The vehicles fly in
+``WindField(wind, seed)`` (:mod:`sitl.sim_wind`): the scenario's wind unless the caller
+gives another (``--wind``), and the seed the detection feed draws the icebergs with.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ from domain.geodesy import GeoOrigin
 from sitl.detections import DetectionFeed
 from sitl.faults import fault_spec
 from sitl.vehicle import VehicleConfig
+from world.wind import WindSpec
 
 __all__ = ["SitlSetup", "scenario_setup"]
 
@@ -38,6 +41,7 @@ class SitlSetup:
     fault_specs: list[str] = field(default_factory=list)
     feed_factory: Callable[[int, bool], DetectionFeed | None] | None = None
     skipped_events: list[str] = field(default_factory=list)
+    wind: WindSpec = field(default_factory=WindSpec)
 
     def make_feed(self, seed: int, anonymous: bool) -> DetectionFeed | None:
         """The detection feed (None without a scenario)."""
@@ -45,9 +49,10 @@ class SitlSetup:
 
     def vehicle_config(
         self, index: int, *, airborne: bool, airborne_alt_m: float, fast_boot: bool,
-        unix_time_at_zero_s: float,
+        unix_time_at_zero_s: float, wind: WindSpec | None = None, wind_seed: int = 0,
     ) -> VehicleConfig:
-        """The configuration of built-in vehicle ``index`` (0-based; system id index + 1)."""
+        """The configuration of built-in vehicle ``index`` (0-based; system id index + 1);
+        ``wind`` None: the scenario's (:attr:`wind`)."""
         x_m, y_m, heading_rad = self.launch[index]
         return VehicleConfig(
             system_id=index + 1,
@@ -63,6 +68,8 @@ class SitlSetup:
             airborne_alt_m=airborne_alt_m,
             fast_boot=fast_boot,
             unix_time_at_zero_s=unix_time_at_zero_s,
+            wind=self.wind if wind is None else wind,
+            wind_seed=wind_seed,
         )
 
 
@@ -130,4 +137,5 @@ def scenario_setup(
         specs,
         factory,
         skipped,
+        scenario.wind,
     )

@@ -35,6 +35,7 @@ from sitl.faults import FaultEvent
 from sitl.mission_protocol import MissionEvents, MissionServer
 from sitl.mission_store import MAX_MISSION_ITEMS, MissionItem, MissionStore
 from sitl.params import ParamStore, default_param_specs
+from sitl.sim_wind import FlownWind, WindEstimate, wind_param_values
 from sitl.statustext import StatusTextFactory
 from sitl.telemetry import StreamScheduler
 from sitl.vehicle_messages import build_message
@@ -94,8 +95,9 @@ class SimVehicle:
     def __init__(self, config: VehicleConfig, t_s: float = 0.0) -> None:
         self.config = config
         self.params = ParamStore(default_param_specs(config.system_id, config.cruise_speed_m_s))
-        for name, value in config.params.items():
+        for name, value in {**wind_param_values(config.wind), **config.params}.items():
             self.params.set(name, value)
+        self.wind = FlownWind(config.wind, config.wind_seed)  # the air does not reboot
         self.text = StatusTextFactory()
         hx, hy, _ = config.origin.to_local(config.home_lat_deg, config.home_lon_deg)
         self.home_xy_m = (hx, hy)
@@ -144,6 +146,7 @@ class SimVehicle:
         x0 = c.launch_x_m if c.launch_x_m is not None else self.home_xy_m[0]
         y0 = c.launch_y_m if c.launch_y_m is not None else self.home_xy_m[1]
         self.airframe = Airframe(x0, y0, c.launch_heading_rad, 0.0, 0.0, c.min_turn_radius_m)
+        self.wind_estimate = WindEstimate()  # the EKF starts again at zero
         self.ready_flags = {"init": False, "gps": False, "ekf": False}
         self.home_set = False
         self.battery_low_sent = False
@@ -321,7 +324,9 @@ class SimVehicle:
         ap, af = self.autopilot, self.airframe
         guidance, alt_cmd = ap.guidance(af)
         was_on_ground = af.on_ground
-        af.step(guidance, alt_cmd, ap.speed_cmd_m_s, dt_s)
+        wind = self.wind.at(self.t_s - dt_s, self.params)
+        af.step(guidance, alt_cmd, ap.speed_cmd_m_s, dt_s, wind)
+        self.wind_estimate.update(wind, dt_s, flying=not af.on_ground)
         self.battery_used_mah += self.battery_current_a * dt_s / 3.6
         out = ap.update(self.t_s, af)
         if af.on_ground and not was_on_ground and af.touchdown_sink_m_s is not None:
@@ -466,6 +471,5 @@ class SimVehicle:
         return compass_deg_from_enu_rad(self.airframe.heading_rad)
 
     def groundspeed_vector_m_s(self) -> tuple[float, float]:
-        """(east, north) velocity."""
-        af = self.airframe
-        return af.speed_m_s * math.cos(af.heading_rad), af.speed_m_s * math.sin(af.heading_rad)
+        """(east, north) ground velocity (air velocity plus wind)."""
+        return self.airframe.ground_velocity_m_s

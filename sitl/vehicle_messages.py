@@ -1,11 +1,19 @@
 """Builds the telemetry messages of a simulated vehicle (:class:`sitl.vehicle_state.VehicleView`)
-from its state."""
+from its state.
+
+In wind, as ArduPlane: VFR_HUD ``airspeed`` is the airspeed and ``groundspeed`` the ground
+speed, ``heading`` the yaw; GLOBAL_POSITION_INT ``vx``/``vy`` are the ground velocity and
+``hdg`` the yaw; GPS_RAW_INT ``vel`` is the ground speed and ``cog`` the course over
+ground; ATTITUDE ``yaw`` the heading; WIND the vehicle's wind estimate
+(:class:`sitl.sim_wind.WindEstimate`).
+"""
 
 from __future__ import annotations
 
 import math
 from typing import Any
 
+from domain.geodesy import compass_deg_from_enu_rad
 from groundstation.mavlink.codec import mavlink2
 from sitl.vehicle_state import VehicleView
 
@@ -107,7 +115,10 @@ def _gps(v: VehicleView) -> Any:
     if not v.ready_flags["gps"]:
         return M.MAVLink_gps_raw_int_message(t_us, 1, 0, 0, 0, 9999, 9999, 0, 0, 0)
     lat, lon, alt = v.position_geodetic()
-    speed = v.airframe.speed_m_s
+    af = v.airframe
+    course_deg = v.heading_deg()
+    if af.course_rad != af.heading_rad:
+        course_deg = compass_deg_from_enu_rad(af.course_rad)
     return M.MAVLink_gps_raw_int_message(
         t_us,
         3,
@@ -116,8 +127,8 @@ def _gps(v: VehicleView) -> Any:
         round(alt * 1000),
         121,
         200,
-        round(speed * 100),
-        round(v.heading_deg() * 100) % 36000,
+        round(af.ground_speed_m_s * 100),
+        round(course_deg * 100) % 36000,
         10,
     )
 
@@ -155,12 +166,16 @@ def _vfr_hud(v: VehicleView) -> Any:
     throttle = 0 if af.on_ground else 60
     return M.MAVLink_vfr_hud_message(
         af.speed_m_s,
-        af.speed_m_s,
+        af.ground_speed_m_s,
         round(v.heading_deg()) % 360,
         throttle,
         v.config.home_amsl_m + af.alt_m,
         af.climb_m_s,
     )
+
+
+def _wind(v: VehicleView) -> Any:
+    return M.MAVLink_wind_message(*v.wind_estimate.message_fields())
 
 
 def _home(v: VehicleView) -> Any:
@@ -256,6 +271,7 @@ def build_message(v: VehicleView, msg_id: int) -> Any:
         M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: _global_position,
         M.MAVLINK_MSG_ID_ATTITUDE: _attitude,
         M.MAVLINK_MSG_ID_VFR_HUD: _vfr_hud,
+        M.MAVLINK_MSG_ID_WIND: _wind,
         M.MAVLINK_MSG_ID_HOME_POSITION: _home,
         M.MAVLINK_MSG_ID_MISSION_CURRENT: _mission_current,
         M.MAVLINK_MSG_ID_NAV_CONTROLLER_OUTPUT: _nav_controller,

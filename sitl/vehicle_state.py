@@ -17,15 +17,19 @@ from sitl.airframe import Airframe
 from sitl.autopilot import Autopilot
 from sitl.mission_store import MissionStore
 from sitl.params import ParamStore
+from sitl.sim_wind import WindEstimate
 from sitl.statustext import StatusTextFactory
 from sitl.telemetry import StreamScheduler
+from world.wind import WindSpec
 
 __all__ = ["VehicleConfig", "VehicleView"]
 
 
 @dataclass(frozen=True)
 class VehicleConfig:
-    """Everything that defines one simulated vehicle."""
+    """Everything that defines one simulated vehicle. ``wind``: the wind it flies in
+    (``WindField(wind, wind_seed)``, the SIM_WIND_* parameters' initial values; calm by
+    default)."""
 
     system_id: int
     origin: GeoOrigin
@@ -43,6 +47,8 @@ class VehicleConfig:
     unix_time_at_zero_s: float = 1.7e9
     component_id: int = 1
     params: dict[str, float] = field(default_factory=dict)
+    wind: WindSpec = field(default_factory=WindSpec)
+    wind_seed: int = 0
 
     @property
     def boot_times_s(self) -> tuple[float, float, float]:
@@ -65,6 +71,7 @@ class VehicleView(Protocol):
     battery_low_sent: bool
     battery_used_mah: float
     t_s: float
+    wind_estimate: WindEstimate
 
     @property
     def system_id(self) -> int: ...

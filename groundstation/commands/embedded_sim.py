@@ -9,7 +9,9 @@ ordinary ``tcp:`` links, exactly as to ArduPilot SITL. Launch poses, origin and 
 from the scenario (``sitl.sitl_setup.scenario_setup``), whose scripted vehicle events
 become simulator faults (vehicle_lost -> link drop, override -> the operator switches to
 FBWA, resume -> AUTO, battery_low -> 10 %); ``sim.faults`` and ``sim.loss`` add more (one
-builder, :func:`sitl.faults.fault_specs`). The
+builder, :func:`sitl.faults.fault_specs`). The vehicles fly in
+``WindField(wind, config.mission.seed)`` (the seed the daemon's world draws the icebergs
+with): ``wind`` as given, else the scenario's, else calm. The
 mission clock follows the simulator's simulated time. The simulator ticks every 5 ms and
 advances by at most max(0.05 s, min(0.5 s, 5 ms x K)) per tick, so a loaded host slows the
 run down instead of making the vehicles' clocks jump (a jump of a few simulated seconds
@@ -28,6 +30,7 @@ from sitl.faults import FaultError, build_faults, fault_specs
 from sitl.server import ServerOptions, SitlServer
 from sitl.sitl_setup import scenario_setup
 from world.scenario import Scenario
+from world.wind import WindSpec
 
 __all__ = ["EmbeddedSim", "build_embedded_sim"]
 
@@ -72,9 +75,11 @@ def build_embedded_sim(
     config: DaemonConfig,
     scenario: Scenario | None,
     signing_keys: dict[int, bytes] | None = None,
+    wind: WindSpec | None = None,
 ) -> EmbeddedSim:
     """The simulator for ``config.sim_count`` vehicles (not started); ``signing_keys``:
-    the MAVLink 2 signing key each system id starts with."""
+    the MAVLink 2 signing key each system id starts with; ``wind``: the wind they fly in
+    (None: the scenario's, calm without one)."""
     count = config.sim_count
     assert count is not None
     origin = config.mission.origin
@@ -88,6 +93,7 @@ def build_embedded_sim(
         configs.append(setup.vehicle_config(
             i, airborne=config.sim.airborne, airborne_alt_m=alt,
             fast_boot=config.sim.fast_boot, unix_time_at_zero_s=start_unix_s,
+            wind=wind, wind_seed=config.mission.seed,
         ))
     specs = fault_specs(
         config.sim.faults, loss=config.sim.loss or None, scripted=setup.fault_specs

@@ -94,6 +94,14 @@ def _parser() -> argparse.ArgumentParser:
         "--fast-boot", action="store_true", help="GPS/EKF settle in 1-2 s instead of 10-20 s"
     )
     p.add_argument(
+        "--wind",
+        default=None,
+        metavar="SPEED_M_S,FROM_DEG[,GUST_M_S]",
+        help="wind the vehicles fly in, e.g. 10,270 (10 m/s from the west); default: the "
+        "scenario's, else calm. Sets SIM_WIND_SPD/SIM_WIND_DIR/SIM_WIND_TURB (also with "
+        "--ardupilot)",
+    )
+    p.add_argument(
         "--duration", type=float, default=None, help="stop after this many simulated seconds"
     )
     p.add_argument(
@@ -199,7 +207,8 @@ def build(options: SitlOptions) -> tuple[Any, ...]:
     setup = scenario_setup(scenario, count, home or DEFAULT_HOME, home is not None)
     configs = [
         setup.vehicle_config(i, airborne=options.airborne, airborne_alt_m=options.alt_m,
-                             fast_boot=options.fast_boot, unix_time_at_zero_s=time.time())
+                             fast_boot=options.fast_boot, unix_time_at_zero_s=time.time(),
+                             wind=options.wind, wind_seed=options.seed)
         for i in range(count)
     ]
     specs = fault_specs(
@@ -244,6 +253,9 @@ async def _serve(options: SitlOptions) -> int:
             loop.add_signal_handler(sig, server.stop)
     for line in server.describe():
         print(line, flush=True)
+    wind = configs[0].wind if configs else None
+    if wind is not None and not wind.calm:
+        print(f"wind: {wind.describe()} (SIM_WIND_SPD, SIM_WIND_DIR, SIM_WIND_TURB)", flush=True)
     if server_options.signing_keys:
         print("signing: vehicles start with a key (MAVLink 2 signing on)", flush=True)
     try:

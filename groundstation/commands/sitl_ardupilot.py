@@ -20,6 +20,7 @@ from sitl.ardupilot import (
 )
 from sitl.sitl_setup import scenario_setup
 from world.scenario import load_scenario
+from world.wind import WindSpec
 
 __all__ = ["ardupilot_launches", "run_ardupilot", "run_camera_only"]
 
@@ -46,7 +47,10 @@ def run_ardupilot(options: SitlOptions) -> int:
     count = options.count or (scenario.fleet.count if scenario is not None else 1)
     home = options.home
     setup = scenario_setup(scenario, count, home or DEFAULT_HOME, home is not None)
-    launches = ardupilot_launches(options, binary, defaults, count, setup.home)
+    wind = options.wind  # given, even calm, it is set; else a windy scenario's
+    if wind is None and not setup.wind.calm:
+        wind = setup.wind
+    launches = ardupilot_launches(options, binary, defaults, count, setup.home, wind)
     feed = setup.make_feed(options.seed, options.anonymous_detections)
     return asyncio.run(
         launch(
@@ -61,10 +65,13 @@ def ardupilot_launches(
     defaults: Path,
     count: int,
     home: tuple[float, float],
+    wind: WindSpec | None = None,
 ) -> list[ArduPilotLaunch]:
     """The SITL command lines for ``gcs sitl --ardupilot``: instance i serves TCP
     ``--base-port`` + 10 i (ArduPilot's 5760 by default); port 0 (ephemeral, for the
-    built-in vehicles) is refused since SITL cannot report the port it took."""
+    built-in vehicles) is refused since SITL cannot report the port it took. ``wind``
+    (``--wind``, else a windy scenario's) becomes SIM_WIND_* in a second defaults file;
+    None leaves SITL's wind parameters alone."""
     if options.base_port == 0:
         raise UsageError(
             "--base-port: 0 (ephemeral) is for the built-in vehicles; "
@@ -79,6 +86,7 @@ def ardupilot_launches(
             defaults,
             Path("sitl-ardupilot").resolve(),
             base_port=options.base_port,
+            wind=wind,
         )
     except ValueError as exc:
         raise UsageError(f"--base-port: {exc}") from None

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 from domain import errors
 from groundstation.link.url import LinkKind, LinkUrlError, parse_out_url
+from world.wind import WindSpec, parse_wind_text
 
 __all__ = [
     "DEFAULT_DETECTIONS",
@@ -79,7 +80,7 @@ class SitlOptions:
 
     ``detections`` None: no detection feed (``--detections none``); ``home`` None: the
     scenario's launch point, else :data:`DEFAULT_HOME`; ``camera_of`` None: not the
-    camera-only mode; ``delay_s`` from ``--delay-ms``."""
+    camera-only mode; ``delay_s`` from ``--delay-ms``; ``wind`` None: the scenario's."""
 
     count: int | None = None
     speedup: float = 1.0
@@ -106,6 +107,16 @@ class SitlOptions:
     camera_of: tuple[tuple[str, int], ...] | None = None
     signing_key_file: str | None = None
     signing_passphrase_file: str | None = None
+    wind: WindSpec | None = None
+
+
+def _wind(text: str | None) -> WindSpec | None:
+    if text is None:
+        return None
+    try:
+        return parse_wind_text(text, "--wind")
+    except errors.ConfigError as exc:
+        raise UsageError(str(exc)) from None
 
 
 def _camera_of(text: str) -> tuple[tuple[str, int], ...]:
@@ -170,4 +181,5 @@ def sitl_options(args: argparse.Namespace) -> SitlOptions:
         camera_of=_camera_of(args.camera_of) if args.camera_of is not None else None,
         signing_key_file=args.signing_key,
         signing_passphrase_file=args.signing_passphrase_file,
+        wind=_wind(args.wind),
     )
