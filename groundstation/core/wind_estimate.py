@@ -1,0 +1,209 @@
+"""The decision core's wind: the vehicles' own estimates, combined robustly, else a fallback.
+
+Inputs are :class:`~groundstation.core.events.WindReport` events (one vehicle's WIND message
+as the ENU vector ``w = (w_x, w_y)`` the air moves towards, at most ~1 Hz per vehicle) and
+the mission time; the output is the wind the planner and the intercept use, and the journal
+lines that say when it changed. Pure: no clock, no I/O; a replay fed the same inputs gives
+the same estimate at every instant.
+
+**Which reports count.** A vehicle's latest report, if it is younger than
+``max_age_s`` (30 mission s: ArduPlane sends WIND at 1 Hz, so this is many missed
+messages) and the vehicle is active in the plan (flying and commanded: a vehicle on the
+ground or taken over by a pilot says nothing about the wind where floe flies).
+
+**Combination** of the ``n`` fresh reports ``w_1 .. w_n``:
+
+* ``n = 0``: the fallback, ``CoreConfig.wind_xy_m_s`` (the config's ``wind``, else the
+  scenario's, else calm); source ``"fallback"``.
+* ``n = 1``: that vehicle's report.
+* ``n >= 3``: the component-wise median ``(median_i w_x,i, median_i w_y,i)``. One vehicle
+  reporting garbage (or a steady 40 m/s) cannot move it beyond the spread of the others:
+  the median's breakdown point is 50 %.
+* ``n = 2``: if ``|w_1 - w_2| <= disagree_m_s`` (5 m/s) their mean (the median of two).
+  Otherwise there is no majority, and the report closer to the *previous* estimate wins
+  (ties: the lower vehicle id). Why: the previous estimate is what the vehicles agreed on
+  before (or, at the start, the operator's configured wind), so a vehicle whose estimate
+  runs away does not drag the fleet's with it, and the estimate does not flip between two
+  vehicles report by report. Averaging two disagreeing reports would be wrong for both;
+  falling back to the configured wind would throw away two measurements for one guess.
+
+**Outliers.** A vehicle whose report stays more than ``disagree_m_s`` away from the
+estimate (with at least one other vehicle reporting) for ``outlier_after_s`` (10 mission
+s) is flagged once, as a ``wind_outlier`` note; it is flagged again only after it agreed
+in between.
+
+**Journal.** A :class:`~groundstation.core.commands.WindEstimate` (a ``wind`` line) when the
+estimate changed meaningfully from the last one journalled: its speed by more than
+``change_speed_m_s`` (1 m/s), its direction by more than ``change_deg`` (10 deg, while
+either speed is at least 1 m/s: the direction of a near calm is noise), or its source
+(vehicles / fallback). The initial state (the fallback) is not journalled: a run without
+any wind report journals no ``wind`` line at all, as before wind existed.
+"""
+
+from __future__ import annotations
+
+import math
+import statistics
+from dataclasses import dataclass
+
+from domain.wind_triangle import wind_from_vector
+from groundstation.core.commands import Command, Note, WindEstimate
+from groundstation.core.events import WindReport
+from world.wind import MAX_WIND_M_S
+
+__all__ = ["FALLBACK", "VEHICLES", "WindEstimator", "WindState", "describe_wind"]
+
+VEHICLES = "vehicles"
+FALLBACK = "fallback"
+
+
+@dataclass(frozen=True)
+class WindState:
+    """The core's wind at one instant: ENU vector (towards), source, vehicles used."""
+
+    wx_m_s: float
+    wy_m_s: float
+    source: str
+    vehicles: tuple[str, ...] = ()
+
+    @property
+    def xy_m_s(self) -> tuple[float, float]:
+        return self.wx_m_s, self.wy_m_s
+
+    @property
+    def speed_m_s(self) -> float:
+        return math.hypot(self.wx_m_s, self.wy_m_s)
+
+    @property
+    def from_deg(self) -> float:
+        """Compass direction the wind blows from, [0, 360)."""
+        return wind_from_vector(self.wx_m_s, self.wy_m_s)[1]
+
+
+def describe_wind(wx_m_s: float, wy_m_s: float) -> str:
+    """``12.0 m/s from 270 deg`` (``calm`` below 0.05 m/s)."""
+    speed, from_deg = wind_from_vector(wx_m_s, wy_m_s)
+    if speed < 0.05:
+        return "calm"
+    return f"{speed:.1f} m/s from {from_deg:.0f} deg"
+
+
+@dataclass
+class _Report:
+    t_s: float
+    wx_m_s: float
+    wy_m_s: float
+
+
+class WindEstimator:
+    """See the module docstring. ``report`` the inputs, ``update`` on every tick."""
+
+    def __init__(
+        self,
+        fallback_xy_m_s: tuple[float, float],
+        *,
+        max_age_s: float = 30.0,
+        disagree_m_s: float = 5.0,
+        outlier_after_s: float = 10.0,
+        change_speed_m_s: float = 1.0,
+        change_deg: float = 10.0,
+    ) -> None:
+        self.fallback = WindState(fallback_xy_m_s[0], fallback_xy_m_s[1], FALLBACK)
+        self.max_age_s = max_age_s
+        self.disagree_m_s = disagree_m_s
+        self.outlier_after_s = outlier_after_s
+        self.change_speed_m_s = change_speed_m_s
+        self.change_deg = change_deg
+        self.current = self.fallback
+        """The estimate now (what the planner uses)."""
+        self.journalled = self.fallback
+        """The estimate last journalled (the initial fallback counts as journalled)."""
+        self.reports: dict[str, _Report] = {}
+        self.rejected = 0
+        """Reports dropped: not finite, or stronger than any flyable weather."""
+        self._outlier_since: dict[str, float] = {}
+        self._flagged: set[str] = set()
+
+    # ------------------------------------------------------------------ inputs
+    def report(self, event: WindReport) -> None:
+        """Keep ``event`` as its vehicle's latest report (a bad one is counted, dropped)."""
+        wx, wy = event.wx_m_s, event.wy_m_s
+        if not (math.isfinite(wx) and math.isfinite(wy)) or math.hypot(wx, wy) > MAX_WIND_M_S:
+            self.rejected += 1
+            return
+        self.reports[event.vehicle] = _Report(event.t_s, wx, wy)
+
+    def fresh(self, t_s: float, active: set[str]) -> dict[str, tuple[float, float]]:
+        """The reports that count at ``t_s`` (module docstring), by vehicle id."""
+        return {
+            vehicle: (r.wx_m_s, r.wy_m_s)
+            for vehicle, r in sorted(self.reports.items())
+            if vehicle in active and t_s - r.t_s <= self.max_age_s
+        }
+
+    def update(self, t_s: float, active: set[str]) -> list[Command]:
+        """Recompute the estimate at ``t_s`` from the reports of the ``active`` vehicles;
+        the journal lines this causes (a changed estimate, a newly flagged outlier)."""
+        reports = self.fresh(t_s, active)
+        self.current = self._combine(reports)
+        out: list[Command] = self._outliers(t_s, reports)
+        if self._changed(self.current, self.journalled):
+            self.journalled = self.current
+            c = self.current
+            out.append(WindEstimate(t_s, c.wx_m_s, c.wy_m_s, c.source, c.vehicles))
+        return out
+
+    # ------------------------------------------------------------------ combination
+    def _combine(self, reports: dict[str, tuple[float, float]]) -> WindState:
+        if not reports:
+            return self.fallback
+        ids = tuple(reports)
+        if len(ids) == 1:
+            wx, wy = reports[ids[0]]
+            return WindState(wx, wy, VEHICLES, ids)
+        if len(ids) == 2:
+            (a, wa), (b, wb) = reports.items()
+            if math.dist(wa, wb) <= self.disagree_m_s:
+                return WindState((wa[0] + wb[0]) / 2.0, (wa[1] + wb[1]) / 2.0, VEHICLES, ids)
+            before = self.current.xy_m_s
+            # the one closer to what was believed; ties to the first (sorted) id
+            chosen = b if math.dist(wb, before) < math.dist(wa, before) else a
+            wx, wy = reports[chosen]
+            return WindState(wx, wy, VEHICLES, (chosen,))
+        wx = statistics.median(w[0] for w in reports.values())
+        wy = statistics.median(w[1] for w in reports.values())
+        return WindState(wx, wy, VEHICLES, ids)
+
+    def _outliers(self, t_s: float, reports: dict[str, tuple[float, float]]) -> list[Command]:
+        out: list[Command] = []
+        estimate = self.current.xy_m_s
+        for vehicle in list(self._outlier_since):
+            if vehicle not in reports:
+                del self._outlier_since[vehicle]  # silent or out of the plan: no evidence
+        for vehicle, w in reports.items():
+            if len(reports) < 2 or math.dist(w, estimate) <= self.disagree_m_s:
+                self._outlier_since.pop(vehicle, None)
+                self._flagged.discard(vehicle)  # agreed again: may be flagged anew
+                continue
+            since = self._outlier_since.setdefault(vehicle, t_s)
+            if t_s - since >= self.outlier_after_s - 1e-9 and vehicle not in self._flagged:
+                self._flagged.add(vehicle)
+                detail = (f"reports {describe_wind(*w)} for {t_s - since:.0f} s; the fleet's "
+                          f"estimate is {describe_wind(*estimate)}")
+                out.append(Note(t_s, "wind_outlier", vehicle, None, detail))
+        return out
+
+    def _changed(self, new: WindState, old: WindState) -> bool:
+        if new.source != old.source:
+            return True
+        if abs(new.speed_m_s - old.speed_m_s) > self.change_speed_m_s:
+            return True
+        if max(new.speed_m_s, old.speed_m_s) < 1.0:
+            return False
+        turn = abs((new.from_deg - old.from_deg + 180.0) % 360.0 - 180.0)
+        return turn > self.change_deg
+
+    @property
+    def flagged(self) -> frozenset[str]:
+        """Vehicles flagged as wind outliers (and not agreeing since)."""
+        return frozenset(self._flagged)
