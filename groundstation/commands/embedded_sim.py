@@ -19,7 +19,7 @@ fires ArduPlane's 1 s re-request and 8 s upload timers for nothing).
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from domain.geodesy import GeoOrigin
 from groundstation.commands.sitl_args import DEFAULT_HOME
@@ -28,6 +28,7 @@ from sitl.faults import FaultError, build_faults, fault_specs
 from sitl.server import ServerOptions, SitlServer
 from sitl.sitl_setup import scenario_setup
 from world.scenario import Scenario
+from world.wind import WindSpec
 
 __all__ = ["EmbeddedSim", "build_embedded_sim"]
 
@@ -41,6 +42,8 @@ class EmbeddedSim:
     server: SitlServer
     origin: GeoOrigin
     fault_specs: list[str]
+    wind: WindSpec = field(default_factory=WindSpec)
+    """The wind the vehicles fly in (``gcs run --wind``, else the scenario's)."""
 
     def now_s(self) -> float:
         return self.server.t_s
@@ -72,9 +75,13 @@ def build_embedded_sim(
     config: DaemonConfig,
     scenario: Scenario | None,
     signing_keys: dict[int, bytes] | None = None,
+    wind: WindSpec | None = None,
 ) -> EmbeddedSim:
     """The simulator for ``config.sim_count`` vehicles (not started); ``signing_keys``:
-    the MAVLink 2 signing key each system id starts with."""
+    the MAVLink 2 signing key each system id starts with; ``wind``: the wind they fly in
+    (None: the scenario's, else calm)."""
+    if wind is None:
+        wind = scenario.wind if scenario is not None else WindSpec()
     count = config.sim_count
     assert count is not None
     origin = config.mission.origin
@@ -113,4 +120,4 @@ def build_embedded_sim(
         max_stall_s=tick_s,
         signing_keys=dict(signing_keys or {}),
     )
-    return EmbeddedSim(SitlServer(configs, options, faults, None), setup.origin, specs)
+    return EmbeddedSim(SitlServer(configs, options, faults, None), setup.origin, specs, wind)
