@@ -79,9 +79,7 @@ def build_embedded_sim(
 ) -> EmbeddedSim:
     """The simulator for ``config.sim_count`` vehicles (not started); ``signing_keys``:
     the MAVLink 2 signing key each system id starts with; ``wind``: the wind they fly in
-    (None: the scenario's, else calm)."""
-    if wind is None:
-        wind = scenario.wind if scenario is not None else WindSpec()
+    (None: the scenario's, calm without one)."""
     count = config.sim_count
     assert count is not None
     origin = config.mission.origin
@@ -120,4 +118,5 @@ def build_embedded_sim(
         max_stall_s=tick_s,
         signing_keys=dict(signing_keys or {}),
     )
-    return EmbeddedSim(SitlServer(configs, options, faults, None), setup.origin, specs, wind)
+    flown = wind if wind is not None else scenario.wind if scenario is not None else WindSpec()
+    return EmbeddedSim(SitlServer(configs, options, faults, None), setup.origin, specs, flown)

@@ -20,12 +20,14 @@ ground or taken over by a pilot says nothing about the wind where floe flies).
   reporting garbage (or a steady 40 m/s) cannot move it beyond the spread of the others:
   the median's breakdown point is 50 %.
 * ``n = 2``: if ``|w_1 - w_2| <= disagree_m_s`` (5 m/s) their mean (the median of two).
-  Otherwise there is no majority, and the report closer to the *previous* estimate wins
-  (ties: the lower vehicle id). Why: the previous estimate is what the vehicles agreed on
-  before (or, at the start, the operator's configured wind), so a vehicle whose estimate
-  runs away does not drag the fleet's with it, and the estimate does not flip between two
-  vehicles report by report. Averaging two disagreeing reports would be wrong for both;
-  falling back to the configured wind would throw away two measurements for one guess.
+  Otherwise there is no majority, and the report closer to the *anchor* wins (ties: the
+  lower vehicle id). The anchor is the last estimate that vehicles corroborated (two that
+  agreed, or the median of three or more), and before any, the fallback (the operator's
+  configured wind). Why: a vehicle whose estimate runs away does not drag the fleet's with
+  it, the estimate does not flip between two vehicles report by report, and a lone
+  vehicle's say (``n = 1``) is used but never becomes the judge of a second one. Averaging
+  two disagreeing reports would be wrong for both; falling back to the configured wind
+  would throw away two measurements for one guess.
 
 **Outliers.** A vehicle whose report stays more than ``disagree_m_s`` away from the
 estimate (with at least one other vehicle reporting) for ``outlier_after_s`` (10 mission
@@ -118,6 +120,8 @@ class WindEstimator:
         """The estimate now (what the planner uses)."""
         self.journalled = self.fallback
         """The estimate last journalled (the initial fallback counts as journalled)."""
+        self.anchor = self.fallback.xy_m_s
+        """The last estimate vehicles corroborated, else the fallback (module docstring)."""
         self.reports: dict[str, _Report] = {}
         self.rejected = 0
         """Reports dropped: not finite, or stronger than any flyable weather."""
@@ -163,15 +167,16 @@ class WindEstimator:
             return WindState(wx, wy, VEHICLES, ids)
         if len(ids) == 2:
             (a, wa), (b, wb) = reports.items()
-            if math.dist(wa, wb) <= self.disagree_m_s:
-                return WindState((wa[0] + wb[0]) / 2.0, (wa[1] + wb[1]) / 2.0, VEHICLES, ids)
-            before = self.current.xy_m_s
-            # the one closer to what was believed; ties to the first (sorted) id
-            chosen = b if math.dist(wb, before) < math.dist(wa, before) else a
-            wx, wy = reports[chosen]
-            return WindState(wx, wy, VEHICLES, (chosen,))
-        wx = statistics.median(w[0] for w in reports.values())
-        wy = statistics.median(w[1] for w in reports.values())
+            if math.dist(wa, wb) > self.disagree_m_s:
+                # the one closer to what vehicles last agreed on; ties to the first id
+                chosen = b if math.dist(wb, self.anchor) < math.dist(wa, self.anchor) else a
+                wx, wy = reports[chosen]
+                return WindState(wx, wy, VEHICLES, (chosen,))
+            wx, wy = (wa[0] + wb[0]) / 2.0, (wa[1] + wb[1]) / 2.0
+        else:
+            wx = statistics.median(w[0] for w in reports.values())
+            wy = statistics.median(w[1] for w in reports.values())
+        self.anchor = wx, wy
         return WindState(wx, wy, VEHICLES, ids)
 
     def _outliers(self, t_s: float, reports: dict[str, tuple[float, float]]) -> list[Command]:
