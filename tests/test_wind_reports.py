@@ -128,16 +128,17 @@ def _wind_frame(rig: Rig, wx: float, wy: float) -> list[io.Output]:
     return rig.frame("WIND", WindReported(rig.t, wx, wy, 0.0), wind_xy_m_s=(wx, wy))
 
 
-def test_an_active_vehicle_reports_its_wind_to_the_core_at_most_1_hz() -> None:
-    rig = active_rig()
+def test_an_active_vehicle_reports_its_wind_after_settling_at_most_1_hz() -> None:
+    rig = active_rig(wind_settle_s=3.0)
+    start = rig.t
     sent = []
-    for _ in range(8):  # 4 Hz of accepted winds over 2 s
+    for _ in range(20):  # 4 Hz of accepted winds over 5 s
         rig.t = round(rig.t + 0.25, 6)
         sent += [o.event for o in _wind_frame(rig, 7.0, -1.0) if isinstance(o, io.CoreEvent)]
-    assert len(sent) == 2
     assert all(isinstance(e, ev.WindReport) and e.vehicle == "v1" for e in sent)
+    assert sent[0].t_s == start + 0.25 + 3.0  # reporting (and active) for 3 s first
+    assert len(sent) == 2 and sent[1].t_s - sent[0].t_s >= 0.8
     assert (sent[0].wx_m_s, sent[0].wy_m_s) == (7.0, -1.0)
-    assert sent[1].t_s - sent[0].t_s >= 0.8
 
 
 def test_a_vehicle_not_in_the_plan_reports_no_wind() -> None:

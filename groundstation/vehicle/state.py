@@ -97,6 +97,7 @@ class ControllerState:
         self._launch_deadline_s: float | None = None
         self._restore: list[float] | None = None  # [since_s, heartbeats] after a link restore
         self._wind_sent_s = -math.inf
+        self._wind_since_s: float | None = None  # active and reporting since
 
     # ------------------------------------------------------------------ reading
     @property
@@ -165,8 +166,14 @@ class ControllerState:
     def _on_wind(self, event: WindReported) -> None:
         """The vehicle's accepted wind estimate goes to the core (``WindReport``) while it
         is active in the plan (on the ground, or taken over, it says nothing about the air
-        floe flies in), at most once per ``wind_report_min_s``."""
+        floe flies in) and has been for ``wind_settle_s`` (the autopilot's estimate
+        converges in flight), at most once per ``wind_report_min_s``."""
         if self.state is not S.ACTIVE or self._restore is not None:
+            self._wind_since_s = None
+            return
+        if self._wind_since_s is None:
+            self._wind_since_s = event.t_s
+        if event.t_s - self._wind_since_s < self.s.wind_settle_s - 1e-9:
             return
         if event.t_s - self._wind_sent_s < self.s.wind_report_min_s:
             return
