@@ -174,11 +174,9 @@ def test_one_bad_vehicle_does_not_move_the_fleets_estimate(bad: tuple[float, flo
         out = _second(core, float(t), {"1": (true[0] + wobble, true[1]),
                                        "2": (true[0], true[1] - wobble), "3": bad})
         notes += [c for c in out if isinstance(c, Note) and c.kind == "wind_outlier"]
-        # within the box the two good reports span (the median's breakdown point)
-        good = ((true[0] + wobble, true[1]), (true[0], true[1] - wobble))
+        # inside the box the good reports span (the median's breakdown point)
         wx, wy = core.planning_wind_m_s()
-        assert min(g[0] for g in good) <= wx <= max(g[0] for g in good)
-        assert min(g[1] for g in good) <= wy <= max(g[1] for g in good)
+        assert abs(wx - true[0]) <= 0.3 and abs(wy - true[1]) <= 0.3
     assert core.wind_state.source == "vehicles"
     if all(math.isfinite(v) and abs(v) < 60 for v in bad):
         assert [(n.vehicle, n.t_s) for n in notes] == [("3", 10.0)]  # flagged once, after 10 s
@@ -209,10 +207,11 @@ def test_two_disagreeing_vehicles_keep_the_estimate_they_agreed_on() -> None:
     for t in range(5):
         _second(core, float(t), {"1": (10.0, 0.0), "2": (10.5, 0.0)})
     assert core.planning_wind_m_s() == pytest.approx((10.25, 0.0))
-    for t in range(5, 20):  # vehicle 2's estimate runs away
+    for t in range(5, 30):  # vehicle 2's estimate runs away
         _second(core, float(t), {"1": (10.0, 0.0), "2": (30.0, 0.0)})
-        assert core.planning_wind_m_s() == (10.0, 0.0)
-        assert core.wind_state.vehicles == ("1",)
+        if t >= 6:  # its 20 s mean is now > 5 m/s off: vehicle 1 agrees with the anchor
+            assert core.planning_wind_m_s() == (10.0, 0.0)
+            assert core.wind_state.vehicles == ("1",)
     # before any agreement the fallback (the operator's wind) decides which one to trust,
     # also when one of them reported alone first
     fresh = _core(fallback=(0.0, 12.0), vehicles="12")
@@ -231,8 +230,12 @@ def test_only_active_vehicles_count_and_small_changes_are_not_journalled() -> No
     assert not [c for c in out if isinstance(c, WindEstimate)]
     out = _second(core, 2.0, {"1": (10.6, 0.5), "2": (10.6, 0.5)})  # 0.6 m/s, 2.7 deg
     assert not [c for c in out if isinstance(c, WindEstimate)]
-    out = _second(core, 3.0, {"1": (8.7, -4.6), "2": (8.7, -4.6)})  # 28 deg round
-    assert [c.vehicles for c in out if isinstance(c, WindEstimate)] == [("1", "2")]
+    lines = []
+    for t in range(3, 30):  # the wind veers 28 deg: the 20 s means follow
+        lines += [(t, c) for c in _second(core, float(t), {"1": (8.7, -4.6), "2": (8.7, -4.6)})
+                  if isinstance(c, WindEstimate)]
+    assert [(c.vehicles, c.source) for _t, c in lines][:1] == [(("1", "2"), "vehicles")]
+    assert 3 < lines[0][0] < 23 and core.planning_wind_m_s() == pytest.approx((8.7, -4.6))
 
 
 def test_wind_blind_core_plans_in_still_air_but_still_estimates() -> None:
@@ -285,11 +288,11 @@ def _record_run(run: Path, config: CoreConfig, wind: bool) -> list[dict[str, Any
             feed(ev.Telemetry(t, v, 300.0 * math.cos(a), 300.0 * math.sin(a), a + 1.57, 22.0))
         if wind and step % 10 == 3:
             gust = 0.7 * math.sin(0.3 * t)
-            for v, w in (("1", (9.0 + gust, 1.0)), ("2", (9.5, 1.0 - gust)), ("3", (35.0, 0.0))):
+            reports = {"1": (9.0 + gust, 1.0), "2": (9.5, 1.0 - gust), "3": (35.0, 0.0)}
+            if t > 25.0:  # the wind veers: vehicles 1 and 2 agree on 12 m/s from the north
+                reports.update({"1": (0.0, -12.0), "2": (0.3, -12.2)})
+            for v, w in reports.items():
                 feed(ev.WindReport(t, v, *w))
-            if t > 30.0:  # the wind veers: vehicles 1 and 2 agree on 12 m/s from the north
-                feed(ev.WindReport(t + 0.01, "1", 0.0, -12.0))
-                feed(ev.WindReport(t + 0.01, "2", 0.3, -12.2))
         if step == 450:
             feed(ev.LoiterEnded(t, "1"))
         feed(ev.Tick(t))

@@ -6,10 +6,15 @@ the mission time; the output is the wind the planner and the intercept use, and 
 lines that say when it changed. Pure: no clock, no I/O; a replay fed the same inputs gives
 the same estimate at every instant.
 
-**Which reports count.** A vehicle's latest report, if it is younger than
+**Which reports count.** A vehicle counts if its latest report is younger than
 ``max_age_s`` (30 mission s: ArduPlane sends WIND at 1 Hz, so this is many missed
-messages) and the vehicle is active in the plan (flying and commanded: a vehicle on the
-ground or taken over by a pilot says nothing about the wind where floe flies).
+messages) and it is active in the plan (flying and commanded: a vehicle on the ground or
+taken over by a pilot says nothing about the wind where floe flies). Its value ``w_i`` is
+the mean of its reports over the ``average_s`` (20 s) up to its latest: a planned leg lasts
+a minute or more, so the wind over it matters, not the gust at the instant of planning.
+Gusts of standard deviation ``g`` and correlation time ``tau`` average down to about
+``g sqrt(2 tau / T)`` over ``T``: 2 m/s gusts of 5 s to 1.4 m/s over 20 s, at 20 s of lag
+behind a real change of the mean.
 
 **Combination** of the ``n`` fresh reports ``w_1 .. w_n``:
 
@@ -46,6 +51,7 @@ from __future__ import annotations
 
 import math
 import statistics
+from collections import deque
 from dataclasses import dataclass
 
 from domain.wind_triangle import wind_from_vector
@@ -90,7 +96,7 @@ def describe_wind(wx_m_s: float, wy_m_s: float) -> str:
     return f"{speed:.1f} m/s from {from_deg:.0f} deg"
 
 
-@dataclass
+@dataclass(frozen=True)
 class _Report:
     t_s: float
     wx_m_s: float
@@ -105,6 +111,7 @@ class WindEstimator:
         fallback_xy_m_s: tuple[float, float],
         *,
         max_age_s: float = 30.0,
+        average_s: float = 20.0,
         disagree_m_s: float = 5.0,
         outlier_after_s: float = 10.0,
         change_speed_m_s: float = 1.0,
@@ -112,6 +119,7 @@ class WindEstimator:
     ) -> None:
         self.fallback = WindState(fallback_xy_m_s[0], fallback_xy_m_s[1], FALLBACK)
         self.max_age_s = max_age_s
+        self.average_s = average_s
         self.disagree_m_s = disagree_m_s
         self.outlier_after_s = outlier_after_s
         self.change_speed_m_s = change_speed_m_s
@@ -122,7 +130,8 @@ class WindEstimator:
         """The estimate last journalled (the initial fallback counts as journalled)."""
         self.anchor = self.fallback.xy_m_s
         """The last estimate vehicles corroborated, else the fallback (module docstring)."""
-        self.reports: dict[str, _Report] = {}
+        self.reports: dict[str, deque[_Report]] = {}
+        """Each vehicle's reports over the last ``average_s`` before its latest."""
         self.rejected = 0
         """Reports dropped: not finite, or stronger than any flyable weather."""
         self._outlier_since: dict[str, float] = {}
@@ -135,15 +144,21 @@ class WindEstimator:
         if not (math.isfinite(wx) and math.isfinite(wy)) or math.hypot(wx, wy) > MAX_WIND_M_S:
             self.rejected += 1
             return
-        self.reports[event.vehicle] = _Report(event.t_s, wx, wy)
+        kept = self.reports.setdefault(event.vehicle, deque())
+        if kept and event.t_s < kept[-1].t_s:
+            kept.clear()  # time went back (a replay edited by hand): start again
+        kept.append(_Report(event.t_s, wx, wy))
+        while event.t_s - kept[0].t_s > self.average_s:
+            kept.popleft()
 
     def fresh(self, t_s: float, active: set[str]) -> dict[str, tuple[float, float]]:
-        """The reports that count at ``t_s`` (module docstring), by vehicle id."""
-        return {
-            vehicle: (r.wx_m_s, r.wy_m_s)
-            for vehicle, r in sorted(self.reports.items())
-            if vehicle in active and t_s - r.t_s <= self.max_age_s
-        }
+        """The value of each vehicle that counts at ``t_s`` (module docstring)."""
+        out: dict[str, tuple[float, float]] = {}
+        for vehicle, kept in sorted(self.reports.items()):
+            if vehicle in active and t_s - kept[-1].t_s <= self.max_age_s:
+                n = len(kept)
+                out[vehicle] = (sum(r.wx_m_s for r in kept) / n, sum(r.wy_m_s for r in kept) / n)
+        return out
 
     def update(self, t_s: float, active: set[str]) -> list[Command]:
         """Recompute the estimate at ``t_s`` from the reports of the ``active`` vehicles;
