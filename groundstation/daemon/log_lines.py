@@ -176,11 +176,10 @@ def plan_detail(line: Mapping[str, Any]) -> str:
 def wind_detail(line: Mapping[str, Any]) -> str:
     """``12.0 m/s from 270 deg (vehicles 1, 2, 3)`` of a ``wind`` line."""
     speed, from_deg = line.get("speed_m_s"), line.get("from_deg")
-    text = (
-        f"{speed:.1f} m/s from {from_deg:.0f} deg"
-        if isinstance(speed, int | float) and isinstance(from_deg, int | float)
-        else "?"
-    )
+    if not (isinstance(speed, int | float) and isinstance(from_deg, int | float)):
+        text = "?"
+    else:
+        text = "calm" if speed < 0.05 else f"{speed:.1f} m/s from {from_deg:.0f} deg"
     source = str(line.get("source", "?"))
     vehicles = line.get("vehicles")
     if source == "vehicles" and isinstance(vehicles, list) and vehicles:

@@ -139,11 +139,12 @@ def _wind_line(daemon: Daemon) -> Text:
 
 
 def _own_wind(snap: VehicleSnapshot) -> str:
-    """A vehicle's own estimate as ``12/270``: m/s and the compass direction it is from."""
+    """A vehicle's own estimate as ``12/270``: m/s and the compass direction it is from
+    (``calm`` below 0.5 m/s, whose direction means nothing)."""
     if snap.wind_xy_m_s is None:
         return "-"
     speed, from_deg = wind_from_vector(*snap.wind_xy_m_s)
-    return f"{speed:.0f}/{from_deg:03.0f}"
+    return "calm" if speed < 0.5 else f"{speed:.0f}/{from_deg:03.0f}"
 
 
 def _table(*columns: str) -> Table:

@@ -353,7 +353,7 @@ def plot_wind(data: RunData) -> FigurePng | None:
                  label=f"vehicle {vehicle}")
         bottom.plot([p[0] for p in pts], [p[2] for p in pts], ".", ms=3, color=_colour(n))
     top.set_ylabel("wind speed (m/s)")
-    top.set_title("wind: the core's estimate (line) and each vehicle's reports (dots)")
+    top.set_title("wind: the core's estimate as journalled (line), each vehicle's reports (dots)")
     top.legend(fontsize=7, ncol=6, loc="upper left")
     bottom.set_ylabel("from (compass deg)")
     bottom.set_ylim(0, 360)
