@@ -256,6 +256,9 @@ def test_records_round_trip_exactly_and_old_configs_still_load() -> None:
     assert config_from_dict(data).wind_xy_m_s == (1.5, -2.0)
     old = {k: v for k, v in data.items() if k not in ("wind_xy_m_s", "wind_aware")}
     assert config_from_dict(old) == CoreConfig()
+    for bad in ([1.0, math.nan], "ab", [1.0]):
+        with pytest.raises(ValueError, match="wind_xy_m_s must be two finite numbers"):
+            config_from_dict({**data, "wind_xy_m_s": bad})
 
 
 # ------------------------------------------------------------------ journal and replay

@@ -106,9 +106,13 @@ class CoreConfig:
         object.__setattr__(self, "battery_low_action", BatteryAction(self.battery_low_action))
         object.__setattr__(self, "objective", Objective(self.objective))
         # a journal's start line spells the wind as a JSON list
-        wind = tuple(float(v) for v in self.wind_xy_m_s)
+        bad = ValueError(f"wind_xy_m_s must be two finite numbers, got {self.wind_xy_m_s!r}")
+        try:
+            wind = tuple(float(v) for v in self.wind_xy_m_s)
+        except (TypeError, ValueError):
+            raise bad from None
         if len(wind) != 2 or not all(math.isfinite(v) for v in wind):
-            raise ValueError(f"wind_xy_m_s must be two finite numbers, got {self.wind_xy_m_s!r}")
+            raise bad
         object.__setattr__(self, "wind_xy_m_s", wind)
 
 
