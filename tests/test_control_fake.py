@@ -115,6 +115,9 @@ class FakeControl:
             "fov_radius_m": FOV_M,
             "plan": {"t": 0.0, "routes": {v["id"]: v["route"] for v in self.vehicles},
                      "status": "optimal", "solve_time_s": 0.01},
+            "wind": {"wx_m_s": 12.0, "wy_m_s": 0.0, "speed_m_s": 12.0, "from_deg": 270.0,
+                     "source": "vehicles", "vehicles": ["uav1", "uav2"],
+                     "label": "12.0 m/s from 270° (vehicles uav1,uav2)", "planning": True},
             "events": list(self._events),
         }
 

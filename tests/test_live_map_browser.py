@@ -5,7 +5,8 @@ targets drifting), and the real daemon ``gcs run --vehicles sim:3 --sim-airborne
 127.0.0.1:0`` in a subprocess. On each: the page loads and draws the map, the vehicles move
 between two reads of the page's state and two screenshots, a target added by clicking on the
 map with the token appears in the daemon's state (and, for the real daemon, in its next
-plan), a target can be removed from the page, and a read-only page cannot change anything.
+plan), a target can be removed from the page, and a read-only page cannot change anything;
+the header shows the wind the daemon plans with (the map draws its arrow).
 Screenshots are saved in pytest's tmp dir and checked (PNG, map drawn: many colours).
 
 Marked ``browser``. Without chromium/chromedriver/selenium the test fails in CI (CI set) with
@@ -245,6 +246,11 @@ def test_live_page(driver: Any, backend: Backend, tmp_path: Path) -> None:
     assert drv.find_element(By.ID, "access").text == "read-only"
     assert not drv.find_element(By.ID, "add-target").is_displayed()
     wait_for(lambda: len(vehicle_positions(drv)) == 3, "three vehicles on the page")
+    # the wind the core plans with, in the header (the fake: its vehicles' estimate; the
+    # daemon without --wind or a windy scenario: still air, said so)
+    wind = drv.find_element(By.ID, "wind").text
+    assert wind == ("wind 12 m/s from 270° (vehicles uav1,uav2)" if not backend.real
+                    else "wind calm (none)"), wind
     rows = drv.find_elements(By.CSS_SELECTOR, "#vehicles tbody tr")
     assert len(rows) == 3
     first = vehicle_positions(drv)

@@ -21,7 +21,7 @@ fires ArduPlane's 1 s re-request and 8 s upload timers for nothing).
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from domain.geodesy import GeoOrigin
 from groundstation.commands.sitl_args import DEFAULT_HOME
@@ -44,6 +44,8 @@ class EmbeddedSim:
     server: SitlServer
     origin: GeoOrigin
     fault_specs: list[str]
+    wind: WindSpec = field(default_factory=WindSpec)
+    """The wind the vehicles fly in (``gcs run --wind``, else the scenario's)."""
 
     def now_s(self) -> float:
         return self.server.t_s
@@ -119,4 +121,5 @@ def build_embedded_sim(
         max_stall_s=tick_s,
         signing_keys=dict(signing_keys or {}),
     )
-    return EmbeddedSim(SitlServer(configs, options, faults, None), setup.origin, specs)
+    flown = wind if wind is not None else scenario.wind if scenario is not None else WindSpec()
+    return EmbeddedSim(SitlServer(configs, options, faults, None), setup.origin, specs, flown)

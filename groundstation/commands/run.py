@@ -139,6 +139,13 @@ def _parser() -> argparse.ArgumentParser:
     a("--period", dest="period_s", type=float, metavar="S", help="replan period")
     a("--commit", dest="commit", action="store_true", help="keep vehicles on their target")
     a("--no-commit", dest="commit", action="store_false", help="let replans redirect")
+    a(
+        "--wind",
+        metavar="SPEED_M_S,FROM_DEG[,GUST]",
+        help="the wind floe plans with until the vehicles report theirs (default: the "
+        "scenario's, else still air); with sim:N also the wind they fly in. FROM_DEG is "
+        "the compass direction it blows from (10,270: 10 m/s from the west)",
+    )
     a("--sim-airborne", action="store_true", help="sim:N vehicles start flying in AUTO")
     a("--sim-loss", type=float, metavar="P", help="sim:N packet loss on every link")
     a("--sim-fault", action="append", metavar="SPEC", help="sim:N fault (gcs sitl --fault)")

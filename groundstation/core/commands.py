@@ -16,6 +16,7 @@ __all__ = [
     "ReleaseVehicle",
     "SendHome",
     "SolveRequest",
+    "WindEstimate",
 ]
 
 
@@ -104,4 +105,22 @@ class Note:
     detail: str = ""
 
 
-Command = SolveRequest | CancelSolve | PlanAdopted | FlyToTarget | ReleaseVehicle | SendHome | Note
+@dataclass(frozen=True)
+class WindEstimate:
+    """The core's wind estimate changed meaningfully (journalled as a ``wind`` line).
+
+    ``wx_m_s, wy_m_s``: the ENU vector the air moves towards; ``source``: ``"vehicles"``
+    (combined from the reports of ``vehicles``) or ``"fallback"`` (the configured or the
+    scenario's wind, ``CoreConfig.wind_xy_m_s``: no vehicle reports one)."""
+
+    t_s: float
+    wx_m_s: float
+    wy_m_s: float
+    source: str
+    vehicles: tuple[str, ...] = field(default=())
+
+
+Command = (
+    SolveRequest | CancelSolve | PlanAdopted | FlyToTarget | ReleaseVehicle | SendHome | Note
+    | WindEstimate
+)

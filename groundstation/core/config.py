@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from enum import StrEnum
@@ -84,6 +85,11 @@ class CoreConfig:
     priority_gain: float = 0.0
     priority_near_m: float = 300.0
     priority_far_m: float = 1500.0
+    wind_xy_m_s: tuple[float, float] = (0.0, 0.0)
+    """The fallback wind (the config's or the scenario's), ENU m/s the air moves towards:
+    what the core plans with while no vehicle reports its own (``core/wind_estimate.py``)."""
+    wind_aware: bool = True
+    """False: plan and predict as in still air even in wind (the wind-blind baseline)."""
 
     def __post_init__(self) -> None:
         if self.turn_radius_m <= 0:
@@ -99,6 +105,15 @@ class CoreConfig:
             raise ValueError(f"objective must be one of {', '.join(Objective)}")
         object.__setattr__(self, "battery_low_action", BatteryAction(self.battery_low_action))
         object.__setattr__(self, "objective", Objective(self.objective))
+        # a journal's start line spells the wind as a JSON list
+        bad = ValueError(f"wind_xy_m_s must be two finite numbers, got {self.wind_xy_m_s!r}")
+        try:
+            wind = tuple(float(v) for v in self.wind_xy_m_s)
+        except (TypeError, ValueError):
+            raise bad from None
+        if len(wind) != 2 or not all(math.isfinite(v) for v in wind):
+            raise bad
+        object.__setattr__(self, "wind_xy_m_s", wind)
 
 
 def config_to_dict(config: CoreConfig) -> dict[str, Any]:

@@ -22,6 +22,12 @@ with ``D`` the Dubins distance from the vehicle's pose and ``V`` its airspeed
 (:meth:`DecisionCore.travel_time_s`). The command carries the predicted arrival at the aim
 point it settled on, ``eta = t + D(pose, p) / V`` (one more evaluation at the final ``p``:
 the iteration stops before ``t_arr`` is recomputed there).
+
+Wind: the vehicles' ``WindReport`` inputs are combined into one estimate
+(:mod:`~groundstation.core.wind_estimate`: median over the active vehicles' fresh reports,
+else the configured fallback), recomputed on every report and tick; a meaningful change is
+journalled as a ``wind`` line (:class:`~groundstation.core.commands.WindEstimate`).
+:meth:`DecisionCore.planning_wind_m_s` is what planning and the intercept use.
 """
 
 from __future__ import annotations
@@ -58,7 +64,9 @@ from groundstation.core.events import (
     VehicleLost,
     VehicleRebooted,
     VehicleReturned,
+    WindReport,
 )
+from groundstation.core.wind_estimate import WindEstimator, WindState
 from observer import MeasurementOutcome, Observer, boat_priority_q
 from planner import (
     PlanningProblem,
@@ -109,6 +117,8 @@ class DecisionCore:
         self.plans_adopted = 0
         self.counters: dict[str, int] = {}
         self.boat_xy_m: tuple[float, float] | None = None
+        self.wind = WindEstimator(config.wind_xy_m_s)
+        """The vehicles' wind estimate, combined (``core/wind_estimate.py``)."""
         self._next_request_id = 1
         # The observer's verdict on the last Detection (None: it added a new target).
         self.last_measurement: MeasurementOutcome | None = None
@@ -140,9 +150,13 @@ class DecisionCore:
         elif isinstance(event, BoatPosition):
             if math.isfinite(event.x_m) and math.isfinite(event.y_m):
                 self.boat_xy_m = (event.x_m, event.y_m)
+        elif isinstance(event, WindReport):
+            self.wind.report(event)
+            out += self._update_wind(event.t_s)
         else:
             out += self._on_fleet_or_target_event(event)
         if isinstance(event, Tick):
+            out += self._update_wind(event.t_s)  # reports age out; before the plan uses it
             # Events only mark the plan dirty; the next tick replans once for all of them,
             # so a burst (several targets added at once) gives one plan, not one each.
             out += self._maybe_replan(event.t_s)
@@ -158,6 +172,22 @@ class DecisionCore:
 
     def active_vehicles(self) -> list[VehicleRecord]:
         return [v for v in self.vehicles.values() if v.status == ACTIVE]
+
+    def planning_wind_m_s(self) -> tuple[float, float]:
+        """The wind (ENU m/s, towards) the planner and the intercept use: the vehicles'
+        combined estimate, else the fallback ``config.wind_xy_m_s``; (0, 0) when the core
+        is not ``wind_aware`` (``core/wind_estimate.py``)."""
+        if not self.config.wind_aware:
+            return 0.0, 0.0
+        return self.wind.current.xy_m_s
+
+    @property
+    def wind_state(self) -> WindState:
+        """The wind estimate for display (even when not ``wind_aware``)."""
+        return self.wind.current
+
+    def _update_wind(self, t_s: float) -> list[Command]:
+        return self.wind.update(t_s, {v.id for v in self.active_vehicles()})
 
     # ------------------------------------------------------------------ event handlers
     def _count(self, key: str) -> None:

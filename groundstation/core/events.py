@@ -28,6 +28,7 @@ __all__ = [
     "VehicleLost",
     "VehicleRebooted",
     "VehicleReturned",
+    "WindReport",
 ]
 
 
@@ -166,6 +167,18 @@ class PlanSolved:
     result: PlanResult
 
 
+@dataclass(frozen=True)
+class WindReport:
+    """One vehicle's own wind estimate (its autopilot's WIND message, accepted on the
+    telemetry reducer's evidence): the ENU vector the air moves *towards*, m/s
+    (``domain.wind_triangle.wind_vector_m_s``)."""
+
+    t_s: float
+    vehicle: str
+    wx_m_s: float
+    wy_m_s: float
+
+
 Event = (
     Tick
     | Telemetry
@@ -182,4 +195,5 @@ Event = (
     | BatteryLow
     | BoatPosition
     | PlanSolved
+    | WindReport
 )

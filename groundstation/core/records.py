@@ -14,6 +14,7 @@ from collections.abc import Mapping
 from typing import Any, get_args
 
 from domain.errors import DataError
+from domain.wind_triangle import wind_from_vector
 from groundstation.core.commands import (
     CancelSolve,
     Command,
@@ -23,6 +24,7 @@ from groundstation.core.commands import (
     ReleaseVehicle,
     SendHome,
     SolveRequest,
+    WindEstimate,
 )
 from groundstation.core.events import (
     Event,
@@ -146,6 +148,11 @@ def command_to_record(command: Command) -> dict[str, Any]:
     if isinstance(command, SendHome):
         return {"event": "send_home", "t": command.t_s, "vehicle": command.vehicle,
                 "reason": command.reason}
+    if isinstance(command, WindEstimate):
+        speed, from_deg = wind_from_vector(command.wx_m_s, command.wy_m_s)
+        return {"event": "wind", "t": command.t_s, "speed_m_s": speed, "from_deg": from_deg,
+                "wx_m_s": command.wx_m_s, "wy_m_s": command.wy_m_s, "source": command.source,
+                "vehicles": list(command.vehicles)}
     if isinstance(command, Note):
         return {"event": command.kind, "t": command.t_s, "vehicle": command.vehicle,
                 "target": command.target, "detail": command.detail}

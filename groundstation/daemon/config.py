@@ -31,6 +31,7 @@ from domain.geodesy import GeoOrigin
 from groundstation.core.config import BatteryAction
 from groundstation.vehicle.settings import ControllerSettings
 from planner import Objective
+from world.wind import WindSpec
 from world.yaml_fields import load_yaml_file
 
 __all__ = [
@@ -272,6 +273,9 @@ class DaemonConfig:
     advisory: bool = False
     status: StatusMode = StatusMode.AUTO
     on_exit: OnExit = OnExit.LOITER
+    wind: WindSpec | None = None
+    """``--wind`` / ``wind: {speed_m_s, from_deg, gust_m_s}``: the core's fallback wind
+    (else the scenario's) and, with ``sim:N``, the wind the built-in vehicles fly in."""
 
     @property
     def sim_count(self) -> int | None:

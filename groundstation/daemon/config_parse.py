@@ -25,6 +25,7 @@ from collections.abc import Callable, Mapping
 from enum import StrEnum
 from typing import Any
 
+from domain import errors
 from domain.geodesy import GeoOrigin
 from groundstation.daemon.config import (
     BatteryConfig,
@@ -45,6 +46,7 @@ from groundstation.daemon.config import (
     parse_latlon,
 )
 from world.fault_spec import FaultError, parse_fault_spec
+from world.wind import WindSpec, parse_wind_text
 
 __all__ = ["ALIASES", "FLAGS", "check_config", "parse_config"]
 
@@ -143,6 +145,7 @@ FLAGS: dict[str, str] = {
     "--advisory": "advisory",
     "--status": "status",
     "--on-exit": "on_exit",
+    "--wind": "wind",
 }
 """Each flag of ``gcs run`` -> the field it sets (``--no-launch`` is ``--launch`` false)."""
 
@@ -236,6 +239,8 @@ def _coerce(value: Any, kind: Any, name: str) -> Any:
         return tuple(value)
     if typing.get_origin(kind) is Mapping:
         return _vehicle_settings(value, name)
+    if kind is WindSpec:
+        return _wind(value, name)
     return _scalar(value, kind, name)
 
 
@@ -257,6 +262,38 @@ def _scalar(value: Any, kind: Any, name: str) -> Any:
             raise ConfigError(f"{name}: expected a string, got {value!r}")
         return value
     raise ConfigError(f"{name}: cannot be set here")  # pragma: no cover - a schema bug
+
+
+_WIND_KEYS = ("speed_m_s", "from_deg", "gust_m_s", "gust_tau_s")
+
+
+def _wind(value: Any, name: str) -> WindSpec:
+    """``SPEED_M_S,FROM_DEG[,GUST_M_S]`` (the flag) or ``{speed_m_s, from_deg, gust_m_s,
+    gust_tau_s}`` (the file; speed and direction required)."""
+    if isinstance(value, str):
+        try:
+            return parse_wind_text(value, name)
+        except errors.ConfigError as exc:
+            raise ConfigError(str(exc)) from None
+    if not isinstance(value, Mapping):
+        raise ConfigError(f"{name}: expected SPEED_M_S,FROM_DEG[,GUST_M_S] or a mapping "
+                          f"{{{', '.join(_WIND_KEYS[:3])}}}, got {value!r}")
+    unknown = sorted(str(k) for k in value if k not in _WIND_KEYS)
+    if unknown:
+        raise ConfigError(f"{name}.{unknown[0]}: unknown key (known: {', '.join(_WIND_KEYS)})")
+    for key in ("speed_m_s", "from_deg"):
+        if key not in value:
+            raise ConfigError(f"{name}.{key}: required")
+    numbers = {k: _scalar(v, float, f"{name}.{k}") for k, v in value.items()}
+    from_deg = numbers["from_deg"]
+    if not (math.isfinite(from_deg) and 0.0 <= from_deg <= 360.0):
+        raise ConfigError(f"{name}.from_deg: expected a compass direction in [0, 360], "
+                          f"got {from_deg!r}")
+    numbers["from_deg"] = from_deg % 360.0
+    try:
+        return WindSpec(**numbers)
+    except ValueError as exc:
+        raise ConfigError(f"{name}: {exc}") from None
 
 
 def _vehicle_settings(value: Any, name: str) -> Mapping[int, VehicleSettings]:

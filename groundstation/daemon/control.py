@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any
 from groundstation.core import events as ev
 from groundstation.daemon.control_contract import VEHICLE_ACTIONS
 from groundstation.daemon.log_lines import is_operator_event
+from groundstation.daemon.wind_view import vehicle_wind, wind_summary
 
 if TYPE_CHECKING:
     from groundstation.daemon.daemon import Daemon
@@ -59,6 +60,7 @@ class DaemonController:
                     "route": list(s.fly.route) if s.fly else [],
                     "aim": [s.fly.x_m, s.fly.y_m] if s.fly else None,
                     "track": [list(p) for p in s.track],
+                    "wind": vehicle_wind(snap.wind_xy_m_s),
                 }
             )
         targets = [
@@ -88,6 +90,8 @@ class DaemonController:
             "boat": {"x_m": d.boat_xy_m[0], "y_m": d.boat_xy_m[1]} if d.boat_xy_m else None,
             "fov_radius_m": d.core_config.observer.fov_radius_m,
             "plan": d.last_plan,
+            "wind": wind_summary(d.core.wind_state, d.wind_fallback_source,
+                                 d.core_config.wind_aware),
             "events": [line for line in d.journal_file.recent if is_operator_event(line)][-50:],
         }
 

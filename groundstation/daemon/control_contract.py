@@ -17,12 +17,18 @@ State snapshot (``state()``), JSON-able, the same document the live page draws::
                     "speed_m_s", "mode", "armed", "status" (active|overridden|lost|home|
                     on_ground|joining), "link" (ok|degraded|lost), "battery_pct",
                     "target", "route": [ids], "aim": [x_m, y_m] | None,
-                    "track": [[x_m, y_m], ...] (recent positions)}],
+                    "track": [[x_m, y_m], ...] (recent positions),
+                    "wind": {"wx_m_s", "wy_m_s", "speed_m_s", "from_deg"} | None (its own
+                    accepted WIND estimate)}],
       "targets": [{"id", "x_m", "y_m", "vx_m_s", "vy_m_s", "sigma", "cov_xy": [pxx, pxy, pyy],
                    "lost", "last_seen_s"}],
       "boat": {"x_m", "y_m"} | None,
       "fov_radius_m": float,
       "plan": {"t", "routes", "status", "solve_time_s"} | None,
+      "wind": {"wx_m_s", "wy_m_s" (ENU, where the air moves), "speed_m_s", "from_deg"
+               (compass, where it blows from), "source" (vehicles|config|scenario|none),
+               "vehicles": [ids used], "label" ("12.0 m/s from 270° (vehicles 1,2)"),
+               "planning" (the planner uses it: wind_aware)},
       "events": [recent journal lines, newest last]
     }
 """

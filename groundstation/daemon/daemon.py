@@ -127,6 +127,8 @@ class Daemon:
         self.control_url: str | None = None
         self.control_token: str | None = None
         self.boat_xy_m: tuple[float, float] | None = None
+        self.wind_fallback_source = "none"
+        """Where the core's fallback wind came from: config, scenario or none (start-up)."""
         self.feed = WorldFeed(self.core, self.core_event, self.journal, self.metrics,
                               lambda: self.world, self.inside_area)
         self.area = OperatingArea(
@@ -190,7 +192,9 @@ class Daemon:
         if self._finished:  # the run is over (its stop line is written): nothing more
             return
         if not isinstance(
-            event, ev.Tick | ev.Telemetry | ev.Detection | ev.PlanSolved | ev.BoatPosition
+            event,
+            ev.Tick | ev.Telemetry | ev.Detection | ev.PlanSolved | ev.BoatPosition
+            | ev.WindReport,
         ):
             self._kick.set()
         elif isinstance(event, ev.Telemetry):  # the arrival-error metric follows telemetry

@@ -16,6 +16,7 @@ if TYPE_CHECKING:
     from domain.geodesy import GeoOrigin
     from groundstation.daemon.config import DaemonConfig
     from world.scenario import Scenario
+    from world.wind import WindSpec
 
 __all__ = ["EmbeddedFactory", "EmbeddedVehicles"]
 
@@ -53,6 +54,9 @@ class EmbeddedVehicles(Protocol):
         """Close every port."""
 
 
-EmbeddedFactory = Callable[["DaemonConfig", "Scenario | None", dict[int, bytes]], EmbeddedVehicles]
+EmbeddedFactory = Callable[
+    ["DaemonConfig", "Scenario | None", dict[int, bytes], "WindSpec"], EmbeddedVehicles
+]
 """Builds the vehicles for ``config.sim_count`` with the MAVLink 2 signing key each system
-id starts with (raises ConfigError on a bad setting)."""
+id starts with, flying in the wind given (``--wind``, else the scenario's; raises
+ConfigError on a bad setting)."""

@@ -14,9 +14,13 @@ an upload that needed retries), INFO otherwise; warnings reach the console in ev
 ``--status`` mode.
 
 **Reading.** :func:`describe_line`: ``t=25.1 plan 1 -> T5, T8 | 2 -> T7 (optimal, 3 ms,
-period)``; other events as ``key=value`` with floats to 4 significant digits, without the
-bulky planner records (``problem``, ``result``, ``hint``) or nested mappings (the journal
-keeps every value at full precision).
+period)``, ``t=61.0 wind 12.0 m/s from 270 deg (vehicles 1, 2)``; other events as
+``key=value`` with floats to 4 significant digits, without the bulky planner records
+(``problem``, ``result``, ``hint``) or nested mappings (the journal keeps every value at
+full precision).
+
+A ``wind`` line (the core's estimate changed meaningfully) is an operator event, and so is
+a ``wind_outlier`` (a problem); the vehicles' periodic ``WindReport`` inputs are not.
 """
 
 from __future__ import annotations
@@ -34,6 +38,7 @@ __all__ = [
     "line_level",
     "plan_detail",
     "short_value",
+    "wind_detail",
 ]
 
 PROBLEM_EVENTS = frozenset(
@@ -61,6 +66,7 @@ PROBLEM_EVENTS = frozenset(
         "detections_dropped",
         "duplicate_target",
         "unknown_target",
+        "wind_outlier",
     }
 )
 """Operator events that report something wrong: logged at WARNING."""
@@ -87,6 +93,7 @@ OPERATOR_EVENTS = PROBLEM_EVENTS | frozenset(
         "released",
         "send_home",
         "autopilot_mode",
+        "wind",
         "start",
         "stop",
     }
@@ -143,6 +150,8 @@ def describe_line(line: Mapping[str, Any]) -> str:
     event = str(line.get("event"))
     if event == "plan" and isinstance(line.get("routes"), Mapping):
         return f"{head} plan {format_routes(line['routes'])} ({plan_detail(line)})"
+    if event == "wind" and isinstance(line.get("speed_m_s"), int | float):
+        return f"{head} wind {wind_detail(line)}"
     parts = [head, event]
     for key, value in line.items():
         if key in _SKIP or isinstance(value, Mapping):
@@ -162,6 +171,20 @@ def plan_detail(line: Mapping[str, Any]) -> str:
     if line.get("reason"):
         detail.append(str(line["reason"]))
     return ", ".join(detail)
+
+
+def wind_detail(line: Mapping[str, Any]) -> str:
+    """``12.0 m/s from 270 deg (vehicles 1, 2, 3)`` of a ``wind`` line."""
+    speed, from_deg = line.get("speed_m_s"), line.get("from_deg")
+    if not (isinstance(speed, int | float) and isinstance(from_deg, int | float)):
+        text = "?"
+    else:
+        text = "calm" if speed < 0.05 else f"{speed:.1f} m/s from {from_deg:.0f} deg"
+    source = str(line.get("source", "?"))
+    vehicles = line.get("vehicles")
+    if source == "vehicles" and isinstance(vehicles, list) and vehicles:
+        source += " " + ", ".join(str(v) for v in vehicles)
+    return f"{text} ({source})"
 
 
 def short_value(value: Any) -> Any:

@@ -45,6 +45,7 @@ from groundstation.daemon.embedded import EmbeddedFactory, EmbeddedVehicles
 from groundstation.daemon.gc_guard import frozen_heap
 from groundstation.daemon.run_files import open_run_files
 from groundstation.daemon.signing_gate import SigningGate, load_signing_keys
+from groundstation.daemon.wind_view import fallback_wind
 from groundstation.daemon.world import ScenarioWorld
 from groundstation.detection_feed import DetectionFeed
 from groundstation.link import LinkError, LinkUrlError, describe_out_link, open_link
@@ -74,7 +75,8 @@ def _versions() -> dict[str, str]:
 def core_config(config: DaemonConfig, scenario: Any, speedup: float) -> CoreConfig:
     """The core's settings: the scenario's (or the core's defaults), overridden by the
     config. The solver's wall budget is the time limit divided by the speed-up, so a plan
-    takes the same mission time at any speed-up (floor 0.05 s)."""
+    takes the same mission time at any speed-up (floor 0.05 s). The fallback wind is the
+    config's, else the scenario's (``wind_view.fallback_wind``)."""
     base = core_config_for(scenario) if scenario is not None else CoreConfig()
     policy = base.policy
     planner, mission = config.planner, config.mission
@@ -105,6 +107,7 @@ def core_config(config: DaemonConfig, scenario: Any, speedup: float) -> CoreConf
         objective=planner.objective or base.objective,
         battery_low_action=config.fleet.battery.action,
         time_limit_s=max(MIN_SOLVER_WALL_S, limit / speedup),
+        wind_xy_m_s=fallback_wind(config, scenario)[0].mean_xy_m_s,
     )
 
 
@@ -201,6 +204,7 @@ async def run_daemon(
             scenario = load_scenario(config.mission.scenario_to_load)
         except (ValueError, OSError) as exc:
             raise StartError(f"scenario: {exc}") from None
+    wind, wind_source = fallback_wind(config, scenario)
     sim: EmbeddedVehicles | None = None
     if config.sim_count is not None:
         if embedded is None:
@@ -211,7 +215,7 @@ async def run_daemon(
                 key = signing_keys.key_for(sysid)
                 if key is not None:
                     sim_keys[sysid] = key
-        sim = embedded(config, scenario, sim_keys)
+        sim = embedded(config, scenario, sim_keys, wind)
     origin: GeoOrigin | None = None
     if scenario is not None:
         origin = scenario.origin
@@ -241,6 +245,7 @@ async def run_daemon(
     console = OperatorConsole(config.status)
     cleanups: list[Callable[[], None]] = []
     daemon = Daemon(config, ccfg, clock, run_dir, origin, journal, tlog)
+    daemon.wind_fallback_source = wind_source
     server_started = False
     try:
         cleanups.append(console.install())  # detached in the finally, whatever fails
@@ -301,6 +306,7 @@ async def run_daemon(
             origin=dataclasses.asdict(origin) if origin else None,
             sim_faults=sim.fault_specs if sim else None,
             scenario=scenario.name if scenario else None,
+            wind={**dataclasses.asdict(wind), "source": wind_source},
             signing=(
                 {"keys": dict(signing_keys.sources), "setup": signing_keys.setup}
                 if signing_keys.enabled
@@ -339,6 +345,8 @@ async def run_daemon(
         )
         for url in urls:
             print_fn(f"gcs run: vehicles on {url}")
+        print_fn(f"gcs run: wind {wind.describe()} ({wind_source}; the "
+                 "vehicles' own estimate replaces it once they report one)")
         for spec in out_specs:
             print_fn(f"gcs run: out link {spec.canonical}: {describe_out_link(spec)}")
         if signing_keys.enabled:

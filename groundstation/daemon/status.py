@@ -2,13 +2,16 @@
 
 Header: mission time, speed-up, advisory, the run folder, the **live map URL and where the
 token is** (``RUN/control.json``), the newest plan as readable routes
-(``1 -> T5, T6 | 2 -> T2``), links that heard no vehicle, dropped detections and signing
-refusals. Then one row per vehicle (id, system id, status, mode, armed, altitude, target,
-battery, link, uploads ok/failed, upload retries), one per target (id, position, sigma, lost,
-last seen), one line per link (frames received, dropped unread, bad, foreign) and the newest
-operator events (``log_lines.is_operator_event``; problems in colour). Redrawn once a wall
-second in place (``rich.live.Live``); the console's own lines (warnings, the start lines)
-stay above it. Colours come from ``rich``: none on a dumb terminal or a file.
+(``1 -> T5, T6 | 2 -> T2``), the wind the core plans with (``wind 12.0 m/s from 270°
+(vehicles 1,2,3)``, or its fallback's source: ``config``, ``scenario``, ``none``), links
+that heard no vehicle, dropped detections and signing refusals. Then one row per vehicle
+(id, system id, status, mode, armed, altitude, target, battery, link, uploads ok/failed,
+upload retries, its own wind estimate as ``speed/from``), one per target (id, position,
+sigma, lost, last seen), one line per link (frames received, dropped unread, bad, foreign)
+and the newest operator events (``log_lines.is_operator_event``; problems in colour).
+Redrawn once a wall second in place (``rich.live.Live``); the console's own lines
+(warnings, the start lines) stay above it. Colours come from ``rich``: none on a dumb
+terminal or a file.
 """
 
 from __future__ import annotations
@@ -24,6 +27,7 @@ from rich.console import Console, Group, RenderableType
 from rich.table import Table
 from rich.text import Text
 
+from domain.wind_triangle import wind_from_vector
 from groundstation.daemon.log_lines import (
     describe_line,
     format_routes,
@@ -31,6 +35,8 @@ from groundstation.daemon.log_lines import (
     line_level,
     plan_detail,
 )
+from groundstation.daemon.wind_view import wind_label, wind_text
+from groundstation.mavlink.telemetry_events import VehicleSnapshot
 
 if TYPE_CHECKING:
     from groundstation.daemon.alerts import OperatorAlerts
@@ -104,6 +110,7 @@ def _header(daemon: Daemon, alerts: OperatorAlerts | None) -> list[RenderableTyp
                         f"({plan_detail(plan)})"))
     else:
         out.append(Text("plan: none yet"))
+    out.append(_wind_line(daemon))
     if alerts is not None:
         for link in alerts.silent_links():
             out.append(Text(f"link {link.link_id} ({link.spec.url}): no vehicle heard "
@@ -120,6 +127,26 @@ def _header(daemon: Daemon, alerts: OperatorAlerts | None) -> list[RenderableTyp
     return out
 
 
+def _wind_line(daemon: Daemon) -> Text:
+    state = daemon.core.wind_state
+    text = f"wind {wind_text(*state.xy_m_s)} ({wind_label(state, daemon.wind_fallback_source)})"
+    if not daemon.core_config.wind_aware:
+        text += ", not used by the planner (wind_aware false)"
+    flagged = sorted(daemon.core.wind.flagged)
+    if flagged:
+        return Text.assemble(text, (f"  outlier: {', '.join(flagged)}", "yellow"))
+    return Text(text)
+
+
+def _own_wind(snap: VehicleSnapshot) -> str:
+    """A vehicle's own estimate as ``12/270``: m/s and the compass direction it is from
+    (``calm`` below 0.5 m/s, whose direction means nothing)."""
+    if snap.wind_xy_m_s is None:
+        return "-"
+    speed, from_deg = wind_from_vector(*snap.wind_xy_m_s)
+    return "calm" if speed < 0.5 else f"{speed:.0f}/{from_deg:03.0f}"
+
+
 def _table(*columns: str) -> Table:
     """A borderless table; a column named with a trailing ``>`` is right-aligned."""
     table = Table(box=box.SIMPLE_HEAD, pad_edge=False, show_edge=False)
@@ -131,7 +158,7 @@ def _table(*columns: str) -> Table:
 
 def _vehicles(daemon: Daemon) -> Table:
     table = _table("vehicle", "sysid>", "status", "mode", "armed", "alt m>", "target",
-                   "batt %>", "link", "uploads>", "retries>")
+                   "batt %>", "link", "uploads>", "retries>", "wind>")
     for s in sorted(daemon.sessions.values(), key=lambda s: s.system_id):
         snap = s.snapshot
         retries = s.upload_retries
@@ -142,10 +169,10 @@ def _vehicles(daemon: Daemon) -> Table:
             Text(s.link, style={"ok": "green", "lost": "bold red"}.get(s.link, "yellow")),
             Text(f"{s.uploads_ok}/{s.uploads_failed}",
                  style="red" if s.uploads_failed else ""),
-            Text(str(retries), style="yellow" if retries else ""),
+            Text(str(retries), style="yellow" if retries else ""), _own_wind(snap),
         )  # fmt: skip
     if not daemon.sessions:
-        table.add_row("(none yet)", *[""] * 10)
+        table.add_row("(none yet)", *[""] * 11)
     return table
 
 

@@ -15,10 +15,14 @@ parameters with defaults chosen for ~1 Hz HEARTBEAT / SYS_STATUS / MISSION_CURRE
 * :class:`LoiterEndEvidence` - a mission item's end needs agreeing signals over time.
 * :class:`NewSystemEvidence` - a system id becomes a vehicle (a session) only after
   consistent autopilot HEARTBEATs from one place over time.
+* :class:`WindEvidence` - the vehicle's wind estimate is the median of its last WIND frames,
+  and exists only after several of them over time.
 """
 
 from __future__ import annotations
 
+import statistics
+from collections import deque
 from collections.abc import Hashable
 from dataclasses import dataclass
 from typing import Any
@@ -34,6 +38,7 @@ __all__ = [
     "NewSystemEvidence",
     "RebootEvidence",
     "Sustained",
+    "WindEvidence",
     "is_autopilot_heartbeat",
 ]
 
@@ -380,6 +385,55 @@ class NewSystemEvidence:
             cand.count >= self.min_heartbeats
             and cand.last_s - cand.first_s >= self.min_span_s - 1e-9
         )
+
+
+class WindEvidence:
+    """The wind estimate of one vehicle that floe uses, from its WIND frames (~1 Hz).
+
+    Fed every *valid* WIND frame (the reducer drops non-finite and absurd ones) as the ENU
+    vector and its mission time. The estimate is the component-wise median of the last
+    ``window`` frames::
+
+        w = (median_k w_x,k, median_k w_y,k),   k over the last ``window`` frames
+
+    and exists only once they are ``min_frames`` or more spanning at least ``min_span_s``
+    (first to last), with no gap longer than ``max_gap_s`` between two of them (a longer
+    silence starts again: old values are no evidence for new ones). So one stray frame
+    among consistent ones never moves it (it is never the median of three), and a run of
+    them does only after they outnumber the vehicle's own; ArduPlane's estimate is a
+    filtered one that changes smoothly from frame to frame, so the median costs it one
+    frame of lag at most. :meth:`observe` returns the estimate after the frame, or None.
+    """
+
+    def __init__(
+        self, window: int = 3, min_frames: int = 3, min_span_s: float = 1.5,
+        max_gap_s: float = 5.0,
+    ) -> None:
+        self.min_frames = min_frames
+        self.min_span_s = min_span_s
+        self.max_gap_s = max_gap_s
+        self._frames: deque[tuple[float, float, float]] = deque(maxlen=window)
+        self._since_s: float | None = None
+        self._count = 0
+
+    def observe(self, wx_m_s: float, wy_m_s: float, t_s: float) -> tuple[float, float] | None:
+        frames = self._frames
+        if frames and t_s - frames[-1][0] > self.max_gap_s:
+            self.reset()
+        if self._since_s is None:
+            self._since_s = t_s
+        frames.append((t_s, wx_m_s, wy_m_s))
+        self._count += 1
+        if self._count < self.min_frames or t_s - self._since_s < self.min_span_s - 1e-9:
+            return None
+        return (statistics.median(f[1] for f in frames),
+                statistics.median(f[2] for f in frames))
+
+    def reset(self) -> None:
+        """Start again (a reboot, a long silence)."""
+        self._frames.clear()
+        self._since_s = None
+        self._count = 0
 
 
 def is_autopilot_heartbeat(message: Any) -> bool:

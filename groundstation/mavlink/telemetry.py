@@ -31,6 +31,11 @@ longer than the previous uptime is the case this cannot see.)
 HEARTBEAT ``system_status`` and EXTENDED_SYS_STATE ``landed_state`` are kept in the
 snapshot. Messages of the system from another component are counted
 (``foreign_messages``) and otherwise ignored.
+
+WIND (the autopilot's own wind estimate, :mod:`.wind_message`) is checked frame by frame
+(a bad one is an :class:`InvalidTelemetry`, counted in ``bad_wind``) and accepted over
+several frames (:class:`~.evidence.WindEvidence`); each accepted value updates
+``wind_xy_m_s`` and emits :class:`WindReported`. A reboot forgets it.
 """
 
 from __future__ import annotations
@@ -41,7 +46,7 @@ from typing import Literal
 
 from domain.geodesy import GeoOrigin, enu_rad_from_compass_deg, wrap_pi
 from groundstation.mavlink.codec import MAVLinkMessage, mavlink2
-from groundstation.mavlink.evidence import MAV_STATE_BOOT, RebootEvidence
+from groundstation.mavlink.evidence import MAV_STATE_BOOT, RebootEvidence, WindEvidence
 from groundstation.mavlink.telemetry_events import (
     ARDUPLANE_MODES,
     Armed,
@@ -56,8 +61,10 @@ from groundstation.mavlink.telemetry_events import (
     StatusText,
     TelemetryEvent,
     VehicleSnapshot,
+    WindReported,
     mode_name,
 )
+from groundstation.mavlink.wind_message import BadWindField, parse_wind_message
 
 __all__ = [
     "ARDUPLANE_MODES",
@@ -75,6 +82,7 @@ __all__ = [
     "TelemetryEvent",
     "VehicleSnapshot",
     "VehicleTelemetry",
+    "WindReported",
     "mode_name",
 ]
 
@@ -132,6 +140,9 @@ class VehicleTelemetry:
         self.messages = 0
         self.foreign_messages = 0
         self.reboot = RebootEvidence(reboot_backstep_ms, reboot_frames, reboot_span_s)
+        self.wind = WindEvidence()
+        self.bad_wind = 0
+        """WIND messages refused (non-finite or absurd values), counted and dropped."""
 
     def snapshot(self) -> VehicleSnapshot:
         """The current state (immutable)."""
@@ -214,8 +225,10 @@ class VehicleTelemetry:
             mode_name=None,
             landed_state=None,
             reboot_suspected=False,
+            wind_xy_m_s=None,
         )
         self._last_position_boot_ms = None
+        self.wind.reset()  # the autopilot's wind estimate starts again too
         return [Rebooted(now_s, last, boot_ms)]
 
     def _on_heartbeat(self, msg: MAVLinkMessage, now_s: float) -> list[TelemetryEvent]:
@@ -374,6 +387,17 @@ class VehicleTelemetry:
         self._snap = replace(self._snap, landed_state=landed or None)
         return []
 
+    def _on_wind(self, msg: MAVLinkMessage, now_s: float) -> list[TelemetryEvent]:
+        wind = parse_wind_message(msg)
+        if isinstance(wind, BadWindField):
+            self.bad_wind += 1
+            return [InvalidTelemetry(now_s, "WIND", wind.field, wind.value)]
+        accepted = self.wind.observe(wind.wx_m_s, wind.wy_m_s, now_s)
+        if accepted is None:
+            return []
+        self._snap = replace(self._snap, wind_xy_m_s=accepted, last_wind_s=now_s)
+        return [WindReported(now_s, accepted[0], accepted[1], wind.speed_z_m_s)]
+
     def _on_item_reached(self, msg: MAVLinkMessage, now_s: float) -> list[TelemetryEvent]:
         return [MissionItemReached(now_s, int(msg.seq))]
 
@@ -419,6 +443,7 @@ _HANDLERS = {
     "MISSION_ITEM_REACHED": VehicleTelemetry._on_item_reached,
     "STATUSTEXT": VehicleTelemetry._on_statustext,
     "EXTENDED_SYS_STATE": VehicleTelemetry._on_extended_sys_state,
+    "WIND": VehicleTelemetry._on_wind,
 }
 
 

@@ -25,6 +25,7 @@ __all__ = [
     "StatusText",
     "TelemetryEvent",
     "VehicleSnapshot",
+    "WindReported",
     "mode_name",
 ]
 
@@ -105,6 +106,18 @@ class InvalidTelemetry:
     value: Any
 
 
+@dataclass(frozen=True)
+class WindReported:
+    """The vehicle's own wind estimate, accepted on evidence (:class:`~groundstation.mavlink.
+    evidence.WindEvidence`): the ENU vector the air moves towards (m/s), and the vertical
+    wind (m/s, as the WIND message's ``speed_z``: positive down in ArduPilot's NED)."""
+
+    t_s: float
+    wx_m_s: float
+    wy_m_s: float
+    speed_z_m_s: float
+
+
 TelemetryEvent = (
     ModeChanged
     | Armed
@@ -116,6 +129,7 @@ TelemetryEvent = (
     | BatteryLow
     | PrearmChanged
     | InvalidTelemetry
+    | WindReported
 )
 
 
@@ -126,7 +140,9 @@ class VehicleSnapshot:
     ``system_status``: HEARTBEAT MAV_STATE_* (ArduPlane: CRITICAL while a failsafe is
     active); ``landed_state``: EXTENDED_SYS_STATE MAV_LANDED_STATE_* (None where the
     autopilot reports none); ``reboot_suspected``: ``time_boot_ms`` went back and the
-    reducer waits for evidence (see :class:`~groundstation.mavlink.evidence.RebootEvidence`).
+    reducer waits for evidence (see :class:`~groundstation.mavlink.evidence.RebootEvidence`);
+    ``wind_xy_m_s``: the WIND message's estimate, accepted over several frames (ENU m/s the
+    air moves towards; ``last_wind_s`` when it was last accepted).
     """
 
     system_id: int
@@ -153,6 +169,9 @@ class VehicleSnapshot:
     system_status: int | None = None
     landed_state: int | None = None
     reboot_suspected: bool = False
+    wind_xy_m_s: tuple[float, float] | None = None
+    """The vehicle's own wind estimate (ENU, towards), once accepted on evidence."""
+    last_wind_s: float | None = None
 
     @property
     def course_rad(self) -> float | None:

@@ -14,6 +14,7 @@ journal record          decision (kind, key)
 ``fly``                 ("fly", vehicle): target and aim point
 ``release``             ("release", vehicle), or ("send_home", vehicle) if ``home``
 ``send_home``           ("send_home", vehicle)
+``wind``                ("wind", "estimate"): source and vector (1e-9)
 notes of the core       ("note:<kind>", vehicle/target)
 ======================  ===========================================================
 
@@ -38,7 +39,9 @@ __all__ = [
     "describe",
 ]
 
-NOTE_KINDS = frozenset({"target_discovered", "duplicate_target", "unknown_target"})
+NOTE_KINDS = frozenset(
+    {"target_discovered", "duplicate_target", "unknown_target", "wind_outlier"}
+)
 """Notes the decision core emits (journalled as their own event by ``gcs simulate``)."""
 
 AIM_TOLERANCE_M = 0.1
@@ -96,6 +99,13 @@ def decision_of_record(record: Mapping[str, Any]) -> Decision | None:
         return Decision(t_s, kind, vehicle)
     if event == "send_home":
         return Decision(t_s, "send_home", vehicle)
+    if event == "wind":
+        return Decision(
+            t_s,
+            "wind",
+            "estimate",
+            {k: record.get(k) for k in ("source", "wx_m_s", "wy_m_s")},
+        )
     note = record.get("kind") if event == "note" else event
     if note in NOTE_KINDS:
         return Decision(t_s, f"note:{note}", f"{record.get('vehicle')}/{record.get('target')}")
@@ -122,6 +132,10 @@ def describe(decision: Decision | None) -> str:
         return f"solve request #{decision.key}"
     if decision.kind == "cancel":
         return f"cancel request #{decision.key}"
+    if decision.kind == "wind":
+        x, y = f.get("wx_m_s"), f.get("wy_m_s")
+        if isinstance(x, int | float) and isinstance(y, int | float):
+            return f"wind ({x:.3f}, {y:.3f}) m/s from {f.get('source')}"
     return f"{decision.kind} {decision.key}"
 
 
@@ -178,6 +192,11 @@ def _same(recorded: Decision, now: Decision) -> bool:
     if recorded.kind == "plan":
         return dict(recorded.fields.get("assignments", {})) == dict(
             now.fields.get("assignments", {})
+        )
+    if recorded.kind == "wind":
+        a, b = recorded.fields, now.fields
+        return a.get("source") == b.get("source") and all(
+            _close(a.get(k), b.get(k)) for k in ("wx_m_s", "wy_m_s")
         )
     return True
 

@@ -24,6 +24,7 @@ from groundstation.runners.report_plots import (
     plot_solves,
     plot_timeline,
     plot_uncertainty,
+    plot_wind,
 )
 from groundstation.storage import (
     StorageError,
@@ -68,6 +69,8 @@ def _events(data: RunData) -> list[tuple[float, str, str, str]]:
         rows.append((e["t"], str(e["vehicle"]), e["event"], ""))
     for o in data.overrides:
         rows.append((o["t"], str(o["vehicle"]), o["event"], str(o.get("reason") or "")))
+    for w in data.wind_outliers:
+        rows.append((w["t"], str(w["vehicle"]), "wind_outlier", str(w.get("detail") or "")))
     for p in data.plans:
         if p["hit_time_limit"] or p["status"] == "fallback":
             rows.append(
@@ -118,6 +121,16 @@ def render_html(data: RunData, figures: list[FigurePng]) -> str:
             f'<img alt="{esc(fig.title)}" src="data:image/png;base64,{b64}"{attrs}>'
             "</figure>"
         )
+    if data.wind:
+        out.append('<h2>Wind estimate changes</h2><table id="wind"><tr><th>t (s)</th>'
+                   "<th>speed (m/s)</th><th>from (deg)</th><th>source</th></tr>")
+        for w in data.wind[:_EVENT_ROWS]:
+            who = w["source"] + (" " + ", ".join(w["vehicles"]) if w["vehicles"] else "")
+            out.append(f"<tr><td>{w['t']:.1f}</td><td>{w['speed_m_s']:.1f}</td>"
+                       f"<td>{w['from_deg']:.0f}</td><td>{esc(who)}</td></tr>")
+        out.append("</table>")
+        if len(data.wind) > _EVENT_ROWS:
+            out.append(f"<p>... {len(data.wind) - _EVENT_ROWS} more</p>")
     events = _events(data)
     out.append("<h2>Upload retries, link losses, overrides</h2>")
     if events:
@@ -170,6 +183,7 @@ def build_report(
         ("uncertainty", plot_uncertainty),
         ("timeline", plot_timeline),
         ("solves", plot_solves),
+        ("wind", plot_wind),
     ):
         note(f"drawing {name}")
         fig = draw(data)

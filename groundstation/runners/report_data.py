@@ -11,6 +11,10 @@ Sources, in order of preference for each item:
   journal's ``origin`` (else the start record's, else the first position).
 * a bare tlog (any tool's): vehicle tracks and modes only.
 
+Wind: the core's estimate over time from the ``wind`` lines (a meaningful change each; the
+start is the fallback of the ``start`` record's core configuration), each vehicle's own
+reports from the ``WindReport`` inputs, and the ``wind_outlier`` notes.
+
 Times are mission seconds for journals; for a bare tlog, seconds since its first record.
 """
 
@@ -64,6 +68,9 @@ class RunData:
     loiter_ends: list[dict[str, Any]] = field(default_factory=list)
     detections: list[Row] = field(default_factory=list)  # (t, x, y)
     modes: dict[str, list[tuple[float, str]]] = field(default_factory=dict)
+    wind: list[dict[str, Any]] = field(default_factory=list)  # the core's wind lines
+    wind_reports: dict[str, list[Row]] = field(default_factory=dict)  # (t, wx, wy)
+    wind_outliers: list[dict[str, Any]] = field(default_factory=list)
     metrics: dict[str, Any] | None = None
     start: dict[str, Any] | None = None
     tlog: TlogSummary | None = None
@@ -133,6 +140,10 @@ def _from_journal(data: RunData, journal: LoadedJournal) -> None:
                 )
             elif kind == "PlanSolved" and isinstance(r.get("result"), dict):
                 solved[str(r.get("request_id"))] = r["result"]
+            elif kind == "WindReport" and vehicle is not None:
+                data.wind_reports.setdefault(vehicle, []).append(
+                    (t, _num(r.get("wx_m_s")), _num(r.get("wy_m_s")))
+                )
             continue
         if event == "track" and r.get("target") is not None:
             data.target_estimates.setdefault(str(r["target"]), []).append(
@@ -196,6 +207,13 @@ def _from_journal(data: RunData, journal: LoadedJournal) -> None:
             data.detections.append((t, _num(r.get("x_m")), _num(r.get("y_m"))))
         elif event == "mode" and vehicle is not None:
             data.modes.setdefault(vehicle, []).append((t, str(r.get("mode"))))
+        elif event == "wind":
+            data.wind.append({"t": t, "speed_m_s": _num(r.get("speed_m_s")),
+                              "from_deg": _num(r.get("from_deg")),
+                              "source": str(r.get("source", "?")),
+                              "vehicles": [str(v) for v in r.get("vehicles") or []]})
+        elif event == "wind_outlier":
+            data.wind_outliers.append({"t": t, "vehicle": vehicle, "detail": r.get("detail")})
     for plan in data.plans:  # gcs run's plan lines lack hit_time_limit; the inputs have it
         full = solved.get(str(plan["request"]))
         if full is not None and full.get("hit_time_limit"):
@@ -333,6 +351,38 @@ def _title(data: RunData) -> str:
     return ", ".join(parts)
 
 
+def fallback_wind_of(data: RunData) -> tuple[float, float]:
+    """The core's fallback wind from the ``start`` record (ENU m/s; calm if none)."""
+    start = data.start or {}
+    core = start.get("core_config", start.get("core"))
+    wind = core.get("wind_xy_m_s") if isinstance(core, dict) else None
+    if isinstance(wind, list) and len(wind) == 2:
+        x, y = _num(wind[0], 0.0), _num(wind[1], 0.0)
+        if math.isfinite(x) and math.isfinite(y):
+            return x, y
+    return 0.0, 0.0
+
+
+def wind_summary(data: RunData) -> str:
+    """``3 changes; last 12.0 m/s from 270 deg (vehicles 1, 2) at t=61 s; ...``."""
+    parts = []
+    wx, wy = fallback_wind_of(data)
+    parts.append(f"fallback {math.hypot(wx, wy):.1f} m/s")
+    if data.wind:
+        last = data.wind[-1]
+        who = last["source"] + (" " + ", ".join(last["vehicles"]) if last["vehicles"] else "")
+        parts.append(f"{len(data.wind)} change(s); last {last['speed_m_s']:.1f} m/s from "
+                     f"{last['from_deg']:.0f} deg ({who}) at t={last['t']:.0f} s")
+    if data.wind_reports:
+        count = sum(len(v) for v in data.wind_reports.values())
+        parts.append(f"{count} report(s) from vehicle(s) "
+                     + ", ".join(sorted(data.wind_reports, key=_natural)))
+    if data.wind_outliers:
+        flagged = sorted({str(o["vehicle"]) for o in data.wind_outliers}, key=_natural)
+        parts.append("outliers flagged: " + ", ".join(flagged))
+    return "; ".join(parts)
+
+
 def summary_rows(data: RunData) -> list[tuple[str, str]]:
     """The summary table: (quantity, value) pairs."""
     rows: list[tuple[str, str]] = [("source", f"{data.source}: {data.path}")]
@@ -382,6 +432,8 @@ def summary_rows(data: RunData) -> list[tuple[str, str]]:
         lost_links = sum(1 for e in data.link_events if e["event"] == "link_lost")
         rows.append(("link losses", str(lost_links)))
     rows.append(("overrides and releases", str(len(data.overrides))))
+    if data.wind or data.wind_reports:
+        rows.append(("wind", wind_summary(data)))
     if data.tlog is not None:
         tl = data.tlog
         ids = ", ".join(f"{k} ({v.frames} frames)" for k, v in tl.systems.items())

@@ -16,9 +16,18 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle
 
-from groundstation.runners.report_data import RunData
+from domain.wind_triangle import wind_from_vector
+from groundstation.runners.report_data import RunData, fallback_wind_of
 
-__all__ = ["COLOURS", "FigurePng", "plot_map", "plot_solves", "plot_timeline", "plot_uncertainty"]
+__all__ = [
+    "COLOURS",
+    "FigurePng",
+    "plot_map",
+    "plot_solves",
+    "plot_timeline",
+    "plot_uncertainty",
+    "plot_wind",
+]
 
 COLOURS = [
     "tab:blue",
@@ -319,3 +328,36 @@ def plot_solves(data: RunData) -> FigurePng | None:
         _png(fig),
         {"plans": len(data.plans), "uploads": len(data.uploads)},
     )
+
+
+def plot_wind(data: RunData) -> FigurePng | None:
+    """The core's wind estimate (a step at each ``wind`` line, from the fallback at t = 0)
+    and each vehicle's own reports (dots): speed (top) and the compass direction it blows
+    from (bottom). None when the journal has neither."""
+    if not data.wind and not data.wind_reports:
+        return None
+    fig = Figure(figsize=(9, 5.5), layout="constrained")
+    top, bottom = fig.subplots(2, 1, sharex=True)
+    fallback = wind_from_vector(*fallback_wind_of(data))
+    steps = [(0.0, *fallback)] + [(w["t"], w["speed_m_s"], w["from_deg"]) for w in data.wind]
+    end_s = max(data.end_t_s, steps[-1][0])
+    xs = [t for t, _s, _d in steps] + [end_s]
+    for ax, k in ((top, 1), (bottom, 2)):
+        ys = [row[k] for row in steps]
+        ax.step(xs, [*ys, ys[-1]], where="post", color="black", lw=2, label="estimate")
+        ax.grid(True, alpha=0.3)
+    for n, (vehicle, rows) in enumerate(sorted(data.wind_reports.items())):
+        pts = [(t, *wind_from_vector(x, y)) for t, x, y in rows
+               if math.isfinite(x) and math.isfinite(y)]
+        top.plot([p[0] for p in pts], [p[1] for p in pts], ".", ms=3, color=_colour(n),
+                 label=f"vehicle {vehicle}")
+        bottom.plot([p[0] for p in pts], [p[2] for p in pts], ".", ms=3, color=_colour(n))
+    top.set_ylabel("wind speed (m/s)")
+    top.set_title("wind: the core's estimate as journalled (line), each vehicle's reports (dots)")
+    top.legend(fontsize=7, ncol=6, loc="upper left")
+    bottom.set_ylabel("from (compass deg)")
+    bottom.set_ylim(0, 360)
+    bottom.set_yticks(range(0, 361, 90))
+    bottom.set_xlabel("mission time (s)")
+    return FigurePng("wind", "Wind estimate against time", _png(fig),
+                     {"changes": len(data.wind), "vehicles": len(data.wind_reports)})

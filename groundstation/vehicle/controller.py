@@ -41,6 +41,7 @@ from groundstation.mavlink.telemetry_events import (
     Rebooted,
     StatusText,
     TelemetryEvent,
+    WindReported,
 )
 from groundstation.vehicle import io
 from groundstation.vehicle.jobs import (
@@ -154,6 +155,8 @@ class VehicleController(ControllerState):
             self.journal("armed", armed=isinstance(event, Armed))
         elif isinstance(event, PrearmChanged):
             self._retry_at_s = min(self._retry_at_s, t)
+        elif isinstance(event, WindReported):
+            self._on_wind(event)
 
     def _on_heartbeat(self, t: float) -> None:
         s = self.snap

@@ -21,6 +21,11 @@ class ControllerSettings:
     ``loiter_radius_m + progress_margin_m`` of it, and advances no mission item) for this
     long leaves the plan. ``restore_settle_s``: after a link restore, how long (and
     ``evidence_frames`` heartbeats) the vehicle is watched before floe commands it again.
+    ``wind_report_min_s``: an active vehicle's accepted wind estimate goes to the core at
+    most once per this many mission seconds (ArduPlane's 1 Hz WIND, with arrival jitter,
+    passes whole; a faster stream is thinned to ~1 Hz), and only after it has been active
+    and reporting for ``wind_settle_s`` (an autopilot's wind estimate starts from zero and
+    converges in flight: a vehicle just launched or taken over under-reports at first).
     """
 
     altitude_m: float = 100.0
@@ -48,3 +53,5 @@ class ControllerSettings:
     launch_timeout_s: float = 180.0
     clock_check_s: float = 30.0
     default_loiter_radius_m: float = 120.0
+    wind_report_min_s: float = 0.8
+    wind_settle_s: float = 10.0

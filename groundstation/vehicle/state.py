@@ -15,7 +15,7 @@ from typing import Any
 from domain.modes import ArduPlaneMode
 from groundstation.core import events as ev
 from groundstation.mavlink.evidence import LoiterEndEvidence
-from groundstation.mavlink.telemetry_events import VehicleSnapshot
+from groundstation.mavlink.telemetry_events import VehicleSnapshot, WindReported
 from groundstation.vehicle import io
 from groundstation.vehicle.jobs import JobRunner
 from groundstation.vehicle.settings import ControllerSettings
@@ -96,6 +96,8 @@ class ControllerState:
         self._hold_until_s = 0.0  # no re-assessment before (after no_progress)
         self._launch_deadline_s: float | None = None
         self._restore: list[float] | None = None  # [since_s, heartbeats] after a link restore
+        self._wind_sent_s = -math.inf
+        self._wind_since_s: float | None = None  # active and reporting since
 
     # ------------------------------------------------------------------ reading
     @property
@@ -160,6 +162,24 @@ class ControllerState:
         self.journal("battery_low", remaining_pct=self.snap.battery_remaining_pct)
         if self.state is S.ACTIVE:
             self._core(ev.BatteryLow(t, self.vehicle))
+
+    def _on_wind(self, event: WindReported) -> None:
+        """The vehicle's accepted wind estimate goes to the core (``WindReport``) while it
+        is active in the plan (on the ground, or taken over, it says nothing about the air
+        floe flies in) and has been for ``wind_settle_s`` (the autopilot's estimate
+        converges in flight), at most once per ``wind_report_min_s``."""
+        if self.state is not S.ACTIVE or self._restore is not None:
+            self._wind_since_s = None
+            return
+        if self._wind_since_s is None:
+            self._wind_since_s = event.t_s
+        if event.t_s - self._wind_since_s < self.s.wind_settle_s - 1e-9:
+            return
+        if event.t_s - self._wind_sent_s < self.s.wind_report_min_s:
+            return
+        self._wind_sent_s = event.t_s
+        self._core(ev.WindReport(event.t_s, self.vehicle, event.wx_m_s, event.wy_m_s))
+
     def _loiter_ended(self, t: float, loiter: LoiterEndEvidence) -> None:
         self._loiter = None
         self.last_loiter_end_s = t

@@ -8,6 +8,7 @@
   const PALETTE = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#17becf",
                    "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22"];
   const DRIFT_ARROW_S = 60;      // drift arrows show where a target is in 60 s
+  const WIND_PX_PER_M_S = 4;     // the wind arrow: 4 px per m/s (12..80 px)
   const ELLIPSE_K = 2;           // ellipses at 2 standard deviations
   const MAX_EVENTS = 300;
   const $ = (id) => document.getElementById(id);
@@ -157,6 +158,7 @@
     $("clock").textContent = "t = " + fmt(doc.t, 1) + " s";
     $("speedup").textContent = num(doc.speedup) && doc.speedup !== 1 ? doc.speedup + "×" : "";
     $("advisory").hidden = !doc.advisory;
+    $("wind").textContent = windLabel(doc.wind);
     const plan = doc.plan;
     $("plan-info").textContent = plan && num(plan.t)
       ? "last plan t=" + fmt(plan.t, 1) + " s, " + (plan.status || "") + ", " +
@@ -166,6 +168,16 @@
     updateVehicles(doc);
     updateTargets(doc);
     app.dirty = true;
+  }
+
+  // "12 m/s from 270° (vehicles 1,2,3)": the wind the daemon's core plans with.
+  function windLabel(wind) {
+    if (!wind || !num(wind.speed_m_s)) return "wind –";
+    const text = wind.speed_m_s < 0.05 ? "calm"
+      : fmt(wind.speed_m_s, 0) + " m/s from " + fmt(wind.from_deg, 0) + "°";
+    const source = wind.source === "vehicles" && Array.isArray(wind.vehicles)
+      ? "vehicles " + wind.vehicles.join(",") : (wind.source || "?");
+    return "wind " + text + " (" + source + ")" + (wind.planning === false ? ", not planned with" : "");
   }
 
   function summary(line) {
@@ -588,6 +600,32 @@
     });
   }
 
+  // An arrow in the top-right corner along the direction the air moves (ENU towards
+  // vector; canvas y is down), its length growing with the speed, and its label.
+  function drawWind(doc, w) {
+    const wind = doc.wind;
+    if (!wind || !num(wind.wx_m_s) || !num(wind.wy_m_s)) return;
+    const label = windLabel(wind).replace(/^wind /, "");
+    const cut = label.indexOf(" (");
+    const lines = cut < 0 ? [label, ""] : [label.slice(0, cut), label.slice(cut + 1)];
+    ctx.font = "12px system-ui, sans-serif";
+    const boxW = Math.max(110, ...lines.map((t) => ctx.measureText(t).width)) + 12;
+    const cx = w - 8 - boxW / 2, cy = 115;
+    ctx.fillStyle = "rgba(255, 255, 255, 0.8)";
+    ctx.fillRect(w - 8 - boxW, 54, boxW, 124);
+    const speed = Math.hypot(wind.wx_m_s, wind.wy_m_s);
+    if (speed >= 0.05) {
+      const half = Math.min(80, Math.max(12, speed * WIND_PX_PER_M_S)) / 2;
+      const ux = wind.wx_m_s / speed, uy = -wind.wy_m_s / speed;
+      arrow(cx - ux * half, cy - uy * half, cx + ux * half, cy + uy * half, "#16324a", 2.5);
+    }
+    ctx.fillStyle = "#1d2630";
+    ctx.textAlign = "center";
+    ctx.fillText(lines[0], cx, 68);
+    ctx.fillText(lines[1], cx, 172);
+    ctx.textAlign = "start";
+  }
+
   function drawBoat(doc) {
     const b = doc.boat;
     if (!b || !num(b.x_m) || !num(b.y_m)) return;
@@ -626,6 +664,7 @@
       drawBoat(doc);
       drawTargets(doc, fov);
       drawVehicles(doc, fov);
+      drawWind(doc, w);
     } else {
       ctx.fillStyle = "#46596b"; ctx.font = "14px system-ui, sans-serif";
       ctx.fillText("waiting for the daemon…", w / 2 - 70, h / 2);
@@ -779,6 +818,7 @@
     get connected() { return app.wsOpen; },
     get connections() { return app.connections; },
     get mode() { return app.mode; },
+    windLabel,
     toScreen, toWorld,
   };
 })();
