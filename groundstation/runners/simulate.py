@@ -14,7 +14,8 @@ paper). Each step, in order:
    view at its rate, and the measurements reach the core as ``Detection`` events;
 5. every second of mission time the metrics are sampled.
 
-The core hears each vehicle's pose and airspeed (as ArduPlane's telemetry tells them); the
+The core hears each vehicle's pose and airspeed (as ArduPlane's telemetry tells them) and,
+in wind, each flying vehicle's wind estimate once a second (``WindReport``); the
 arrival-error metric follows the vehicles' true positions (:mod:`groundstation.core.arrivals`).
 
 No clock is read except to report the wall time the run took.
@@ -57,6 +58,7 @@ from groundstation.core.events import (
     VehicleLost,
     VehicleRebooted,
     VehicleReturned,
+    WindReport,
 )
 from groundstation.core.metrics import MetricsRecorder
 from groundstation.core.records import command_to_record, event_to_record
@@ -252,6 +254,16 @@ class _Simulation:
         elif item.kind == "battery_low":
             self.feed(BatteryLow(t_s, vehicle_id))
 
+    def report_wind(self, t_s: float) -> None:
+        """Each flying, commanded vehicle's WIND at 1 Hz, as ArduPlane sends it (EXTRA3):
+        its estimate is taken to be the wind it flies in (the core's settling rule skips
+        the first seconds, when a real autopilot's estimate is still converging). Calm
+        runs send none, so their journals stay as they were."""
+        wx, wy = self.wind.at(t_s)
+        for vehicle in self.vehicles.values():
+            if not vehicle.lost and vehicle.commanded:
+                self.feed(WindReport(t_s, vehicle.id, wx, wy))
+
     @staticmethod
     def telemetry(t_s: float, vehicle: OfflineVehicle) -> Telemetry:
         s = vehicle.state
@@ -274,8 +286,11 @@ class _Simulation:
                     self.feed(self.telemetry(t_s, vehicle))
             if self.world.boat is not None and self.core.config.priority_gain > 0:
                 self.feed(BoatPosition(t_s, self.world.boat.x_m, self.world.boat.y_m))
+            on_second = t_s >= next_sample_s - 1e-9
+            if on_second and not self.scenario.wind.calm:
+                self.report_wind(t_s)
             self.feed(Tick(t_s))
-            if t_s >= next_sample_s - 1e-9:
+            if on_second:
                 self.sample(t_s)
                 next_sample_s += 1.0
                 if self.options.progress is not None:
