@@ -58,7 +58,8 @@ class PlanAdopted:
 class FlyToTarget:
     """Fly to the aim point (the target predicted at arrival), loiter, then hold there.
 
-    ``route`` is the rest of the vehicle's planned sequence, for display only.
+    ``route`` is the rest of the vehicle's planned sequence, for display only. ``eta_s``
+    is the mission time the core predicts the vehicle reaches the aim point.
     """
 
     t_s: float
@@ -69,6 +70,7 @@ class FlyToTarget:
     loiter_s: float
     loiter_radius_m: float
     route: tuple[str, ...] = field(default=())
+    eta_s: float | None = None
 
 
 @dataclass(frozen=True)

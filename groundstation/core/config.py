@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from enum import StrEnum
@@ -84,6 +85,10 @@ class CoreConfig:
     priority_gain: float = 0.0
     priority_near_m: float = 300.0
     priority_far_m: float = 1500.0
+    # The fallback wind (scenario or config; ENU m/s the air moves towards) and whether the
+    # planner and the intercept use the wind at all (False: the wind-blind baseline).
+    wind_xy_m_s: tuple[float, float] = (0.0, 0.0)
+    wind_aware: bool = True
 
     def __post_init__(self) -> None:
         if self.turn_radius_m <= 0:
@@ -99,6 +104,16 @@ class CoreConfig:
             raise ValueError(f"objective must be one of {', '.join(Objective)}")
         object.__setattr__(self, "battery_low_action", BatteryAction(self.battery_low_action))
         object.__setattr__(self, "objective", Objective(self.objective))
+        # a journal's start line holds the wind as a JSON list
+        try:
+            wind = tuple(float(c) for c in self.wind_xy_m_s)
+        except (TypeError, ValueError):
+            wind = ()
+        if len(wind) != 2 or not all(math.isfinite(c) for c in wind):
+            raise ValueError(f"wind_xy_m_s must be two finite numbers, got {self.wind_xy_m_s!r}")
+        object.__setattr__(self, "wind_xy_m_s", (wind[0], wind[1]))
+        if not isinstance(self.wind_aware, bool):
+            raise ValueError(f"wind_aware must be true or false, got {self.wind_aware!r}")
 
 
 def config_to_dict(config: CoreConfig) -> dict[str, Any]:
@@ -106,6 +121,7 @@ def config_to_dict(config: CoreConfig) -> dict[str, Any]:
     out = dataclasses.asdict(config)
     out["objective"] = str(config.objective)
     out["battery_low_action"] = str(config.battery_low_action)
+    out["wind_xy_m_s"] = list(config.wind_xy_m_s)
     return out
 
 
