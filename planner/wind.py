@@ -25,7 +25,7 @@ air path to q(T_entry) has length V T_entry and lands on the ground point then.
 
 * ``T_e``, the root of ``|q(T)| = V T`` (a quadratic), is a lower bound: D >= |q|.
 * Outside the disc ``|q| <= 2 R`` around the start (which holds both turning circles) the
-  turn-turn paths are never shorter (checked on 2 million points, tests/test_planner_wind)
+  turn-turn paths are never shorter (checked on 200 000 points, tests/test_planner_wind)
   and D is the smaller of the two turn-straight lengths; each satisfies the eikonal
   equation ``|grad| = 1``, so D is 1-Lipschitz and g falls strictly, at a rate in
   [V - |u|, V + |u|]. Until q reaches the disc the root is therefore unique, in
@@ -104,7 +104,8 @@ def first_leg_times_s(
 ) -> FloatArray:
     """Minimum time (s) from each pose to reach its ground point (moving at
     ``target_v_m_s``), all arrays broadcast together (module docstring). ``inf`` where
-    the point moves away through the air at the airspeed or faster (|v - w| >= V)."""
+    the point moves away through the air at the airspeed or faster (|v - w| >= V), NaN
+    where an input is not finite."""
     vx, vy = target_v_m_s
     arrays = np.broadcast_arrays(
         *(np.asarray(a, dtype=float) for a in (x_m, y_m, heading_rad, px_m, py_m, vx, vy))
@@ -117,7 +118,9 @@ def first_leg_times_s(
     out = np.full(x.shape, np.inf)
     here = (px == x) & (py == y)
     out[here] = 0.0
-    todo = np.flatnonzero(~here & (np.hypot(ux, uy) < v))
+    finite = np.isfinite(x + y + h + px + py + ux + uy)
+    out[~finite] = np.nan
+    todo = np.flatnonzero(finite & ~here & (np.hypot(ux, uy) < v))
     if todo.size:
         legs = _Legs(x[todo], y[todo], h[todo], px[todo], py[todo], ux[todo], uy[todo], v,
                      float(turn_radius_m))
@@ -255,7 +258,8 @@ def time_in_wind_s(
     target_v_m_s: tuple[float, float] = (0.0, 0.0),
 ) -> float:
     """Scalar :func:`first_leg_times_s`: the minimum time (s) from a pose to a ground
-    point moving at ``target_v_m_s`` in the wind; ``math.inf`` if it cannot be caught."""
+    point moving at ``target_v_m_s`` in the wind; ``math.inf`` if it cannot be caught (or
+    an input is not finite)."""
     out = first_leg_times_s(
         np.array(x_m), np.array(y_m), np.array(heading_rad), np.array(px_m), np.array(py_m),
         wind_xy_m_s, airspeed_m_s, turn_radius_m, target_v_m_s,

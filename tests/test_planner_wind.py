@@ -386,3 +386,18 @@ def test_bounds_never_exceed_the_optimum_in_wind(
     assert in_arc_bound(inst) <= best + slack
     lp = lp_bound(inst, min(layers, inst.n), 30.0)
     assert lp is not None and lp.value <= best + slack
+
+
+def test_a_point_drifting_away_at_the_airspeed_cannot_be_caught() -> None:
+    # still air, target running east at 23 m/s from 500 m ahead: never caught
+    assert time_in_wind_s(0.0, 0.0, 0.0, 500.0, 0.0, (0.0, 0.0), V, R, (23.0, 0.0)) == math.inf
+    # 10 m/s of wind towards the west and a target drifting 12.5 m/s east: 22.5 m/s
+    # through the air, faster than the aircraft
+    assert time_in_wind_s(0.0, 0.0, 0.0, 500.0, 0.0, (-10.0, 0.0), V, R, (12.5, 0.0)) == math.inf
+    # at 11.5 m/s it is 21.5 through the air, straight ahead: caught after 500 / 0.5 s
+    assert time_in_wind_s(0.0, 0.0, 0.0, 500.0, 0.0, (-10.0, 0.0), V, R,
+                          (11.5, 0.0)) == pytest.approx(1000.0)
+    got = first_leg_times_s(np.array([0.0, 0.0]), 0.0, np.array([math.nan, 0.0]), 800.0, 5.0,
+                            (5.0, 0.0), V, R)
+    assert math.isnan(got[0]) and math.isfinite(got[1])
+    assert time_in_wind_s(0.0, 0.0, 0.0, math.inf, 0.0, (5.0, 0.0), V, R) == math.inf
