@@ -21,6 +21,8 @@ from groundstation.core.decision import DecisionCore
 from groundstation.core.events import TargetAdded, Tick
 from groundstation.core.records import command_to_record, problem_of_record
 from groundstation.core.scenario_config import core_config_for
+from groundstation.daemon.log_lines import PROBLEM_EVENTS, is_operator_event
+from groundstation.runners.replay_compare import decision_of_record
 from observer import ObserverConfig
 from planner import dubins_distance_to_point
 from world.dynamics import UavState, max_turn_rate_rad_s, step_kinematics
@@ -119,6 +121,9 @@ def test_a_wind_at_the_airspeed_is_refused_once_and_planned_as_still_air() -> No
     fly, out = first_flight(core, 900.0, 0.0)
     notes = [n for n in of_type(out, Note) if n.kind == "wind_refused"]
     assert len(notes) == 1 and "22 m/s" in notes[0].detail and "airspeed" in notes[0].detail
+    record = command_to_record(notes[0])  # a warning for the operator, compared by replay
+    assert is_operator_event(record) and record["event"] in PROBLEM_EVENTS
+    assert decision_of_record(record) is not None
     assert of_type(out, SolveRequest)[0].problem.wind_m_s is None
     assert fly.eta_s is not None and fly.eta_s > 0.1
     core.handle(TargetAdded(1.0, "B", 0.0, 900.0))

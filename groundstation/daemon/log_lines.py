@@ -61,6 +61,7 @@ PROBLEM_EVENTS = frozenset(
         "detections_dropped",
         "duplicate_target",
         "unknown_target",
+        "wind_refused",
     }
 )
 """Operator events that report something wrong: logged at WARNING."""

@@ -38,7 +38,9 @@ __all__ = [
     "describe",
 ]
 
-NOTE_KINDS = frozenset({"target_discovered", "duplicate_target", "unknown_target"})
+NOTE_KINDS = frozenset(
+    {"target_discovered", "duplicate_target", "unknown_target", "wind_refused"}
+)
 """Notes the decision core emits (journalled as their own event by ``gcs simulate``)."""
 
 AIM_TOLERANCE_M = 0.1
