@@ -3,6 +3,12 @@
 Nodes: UAVs 0..m-1, kept targets m..N-1 (N = m + n). `d` is N x N: Euclidean, except
 UAV -> target, which is the Dubins distance to the point with free final heading.
 
+In wind (PlanningProblem.planning_wind_m_s), `d` is the travel time expressed as still-air
+metres, d_ij = V T_ij with V = speed_m_s and T_ij from planner.wind: straight legs at the
+ground speed along their track, the first leg the fastest Dubins flight in the moving air.
+It is asymmetric (d_ij != d_ji); every method below uses d_ij only in the direction of the
+arc i -> j. With w = 0 it is exactly the still-air matrix (the wind code is not entered).
+
 Paper objective ("sequence"), with t[uav] = 1 and t = 1 + p for the p-th target of a path:
 
     J = -(1 - tau) F1 + tau F2,   F1 = sum_i sigma_i (N - t_i),   F2 = mu sum_(i,j) y_ij d_ij.
@@ -45,7 +51,8 @@ import numpy as np
 import numpy.typing as npt
 
 from planner.dubins import dubins_distance_to_point
-from planner.problem import Objective, PlanningProblem, ProblemError
+from planner.problem import Objective, PlanningProblem, ProblemError, wind_problem
+from planner.wind import first_leg_times_s, straight_leg_times_s
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -147,6 +154,24 @@ class Instance:
         return self.problem.targets[self.target_index[k]].id
 
 
+def _wind_costs(
+    problem: PlanningProblem, xy: FloatArray, m: int, wind: tuple[float, float]
+) -> FloatArray:
+    """d = V T in the wind (module docstring); ProblemError for an unflyable wind."""
+    reason = wind_problem(wind, problem.speed_m_s)
+    if reason is not None:
+        raise ProblemError("wind_m_s", reason)
+    speed = problem.speed_m_s
+    times = straight_leg_times_s(xy, wind, speed)
+    if m and len(xy) > m:
+        pose = np.array([(u.x_m, u.y_m, u.heading_rad) for u in problem.uavs], dtype=float)
+        times[:m, m:] = first_leg_times_s(
+            pose[:, 0:1], pose[:, 1:2], pose[:, 2:3], xy[None, m:, 0], xy[None, m:, 1],
+            wind, speed, problem.turn_radius_m,
+        )
+    return speed * times
+
+
 def build_instance(problem: PlanningProblem) -> Instance:
     """Apply the 10 % rule and compute d, hop lengths and mu."""
     if not problem.uavs:
@@ -159,13 +184,17 @@ def build_instance(problem: PlanningProblem) -> Instance:
     m, n = len(uavs), len(targets)
     nodes = [(u.x_m, u.y_m) for u in uavs] + [(t.x_m, t.y_m) for t in targets]
     xy = np.array(nodes, dtype=float).reshape(m + n, 2)
-    diff = xy[:, None, :] - xy[None, :, :]
-    d = np.sqrt((diff**2).sum(axis=2))
-    for i, u in enumerate(uavs):
-        for k, t in enumerate(targets):
-            d[i, m + k] = dubins_distance_to_point(
-                u.x_m, u.y_m, u.heading_rad, t.x_m, t.y_m, problem.turn_radius_m
-            )
+    wind = problem.planning_wind_m_s
+    if wind is None:
+        diff = xy[:, None, :] - xy[None, :, :]
+        d = np.sqrt((diff**2).sum(axis=2))
+        for i, u in enumerate(uavs):
+            for k, t in enumerate(targets):
+                d[i, m + k] = dubins_distance_to_point(
+                    u.x_m, u.y_m, u.heading_rad, t.x_m, t.y_m, problem.turn_radius_m
+                )
+    else:
+        d = _wind_costs(problem, xy, m, wind)
     size = m + n
     d_avg = float(d.sum() / (size * (size - 1))) if size > 1 else 0.0
     sigma = np.array([t.sigma for t in targets], dtype=float)

@@ -6,9 +6,12 @@ Problem JSON (all planar metres, headings in radians counter-clockwise from +x):
      "targets": [{"id": "t1", "x": 10, "y": 5, "sigma": 3.0}, ...],
      "turn_radius": 105.0, "tau": 0.5,
      "mu": null | float, "min_sigma_fraction": 0.1, "time_limit_s": 5.0,
-     "objective": "sequence" | "arrival" | "latency", "speed_m_s": 22.0}
+     "objective": "sequence" | "arrival" | "latency", "speed_m_s": 22.0,
+     "wind_m_s": null | [wx, wy]}
 
-`uavs`, `targets` and `turn_radius` are required; any other key is an error.
+`uavs`, `targets` and `turn_radius` are required; any other key is an error. `wind_m_s` is
+the ENU vector (m/s) the air moves towards; absent or null is still air. A wind at or above
+the airspeed `speed_m_s` is refused (upwind legs could not be flown).
 """
 
 from __future__ import annotations
@@ -89,6 +92,30 @@ class PlanningProblem:
     time_limit_s: float = 5.0
     objective: Objective = Objective.SEQUENCE
     speed_m_s: float = 22.0
+    wind_m_s: tuple[float, float] | None = None  # ENU, towards; None: still air
+
+    @property
+    def planning_wind_m_s(self) -> tuple[float, float] | None:
+        """The wind the costs are computed in: None in still air (no wind, or (0, 0)),
+        where the costs are exactly the still-air distances."""
+        w = self.wind_m_s
+        if w is None or (w[0] == 0.0 and w[1] == 0.0):
+            return None
+        return w
+
+
+def wind_problem(wind_m_s: tuple[float, float], speed_m_s: float) -> str | None:
+    """Why a wind cannot be planned in (not finite, or not below the airspeed), or None."""
+    wx, wy = wind_m_s
+    if not (math.isfinite(wx) and math.isfinite(wy)):
+        return "must be finite"
+    speed = math.hypot(wx, wy)
+    if not speed < speed_m_s:
+        return (
+            f"a wind of {speed:g} m/s is not below the airspeed speed_m_s = {speed_m_s:g} m/s: "
+            "legs into it cannot be flown"
+        )
+    return None
 
 
 @dataclass(frozen=True)
@@ -133,6 +160,7 @@ _TOP_KEYS = {
     "time_limit_s",
     "objective",
     "speed_m_s",
+    "wind_m_s",
 }
 _UAV_KEYS = ("id", "x", "y", "heading")
 _TARGET_KEYS = ("id", "x", "y", "sigma")
@@ -241,6 +269,7 @@ def problem_from_dict(d: Mapping[str, Any]) -> PlanningProblem:
     speed = _number(d.get("speed_m_s", 22.0), "speed_m_s")
     if speed <= 0:
         raise ProblemError("speed_m_s", "must be > 0")
+    wind = _wind(d.get("wind_m_s"), speed)
     return PlanningProblem(
         uavs=tuple(uavs),
         targets=tuple(targets),
@@ -251,11 +280,26 @@ def problem_from_dict(d: Mapping[str, Any]) -> PlanningProblem:
         time_limit_s=limit,
         objective=Objective(objective),
         speed_m_s=speed,
+        wind_m_s=wind,
     )
 
 
+def _wind(raw: Any, speed_m_s: float) -> tuple[float, float] | None:
+    """`wind_m_s`: null or [wx, wy], finite, slower than the airspeed."""
+    if raw is None:
+        return None
+    if not isinstance(raw, list) or len(raw) != 2:
+        raise ProblemError("wind_m_s", "expected [wx, wy] (m/s, ENU, the way the air moves)")
+    wind = (_number(raw[0], "wind_m_s[0]"), _number(raw[1], "wind_m_s[1]"))
+    problem = wind_problem(wind, speed_m_s)
+    if problem is not None:
+        raise ProblemError("wind_m_s", problem)
+    return wind
+
+
 def problem_to_dict(p: PlanningProblem) -> dict[str, Any]:
-    """Inverse of problem_from_dict (`mu` only when set)."""
+    """Inverse of problem_from_dict (`mu` and `wind_m_s` only when set, so a still-air
+    problem reads as it did before wind existed)."""
     out: dict[str, Any] = {
         "uavs": [{"id": u.id, "x": u.x_m, "y": u.y_m, "heading": u.heading_rad} for u in p.uavs],
         "targets": [{"id": t.id, "x": t.x_m, "y": t.y_m, "sigma": t.sigma} for t in p.targets],
@@ -268,6 +312,8 @@ def problem_to_dict(p: PlanningProblem) -> dict[str, Any]:
     }
     if p.mu is not None:
         out["mu"] = p.mu
+    if p.wind_m_s is not None:
+        out["wind_m_s"] = [p.wind_m_s[0], p.wind_m_s[1]]
     return out
 
 

@@ -10,6 +10,7 @@ from typing import Any
 
 import pytest
 
+import world
 from domain.wind_triangle import crab_heading_rad, wind_vector_m_s
 from groundstation.cli import main
 from groundstation.core.arrivals import ArrivalTracker, percentile
@@ -181,9 +182,10 @@ def test_redirected_inside_and_unfinished_commands_are_not_counted() -> None:
 TIMING_KEYS = {"wall_time_s", "realtime_factor", "solve_time_s"}
 
 
-def simulate(tmp_path: Path, name: str, *extra: str) -> dict[str, Any]:
+def simulate(tmp_path: Path, name: str, *extra: str,
+             scenario: str = "paper-boat") -> dict[str, Any]:
     out = tmp_path / name
-    status = main(["simulate", "--scenario", "paper-boat", "--uavs", "3", "--seed", "0",
+    status = main(["simulate", "--scenario", scenario, "--uavs", "3", "--seed", "0",
                    "--duration", "60", "--quiet", "--out", str(out), *extra])
     assert status == 0
     metrics: dict[str, Any] = json.loads((out / "metrics.json").read_text())
@@ -205,11 +207,18 @@ def test_simulate_flies_in_the_wind_it_is_given(tmp_path: Path,
     # in still air the planner's Dubins-at-airspeed eta is what the pass-over flies
     assert calm["arrivals"]["counted"] >= 3
     assert calm["arrival_error_s"]["p90"] < 0.01
-    # in wind: the run differs, and the still-air eta is late or early by seconds
+    # in wind: the run differs; the wind-aware eta holds, a wind-blind one is off by seconds
+    blind_file = tmp_path / "blind.yaml"
+    blind_file.write_text(
+        (Path(world.__file__).parent / "scenarios" / "paper-boat.yaml").read_text()
+        .replace("planner: {", "planner: {wind_aware: false, "))
+    blind = simulate(tmp_path, "blind", "--no-plots", "--wind", "10,270",
+                     scenario=str(blind_file))
     assert windy["wind"] == {"speed_m_s": 10.0, "from_deg": 270.0, "gust_m_s": 0.0}
     assert windy["uncertainty_series"] != calm["uncertainty_series"]
-    assert windy["arrivals"]["counted"] >= 1
-    assert windy["arrival_error_s"]["median"] > 1.0
+    assert windy["arrivals"]["counted"] >= 1 and blind["arrivals"]["counted"] >= 1
+    assert windy["arrival_error_s"]["median"] < 0.5
+    assert blind["arrival_error_s"]["median"] > 1.0
     assert isinstance(windy["arrival_bias_s"], float)
     for key in calm:  # every key a calm run writes is still there
         assert key in windy

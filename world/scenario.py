@@ -135,12 +135,14 @@ class ObserverSpec:
 @dataclass(frozen=True)
 class PlannerSpec:
     """Planner settings. The default objective is ``latency`` (docs/planner.md, "Choosing
-    the objective"); the paper's reproduction scenarios name ``sequence``."""
+    the objective"); the paper's reproduction scenarios name ``sequence``. ``wind_aware``
+    false plans and predicts as in still air whatever the wind (the wind-blind baseline)."""
 
     tau: float = 0.5
     objective: str = "latency"
     time_limit_s: float = 2.0
     min_sigma_fraction: float = 0.1
+    wind_aware: bool = True
 
 
 @dataclass(frozen=True)
@@ -436,6 +438,7 @@ def _parse_planner(f: Fields) -> PlannerSpec:
         objective=f.string("objective", "latency", choices=("sequence", "arrival", "latency")),
         time_limit_s=f.number("time_limit_s", 2.0, minimum=0.0, exclusive_minimum=True),
         min_sigma_fraction=f.number("min_sigma_fraction", 0.1, minimum=0.0, maximum=1.0),
+        wind_aware=f.boolean("wind_aware", True),
     )
     f.done()
     return spec

@@ -105,15 +105,16 @@ class CoreConfig:
             raise ValueError(f"objective must be one of {', '.join(Objective)}")
         object.__setattr__(self, "battery_low_action", BatteryAction(self.battery_low_action))
         object.__setattr__(self, "objective", Objective(self.objective))
-        # a journal's start line spells the wind as a JSON list
-        bad = ValueError(f"wind_xy_m_s must be two finite numbers, got {self.wind_xy_m_s!r}")
+        # a journal's start line holds the wind as a JSON list
         try:
-            wind = tuple(float(v) for v in self.wind_xy_m_s)
+            wind = tuple(float(c) for c in self.wind_xy_m_s)
         except (TypeError, ValueError):
-            raise bad from None
-        if len(wind) != 2 or not all(math.isfinite(v) for v in wind):
-            raise bad
-        object.__setattr__(self, "wind_xy_m_s", wind)
+            wind = ()
+        if len(wind) != 2 or not all(math.isfinite(c) for c in wind):
+            raise ValueError(f"wind_xy_m_s must be two finite numbers, got {self.wind_xy_m_s!r}")
+        object.__setattr__(self, "wind_xy_m_s", (wind[0], wind[1]))
+        if not isinstance(self.wind_aware, bool):
+            raise ValueError(f"wind_aware must be true or false, got {self.wind_aware!r}")
 
 
 def config_to_dict(config: CoreConfig) -> dict[str, Any]:
@@ -121,6 +122,7 @@ def config_to_dict(config: CoreConfig) -> dict[str, Any]:
     out = dataclasses.asdict(config)
     out["objective"] = str(config.objective)
     out["battery_low_action"] = str(config.battery_low_action)
+    out["wind_xy_m_s"] = list(config.wind_xy_m_s)
     return out
 
 

@@ -14,14 +14,18 @@ Which vehicles a plan may redirect is the :class:`ReplanPolicy`'s ``commit``: wi
 only *idle* vehicles (newly joined, returned, or whose loiter ended) are planned and the
 targets of *busy* vehicles count as covered; without it every active vehicle is replanned.
 
-A vehicle flies to where its first target is predicted to be on arrival::
+A vehicle flies to where its first target is predicted to be on arrival. In still air::
 
     t_arr = D(pose, p) / V,   p <- p_hat + v_hat * t_arr      (two fixed-point iterations)
 
 with ``D`` the Dubins distance from the vehicle's pose and ``V`` its airspeed
 (:meth:`DecisionCore.travel_time_s`). The command carries the predicted arrival at the aim
 point it settled on, ``eta = t + D(pose, p) / V`` (one more evaluation at the final ``p``:
-the iteration stops before ``t_arr`` is recomputed there).
+the iteration stops before ``t_arr`` is recomputed there). In a wind ``w``
+(:meth:`DecisionCore.planning_wind_m_s`) the planner's travel times are used: the earliest
+``t_arr`` at which the vehicle, flying a Dubins path through the moving air, is over
+``p_hat + v_hat t_arr`` (:func:`planner.wind.time_in_wind_s`; in the air's frame the target
+moves at ``v_hat - w``), the aim point is ``p_hat + v_hat t_arr`` and ``eta = t + t_arr``.
 
 Wind: the vehicles' ``WindReport`` inputs are combined into one estimate
 (:mod:`~groundstation.core.wind_estimate`: median over the active vehicles' fresh reports,
@@ -75,6 +79,8 @@ from planner import (
     UavPose,
     dubins_distance_to_point,
 )
+from planner.problem import wind_problem
+from planner.wind import time_in_wind_s
 
 __all__ = ["DecisionCore", "VehicleRecord"]
 
@@ -126,6 +132,7 @@ class DecisionCore:
         self.on_input: Callable[[Event], None] | None = None
         self._pending: SolveRequest | None = None
         self._dirty_reason: str | None = None
+        self._wind_refused = False  # a wind at or above the airspeed was noted
         # the first periodic plan is due at once
         self._next_periodic_s: float | None = 0.0 if config.policy.period_s else None
 
@@ -367,6 +374,7 @@ class DecisionCore:
         ]
         if not vehicles or not targets:
             return out
+        wind = self._problem_wind(t_s, out)
         problem = PlanningProblem(
             uavs=tuple(UavPose(v.id, v.x_m, v.y_m, v.heading_rad) for v in vehicles),
             targets=tuple(targets),
@@ -376,6 +384,7 @@ class DecisionCore:
             time_limit_s=self.config.time_limit_s,
             objective=self.config.objective,
             speed_m_s=self.config.speed_m_s,
+            wind_m_s=wind,
         )
         if self._pending is not None:
             out.append(CancelSolve(t_s, self._pending.request_id))
@@ -384,6 +393,23 @@ class DecisionCore:
         self._pending = request
         out.append(request)
         return out
+
+    def _problem_wind(self, t_s: float, out: list[Command]) -> tuple[float, float] | None:
+        """The planning problem's wind: None in still air (the problem then reads as
+        before wind existed), and None with a ``wind_refused`` note (once, until the wind
+        can be flown again) when it is not below the airspeed: the planner refuses such a
+        wind, so the plan is made as in still air."""
+        wind = self.planning_wind_m_s()
+        if wind[0] == 0.0 and wind[1] == 0.0:
+            return None
+        reason = wind_problem(wind, self.config.speed_m_s)
+        if reason is not None:
+            if not self._wind_refused:
+                out.append(Note(t_s, "wind_refused", detail=f"planning as in still air: {reason}"))
+            self._wind_refused = True
+            return None
+        self._wind_refused = False
+        return wind
 
     def _hint(self, problem: PlanningProblem) -> dict[str, list[str]]:
         if self.last_result is None:
@@ -424,7 +450,8 @@ class DecisionCore:
 
     def _fly(self, t_s: float, record: VehicleRecord, target: str,
              route: tuple[str, ...]) -> FlyToTarget | None:
-        aim = self.aim_point(record, target)
+        x_m, y_m, t_arr_s = self.intercept(record, target)
+        aim = (x_m, y_m)
         unchanged = (
             record.target == target and record.aim_xy_m is not None
             and math.dist(record.aim_xy_m, aim) < self.config.retarget_threshold_m
@@ -434,25 +461,44 @@ class DecisionCore:
         if unchanged and not self.config.policy.commit:
             return None
         record.target, record.aim_xy_m = target, aim
-        eta_s = t_s + self.travel_time_s(record, *aim)
         return FlyToTarget(t_s, record.id, target, aim[0], aim[1], self.config.loiter_s,
-                           self.config.loiter_radius_m, route, eta_s=eta_s)
+                           self.config.loiter_radius_m, route, eta_s=t_s + t_arr_s)
 
     def travel_time_s(self, record: VehicleRecord, x_m: float, y_m: float) -> float:
-        """Predicted time (s) for ``record`` to fly from its pose to (x_m, y_m): the Dubins
-        distance at its airspeed (still air)."""
+        """Predicted time (s) for ``record`` to fly from its pose to (x_m, y_m) in still air:
+        the Dubins distance at its airspeed."""
         d = dubins_distance_to_point(record.x_m, record.y_m, record.heading_rad, x_m, y_m,
                                      self.config.turn_radius_m)
         return d / max(record.speed_m_s, 1.0)
 
     def aim_point(self, record: VehicleRecord, target: str) -> tuple[float, float]:
         """Where ``target`` is predicted to be when ``record`` arrives (module docstring)."""
+        x_m, y_m, _ = self.intercept(record, target)
+        return x_m, y_m
+
+    def intercept(self, record: VehicleRecord, target: str) -> tuple[float, float, float]:
+        """(x_m, y_m, t_arr_s): the aim point and the flight time to it (module docstring).
+        In wind, a target the vehicle cannot catch (it drifts away through the air at the
+        airspeed or faster) is aimed at as in still air."""
         track = self.observer.track(target)
+        speed = max(record.speed_m_s, 1.0)
+        wind = self.planning_wind_m_s()
+        if wind[0] != 0.0 or wind[1] != 0.0:
+            t_arr = math.inf
+            if wind_problem(wind, speed) is None:
+                t_arr = time_in_wind_s(
+                    record.x_m, record.y_m, record.heading_rad, track.x_m, track.y_m, wind,
+                    speed, self.config.turn_radius_m, (track.vx_m_s, track.vy_m_s),
+                )
+            if math.isfinite(t_arr):
+                return (track.x_m + track.vx_m_s * t_arr, track.y_m + track.vy_m_s * t_arr,
+                        t_arr)
         x, y = track.x_m, track.y_m
+        t_arr = 0.0
         for _ in range(2):
             t_arr = self.travel_time_s(record, x, y)
             x, y = track.x_m + track.vx_m_s * t_arr, track.y_m + track.vy_m_s * t_arr
-        return x, y
+        return x, y, self.travel_time_s(record, x, y)
 
     def snapshot_assignments(self) -> Mapping[str, str | None]:
         return {v.id: v.target for v in self.vehicles.values()}

@@ -37,5 +37,12 @@ def core_config_for(scenario: Scenario, objective: str | None = None) -> CoreCon
         priority_gain=obs.priority_gain,
         priority_near_m=obs.priority_near_m,
         priority_far_m=obs.priority_far_m,
+        wind_xy_m_s=_plain(scenario.wind.mean_xy_m_s),
+        wind_aware=scenario.planner.wind_aware,
     )
+
+
+def _plain(wind_xy_m_s: tuple[float, float]) -> tuple[float, float]:
+    """The wind without negative zeros (still air journals as [0.0, 0.0])."""
+    return wind_xy_m_s[0] + 0.0, wind_xy_m_s[1] + 0.0
 

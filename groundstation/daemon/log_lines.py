@@ -67,6 +67,7 @@ PROBLEM_EVENTS = frozenset(
         "duplicate_target",
         "unknown_target",
         "wind_outlier",
+        "wind_refused",
     }
 )
 """Operator events that report something wrong: logged at WARNING."""

@@ -40,7 +40,8 @@ __all__ = [
 ]
 
 NOTE_KINDS = frozenset(
-    {"target_discovered", "duplicate_target", "unknown_target", "wind_outlier"}
+    {"target_discovered", "duplicate_target", "unknown_target", "wind_outlier",
+     "wind_refused"}
 )
 """Notes the decision core emits (journalled as their own event by ``gcs simulate``)."""
 
