@@ -28,7 +28,7 @@ Per (scenario, fleet size, wind speed) it prints:
 ``--report FILE`` prints the tables again from such a file. ``--directions`` prints the
 10 m/s rows per wind direction too. The machine is shared: use ``nice -n 10``. On 2 cores
 the full grid (1040 runs, about 1 s each) took 14 min with other work on the machine;
-``--quick`` (72 runs) about a minute.
+``--quick`` (72 runs) under 2 min.
 """
 
 from __future__ import annotations
