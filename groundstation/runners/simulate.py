@@ -369,10 +369,12 @@ class _Simulation:
 def _plan_record(adopted: PlanAdopted) -> PlanRecord:
     result, problem = adopted.result, adopted.problem
     return PlanRecord(
-        t_s=adopted.t_s, mu=result.mu, f1=result.f1, f2=result.f2,
-        objective_value=result.objective, objective=str(problem.objective),
-        status=str(result.status), solver=result.solver, solve_time_s=result.solve_time_s,
-        bound=result.bound, gap=result.gap, targets=len(problem.targets),
+        t_s=float(adopted.t_s), mu=float(result.mu), f1=float(result.f1),
+        f2=float(result.f2), objective_value=float(result.objective),
+        objective=str(problem.objective), status=str(result.status), solver=result.solver,
+        solve_time_s=float(result.solve_time_s),
+        bound=None if result.bound is None else float(result.bound),
+        gap=None if result.gap is None else float(result.gap), targets=len(problem.targets),
         uavs_planned=len(problem.uavs),
     )
 
