@@ -156,12 +156,17 @@ def _run_plan(
 def _print_end(args: argparse.Namespace, plan: CampaignPlan, result: CampaignResult) -> None:
     from groundstation.commands.campaign_progress import print_summary
     from groundstation.runners.campaign_store import read_results
-    from groundstation.runners.campaign_summary import summarise
+    from groundstation.runners.campaign_summary import SUMMARY_FIGURES, summarise
 
     for task, reason in result.failures:
         where = ", ".join(f"{k}={v}" for k, v in task.coords.items())
         print(f"{_PROG}: run {task.run_id} failed ({where}): {reason}", file=sys.stderr)
-    rows = read_results(args.out).to_pylist() if (plan.done or result.finished) else []
+    rows: list[dict[str, object]] = []
+    if plan.done or result.finished:
+        grid = set(plan.spec.run_ids())  # not the stored runs an --extend left out
+        columns = [*plan.spec.grid_keys, *SUMMARY_FIGURES, "bounded_trend"]
+        table = read_results(args.out, columns=columns)
+        rows = [r for r in table.to_pylist() if r["run_id"] in grid]
     keys, cells = summarise(rows, plan.spec.grid)
     if cells:
         print_summary(keys, cells)

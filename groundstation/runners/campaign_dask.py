@@ -114,11 +114,12 @@ class DaskExecutor:
         try:
             for future in pending:
                 task = submitted.pop(future.key)
-                if future.status == "finished":
-                    sink.done(future.result())
-                else:
-                    exc = future.exception()
+                try:
+                    outcome = future.result()
+                except Exception as exc:  # the run's error, KilledWorker, a cancellation
                     sink.failed(task, f"{type(exc).__name__}: {exc}")
+                else:
+                    sink.done(outcome)
                 future.release()
                 replacement = submit()
                 if replacement is not None:

@@ -13,6 +13,7 @@ no run pays them.
 
 from __future__ import annotations
 
+import functools
 import os
 import signal
 import socket
@@ -107,6 +108,7 @@ def warm_up() -> None:
     load_filterpy()
 
 
+@functools.cache
 def floe_version() -> str:
     """The installed floe's version, or ``unknown`` (a source tree without metadata)."""
     from importlib.metadata import PackageNotFoundError, version

@@ -77,15 +77,18 @@ def _dedupe(table: pa.Table, keys: Sequence[str]) -> pa.Table:
     return table.take(sorted(last.values()))
 
 
-def _read_parts(parts: Sequence[Path], schema: pa.Schema | None) -> pa.Table:
-    """Read whole parts, cast to ``schema`` when given (columns it lacks are null)."""
+def _read_parts(
+    parts: Sequence[Path], schema: pa.Schema | None, columns: Sequence[str] | None = None
+) -> pa.Table:
+    """Read whole parts (or their ``columns``), cast to ``schema`` when given (columns it
+    lacks are null)."""
     import pyarrow as pa
     import pyarrow.parquet as pq
 
     tables = []
     for part in parts:
         try:
-            table = pq.read_table(part)
+            table = pq.read_table(part, columns=None if columns is None else list(columns))
         except (OSError, pa.ArrowException) as exc:
             raise StoreError(f"cannot read {part}: {exc}") from None
         if schema is not None:
@@ -119,15 +122,19 @@ def _conform(table: pa.Table, schema: pa.Schema, where: Path) -> pa.Table:
     return pa.Table.from_arrays(arrays, schema=schema)
 
 
-def read_results(out_dir: Path, kind: str = RUNS_DIR) -> pa.Table:
+def read_results(
+    out_dir: Path, kind: str = RUNS_DIR, columns: Sequence[str] | None = None
+) -> pa.Table:
     """The rows of ``DIR/runs.parquet`` (or ``plans.parquet``), one per run (per run and
-    plan): what readers should use instead of a bare ``read_table``, which may see a run
-    twice for a moment during a compaction."""
+    plan), optionally only ``columns`` (the keys are always read): what readers should use
+    instead of a bare ``read_table``, which may see a run twice for a moment during a
+    compaction."""
     folder = Path(out_dir) / kind
     parts = _parts(folder)
     if not parts:
         raise StoreError(f"{folder}: no results")
-    return _dedupe(_read_parts(parts, None), _keys(kind))
+    wanted = None if columns is None else list(dict.fromkeys([*_keys(kind), *columns]))
+    return _dedupe(_read_parts(parts, None, wanted), _keys(kind))
 
 
 class CampaignStore:

@@ -14,7 +14,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-__all__ = ["CellSummary", "summarise", "t_half_width"]
+__all__ = ["SUMMARY_FIGURES", "CellSummary", "summarise", "t_half_width"]
 
 SUMMARY_FIGURES = ("mean_uncertainty", "final_uncertainty", "visits", "lost_targets")
 
