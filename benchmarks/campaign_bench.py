@@ -15,7 +15,11 @@ fresh folder:
 Configurations alternate within each round (the order rotates from round to round) so a
 shared machine's load weighs on all of them alike; the load average is recorded before
 each. Figures per configuration: wall time, runs per second, CPU (user + system of the
-command and every process it waited for), and for the campaign configurations the mean
+command and every process it waited for; for the campaign configurations at least the sum
+of the runs' own CPU, as forkserver workers are not reaped by the command), the cores
+that CPU occupied on average (CPU / wall: 2 is the whole machine; less means the runs
+waited, for other users' processes or for the executor), and for the campaign
+configurations the mean
 per-run wall and CPU time measured inside the workers (``runs.parquet``), from which the
 per-task overhead is ``wall x workers / runs - mean run wall``: what a run costs beyond
 its own simulation (scheduling, transport, storing, idle workers at start and end).
@@ -102,6 +106,9 @@ def _measure(config: str, campaign: Path, scratch: Path, runs: int) -> dict[str,
         figures["run_wall_s_mean"] = run_wall
         figures["run_cpu_s_mean"] = statistics.fmean(table.column("cpu_s").to_pylist())
         figures["overhead_per_task_s"] = wall_s * WORKERS[config] / runs - run_wall
+        # forkserver workers are not reaped by the command: count the runs' own CPU
+        figures["cpu_s"] = max(cpu_s, sum(table.column("cpu_s").to_pylist()))
+    figures["cores_used"] = figures["cpu_s"] / wall_s
     shutil.rmtree(out, ignore_errors=True)
     return figures
 
@@ -134,17 +141,17 @@ def main() -> int:
                       file=sys.stderr, flush=True)
     summary = {c: {k: _median(results[c], k) for k in (
         "wall_s", "runs_per_s", "cpu_s", "run_wall_s_mean", "run_cpu_s_mean",
-        "overhead_per_task_s", "load_average_before")} for c in configs}
+        "overhead_per_task_s", "load_average_before", "cores_used")} for c in configs}
     print(f"\n{args.runs} paper-boat runs (3 UAVs, 200 s), median of {args.rounds} round(s):")
-    print(f"{'configuration':<40} {'wall s':>8} {'runs/s':>7} {'CPU s':>8} {'run CPU s':>9}"
-          f" {'overhead/task s':>15}")
+    print(f"{'configuration':<40} {'wall s':>8} {'runs/s':>7} {'CPU s':>8} {'cores':>6}"
+          f" {'run CPU s':>9} {'overhead/task s':>15}")
     for config in configs:
         s = summary[config]
         run_cpu = f"{s['run_cpu_s_mean']:.3f}" if s["run_cpu_s_mean"] is not None else "-"
         overhead = f"{s['overhead_per_task_s']:.3f}" if s["overhead_per_task_s"] is not None \
             else "-"
         print(f"{CONFIGS[config]:<40} {s['wall_s']:>8.1f} {s['runs_per_s']:>7.2f}"
-              f" {s['cpu_s']:>8.1f} {run_cpu:>9} {overhead:>15}")
+              f" {s['cpu_s']:>8.1f} {s['cores_used']:>6.2f} {run_cpu:>9} {overhead:>15}")
     ratios: dict[str, float] = {}
     if "pool" in summary and "old" in summary:
         ratios["pool_vs_old_throughput"] = summary["pool"]["runs_per_s"] / summary["old"][
