@@ -70,7 +70,7 @@ from world.model import Boat, Camera, Iceberg, World
 from world.scenario import Scenario, ScriptedEvent, resolve_targets
 from world.wind import WindField, WindSpec
 
-__all__ = ["SimulationOptions", "SimulationRun", "run_simulation", "wind_record"]
+__all__ = ["PlanRecord", "SimulationOptions", "SimulationRun", "run_simulation", "wind_record"]
 
 
 @dataclass(frozen=True)
@@ -96,6 +96,27 @@ class MapSnapshot:
     boat_xy_m: tuple[float, float] | None
 
 
+@dataclass(frozen=True)
+class PlanRecord:
+    """One adopted plan, as ``gcs campaign`` keeps it (``plans.parquet``): when, the
+    planner's figures (``objective_value`` is the objective's value, ``objective`` its
+    name), and the size of the problem it solved."""
+
+    t_s: float
+    mu: float
+    f1: float
+    f2: float
+    objective_value: float
+    objective: str
+    status: str
+    solver: str
+    solve_time_s: float
+    bound: float | None
+    gap: float | None
+    targets: int
+    uavs_planned: int
+
+
 @dataclass
 class SimulationRun:
     """Everything a run produced: metrics and the history the plots draw."""
@@ -112,6 +133,7 @@ class SimulationRun:
     snapshots: list[MapSnapshot] = field(default_factory=list)
     events: list[dict[str, Any]] = field(default_factory=list)
     journal: list[dict[str, Any]] = field(default_factory=list)
+    plans: list[PlanRecord] = field(default_factory=list)
 
 
 class _Simulation:
@@ -180,6 +202,7 @@ class _Simulation:
             return self.core.handle(PlanSolved(command.t_s, command.request_id, result))
         if isinstance(command, PlanAdopted):
             self.metrics.plan(command.result.solve_time_s)
+            self.run.plans.append(_plan_record(command))
         elif isinstance(command, FlyToTarget):
             vehicle = self.vehicles[command.vehicle]
             if vehicle.commanded:
@@ -379,6 +402,19 @@ class _Simulation:
 def wind_record(spec: WindSpec) -> dict[str, float]:
     """The run's wind as metrics.json and the journal's ``start`` line give it."""
     return {"speed_m_s": spec.speed_m_s, "from_deg": spec.from_deg, "gust_m_s": spec.gust_m_s}
+
+
+def _plan_record(adopted: PlanAdopted) -> PlanRecord:
+    result, problem = adopted.result, adopted.problem
+    return PlanRecord(
+        t_s=float(adopted.t_s), mu=float(result.mu), f1=float(result.f1),
+        f2=float(result.f2), objective_value=float(result.objective),
+        objective=str(problem.objective), status=str(result.status), solver=result.solver,
+        solve_time_s=float(result.solve_time_s),
+        bound=None if result.bound is None else float(result.bound),
+        gap=None if result.gap is None else float(result.gap), targets=len(problem.targets),
+        uavs_planned=len(problem.uavs),
+    )
 
 
 def run_simulation(scenario: Scenario, options: SimulationOptions | None = None) -> SimulationRun:
