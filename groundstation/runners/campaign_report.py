@@ -1,0 +1,268 @@
+"""``gcs campaign report DIR``: one self-contained HTML page about a campaign.
+
+:func:`write_campaign_report` reads the campaign folder
+(:mod:`~groundstation.runners.campaign_data`), summarises each grid cell
+(:mod:`~groundstation.runners.campaign_stats`), draws the figures
+(:mod:`~groundstation.runners.campaign_plots`) and writes ``DIR/report.html`` (or
+``out``) with every figure inline as a PNG ``data:`` URI (:mod:`html_page`, shared with
+``gcs report``): the page has no external asset. Each figure is also written next to the
+page as ``<page stem>-<figure>.png`` (``report-series.png``...), for papers and docs.
+
+The page: the campaign (name, grid, fixed overrides, runs, floe versions, when written);
+a table per grid cell (runs, mean of ``mean_uncertainty`` with its 95 % t interval, bounded
+rate with its 95 % Wilson interval, median solve time; every number also in the cell's
+``data-value`` attribute at full precision); mean uncertainty against fleet size; the
+paper's Figure 4 (mean uncertainty over mission time, mean over seeds with a 95 % band);
+solve-time distributions; the distribution of mu / (F1 / F2) over adopted plans (eq. 18).
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import html
+import math
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from groundstation.runners.campaign_data import (
+    SEED_KEY,
+    CampaignData,
+    CampaignReportError,
+    column_codes,
+    float_column,
+    load_campaign,
+)
+from groundstation.runners.campaign_plots import (
+    Panel,
+    plot_mean_vs_fleet,
+    plot_mu_ratio,
+    plot_series,
+    plot_solve_times,
+)
+from groundstation.runners.campaign_stats import (
+    Cells,
+    CellSummary,
+    group_cells,
+    series_bands,
+    summaries_of,
+    summarise_cells,
+)
+from groundstation.runners.html_page import figure_html, page_start
+from groundstation.storage import StorageError, atomic_write_bytes, atomic_write_text
+
+__all__ = [
+    "CampaignReportError",
+    "CellSummary",
+    "cell_table",
+    "summarise_cells",
+    "write_campaign_report",
+]
+
+
+def _number(value: float | None) -> str:
+    """``6,008`` for a large value, three significant digits for a small one; ``-`` for
+    none."""
+    if value is None or not math.isfinite(value):
+        return "-"
+    return f"{value:,.0f}" if abs(value) >= 100 else f"{value:.3g}"
+
+
+def _show(value: Any) -> str:
+    """A grid value as the campaign file would spell it: ``1, 3, 5``, ``0 to 19``."""
+    if isinstance(value, float) and value.is_integer():
+        return f"{value:g}"
+    if isinstance(value, list | tuple):
+        return ", ".join(_show(v) for v in value)
+    if isinstance(value, Mapping) and set(value) == {"from", "to"}:
+        return f"{_show(value['from'])} to {_show(value['to'])}"
+    if isinstance(value, Mapping):
+        return ", ".join(f"{k}: {_show(v)}" for k, v in value.items())
+    return "-" if value is None else str(value)
+
+
+def cell_table(
+    summaries: Sequence[CellSummary], keys: Sequence[str]
+) -> tuple[list[str], list[list[str]]]:
+    """The summary table as text: a header and one row per cell (``keys`` first), for the
+    page and for a terminal (the campaign engine's end-of-run table)."""
+    column = summaries[0].bounded_column if summaries else "bounded_trend"
+    solve_from = {s.solve_time_source for s in summaries} - {"none"}
+    solve_word = "plans" if solve_from == {"plans"} else "runs' medians"
+    header = [
+        *keys,
+        "runs",
+        "mean sigma (m^2)",
+        "95 % CI",
+        f"bounded ({column})",
+        "95 % Wilson",
+        f"median solve s ({solve_word})",
+    ]
+    rows: list[list[str]] = []
+    for s in summaries:
+        ci = f"{_number(s.ci_low_m2)} - {_number(s.ci_high_m2)}" if s.ci_low_m2 is not None else "-"
+        wilson = (
+            f"{100 * s.bounded_low:.0f}-{100 * s.bounded_high:.0f} %"
+            if s.bounded_low is not None and s.bounded_high is not None
+            else "-"
+        )
+        runs = str(s.runs) if s.measured == s.runs else f"{s.runs} ({s.runs - s.measured} no value)"
+        rows.append(
+            [
+                *(_show(s.values.get(k)) for k in keys),
+                runs,
+                _number(s.mean_uncertainty_m2),
+                ci,
+                f"{s.bounded}/{s.bounded_of}",
+                wilson,
+                _number(s.solve_time_median_s),
+            ]
+        )
+    return header, rows
+
+
+def _data_values(s: CellSummary) -> list[str]:
+    """The full-precision numbers behind a row's last six cells (``data-value``)."""
+
+    def full(*values: float | None) -> str:
+        return ",".join("" if v is None else repr(float(v)) for v in values)
+
+    return [
+        str(s.runs),
+        full(s.mean_uncertainty_m2),
+        full(s.ci_low_m2, s.ci_high_m2),
+        f"{s.bounded},{s.bounded_of}",
+        full(s.bounded_low, s.bounded_high),
+        full(s.solve_time_median_s),
+    ]
+
+
+def _distinct_text(data: CampaignData, column: str) -> str:
+    if column not in data.runs.column_names:
+        return "-"
+    return ", ".join(str(v) for v in column_codes(data.runs.column(column))[1]) or "-"
+
+
+def _header_rows(
+    data: CampaignData, cells: Cells, written_at: dt.datetime
+) -> list[tuple[str, str]]:
+    runs = data.runs
+    rows = [("campaign", data.name), ("folder", str(data.folder))]
+    for key, value in data.grid.items():
+        rows.append((f"grid: {key}", _show(value)))
+    for key, value in data.fixed.items():
+        rows.append((f"set: {key}", _show(value)))
+    extra = (
+        f" ({data.duplicate_runs} duplicate row(s) of a run_id dropped)"
+        if data.duplicate_runs
+        else ""
+    )
+    rows.append(("runs", f"{runs.num_rows}{extra}"))
+    seeds = ""
+    if SEED_KEY in runs.column_names:
+        seeds = f", {len(column_codes(runs.column(SEED_KEY))[1])} seed(s)"
+    rows.append(("grid cells", f"{cells.count} (seed aside){seeds}"))
+    if data.plans is None:
+        rows.append(("plans", "not kept (per_plan: false)"))
+    else:
+        dup = f" ({data.duplicate_plans} duplicate row(s) dropped)" if data.duplicate_plans else ""
+        rows.append(("plans", f"{data.plans.num_rows}{dup}"))
+    rows.append(("floe version(s)", _distinct_text(data, "floe_version")))
+    for column, word in (("wall_s", "wall time of the runs"), ("cpu_s", "CPU time of the runs")):
+        total = float(np.nansum(float_column(runs, column)))
+        if column in runs.column_names:
+            rows.append((word, f"{total:,.0f} s ({total / 3600:.2f} h)"))
+    if "worker" in runs.column_names:
+        rows.append(("workers", str(len(column_codes(runs.column("worker"))[1]))))
+    rows.append(("report written", written_at.strftime("%Y-%m-%d %H:%M:%S %Z").strip()))
+    return rows
+
+
+def render_campaign_html(
+    data: CampaignData,
+    cells: Cells,
+    summaries: Sequence[CellSummary],
+    panels: Sequence[Panel],
+    written_at: dt.datetime,
+) -> str:
+    """The page (see the module docstring)."""
+    esc = html.escape
+    out = page_start(f"floe campaign: {data.name}", f"floe campaign report: {data.name}")
+    out.append('<table id="campaign">')
+    for name, value in _header_rows(data, cells, written_at):
+        out.append(f"<tr><th>{esc(name)}</th><td>{esc(value)}</td></tr>")
+    out.append("</table>")
+    if data.warnings:
+        out.append('<ul class="warn">' + "".join(f"<li>{esc(w)}</li>" for w in data.warnings))
+        out.append("</ul>")
+    keys = cells.varying or cells.keys
+    header, rows = cell_table(summaries, keys)
+    out.append("<h2>Per grid cell</h2>")
+    out.append('<table id="cells"><tr>' + "".join(f"<th>{esc(h)}</th>" for h in header) + "</tr>")
+    for s, row in zip(summaries, rows, strict=True):
+        cells_html = [f"<td>{esc(v)}</td>" for v in row[: len(keys)]]
+        cells_html += [
+            f'<td class="num" data-value="{esc(full)}">{esc(text)}</td>'
+            for text, full in zip(row[len(keys) :], _data_values(s), strict=True)
+        ]
+        out.append("<tr>" + "".join(cells_html) + "</tr>")
+    out.append("</table>")
+    out.append(
+        "<p>mean sigma: mean over the cell's runs of their mean_uncertainty (the average "
+        "uncertainty over the targets and the mission), 95 % Student t interval. Bounded: "
+        f"runs whose {esc(summaries[0].bounded_column if summaries else 'bounded_trend')} "
+        "is true among those with a verdict, 95 % Wilson interval.</p>"
+    )
+    for panel in panels:
+        if panel.figure is not None:
+            out.append(figure_html(panel.figure, caption=panel.caption))
+        else:
+            out.append(
+                f'<h2>{esc(panel.title)}</h2><p class="note" id="note-{esc(panel.name)}">'
+                f"{esc(panel.reason)}</p>"
+            )
+    out.append("</body></html>")
+    return "\n".join(out) + "\n"
+
+
+def write_campaign_report(
+    campaign_dir: Path,
+    out: Path | None = None,
+    *,
+    written_at: dt.datetime | None = None,
+    say: Callable[[str], None] | None = None,
+) -> Path:
+    """Write the report of ``campaign_dir`` to ``out`` (default
+    ``campaign_dir/report.html``) and its figures as PNGs beside it; return the page's
+    path. Raises :class:`CampaignReportError` (one line) when the folder is missing, empty
+    or unreadable, or the page cannot be written. ``written_at`` (default: now, UTC) is
+    printed in the header."""
+    note = say or (lambda text: None)
+    campaign_dir = Path(campaign_dir)
+    data = load_campaign(campaign_dir)
+    note(f"{data.runs.num_rows} runs read")
+    cells = group_cells(data.runs, data.grid_keys)
+    summaries = summaries_of(data.runs, cells, data.plans)
+    panels = [
+        plot_mean_vs_fleet(summaries, cells),
+        plot_series(series_bands(data.runs, cells), cells),
+        plot_solve_times(data, cells),
+        plot_mu_ratio(data, cells),
+    ]
+    when = written_at or dt.datetime.now(dt.UTC)
+    page = Path(out) if out is not None else campaign_dir / "report.html"
+    try:
+        page.parent.mkdir(parents=True, exist_ok=True)
+        for panel in panels:
+            if panel.figure is not None:
+                atomic_write_bytes(
+                    page.with_name(f"{page.stem}-{panel.figure.name}.png"), panel.figure.png
+                )
+        atomic_write_text(page, render_campaign_html(data, cells, summaries, panels, when))
+    except StorageError as exc:
+        raise CampaignReportError(str(exc)) from None
+    except OSError as exc:
+        raise CampaignReportError(f"cannot write {page}: {exc.strerror or exc}") from None
+    return page
