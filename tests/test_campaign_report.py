@@ -132,14 +132,14 @@ def _write(folder: Path, *, plans: bool = True, dataset: bool = False, dup: int 
 
 
 class _Page(HTMLParser):
-    """Images by figure id, the cells table's rows (text and data-value), all text."""
+    """Images by figure id, each table's rows (text and data-value of each cell), text."""
 
     def __init__(self) -> None:
         super().__init__()
         self.figure = ""
         self.images: dict[str, dict[str, str | None]] = {}
         self.table = ""
-        self.rows: list[list[tuple[str, str | None]]] = []
+        self.tables: dict[str, list[list[tuple[str, str | None]]]] = {}
         self.cell: tuple[str, str | None] | None = None
         self.text: list[str] = []
         self.sources: list[str] = []
@@ -155,14 +155,15 @@ class _Page(HTMLParser):
             self.images[self.figure] = a
         elif tag == "table":
             self.table = a.get("id") or ""
-        elif tag == "tr" and self.table == "cells":
-            self.rows.append([])
-        elif tag == "td" and self.table == "cells":
+            self.tables[self.table] = []
+        elif tag == "tr":
+            self.tables[self.table].append([])
+        elif tag == "td":
             self.cell = ("", a.get("data-value"))
 
     def handle_endtag(self, tag: str) -> None:
         if tag == "td" and self.cell is not None:
-            self.rows[-1].append(self.cell)
+            self.tables[self.table][-1].append(self.cell)
             self.cell = None
 
     def handle_data(self, data: str) -> None:
@@ -241,7 +242,7 @@ def test_every_figure_is_inline_and_nothing_is_fetched(report: Path) -> None:
 
 
 def test_table_numbers_are_the_cells_mean_ci_bounded_rate_and_median(report: Path) -> None:
-    rows = _parse(report).rows
+    rows = _parse(report).tables["cells"]
     cells = {(int(r[0][0]), r[1][0]): r for r in rows if r}
     assert set(cells) == {(u, o) for u in UAVS for o in OBJECTIVES}
     for (uavs, objective), row in cells.items():
@@ -256,6 +257,26 @@ def test_table_numbers_are_the_cells_mean_ci_bounded_rate_and_median(report: Pat
         _check_wilson(k, n, *(float(v) for v in (values[4] or "").split(",")))
         assert float(values[5] or "nan") == pytest.approx(want["solve_plans"], rel=1e-12)
         assert row[3][0] == f"{want['mean']:,.0f}"
+
+
+def test_paired_table_compares_each_seed_with_the_papers_objective(report: Path) -> None:
+    rows = [r for r in _parse(report).tables["paired"] if r]
+    assert [(int(r[0][0]), r[1][0]) for r in rows] == [(u, "latency") for u in UAVS]
+    for row in rows:
+        uavs = int(row[0][0])
+        by_seed = {
+            (r["objective"], r["seed"]): r["mean_uncertainty"] for r in RUNS if r["uavs"] == uavs
+        }
+        diffs = np.array(
+            [100 * (by_seed["latency", s] / by_seed["sequence", s] - 1) for s in range(SEEDS)]
+        )
+        half = T_975_DF5 * diffs.std(ddof=1) / math.sqrt(SEEDS)
+        mean, low, high = (float(v) for v in (row[3][1] or "").split(","))
+        assert (mean, low, high) == pytest.approx(
+            (diffs.mean(), diffs.mean() - half, diffs.mean() + half), rel=1e-9
+        )
+        wins = sum(by_seed["latency", s] < by_seed["sequence", s] for s in range(SEEDS))
+        assert row[4][1] == f"{wins},{SEEDS - wins}" and int(row[2][0]) == SEEDS
 
 
 def test_dataset_folder_with_duplicate_runs_gives_the_same_cells(tmp_path: Path) -> None:
@@ -310,7 +331,7 @@ def test_a_campaign_without_plans_uses_the_runs_solve_times(tmp_path: Path) -> N
     assert not (folder / "report.html").exists()
     text = " ".join(page.text)
     assert "not shown: this campaign kept no plans" in text
-    for row in (r for r in page.rows if r):
+    for row in (r for r in page.tables["cells"] if r):
         want = _expected(int(row[0][0]), row[1][0])
         assert float(row[-1][1] or "nan") == pytest.approx(want["solve_runs"], rel=1e-12)
 

@@ -35,6 +35,7 @@ from groundstation.runners.campaign_data import (
     float_column,
     load_campaign,
 )
+from groundstation.runners.campaign_paired import PairedRow, paired_with_base
 from groundstation.runners.campaign_plots import (
     Panel,
     plot_mean_vs_fleet,
@@ -180,12 +181,58 @@ def _header_rows(
     return rows
 
 
+def _pct(value: float | None) -> str:
+    return "-" if value is None else f"{value:+.1f}"
+
+
+def _paired_html(paired: Sequence[PairedRow] | None) -> list[str]:
+    """The paired table (``campaign_paired``), or nothing when no variant key varies."""
+    if not paired:
+        return []
+    esc = html.escape
+    first = paired[0]
+    base = ", ".join(f"{k}={_show(v)}" for k, v in first.base.items())
+    keys = [*first.block, *first.variant]
+    out = [
+        f"<h2>Paired against {esc(base)} (same seed)</h2>",
+        '<table id="paired"><tr>'
+        + "".join(f"<th>{esc(k)}</th>" for k in keys)
+        + f"<th>pairs</th><th>vs {esc(base)}, % (95 % CI)</th><th>wins/losses</th></tr>",
+    ]
+    for row in paired:
+        values = {**row.block, **row.variant}
+        ci = (
+            f" [{_pct(row.ci_low_pct)}, {_pct(row.ci_high_pct)}]"
+            if row.ci_low_pct is not None
+            else ""
+        )
+        full = ",".join(
+            "" if v is None else repr(v) for v in (row.mean_pct, row.ci_low_pct, row.ci_high_pct)
+        )
+        out.append(
+            "<tr>"
+            + "".join(f"<td>{esc(_show(values[k]))}</td>" for k in keys)
+            + f'<td class="num">{row.pairs}</td>'
+            + f'<td class="num" data-value="{esc(full)}">{esc(_pct(row.mean_pct))} %{esc(ci)}</td>'
+            + f'<td class="num" data-value="{row.wins},{row.losses}">{row.wins}/{row.losses}</td>'
+            + "</tr>"
+        )
+    out.append("</table>")
+    out.append(
+        "<p>Each seed's run against the base variant's run of the same seed and block: mean "
+        "of 100 (mean_uncertainty / base's - 1), 95 % Student t interval; wins/losses: seeds "
+        "where the variant is lower/higher.</p>"
+    )
+    return out
+
+
 def render_campaign_html(
     data: CampaignData,
     cells: Cells,
     summaries: Sequence[CellSummary],
     panels: Sequence[Panel],
     written_at: dt.datetime,
+    paired: Sequence[PairedRow] | None = None,
 ) -> str:
     """The page (see the module docstring)."""
     esc = html.escape
@@ -215,6 +262,7 @@ def render_campaign_html(
         f"runs whose {esc(summaries[0].bounded_column if summaries else 'bounded_trend')} "
         "is true among those with a verdict, 95 % Wilson interval.</p>"
     )
+    out += _paired_html(paired)
     for panel in panels:
         if panel.figure is not None:
             out.append(figure_html(panel.figure, caption=panel.caption))
@@ -260,7 +308,8 @@ def write_campaign_report(
                 atomic_write_bytes(
                     page.with_name(f"{page.stem}-{panel.figure.name}.png"), panel.figure.png
                 )
-        atomic_write_text(page, render_campaign_html(data, cells, summaries, panels, when))
+        paired = paired_with_base(data.runs, cells)
+        atomic_write_text(page, render_campaign_html(data, cells, summaries, panels, when, paired))
     except StorageError as exc:
         raise CampaignReportError(str(exc)) from None
     except OSError as exc:
