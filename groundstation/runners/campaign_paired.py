@@ -10,9 +10,10 @@ keys split in two:
   block.
 
 The base variant is the paper's (``objective`` sequence with ``tau`` 0.5) when the grid has
-it, else the first variant in sorted order. For each other variant of a block, over the
-seeds both have: the mean of ``100 (run's mean_uncertainty / base run's - 1)`` in %, its
-95 % Student t interval, and wins/losses (seeds where the variant is lower/higher).
+it, else the first variant in the cells' order (the campaign file's). For each other
+variant of a block, over the seeds both have: the mean of
+``100 (run's mean_uncertainty / base run's - 1)`` in %, its 95 % Student t interval, and
+wins/losses (seeds where the variant is lower/higher).
 """
 
 from __future__ import annotations

@@ -291,7 +291,7 @@ def write_campaign_report(
     campaign_dir = Path(campaign_dir)
     data = load_campaign(campaign_dir)
     note(f"{data.runs.num_rows} runs read")
-    cells = group_cells(data.runs, data.grid_keys)
+    cells = group_cells(data.runs, data.grid_keys, data.grid)
     summaries = summaries_of(data.runs, cells, data.plans)
     panels = [
         plot_mean_vs_fleet(summaries, cells),

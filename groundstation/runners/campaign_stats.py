@@ -18,7 +18,7 @@ so 10 000 runs of 600 mission seconds summarise in well under a second.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -59,8 +59,8 @@ MAX_SERIES_POINTS = 2000
 @dataclass
 class Cells:
     """Runs grouped by grid cell: ``index[r]`` is run r's cell, ``values[c]`` cell c's
-    value of each of ``keys`` (the grid keys but the seed), cells sorted by those values
-    (numbers ascending, text alphabetically, in ``keys`` order)."""
+    value of each of ``keys`` (the grid keys but the seed), cells in the order of
+    :func:`group_cells`."""
 
     keys: list[str]
     index: np.ndarray
@@ -89,13 +89,36 @@ def _show(value: Any) -> str:
     return str(value)
 
 
-def group_cells(runs: pa.Table, keys: Sequence[str]) -> Cells:
-    """The cells of ``runs`` over grid ``keys`` (the seed left out if among them)."""
+def _in_order(distinct: list[Any], listed: Sequence[Any]) -> np.ndarray:
+    """A permutation of ``distinct`` that puts the values in ``listed``'s order (values not
+    listed after them, in their sorted order)."""
+
+    def rank(j: int) -> tuple[int, int]:
+        for i, value in enumerate(listed):
+            if distinct[j] == value:
+                return (0, i)
+        return (1, j)
+
+    return np.asarray(sorted(range(len(distinct)), key=rank), dtype=np.int64)
+
+
+def group_cells(
+    runs: pa.Table, keys: Sequence[str], order: Mapping[str, Any] | None = None
+) -> Cells:
+    """The cells of ``runs`` over grid ``keys`` (the seed left out if among them), sorted
+    by value, or for a key whose ``order`` entry is a list (the campaign file's grid) in
+    that list's order."""
     cell_keys = [k for k in keys if k != SEED_KEY and k in runs.column_names]
     combined = np.zeros(runs.num_rows, dtype=np.int64)
     distinct_of: list[list[Any]] = []
     for key in cell_keys:
         codes, distinct = column_codes(runs.column(key))
+        listed = (order or {}).get(key)
+        if isinstance(listed, list | tuple):
+            perm = _in_order(distinct, listed)
+            position = np.empty(len(perm), dtype=np.int64)
+            position[perm] = np.arange(len(perm))
+            codes, distinct = position[codes], [distinct[j] for j in perm]
         combined = combined * len(distinct) + codes
         distinct_of.append(distinct)
     unique, index = np.unique(combined, return_inverse=True)
@@ -206,14 +229,16 @@ def summarise_cells(
     runs: pa.Table,
     plans: pa.Table | None = None,
     grid_keys: Sequence[str] | None = None,
+    grid: Mapping[str, Any] | None = None,
 ) -> list[CellSummary]:
     """One :class:`CellSummary` per grid cell of ``runs`` (a ``runs.parquet`` table; rows
-    repeating a ``run_id`` are dropped here), sorted by the cells' values. ``grid_keys``:
+    repeating a ``run_id`` are dropped here), in :func:`group_cells`' order. ``grid_keys``:
     the campaign file's grid keys (default: :func:`grid_keys_of` the columns); ``plans``:
-    the ``plans.parquet`` table, for the median solve time over every plan."""
+    the ``plans.parquet`` table, for the median solve time over every plan; ``grid``: the
+    campaign file's ``grid`` mapping, whose lists order the cells (default: by value)."""
     runs, _ = dedupe(runs, ["run_id"])
-    keys = grid_keys_of(runs.column_names, grid_keys)
-    cells = group_cells(runs, keys)
+    keys = grid_keys_of(runs.column_names, grid_keys or (list(grid) if grid else None))
+    cells = group_cells(runs, keys, grid)
     return summaries_of(runs, cells, plans)
 
 
