@@ -363,3 +363,22 @@ def test_missing_empty_or_corrupt_folder_is_a_one_line_floe_error(
     assert campaign_report_command([str(tmp_path / "empty"), "--quiet"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith("gcs campaign report: error: ")
+
+
+def test_a_list_valued_override_is_a_grid_key() -> None:
+    rows = [
+        {
+            "run_id": f"r{k}",
+            "seed": k % 2,
+            "targets.random.vx_m_s": [0, 0] if k < 2 else [-3, 3],
+            "mean_uncertainty": float(k),
+        }
+        for k in range(4)
+    ]
+    cells = summarise_cells(pa.Table.from_pylist(rows))
+    assert [c.values for c in cells] == [
+        {"targets.random.vx_m_s": [-3, 3]},
+        {"targets.random.vx_m_s": [0, 0]},
+    ]
+    assert [c.mean_uncertainty_m2 for c in cells] == [2.5, 0.5]
+    assert [c.runs for c in cells] == [2, 2]
