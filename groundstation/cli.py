@@ -19,6 +19,7 @@ __all__ = ["main"]
 COMMANDS: dict[str, str] = {
     "run": "the ground-station daemon: fly vehicles over MAVLink to keep targets tracked",
     "simulate": "run a scenario in virtual time against the world model (metrics, plots)",
+    "campaign": "run a grid of simulations (local pool or Dask) into Parquet; resumable",
     "plan": "solve one target-visitation problem (JSON file) and print the plan as JSON",
     "sitl": "start built-in ArduPlane-like MAVLink vehicles, or real ArduPilot SITL",
     "replay": "replay a recorded run through today's decision core, or serve its vehicles",

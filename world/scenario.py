@@ -41,6 +41,7 @@ __all__ = [
     "TargetSpec",
     "bundled_scenarios",
     "load_scenario",
+    "load_scenario_data",
     "parse_scenario",
     "resolve_targets",
 ]
@@ -194,28 +195,32 @@ def bundled_scenarios() -> list[str]:
 
 def load_scenario(name_or_path: str) -> Scenario:
     """Load a bundled scenario by name, or a YAML file by path."""
+    data, source = load_scenario_data(name_or_path)
+    return _parse_loaded(data, source)
+
+
+def load_scenario_data(name_or_path: str) -> tuple[Any, str]:
+    """The raw YAML mapping of a bundled scenario (by name) or a file (by path), and its
+    source (the name or the path), before validation: ``gcs campaign`` applies its
+    overrides to it, then :func:`parse_scenario` checks the result."""
     if name_or_path in bundled_scenarios():
         resource = resources.files("world") / "scenarios" / f"{name_or_path}.yaml"
         text = resource.read_text(encoding="utf-8")
-        source = name_or_path
-    else:
-        path = Path(name_or_path)
-        if not path.is_file():
-            known = ", ".join(bundled_scenarios())
-            raise ScenarioError(
-                f"scenario {name_or_path!r}: no such file or bundled scenario (bundled: {known})"
-            )
-        source = str(path)
         try:
-            data = load_yaml_file(path, f"scenario {source}")
+            return load_yaml_text(text, f"scenario {name_or_path}"), name_or_path
         except ConfigError as exc:
             raise ScenarioError(str(exc)) from None
-        return _parse_loaded(data, source)
+    path = Path(name_or_path)
+    if not path.is_file():
+        known = ", ".join(bundled_scenarios())
+        raise ScenarioError(
+            f"scenario {name_or_path!r}: no such file or bundled scenario (bundled: {known})"
+        )
+    source = str(path)
     try:
-        data = load_yaml_text(text, f"scenario {source}")
+        return load_yaml_file(path, f"scenario {source}"), source
     except ConfigError as exc:
         raise ScenarioError(str(exc)) from None
-    return _parse_loaded(data, source)
 
 
 def _parse_loaded(data: Any, source: str) -> Scenario:

@@ -62,7 +62,7 @@ from world.dynamics import UavState
 from world.model import Boat, Camera, Iceberg, World
 from world.scenario import Scenario, ScriptedEvent, resolve_targets
 
-__all__ = ["SimulationOptions", "SimulationRun", "run_simulation"]
+__all__ = ["PlanRecord", "SimulationOptions", "SimulationRun", "run_simulation"]
 
 
 @dataclass(frozen=True)
@@ -88,6 +88,27 @@ class MapSnapshot:
     boat_xy_m: tuple[float, float] | None
 
 
+@dataclass(frozen=True)
+class PlanRecord:
+    """One adopted plan, as ``gcs campaign`` keeps it (``plans.parquet``): when, the
+    planner's figures (``objective_value`` is the objective's value, ``objective`` its
+    name), and the size of the problem it solved."""
+
+    t_s: float
+    mu: float
+    f1: float
+    f2: float
+    objective_value: float
+    objective: str
+    status: str
+    solver: str
+    solve_time_s: float
+    bound: float | None
+    gap: float | None
+    targets: int
+    uavs_planned: int
+
+
 @dataclass
 class SimulationRun:
     """Everything a run produced: metrics and the history the plots draw."""
@@ -104,6 +125,7 @@ class SimulationRun:
     snapshots: list[MapSnapshot] = field(default_factory=list)
     events: list[dict[str, Any]] = field(default_factory=list)
     journal: list[dict[str, Any]] = field(default_factory=list)
+    plans: list[PlanRecord] = field(default_factory=list)
 
 
 class _Simulation:
@@ -169,6 +191,7 @@ class _Simulation:
             return self.core.handle(PlanSolved(command.t_s, command.request_id, result))
         if isinstance(command, PlanAdopted):
             self.metrics.plan(command.result.solve_time_s)
+            self.run.plans.append(_plan_record(command))
         elif isinstance(command, FlyToTarget):
             vehicle = self.vehicles[command.vehicle]
             if vehicle.commanded:
@@ -341,6 +364,19 @@ class _Simulation:
                 truth=dict(truth),
                 boat_xy_m=(boat.x_m, boat.y_m) if boat else None,
             ))
+
+
+def _plan_record(adopted: PlanAdopted) -> PlanRecord:
+    result, problem = adopted.result, adopted.problem
+    return PlanRecord(
+        t_s=float(adopted.t_s), mu=float(result.mu), f1=float(result.f1),
+        f2=float(result.f2), objective_value=float(result.objective),
+        objective=str(problem.objective), status=str(result.status), solver=result.solver,
+        solve_time_s=float(result.solve_time_s),
+        bound=None if result.bound is None else float(result.bound),
+        gap=None if result.gap is None else float(result.gap), targets=len(problem.targets),
+        uavs_planned=len(problem.uavs),
+    )
 
 
 def run_simulation(scenario: Scenario, options: SimulationOptions | None = None) -> SimulationRun:

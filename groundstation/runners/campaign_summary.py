@@ -1,0 +1,76 @@
+"""The end-of-campaign summary: per grid cell, means with 95 % confidence intervals.
+
+A *cell* is one combination of the grid keys other than ``seed`` that take more than one
+value (the seeds are the repetitions). For a figure x over the n runs of a cell the
+interval is Student's t: mean +- t(0.975, n - 1) s / sqrt(n) (none for n < 2). Booleans
+(``bounded_trend``) are counted, k of the n runs that have a value.
+"""
+
+from __future__ import annotations
+
+import math
+import statistics
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+__all__ = ["CellSummary", "summarise", "t_half_width"]
+
+SUMMARY_FIGURES = ("mean_uncertainty", "final_uncertainty", "visits", "lost_targets")
+
+
+@dataclass(frozen=True)
+class CellSummary:
+    """One cell: its coordinates, its run count, (mean, half width) per figure, and how
+    many runs were bounded (trend test) out of those with a verdict."""
+
+    cell: dict[str, Any]
+    runs: int
+    figures: dict[str, tuple[float, float | None]]
+    bounded: int
+    bounded_of: int
+
+
+def t_half_width(values: Sequence[float]) -> float | None:
+    """Half width of the 95 % Student-t interval of the mean; None below 2 values."""
+    n = len(values)
+    if n < 2:
+        return None
+    from scipy.special import stdtrit  # = scipy.stats.t.ppf, without scipy.stats' 1.2 s import
+
+    return float(stdtrit(n - 1, 0.975)) * statistics.stdev(values) / math.sqrt(n)
+
+
+def summarise(
+    rows: Sequence[Mapping[str, Any]], grid: Mapping[str, Sequence[Any]]
+) -> tuple[list[str], list[CellSummary]]:
+    """The varying keys (cell columns) and one summary per cell, in grid order."""
+    keys = [k for k, values in grid.items() if k != "seed" and len(values) > 1]
+    order = {k: {_marker(v): i for i, v in enumerate(grid[k])} for k in keys}
+    cells: dict[tuple[Any, ...], list[Mapping[str, Any]]] = {}
+    for row in rows:
+        cells.setdefault(tuple(_marker(row.get(k)) for k in keys), []).append(row)
+
+    def position(item: tuple[tuple[Any, ...], list[Mapping[str, Any]]]) -> tuple[int, ...]:
+        return tuple(order[k].get(m, len(order[k])) for k, m in zip(keys, item[0], strict=True))
+
+    out: list[CellSummary] = []
+    for _, members in sorted(cells.items(), key=position):
+        figures: dict[str, tuple[float, float | None]] = {}
+        for name in SUMMARY_FIGURES:
+            values = [float(r[name]) for r in members if r.get(name) is not None]
+            if values:
+                figures[name] = (statistics.fmean(values), t_half_width(values))
+        verdicts = [r["bounded_trend"] for r in members if r.get("bounded_trend") is not None]
+        out.append(CellSummary(
+            cell={k: members[0].get(k) for k in keys}, runs=len(members), figures=figures,
+            bounded=sum(bool(v) for v in verdicts), bounded_of=len(verdicts),
+        ))
+    return keys, out
+
+
+def _marker(value: Any) -> Any:
+    """A hashable stand-in that makes 5 and 5.0 one cell."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return value if isinstance(value, str | bool | type(None)) else repr(value)
+    return float(value)
