@@ -365,6 +365,21 @@ def test_missing_empty_or_corrupt_folder_is_a_one_line_floe_error(
     assert err.count("\n") == 1 and err.startswith("gcs campaign report: error: ")
 
 
+def test_without_campaign_yaml_the_grid_keys_come_from_the_parquet_metadata(
+    tmp_path: Path,
+) -> None:
+    folder = _write(tmp_path / "meta", plans=False)
+    (folder / "campaign.yaml").unlink()
+    runs = pq.read_table(folder / "runs.parquet")
+    keys = b'["scenario", "uavs", "objective", "seed"]'  # as gcs campaign records them
+    pq.write_table(runs.replace_schema_metadata({b"floe.grid_keys": keys}), folder / "runs.parquet")
+    data = load_campaign(folder)
+    assert data.grid_keys == ["scenario", "uavs", "objective", "seed"]
+    assert data.name == "synthetic"  # the campaign column
+    assert any("no campaign.yaml" in w for w in data.warnings)
+    assert data.grid["objective"] == ["latency", "sequence"]
+
+
 def test_a_list_valued_override_is_a_grid_key() -> None:
     rows = [
         {

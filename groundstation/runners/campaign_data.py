@@ -139,7 +139,7 @@ def grid_keys_of(columns: Sequence[str], declared: Sequence[str] | None = None) 
 def _campaign_file(folder: Path, warnings: list[str]) -> dict[str, Any]:
     path = folder / "campaign.yaml"
     if not path.exists():
-        warnings.append("no campaign.yaml: the grid is read from the runs' columns")
+        warnings.append("no campaign.yaml: the grid is read from runs.parquet")
         return {}
     try:
         data = load_yaml_file(path, str(path))
@@ -154,6 +154,19 @@ def _campaign_file(folder: Path, warnings: list[str]) -> dict[str, Any]:
 
 def _values_of(table: pa.Table, key: str) -> list[Any]:
     return [v for v in column_codes(table.column(key))[1] if v is not None]
+
+
+def _metadata_keys(runs: pa.Table) -> list[str] | None:
+    """The grid keys ``gcs campaign`` records in the Parquet schema (``floe.grid_keys``,
+    a JSON list), if any."""
+    raw = (runs.schema.metadata or {}).get(b"floe.grid_keys")
+    try:
+        keys = json.loads(raw) if raw else None
+    except ValueError:
+        return None
+    if isinstance(keys, list) and all(isinstance(k, str) for k in keys):
+        return keys
+    return None
 
 
 def load_campaign(folder: Path) -> CampaignData:
@@ -178,9 +191,10 @@ def load_campaign(folder: Path) -> CampaignData:
         raise CampaignReportError(f"{runs_path}: no run in it (the campaign wrote nothing yet)")
     warnings: list[str] = []
     spec = _campaign_file(folder, warnings)
+    recorded = _metadata_keys(runs)
     runs, duplicate_runs = dedupe(runs, ["run_id"])
     grid_spec = spec.get("grid") if isinstance(spec.get("grid"), Mapping) else None
-    declared = [str(k) for k in grid_spec] if grid_spec else None
+    declared = [str(k) for k in grid_spec] if grid_spec else recorded
     keys = grid_keys_of(runs.column_names, declared)
     if declared:
         absent = [k for k in declared if k not in keys]

@@ -174,7 +174,9 @@ def _header_rows(
     for column, word in (("wall_s", "wall time of the runs"), ("cpu_s", "CPU time of the runs")):
         total = float(np.nansum(float_column(runs, column)))
         if column in runs.column_names:
-            rows.append((word, f"{total:,.0f} s ({total / 3600:.2f} h)"))
+            rows.append(
+                (word, f"{total:,.0f} s" + (f" ({total / 3600:.1f} h)" if total >= 3600 else ""))
+            )
     if "worker" in runs.column_names:
         rows.append(("workers", str(len(column_codes(runs.column("worker"))[1]))))
     rows.append(("report written", written_at.strftime("%Y-%m-%d %H:%M:%S %Z").strip()))

@@ -146,7 +146,9 @@ def wilson_interval(k: int, n: int, z: float = Z_975) -> tuple[float, float] | N
     p = k / n
     centre = (p + z * z / (2 * n)) / (1 + z * z / n)
     half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
-    return max(0.0, centre - half), min(1.0, centre + half)
+    low = 0.0 if k <= 0 else max(0.0, centre - half)  # exact at the ends, no 1e-17
+    high = 1.0 if k >= n else min(1.0, centre + half)
+    return low, high
 
 
 def grouped_mean_ci(
