@@ -176,6 +176,9 @@ def plot_series(bands: SeriesBands | None, cells: Cells) -> Panel:
     for ax in axes[len(shown) :]:
         ax.set_visible(False)
     _maybe_log(axes[0], levels)  # by the curves' levels: every curve starts near 0
+    positive = levels[np.isfinite(levels) & (levels > 0)]
+    if axes[0].get_yscale() == "log" and positive.size:  # not decades of the first seconds
+        axes[0].set_ylim(bottom=float(positive.min()) / 10)
     for ax in axes[-cols:]:
         ax.set_xlabel("mission time (s)")
     for ax in axes[::cols]:
