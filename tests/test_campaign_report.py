@@ -76,6 +76,7 @@ def _campaign_rows() -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
                         "max_uncertainty": float(sigma.max()),
                         "bounded": bool(rng.random() < 0.5),
                         "bounded_trend": verdict,
+                        "trend": None if seed == 0 else float(rng.normal(0.4, 0.4)),
                         "plans": PLANS_PER_RUN,
                         "solve_time_median_s": float(rng.uniform(0.001, 0.01) * uavs),
                         "solve_time_max_s": float(rng.uniform(0.01, 0.1) * uavs),
@@ -259,6 +260,23 @@ def test_table_numbers_are_the_cells_mean_ci_bounded_rate_and_median(report: Pat
         assert row[3][0] == f"{want['mean']:,.0f}"
 
 
+def test_trend_table_and_first_test_count_the_runs_under_each_bound(report: Path) -> None:
+    page = _parse(report)
+    trend_rows = [r for r in page.tables["trend"] if r]
+    cell_rows = [r for r in page.tables["cells"] if r]
+    assert len(trend_rows) == len(cell_rows) == len(UAVS) * len(OBJECTIVES)
+    for row, cell_row in zip(trend_rows, cell_rows, strict=True):
+        uavs, objective = int(row[0][0]), row[1][0]
+        runs = [r for r in RUNS if r["uavs"] == uavs and r["objective"] == objective]
+        trends = [r["trend"] for r in runs if r["trend"] is not None]
+        assert float(row[2][1] or "nan") == pytest.approx(float(np.median(trends)), rel=1e-12)
+        assert [c[0] for c in row[3:]] == [
+            f"{sum(t <= b for t in trends)}/{len(trends)}" for b in (0.25, 0.4, 0.5, 0.6)
+        ]
+        first = sum(r["bounded"] for r in runs)
+        assert cell_row[-1] == (f"{first}/{len(runs)}", f"{first},{len(runs)}")
+
+
 def test_paired_table_compares_each_seed_with_the_papers_objective(report: Path) -> None:
     rows = [r for r in _parse(report).tables["paired"] if r]
     assert [(int(r[0][0]), r[1][0]) for r in rows] == [(u, "latency") for u in UAVS]
@@ -273,7 +291,7 @@ def test_paired_table_compares_each_seed_with_the_papers_objective(report: Path)
         half = T_975_DF5 * diffs.std(ddof=1) / math.sqrt(SEEDS)
         mean, low, high = (float(v) for v in (row[3][1] or "").split(","))
         assert (mean, low, high) == pytest.approx(
-            (diffs.mean(), diffs.mean() - half, diffs.mean() + half), rel=1e-9
+            (diffs.mean(), diffs.mean() - half, diffs.mean() + half), rel=1e-9, abs=1e-6
         )
         wins = sum(by_seed["latency", s] < by_seed["sequence", s] for s in range(SEEDS))
         assert row[4][1] == f"{wins},{SEEDS - wins}" and int(row[2][0]) == SEEDS
@@ -333,7 +351,7 @@ def test_a_campaign_without_plans_uses_the_runs_solve_times(tmp_path: Path) -> N
     assert "not shown: this campaign kept no plans" in text
     for row in (r for r in page.tables["cells"] if r):
         want = _expected(int(row[0][0]), row[1][0])
-        assert float(row[-1][1] or "nan") == pytest.approx(want["solve_runs"], rel=1e-12)
+        assert float(row[7][1] or "nan") == pytest.approx(want["solve_runs"], rel=1e-12)
 
 
 def test_missing_empty_or_corrupt_folder_is_a_one_line_floe_error(

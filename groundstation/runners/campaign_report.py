@@ -46,10 +46,12 @@ from groundstation.runners.campaign_plots import (
 from groundstation.runners.campaign_stats import (
     Cells,
     CellSummary,
+    TrendCounts,
     group_cells,
     series_bands,
     summaries_of,
     summarise_cells,
+    trend_counts,
 )
 from groundstation.runners.html_page import figure_html, page_start
 from groundstation.storage import StorageError, atomic_write_bytes, atomic_write_text
@@ -92,6 +94,7 @@ def cell_table(
     column = summaries[0].bounded_column if summaries else "bounded_trend"
     solve_from = {s.solve_time_source for s in summaries} - {"none"}
     solve_word = "plans" if solve_from == {"plans"} else "runs' medians"
+    first_test = any(s.ratio_bounded_of for s in summaries)
     header = [
         *keys,
         "runs",
@@ -100,6 +103,7 @@ def cell_table(
         f"bounded ({column})",
         "95 % Wilson",
         f"median solve s ({solve_word})",
+        *(["first test (ratio)"] if first_test else []),
     ]
     rows: list[list[str]] = []
     for s in summaries:
@@ -119,6 +123,7 @@ def cell_table(
                 f"{s.bounded}/{s.bounded_of}",
                 wilson,
                 _number(s.solve_time_median_s),
+                *([f"{s.ratio_bounded}/{s.ratio_bounded_of}"] if first_test else []),
             ]
         )
     return header, rows
@@ -137,6 +142,7 @@ def _data_values(s: CellSummary) -> list[str]:
         f"{s.bounded},{s.bounded_of}",
         full(s.bounded_low, s.bounded_high),
         full(s.solve_time_median_s),
+        f"{s.ratio_bounded},{s.ratio_bounded_of}",
     ]
 
 
@@ -181,6 +187,39 @@ def _header_rows(
         rows.append(("workers", str(len(column_codes(runs.column("worker"))[1]))))
     rows.append(("report written", written_at.strftime("%Y-%m-%d %H:%M:%S %Z").strip()))
     return rows
+
+
+def _trend_html(trends: TrendCounts | None, cells: Cells, keys: Sequence[str]) -> list[str]:
+    """Runs under each trend bound per cell (docs/planner.md "Bounded")."""
+    if trends is None:
+        return []
+    esc = html.escape
+    out = [
+        "<h2>Trend test at other bounds</h2>",
+        '<table id="trend"><tr>'
+        + "".join(f"<th>{esc(k)}</th>" for k in keys)
+        + "<th>median trend</th>"
+        + "".join(f"<th>trend &lt;= {b:g}</th>" for b in trends.bounds)
+        + "</tr>",
+    ]
+    for c, values in enumerate(cells.values):
+        med = float(trends.median[c])
+        med_text = "-" if math.isnan(med) else f"{med:.2f}"
+        out.append(
+            "<tr>"
+            + "".join(f"<td>{esc(_show(values[k]))}</td>" for k in keys)
+            + f'<td class="num" data-value="{med!r}">{med_text}</td>'
+            + "".join(
+                f'<td class="num">{int(k)}/{int(trends.of[c])}</td>' for k in trends.passing[c]
+            )
+            + "</tr>"
+        )
+    out.append(
+        "</table><p>trend: the growth over the second half of a run that a robust (Theil-Sen) "
+        "slope of its 10 s means predicts, relative to its level; bounded_trend is trend "
+        "&lt;= 0.5.</p>"
+    )
+    return out
 
 
 def _pct(value: float | None) -> str:
@@ -235,6 +274,7 @@ def render_campaign_html(
     panels: Sequence[Panel],
     written_at: dt.datetime,
     paired: Sequence[PairedRow] | None = None,
+    trends: TrendCounts | None = None,
 ) -> str:
     """The page (see the module docstring)."""
     esc = html.escape
@@ -254,7 +294,7 @@ def render_campaign_html(
         cells_html = [f"<td>{esc(v)}</td>" for v in row[: len(keys)]]
         cells_html += [
             f'<td class="num" data-value="{esc(full)}">{esc(text)}</td>'
-            for text, full in zip(row[len(keys) :], _data_values(s), strict=True)
+            for text, full in zip(row[len(keys) :], _data_values(s), strict=False)
         ]
         out.append("<tr>" + "".join(cells_html) + "</tr>")
     out.append("</table>")
@@ -264,6 +304,7 @@ def render_campaign_html(
         f"runs whose {esc(summaries[0].bounded_column if summaries else 'bounded_trend')} "
         "is true among those with a verdict, 95 % Wilson interval.</p>"
     )
+    out += _trend_html(trends, cells, keys)
     out += _paired_html(paired)
     for panel in panels:
         if panel.figure is not None:
@@ -311,7 +352,9 @@ def write_campaign_report(
                     page.with_name(f"{page.stem}-{panel.figure.name}.png"), panel.figure.png
                 )
         paired = paired_with_base(data.runs, cells)
-        atomic_write_text(page, render_campaign_html(data, cells, summaries, panels, when, paired))
+        trends = trend_counts(data.runs, cells)
+        html_text = render_campaign_html(data, cells, summaries, panels, when, paired, trends)
+        atomic_write_text(page, html_text)
     except StorageError as exc:
         raise CampaignReportError(str(exc)) from None
     except OSError as exc:

@@ -46,6 +46,7 @@ __all__ = [
     "series_bands",
     "summarise_cells",
     "t_quantile_975",
+    "trend_counts",
     "wilson_interval",
 ]
 
@@ -216,6 +217,10 @@ class CellSummary:
     solve_time_source: str
     """``plans`` (every adopted plan's ``solve_time_s``), ``runs`` (median of the runs'
     ``solve_time_median_s``) or ``none``."""
+    ratio_bounded: int = 0
+    """Runs the first, unsound test (``bounded``: boundedness_ratio <= 1.5) calls bounded,
+    when ``bounded_column`` is ``bounded_trend`` (else 0)."""
+    ratio_bounded_of: int = 0
 
     def label(self, keys: Sequence[str] | None = None) -> str:
         """``uavs=3, objective=sequence`` over ``keys`` (default: all of the cell's)."""
@@ -254,6 +259,13 @@ def summaries_of(runs: pa.Table, cells: Cells, plans: pa.Table | None) -> list[C
     judged = np.isfinite(verdict)
     bounded_of = np.bincount(cells.index[judged], minlength=g)
     bounded = np.bincount(cells.index[judged], weights=verdict[judged] > 0.5, minlength=g)
+    ratio_bounded: np.ndarray = np.zeros(g)
+    ratio_of: np.ndarray = np.zeros(g)
+    if bounded_column == "bounded_trend" and "bounded" in runs.column_names:
+        first = float_column(runs, "bounded")
+        has = np.isfinite(first)
+        ratio_of = np.bincount(cells.index[has], minlength=g)
+        ratio_bounded = np.bincount(cells.index[has], weights=first[has] > 0.5, minlength=g)
     source = "none"
     solve = np.full(g, math.nan)
     if plans is not None and plans.num_rows and "solve_time_s" in plans.column_names:
@@ -283,9 +295,51 @@ def summaries_of(runs: pa.Table, cells: Cells, plans: pa.Table | None) -> list[C
                 bounded_column=bounded_column,
                 solve_time_median_s=_optional(solve[c]),
                 solve_time_source=source if math.isfinite(solve[c]) else "none",
+                ratio_bounded=int(ratio_bounded[c]),
+                ratio_bounded_of=int(ratio_of[c]),
             )
         )
     return out
+
+
+TREND_BOUNDS = (0.25, 0.4, 0.5, 0.6)
+"""Bounds of the trend test counted by :func:`trend_counts` (0.5 is ``bounded_trend``'s)."""
+
+
+@dataclass
+class TrendCounts:
+    """Per cell: the median ``trend`` and how many runs have a trend at most each bound
+    (docs/planner.md "Bounded": the table that chose the bound 0.5)."""
+
+    bounds: tuple[float, ...]
+    median: np.ndarray
+    """(cells,), NaN for a cell without a trend."""
+    passing: np.ndarray
+    """(cells, bounds): runs with ``trend <= bound``."""
+    of: np.ndarray
+    """(cells,): runs with a trend (not null: long enough)."""
+
+
+def trend_counts(
+    runs: pa.Table, cells: Cells, bounds: Sequence[float] = TREND_BOUNDS
+) -> TrendCounts | None:
+    """:class:`TrendCounts` from the runs' ``trend`` column; None without one."""
+    if "trend" not in runs.column_names:
+        return None
+    trend = float_column(runs, "trend")
+    ok = np.isfinite(trend)
+    if not ok.any():
+        return None
+    idx, x = cells.index[ok], trend[ok]
+    passing = np.stack(
+        [np.bincount(idx, weights=x <= b, minlength=cells.count) for b in bounds], axis=1
+    )
+    return TrendCounts(
+        tuple(bounds),
+        grouped_median(x, idx, cells.count),
+        passing.astype(np.int64),
+        np.bincount(idx, minlength=cells.count),
+    )
 
 
 @dataclass
