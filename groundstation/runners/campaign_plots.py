@@ -18,7 +18,13 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 from groundstation.runners.campaign_data import CampaignData, float_column
-from groundstation.runners.campaign_stats import Cells, CellSummary, SeriesBands, plan_cells
+from groundstation.runners.campaign_stats import (
+    Cells,
+    CellSummary,
+    SeriesBands,
+    plan_cells,
+    show_value,
+)
 from groundstation.runners.html_page import FigurePng, render_png
 from groundstation.runners.report_plots import COLOURS
 
@@ -68,7 +74,7 @@ def _groups(cells: Cells, without: Sequence[str]) -> dict[tuple[str, ...], list[
     keys = [k for k in cells.varying if k not in without]
     out: dict[tuple[str, ...], list[int]] = {}
     for c, values in enumerate(cells.values):
-        out.setdefault(tuple(f"{k}={values[k]}" for k in keys), []).append(c)
+        out.setdefault(tuple(f"{k}={show_value(values[k])}" for k in keys), []).append(c)
     return out
 
 

@@ -21,9 +21,8 @@ from __future__ import annotations
 import datetime as dt
 import html
 import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -49,6 +48,7 @@ from groundstation.runners.campaign_stats import (
     TrendCounts,
     group_cells,
     series_bands,
+    show_value,
     summaries_of,
     summarise_cells,
     trend_counts,
@@ -71,19 +71,6 @@ def _number(value: float | None) -> str:
     if value is None or not math.isfinite(value):
         return "-"
     return f"{value:,.0f}" if abs(value) >= 100 else f"{value:.3g}"
-
-
-def _show(value: Any) -> str:
-    """A grid value as the campaign file would spell it: ``1, 3, 5``, ``0 to 19``."""
-    if isinstance(value, float) and value.is_integer():
-        return f"{value:g}"
-    if isinstance(value, list | tuple):
-        return ", ".join(_show(v) for v in value)
-    if isinstance(value, Mapping) and set(value) == {"from", "to"}:
-        return f"{_show(value['from'])} to {_show(value['to'])}"
-    if isinstance(value, Mapping):
-        return ", ".join(f"{k}: {_show(v)}" for k, v in value.items())
-    return "-" if value is None else str(value)
 
 
 def cell_table(
@@ -116,7 +103,7 @@ def cell_table(
         runs = str(s.runs) if s.measured == s.runs else f"{s.runs} ({s.runs - s.measured} no value)"
         rows.append(
             [
-                *(_show(s.values.get(k)) for k in keys),
+                *(show_value(s.values.get(k)) for k in keys),
                 runs,
                 _number(s.mean_uncertainty_m2),
                 ci,
@@ -158,9 +145,9 @@ def _header_rows(
     runs = data.runs
     rows = [("campaign", data.name), ("folder", str(data.folder))]
     for key, value in data.grid.items():
-        rows.append((f"grid: {key}", _show(value)))
+        rows.append((f"grid: {key}", show_value(value)))
     for key, value in data.fixed.items():
-        rows.append((f"set: {key}", _show(value)))
+        rows.append((f"set: {key}", show_value(value)))
     extra = (
         f" ({data.duplicate_runs} duplicate row(s) of a run_id dropped)"
         if data.duplicate_runs
@@ -207,7 +194,7 @@ def _trend_html(trends: TrendCounts | None, cells: Cells, keys: Sequence[str]) -
         med_text = "-" if math.isnan(med) else f"{med:.2f}"
         out.append(
             "<tr>"
-            + "".join(f"<td>{esc(_show(values[k]))}</td>" for k in keys)
+            + "".join(f"<td>{esc(show_value(values[k]))}</td>" for k in keys)
             + f'<td class="num" data-value="{med!r}">{med_text}</td>'
             + "".join(
                 f'<td class="num">{int(k)}/{int(trends.of[c])}</td>' for k in trends.passing[c]
@@ -232,7 +219,7 @@ def _paired_html(paired: Sequence[PairedRow] | None) -> list[str]:
         return []
     esc = html.escape
     first = paired[0]
-    base = ", ".join(f"{k}={_show(v)}" for k, v in first.base.items())
+    base = ", ".join(f"{k}={show_value(v)}" for k, v in first.base.items())
     keys = [*first.block, *first.variant]
     out = [
         f"<h2>Paired against {esc(base)} (same seed)</h2>",
@@ -252,7 +239,7 @@ def _paired_html(paired: Sequence[PairedRow] | None) -> list[str]:
         )
         out.append(
             "<tr>"
-            + "".join(f"<td>{esc(_show(values[k]))}</td>" for k in keys)
+            + "".join(f"<td>{esc(show_value(values[k]))}</td>" for k in keys)
             + f'<td class="num">{row.pairs}</td>'
             + f'<td class="num" data-value="{esc(full)}">{esc(_pct(row.mean_pct))} %{esc(ci)}</td>'
             + f'<td class="num" data-value="{row.wins},{row.losses}">{row.wins}/{row.losses}</td>'

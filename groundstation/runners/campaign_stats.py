@@ -44,6 +44,7 @@ __all__ = [
     "grouped_median",
     "plan_cells",
     "series_bands",
+    "show_value",
     "summarise_cells",
     "t_quantile_975",
     "trend_counts",
@@ -80,14 +81,22 @@ class Cells:
         """``uavs=3, objective=sequence`` (the varying keys, or ``keys``); ``all runs``
         when there is nothing to name."""
         names = self.varying if keys is None else list(keys)
-        text = ", ".join(f"{k}={_show(self.values[cell][k])}" for k in names)
+        text = ", ".join(f"{k}={show_value(self.values[cell][k])}" for k in names)
         return text or "all runs"
 
 
-def _show(value: Any) -> str:
+def show_value(value: Any) -> str:
+    """A grid value as a campaign file spells it: ``200`` (not ``200.0``), ``1, 3, 5``
+    for a list, ``0 to 19`` for a seed range, ``-`` for none."""
     if isinstance(value, float) and value.is_integer() and abs(value) < 1e15:
         return f"{value:g}"
-    return str(value)
+    if isinstance(value, list | tuple):
+        return ", ".join(show_value(v) for v in value)
+    if isinstance(value, Mapping) and set(value) == {"from", "to"}:
+        return f"{show_value(value['from'])} to {show_value(value['to'])}"
+    if isinstance(value, Mapping):
+        return ", ".join(f"{k}: {show_value(v)}" for k, v in value.items())
+    return "-" if value is None else str(value)
 
 
 def _in_order(distinct: list[Any], listed: Sequence[Any]) -> np.ndarray:
@@ -225,7 +234,7 @@ class CellSummary:
     def label(self, keys: Sequence[str] | None = None) -> str:
         """``uavs=3, objective=sequence`` over ``keys`` (default: all of the cell's)."""
         names = list(self.values) if keys is None else list(keys)
-        return ", ".join(f"{k}={_show(self.values[k])}" for k in names) or "all runs"
+        return ", ".join(f"{k}={show_value(self.values[k])}" for k in names) or "all runs"
 
 
 def _optional(value: float) -> float | None:
