@@ -40,7 +40,7 @@ def parse_local(address: str) -> int | None:
     """N of ``local:N``; None for any other address; ValueError for a bad N."""
     if not address.startswith("local:"):
         return None
-    text = address[len("local:") :]
+    text = address[len("local:"):]
     if not text.isdigit() or int(text) < 1:
         raise ValueError(f"--dask local:N needs N >= 1, got {address!r}")
     return int(text)
@@ -65,18 +65,13 @@ class DaskExecutor:
         try:
             from distributed import Client, LocalCluster
         except ImportError:
-            raise DaskError(
-                "--dask needs dask[distributed]: pip install 'floe[campaign]'"
-            ) from None
+            raise DaskError("--dask needs dask[distributed]: pip install 'floe[campaign]'") \
+                from None
         try:
             if self.local_workers is not None:
                 self._cluster = LocalCluster(
-                    n_workers=self.local_workers,
-                    threads_per_worker=1,
-                    processes=True,
-                    host="127.0.0.1",
-                    dashboard_address=None,
-                    silence_logs=logging.ERROR,
+                    n_workers=self.local_workers, threads_per_worker=1, processes=True,
+                    host="127.0.0.1", dashboard_address=None, silence_logs=logging.ERROR,
                 )
                 self._client = Client(self._cluster, timeout=CONNECT_TIMEOUT_S)
             else:
@@ -84,7 +79,8 @@ class DaskExecutor:
         except (OSError, TimeoutError, ValueError) as exc:
             self.close()
             text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-            raise DaskError(f"cannot reach the Dask scheduler at {self.address}: {text}") from None
+            raise DaskError(f"cannot reach the Dask scheduler at {self.address}: {text}") \
+                from None
         return self
 
     def __exit__(self, *exc_info: object) -> None:

@@ -94,14 +94,14 @@ def open_campaign(campaign_file: Path, out_dir: Path, *, extend: bool = False) -
             atomic_write_bytes(copy, campaign_file.read_bytes())
     except (OSError, StorageError) as exc:
         raise StoreError(f"cannot write {copy}: {exc}") from None
-    store = CampaignStore(out_dir, runs_schema(spec), plans_schema(spec) if spec.per_plan else None)
+    store = CampaignStore(out_dir, runs_schema(spec),
+                          plans_schema(spec) if spec.per_plan else None)
     store.prepare()
     grid_ids = set(spec.run_ids())
     stored = store.done_run_ids(need_plans=False)
     done = store.done_run_ids(need_plans=True) if spec.per_plan else stored
-    return CampaignPlan(
-        spec, out_dir, store, len(grid_ids), done & grid_ids, len(stored - grid_ids)
-    )
+    return CampaignPlan(spec, out_dir, store, len(grid_ids), done & grid_ids,
+                        len(stored - grid_ids))
 
 
 def _stored_form(copy: Path) -> dict[str, Any]:
@@ -113,9 +113,8 @@ def _stored_form(copy: Path) -> dict[str, Any]:
 
 
 class _StoringSink:
-    def __init__(
-        self, store: CampaignStore, result: CampaignResult, progress: Progress | None
-    ) -> None:
+    def __init__(self, store: CampaignStore, result: CampaignResult,
+                 progress: Progress | None) -> None:
         self.store, self.result, self.progress = store, result, progress
 
     def done(self, outcome: RunOutcome) -> None:

@@ -72,9 +72,7 @@ class LocalPool:
         context.set_forkserver_preload(PRELOAD)
         environ = {k: v for k, v in os.environ.items() if k.startswith("FLOE_CAMPAIGN_")}
         return ProcessPoolExecutor(
-            max_workers=self.workers,
-            mp_context=context,
-            initializer=init_worker,
+            max_workers=self.workers, mp_context=context, initializer=init_worker,
             initargs=(environ,),
         )
 
@@ -128,11 +126,8 @@ class LocalPool:
                         culprit = lost[0]
                         solo_failures[culprit.run_id] = solo_failures.get(culprit.run_id, 0) + 1
                         if solo_failures[culprit.run_id] >= self.max_solo_failures:
-                            sink.failed(
-                                culprit,
-                                "its worker process died "
-                                f"{solo_failures[culprit.run_id] + 1} times",
-                            )
+                            sink.failed(culprit, "its worker process died "
+                                        f"{solo_failures[culprit.run_id] + 1} times")
                             continue
                     solo.extend(lost)
         except BaseException:

@@ -153,14 +153,9 @@ class CampaignSpec:
         if point.get("tau") is not None:
             changes["planner.tau"] = point["tau"]
         return RunTask(
-            run_id=identity,
-            campaign=self.name,
-            coords=coords,
-            scenario_data=_with_overrides(raw, changes),
-            scenario_source=source,
-            uavs=point.get("uavs"),
-            seed=point["seed"],
-            per_plan=self.per_plan,
+            run_id=identity, campaign=self.name, coords=coords,
+            scenario_data=_with_overrides(raw, changes), scenario_source=source,
+            uavs=point.get("uavs"), seed=point["seed"], per_plan=self.per_plan,
         )
 
 
@@ -239,12 +234,8 @@ def canonical_form(
     name: str, grid: Mapping[str, Sequence[Any]], overrides: Mapping[str, Any], per_plan: bool
 ) -> dict[str, Any]:
     """What decides a campaign's runs and rows, for comparing two campaign files."""
-    return {
-        "name": name,
-        "grid": {k: list(v) for k, v in grid.items()},
-        "set": dict(overrides),
-        "per_plan": per_plan,
-    }
+    return {"name": name, "grid": {k: list(v) for k, v in grid.items()},
+            "set": dict(overrides), "per_plan": per_plan}
 
 
 def _parse_set(value: Any) -> dict[str, Any]:
@@ -334,11 +325,8 @@ def _check_dotted_key(path: str, key: str) -> None:
 
 def _load_scenario(name: str, base_dir: Path, index: int) -> tuple[Any, str]:
     candidate = base_dir / name
-    target = (
-        str(candidate)
-        if ("/" in name or name.endswith(".yaml")) and (candidate.is_file())
-        else name
-    )
+    target = str(candidate) if ("/" in name or name.endswith(".yaml")) and (
+        candidate.is_file()) else name
     try:
         data, source = load_scenario_data(target)
     except ScenarioError as exc:
@@ -394,13 +382,9 @@ def _check_scenarios(
 def _blame(field_path: str, dotted: Sequence[str], overrides: Mapping[str, Any]) -> str:
     """The campaign key a scenario error comes from (the longest matching prefix)."""
     for key in sorted([*dotted, *overrides], key=len, reverse=True):
-        if (
-            field_path == key
-            or field_path.startswith(key + ".")
-            or field_path.startswith(key + "[")
-            or key.startswith(field_path + ".")
-            or not field_path
-        ):
+        if field_path == key or field_path.startswith(key + ".") or field_path.startswith(
+            key + "["
+        ) or key.startswith(field_path + ".") or not field_path:
             return f"grid.{key}" if key in dotted else f"set.{key}"
     return "grid.scenario"
 

@@ -88,14 +88,9 @@ def execute_run(task: RunTask) -> RunOutcome:
     _maybe_kill_for_test(task.run_id)
     wall_start, cpu_start = time.perf_counter(), time.process_time()
     scenario = parse_scenario(task.scenario_data, source=task.scenario_source)
-    result = run_simulation(
-        scenario,
-        SimulationOptions(
-            seed=task.seed,
-            uavs=task.uavs,
-            snapshot_times_s=(0.0,),
-        ),
-    )
+    result = run_simulation(scenario, SimulationOptions(
+        seed=task.seed, uavs=task.uavs, snapshot_times_s=(0.0,),
+    ))
     wall_s, cpu_s = time.perf_counter() - wall_start, time.process_time() - cpu_start
     metrics = result.metrics
     row: dict[str, Any] = {"run_id": task.run_id, **task.coords, "campaign": task.campaign}
@@ -103,13 +98,8 @@ def execute_run(task: RunTask) -> RunOutcome:
     series = metrics["uncertainty_series"]
     row["series_t_s"] = [float(t) for t, _ in series]
     row["series_mean_sigma"] = [float(s) for _, s in series]
-    row.update(
-        floe_version=floe_version(),
-        wall_s=wall_s,
-        cpu_s=cpu_s,
-        worker=f"{socket.gethostname()}/{os.getpid()}",
-        per_plan=task.per_plan,
-    )
+    row.update(floe_version=floe_version(), wall_s=wall_s, cpu_s=cpu_s,
+               worker=f"{socket.gethostname()}/{os.getpid()}", per_plan=task.per_plan)
     plans = [_plan_row(task, index, record) for index, record in enumerate(result.plans)]
     return RunOutcome(task.run_id, row, plans if task.per_plan else [])
 
@@ -138,21 +128,11 @@ def flatten_metrics(metrics: Mapping[str, Any]) -> dict[str, Any]:
 
 def _plan_row(task: RunTask, index: int, record: PlanRecord) -> dict[str, Any]:
     return {
-        "run_id": task.run_id,
-        **task.coords,
-        "plan_index": index,
-        "t_s": record.t_s,
-        "mu": record.mu,
-        "f1": record.f1,
-        "f2": record.f2,
-        "objective_value": record.objective_value,
-        "objective": record.objective,
-        "status": record.status,
-        "solver": record.solver,
-        "solve_time_s": record.solve_time_s,
-        "bound": record.bound,
-        "gap": record.gap,
-        "targets": record.targets,
+        "run_id": task.run_id, **task.coords, "plan_index": index, "t_s": record.t_s,
+        "mu": record.mu, "f1": record.f1, "f2": record.f2,
+        "objective_value": record.objective_value, "objective": record.objective,
+        "status": record.status, "solver": record.solver, "solve_time_s": record.solve_time_s,
+        "bound": record.bound, "gap": record.gap, "targets": record.targets,
         "uavs_planned": record.uavs_planned,
     }
 

@@ -56,40 +56,21 @@ COORDINATE_METRICS = ("scenario", "uavs", "seed", "objective", "uncertainty_seri
 (``scenario`` as the grid names it), ``series_t_s``/``series_mean_sigma`` the series."""
 
 WALL_CLOCK_COLUMNS = (
-    "wall_s",
-    "cpu_s",
-    "worker",
-    "realtime_factor",
-    "wall_time_s",
-    "solve_time_median_s",
-    "solve_time_max_s",
-    "solve_time_s",
+    "wall_s", "cpu_s", "worker", "realtime_factor", "wall_time_s", "solve_time_median_s",
+    "solve_time_max_s", "solve_time_s",
 )
 """Columns that measure the machine, not the run: the only ones that may differ between
 two executions of the same run (plans: ``solve_time_s``)."""
 
 _BASE_COORDINATES = {
-    "scenario": "string",
-    "uavs": "int64",
-    "objective": "string",
-    "tau": "float64",
+    "scenario": "string", "uavs": "int64", "objective": "string", "tau": "float64",
     "seed": "int64",
 }
 _PLAN_COLUMNS = {
-    "plan_index": "int64",
-    "t_s": "float64",
-    "mu": "float64",
-    "f1": "float64",
-    "f2": "float64",
-    "objective_value": "float64",
-    "objective": "string",
-    "status": "string",
-    "solver": "string",
-    "solve_time_s": "float64",
-    "bound": "float64",
-    "gap": "float64",
-    "targets": "int64",
-    "uavs_planned": "int64",
+    "plan_index": "int64", "t_s": "float64", "mu": "float64", "f1": "float64",
+    "f2": "float64", "objective_value": "float64", "objective": "string",
+    "status": "string", "solver": "string", "solve_time_s": "float64", "bound": "float64",
+    "gap": "float64", "targets": "int64", "uavs_planned": "int64",
 }
 
 
@@ -102,11 +83,8 @@ def _type(name: str) -> pa.DataType:
     import pyarrow as pa
 
     types: dict[str, pa.DataType] = {
-        "float64": pa.float64(),
-        "int64": pa.int64(),
-        "bool": pa.bool_(),
-        "string": pa.string(),
-        "list<float64>": pa.list_(pa.float64()),
+        "float64": pa.float64(), "int64": pa.int64(), "bool": pa.bool_(),
+        "string": pa.string(), "list<float64>": pa.list_(pa.float64()),
     }
     return types[name]
 
@@ -141,19 +119,10 @@ def _schema(columns: Mapping[str, str], spec: CampaignSpec) -> pa.Schema:
 
 def runs_schema(spec: CampaignSpec) -> pa.Schema:
     """``runs.parquet``: run_id, coordinates, campaign, metrics, series, provenance."""
-    columns = {
-        "run_id": "string",
-        **coordinate_types(spec),
-        "campaign": "string",
-        **_METRICS,
-        "series_t_s": "list<float64>",
-        "series_mean_sigma": "list<float64>",
-        "floe_version": "string",
-        "wall_s": "float64",
-        "cpu_s": "float64",
-        "worker": "string",
-        "per_plan": "bool",
-    }
+    columns = {"run_id": "string", **coordinate_types(spec), "campaign": "string",
+               **_METRICS, "series_t_s": "list<float64>", "series_mean_sigma": "list<float64>",
+               "floe_version": "string", "wall_s": "float64", "cpu_s": "float64",
+               "worker": "string", "per_plan": "bool"}
     return _schema(columns, spec)
 
 

@@ -61,9 +61,8 @@ def _keys(kind: str) -> tuple[str, ...]:
 def _parts(folder: Path) -> list[Path]:
     if not folder.is_dir():
         return []
-    return sorted(
-        p for p in folder.iterdir() if p.suffix == ".parquet" and not p.name.startswith((".", "_"))
-    )
+    return sorted(p for p in folder.iterdir()
+                  if p.suffix == ".parquet" and not p.name.startswith((".", "_")))
 
 
 def _dedupe(table: pa.Table, keys: Sequence[str]) -> pa.Table:
@@ -172,11 +171,8 @@ class CampaignStore:
                 table = pq.read_table(part, columns=["run_id", "per_plan"])
             except Exception as exc:
                 raise StoreError(f"cannot read {part}: {exc}") from None
-            for run, planned in zip(
-                table.column("run_id").to_pylist(),
-                table.column("per_plan").to_pylist(),
-                strict=True,
-            ):
+            for run, planned in zip(table.column("run_id").to_pylist(),
+                                    table.column("per_plan").to_pylist(), strict=True):
                 if planned or not need_plans:
                     done.add(run)
         return done
@@ -187,7 +183,8 @@ class CampaignStore:
 
         if PLANS_DIR in self.schemas and outcome.plan_rows:
             table = rows_to_table(outcome.plan_rows, self.schemas[PLANS_DIR])
-            self._write_part(self.folder(PLANS_DIR) / f"{RUN_PART}{outcome.run_id}.parquet", table)
+            self._write_part(self.folder(PLANS_DIR) / f"{RUN_PART}{outcome.run_id}.parquet",
+                             table)
         table = rows_to_table([outcome.run_row], self.schemas[RUNS_DIR])
         self._write_part(self.folder(RUNS_DIR) / f"{RUN_PART}{outcome.run_id}.parquet", table)
         self._new_parts += 1

@@ -62,15 +62,10 @@ def summarise(
             if values:
                 figures[name] = (statistics.fmean(values), t_half_width(values))
         verdicts = [r["bounded_trend"] for r in members if r.get("bounded_trend") is not None]
-        out.append(
-            CellSummary(
-                cell={k: members[0].get(k) for k in keys},
-                runs=len(members),
-                figures=figures,
-                bounded=sum(bool(v) for v in verdicts),
-                bounded_of=len(verdicts),
-            )
-        )
+        out.append(CellSummary(
+            cell={k: members[0].get(k) for k in keys}, runs=len(members), figures=figures,
+            bounded=sum(bool(v) for v in verdicts), bounded_of=len(verdicts),
+        ))
     return keys, out
 
 
