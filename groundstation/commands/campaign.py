@@ -89,6 +89,12 @@ def run(argv: list[str]) -> int:
         executor = _executor(args)
     except ValueError as exc:
         return _error(str(exc))
+    if plan.todo == 0:  # nothing to run: no pool, no cluster
+        from groundstation.runners.campaign_driver import CampaignResult
+
+        plan.store.compact(final=True)
+        _print_end(args, plan, CampaignResult())
+        return 0
     return _run_plan(args, plan, executor)
 
 

@@ -29,7 +29,7 @@ from groundstation.runners.campaign_run import execute_run
 
 __all__ = ["DaskError", "DaskExecutor", "parse_local"]
 
-CONNECT_TIMEOUT_S = 15.0
+CONNECT_TIMEOUT_S = 10.0
 
 
 class DaskError(FloeError):

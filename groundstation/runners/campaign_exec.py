@@ -73,7 +73,7 @@ class LocalPool:
         environ = {k: v for k, v in os.environ.items() if k.startswith("FLOE_CAMPAIGN_")}
         return ProcessPoolExecutor(
             max_workers=self.workers, mp_context=context, initializer=init_worker,
-            initargs=(environ,),
+            initargs=(environ, os.getpid()),
         )
 
     def run(self, tasks: Iterable[RunTask], sink: RunSink) -> None:

@@ -256,16 +256,16 @@ def _parse_grid(raw: Mapping[str, Any]) -> dict[str, tuple[Any, ...]]:
     for key in list(raw):  # the file's key order is the grid's order
         path = fields.path_of(key)
         value = fields.raw(key)
-        if key == "seed" and isinstance(value, Mapping):
-            values: list[Any] = _seed_range(Fields(value, path))
-        elif not isinstance(value, list):
-            raise FieldError(path, f"must be a list of values (one run each), got {value!r}")
-        else:
-            values = value
-        if not values:
-            raise FieldError(path, "must not be empty")
         if key not in BASE_KEYS:
             _check_dotted_key(path, key)
+        if key == "seed" and isinstance(value, Mapping):  # checked by construction
+            grid[key] = tuple(_seed_range(Fields(value, path)))
+            continue
+        if not isinstance(value, list):
+            raise FieldError(path, f"must be a list of values (one run each), got {value!r}")
+        values: list[Any] = value
+        if not values:
+            raise FieldError(path, "must not be empty")
         checked = [_check_value(key, f"{path}[{i}]", v) for i, v in enumerate(values)]
         seen: set[str] = set()
         for i, v in enumerate(checked):
@@ -320,7 +320,8 @@ def _check_dotted_key(path: str, key: str) -> None:
     if parts[0] in ("name", "description", "events", "faults"):
         raise FieldError(path, f"scenario field {parts[0]!r} cannot be varied by a campaign")
     if len(parts) == 1 and key != "duration_s":
-        raise FieldError(path, f"name a field inside {key!r}, dotted (e.g. {key}.FIELD)")
+        raise FieldError(path, f"unknown key: use {', '.join(BASE_KEYS)} or a dotted scenario "
+                         "field (e.g. fleet.speed_m_s)")
 
 
 def _load_scenario(name: str, base_dir: Path, index: int) -> tuple[Any, str]:

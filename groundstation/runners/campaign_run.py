@@ -16,6 +16,7 @@ from __future__ import annotations
 import os
 import signal
 import socket
+import threading
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -55,15 +56,48 @@ class RunOutcome:
     plan_rows: list[dict[str, Any]]
 
 
-def init_worker(environ: Mapping[str, str] | None = None) -> None:
+def init_worker(environ: Mapping[str, str] | None = None, driver_pid: int | None = None) -> None:
     """Prepare a local-pool worker process (module docstring); ``environ`` carries the
-    driver's ``FLOE_CAMPAIGN_*`` variables into a worker forked from an older server."""
+    driver's ``FLOE_CAMPAIGN_*`` variables into a worker forked from an older server, and
+    the worker ends by itself once ``driver_pid`` is gone."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     for key, value in THREAD_ENV.items():
         os.environ.setdefault(key, value)
     if environ is not None:
         os.environ.update(environ)
+    if driver_pid is not None:
+        _exit_with_driver(driver_pid)
     warm_up()
+
+
+def _process_alive(pid: int) -> bool:
+    """Whether ``pid`` runs (a zombie, killed but not yet reaped, does not)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    try:
+        with open(f"/proc/{pid}/stat", encoding="ascii") as handle:
+            state = handle.read().rsplit(")", 1)[1].split()[0]
+    except (OSError, IndexError):
+        return True  # no /proc: trust kill(pid, 0)
+    return state not in ("Z", "X")
+
+
+def _exit_with_driver(driver_pid: int, poll_s: float = 0.5) -> None:
+    """End this worker when the driver is gone. A pool worker waits for work on a queue
+    that a dead driver never closes (the worker holds its write end too), and while a
+    worker lives the forkserver does too: a driver killed with SIGKILL would leave both
+    behind, holding memory and the terminal's pipes."""
+
+    def watch() -> None:
+        while _process_alive(driver_pid):
+            time.sleep(poll_s)
+        os._exit(0)
+
+    threading.Thread(target=watch, name="floe-driver-watch", daemon=True).start()
 
 
 def warm_up() -> None:

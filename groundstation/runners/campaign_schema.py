@@ -96,7 +96,7 @@ def coordinate_types(spec: CampaignSpec) -> dict[str, str]:
     out = dict(_BASE_COORDINATES)
     for key in spec.dotted_keys:
         values = spec.grid[key] if key in spec.grid else (spec.overrides[key],)
-        out[key] = _value_type(values)
+        out[key] = _METRICS.get(key) or _value_type(values)  # duration_s is also a metric
     return out
 
 
