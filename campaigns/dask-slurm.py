@@ -103,8 +103,8 @@ def main() -> int:
         walltime=args.walltime,
         queue=args.queue,
         account=args.account,
-        interface=args.interface,
-        job_script_prologue=prologue,
+        interface=args.interface,  # for the workers and the scheduler
+        job_script_prologue=prologue,  # dask-jobqueue < 0.8.2 calls it env_extra
     )
     try:
         cluster.scale(jobs=args.jobs)
