@@ -45,6 +45,7 @@ __all__ = [
     "grid_keys_of",
     "load_campaign",
     "read_parquet",
+    "recorded_grid_keys",
 ]
 
 SEED_KEY = "seed"
@@ -156,7 +157,7 @@ def _values_of(table: pa.Table, key: str) -> list[Any]:
     return [v for v in column_codes(table.column(key))[1] if v is not None]
 
 
-def _metadata_keys(runs: pa.Table) -> list[str] | None:
+def recorded_grid_keys(runs: pa.Table) -> list[str] | None:
     """The grid keys ``gcs campaign`` records in the Parquet schema (``floe.grid_keys``,
     a JSON list), if any."""
     raw = (runs.schema.metadata or {}).get(b"floe.grid_keys")
@@ -191,7 +192,7 @@ def load_campaign(folder: Path) -> CampaignData:
         raise CampaignReportError(f"{runs_path}: no run in it (the campaign wrote nothing yet)")
     warnings: list[str] = []
     spec = _campaign_file(folder, warnings)
-    recorded = _metadata_keys(runs)
+    recorded = recorded_grid_keys(runs)
     runs, duplicate_runs = dedupe(runs, ["run_id"])
     grid_spec = spec.get("grid") if isinstance(spec.get("grid"), Mapping) else None
     declared = [str(k) for k in grid_spec] if grid_spec else recorded

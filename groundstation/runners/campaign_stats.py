@@ -33,18 +33,22 @@ from groundstation.runners.campaign_data import (
     dedupe,
     float_column,
     grid_keys_of,
+    recorded_grid_keys,
 )
 
 __all__ = [
+    "TREND_BOUNDS",
     "CellSummary",
     "Cells",
     "SeriesBands",
+    "TrendCounts",
     "group_cells",
     "grouped_mean_ci",
     "grouped_median",
     "plan_cells",
     "series_bands",
     "show_value",
+    "summaries_of",
     "summarise_cells",
     "t_quantile_975",
     "trend_counts",
@@ -249,11 +253,13 @@ def summarise_cells(
 ) -> list[CellSummary]:
     """One :class:`CellSummary` per grid cell of ``runs`` (a ``runs.parquet`` table; rows
     repeating a ``run_id`` are dropped here), in :func:`group_cells`' order. ``grid_keys``:
-    the campaign file's grid keys (default: :func:`grid_keys_of` the columns); ``plans``:
+    the campaign file's grid keys (default: those ``gcs campaign`` records in the Parquet
+    metadata, else :func:`grid_keys_of` the columns); ``plans``:
     the ``plans.parquet`` table, for the median solve time over every plan; ``grid``: the
     campaign file's ``grid`` mapping, whose lists order the cells (default: by value)."""
     runs, _ = dedupe(runs, ["run_id"])
-    keys = grid_keys_of(runs.column_names, grid_keys or (list(grid) if grid else None))
+    declared = grid_keys or (list(grid) if grid else None) or recorded_grid_keys(runs)
+    keys = grid_keys_of(runs.column_names, declared)
     cells = group_cells(runs, keys, grid)
     return summaries_of(runs, cells, plans)
 
