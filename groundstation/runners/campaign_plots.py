@@ -145,7 +145,12 @@ def plot_series(bands: SeriesBands | None, cells: Cells) -> Panel:
     varying grid keys (at most :data:`MAX_PANELS`)."""
     name, title = "series", "Mean uncertainty over mission time (the paper's Figure 4)"
     if bands is None:
-        return Panel(name, title, None, reason="the runs have no series_t_s/series_mean_sigma.")
+        return Panel(
+            name,
+            title,
+            None,
+            reason="not shown: the runs have no series_t_s and series_mean_sigma lists.",
+        )
     groups = _groups(cells, [FLEET_KEY] if _fleet_varies(cells) else cells.varying)
     shown = list(groups.items())[:MAX_PANELS]
     cols = 1 if len(shown) == 1 else 2 if len(shown) <= 4 else 3

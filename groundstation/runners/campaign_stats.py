@@ -389,12 +389,16 @@ def series_bands(
 ) -> SeriesBands | None:
     """The mean-uncertainty series of every cell, mean over its runs at each mission
     second (``series_t_s`` rounded to whole seconds) with the 95 % t band. None without
-    the series columns or points. Vectorised: one ``bincount`` over every point of every
-    run, no loop over runs or points."""
+    the series columns (or with columns that are not lists of numbers) or points.
+    Vectorised: one ``bincount`` over every point of every run, no loop over runs or
+    points."""
     if not {"series_t_s", "series_mean_sigma"} <= set(runs.column_names):
         return None
-    len_t, t = _flat(runs.column("series_t_s"))
-    len_v, v = _flat(runs.column("series_mean_sigma"))
+    try:
+        len_t, t = _flat(runs.column("series_t_s"))
+        len_v, v = _flat(runs.column("series_mean_sigma"))
+    except (pa.ArrowException, TypeError):  # not lists of numbers: no series to draw
+        return None
     same = len_t == len_v
     dropped = int(np.count_nonzero(~same & ((len_t > 0) | (len_v > 0))))
     if not same.all():  # keep the points of runs whose lists agree
