@@ -27,8 +27,7 @@ docs/planner.md ("Choosing the objective", "Bounded") came from here; use ``nice
 ``campaigns/*.yaml`` (``gcs campaign``, ``gcs campaign report``) now reproduce the runs
 that need no patch of floe: the objectives and tau, fleet sizes, durations, ``--still``
 and ``--commit-loiter`` (scenario overrides). Only here: the ``old-idle``, ``point30`` and
-``growth`` variants (they replace planner functions), the count of runs under several
-trend bounds and the revisit-gap table.
+``growth`` variants (they replace planner functions) and the revisit-gap table.
 """
 
 from __future__ import annotations
