@@ -22,7 +22,12 @@ definition, ``bounded``); a table of how many runs each trend bound would pass; 
 revisits (a target visited again: share within 40 s, median and 90th percentile gap).
 ``--json`` writes every run's figures; ``--report FILE`` prints the tables again from such
 a file (``--base`` may name another of its variants). The commands and figures of
-docs/planner.md ("Choosing the objective", "Bounded") come from here; use ``nice -n 10``.
+docs/planner.md ("Choosing the objective", "Bounded") came from here; use ``nice -n 10``.
+
+``campaigns/*.yaml`` (``gcs campaign``, ``gcs campaign report``) now reproduce the runs
+that need no patch of floe: the objectives and tau, fleet sizes, durations, ``--still``
+and ``--commit-loiter`` (scenario overrides). Only here: the ``old-idle``, ``point30`` and
+``growth`` variants (they replace planner functions) and the revisit-gap table.
 """
 
 from __future__ import annotations

@@ -57,17 +57,9 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def _report(argv: list[str]) -> int:
-    parser = argparse.ArgumentParser(prog=f"{_PROG} report",
-                                     description="Write the HTML report of a campaign folder.")
-    parser.add_argument("dir", type=Path, metavar="DIR", help="campaign results folder")
-    parser.add_argument("--out", type=Path, default=None, metavar="FILE",
-                        help="report file (default: inside DIR)")
-    args = parser.parse_args(argv)
-    from groundstation.runners.campaign_report import write_campaign_report
+    from groundstation.commands.campaign_report import run as report
 
-    path = write_campaign_report(args.dir, args.out)
-    print(f"{_PROG} report: wrote {path}")
-    return 0
+    return report(argv)
 
 
 def _error(message: str, status: int = 2) -> int:

@@ -156,6 +156,8 @@ def flatten_metrics(metrics: Mapping[str, Any]) -> dict[str, Any]:
             flat[key] = len(value)
         elif isinstance(value, Mapping):
             flat.update({f"{key}_{inner}": v for inner, v in value.items()})
+        elif value is None and key == "arrival_error_s":  # no arrival was counted
+            flat.update({f"{key}_median": None, f"{key}_p90": None})
         elif not isinstance(value, list):
             flat[key] = value
     columns = metrics_columns()

@@ -48,6 +48,16 @@ _METRICS: dict[str, str] = {
     "realtime_factor": "float64",
     "wall_time_s": "float64",
     "policy": "string",
+    "arrival_error_s_median": "float64",
+    "arrival_error_s_p90": "float64",
+    "arrival_bias_s": "float64",
+    "arrivals_counted": "int64",
+    "arrivals_superseded": "int64",
+    "arrivals_inside_at_command": "int64",
+    "arrivals_unfinished": "int64",
+    "wind_speed_m_s": "float64",
+    "wind_from_deg": "float64",
+    "wind_gust_m_s": "float64",
     **{f"observer_counters_{name}": "int64" for name in COUNTER_NAMES},
 }
 

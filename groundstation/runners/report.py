@@ -10,16 +10,15 @@ page can be mailed or archived alone. The map's ``<img>`` carries the plotted ex
 
 from __future__ import annotations
 
-import base64
 import html
 import json
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from groundstation.runners.html_page import FigurePng, figure_html, page_start
 from groundstation.runners.report_data import RunData, load_run_data, summary_rows
 from groundstation.runners.report_plots import (
-    FigurePng,
     plot_map,
     plot_solves,
     plot_timeline,
@@ -36,16 +35,6 @@ from groundstation.storage import (
 __all__ = ["ReportResult", "build_report", "render_html"]
 
 _EVENT_ROWS = 200
-
-_CSS = """
-body { font-family: sans-serif; margin: 1.5em auto; max-width: 1100px; color: #222; }
-h1 { font-size: 1.4em; } h2 { font-size: 1.15em; margin-top: 1.6em; }
-table { border-collapse: collapse; font-size: 0.9em; }
-td, th { border: 1px solid #ccc; padding: 0.25em 0.6em; text-align: left; vertical-align: top; }
-th { background: #f0f0f0; }
-figure { margin: 1em 0; } figure img { max-width: 100%; border: 1px solid #ddd; }
-.warn { color: #a40; }
-"""
 
 
 @dataclass
@@ -87,14 +76,7 @@ def _events(data: RunData) -> list[tuple[float, str, str, str]]:
 def render_html(data: RunData, figures: list[FigurePng]) -> str:
     """The page (see the module docstring)."""
     esc = html.escape
-    out = [
-        "<!DOCTYPE html>",
-        '<html lang="en"><head><meta charset="utf-8">',
-        f"<title>floe report: {esc(data.title)}</title>",
-        f"<style>{_CSS}</style>",
-        "</head><body>",
-        f"<h1>floe flight report: {esc(data.title)}</h1>",
-    ]
+    out = page_start(f"floe report: {data.title}", f"floe flight report: {data.title}")
     out.append('<h2>Summary</h2><table id="summary">')
     for name, value in summary_rows(data):
         out.append(f"<tr><th>{esc(name)}</th><td>{esc(value)}</td></tr>")
@@ -115,12 +97,7 @@ def render_html(data: RunData, figures: list[FigurePng]) -> str:
                         + esc(",".join(f"{v:.3f}" for v in fig.info[key]))
                         + '"'
                     )
-        b64 = base64.b64encode(fig.png).decode("ascii")
-        out.append(
-            f'<h2>{esc(fig.title)}</h2><figure id="fig-{esc(fig.name)}">'
-            f'<img alt="{esc(fig.title)}" src="data:image/png;base64,{b64}"{attrs}>'
-            "</figure>"
-        )
+        out.append(figure_html(fig, attrs))
     if data.wind:
         out.append('<h2>Wind estimate changes</h2><table id="wind"><tr><th>t (s)</th>'
                    "<th>speed (m/s)</th><th>from (deg)</th><th>source</th></tr>")

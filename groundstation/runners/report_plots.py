@@ -7,16 +7,14 @@ can check that every track is inside the picture.
 
 from __future__ import annotations
 
-import io
 import math
-from dataclasses import dataclass, field
 from typing import Any
 
-from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle
 
 from domain.wind_triangle import wind_from_vector
+from groundstation.runners.html_page import FigurePng, render_png
 from groundstation.runners.report_data import RunData, fallback_wind_of
 
 __all__ = [
@@ -42,24 +40,6 @@ COLOURS = [
     "tab:gray",
 ]
 _MODE_COLOURS = ["#9ecae1", "#a1d99b", "#fdae6b", "#bcbddc", "#bdbdbd", "#fdd0a2"]
-_DPI = 100
-
-
-@dataclass
-class FigurePng:
-    """One rendered figure."""
-
-    name: str
-    title: str
-    png: bytes
-    info: dict[str, Any] = field(default_factory=dict)
-
-
-def _png(fig: Figure) -> bytes:
-    FigureCanvasAgg(fig)
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=_DPI)
-    return buf.getvalue()
 
 
 def _colour(k: int) -> str:
@@ -135,7 +115,7 @@ def plot_map(data: RunData) -> FigurePng:
         "tracks (o start, ^ end); icebergs: grey truth, dashed estimate, x last; circles: loiters",
         fontsize=9,
     )
-    png = _png(fig)  # draws: the limits below are the final ones
+    png = render_png(fig)  # draws: the limits below are the final ones
     info: dict[str, Any] = {
         "xlim": list(ax.get_xlim()),
         "ylim": list(ax.get_ylim()),
@@ -177,7 +157,10 @@ def plot_uncertainty(data: RunData) -> FigurePng | None:
     bottom.legend(fontsize=7, ncol=6, loc="upper left")
     bottom.grid(True, alpha=0.3)
     return FigurePng(
-        "uncertainty", "Uncertainty against time", _png(fig), {"series": len(data.target_estimates)}
+        "uncertainty",
+        "Uncertainty against time",
+        render_png(fig),
+        {"series": len(data.target_estimates)},
     )
 
 
@@ -261,7 +244,7 @@ def plot_timeline(data: RunData) -> FigurePng | None:
     return FigurePng(
         "timeline",
         "Plan timeline per vehicle",
-        _png(fig),
+        render_png(fig),
         {"vehicles": names, "fly": len(data.fly)},
     )
 
@@ -325,7 +308,7 @@ def plot_solves(data: RunData) -> FigurePng | None:
     return FigurePng(
         "solves",
         "Solve times and upload retries",
-        _png(fig),
+        render_png(fig),
         {"plans": len(data.plans), "uploads": len(data.uploads)},
     )
 
@@ -359,5 +342,5 @@ def plot_wind(data: RunData) -> FigurePng | None:
     bottom.set_ylim(0, 360)
     bottom.set_yticks(range(0, 361, 90))
     bottom.set_xlabel("mission time (s)")
-    return FigurePng("wind", "Wind estimate against time", _png(fig),
+    return FigurePng("wind", "Wind estimate against time", render_png(fig),
                      {"changes": len(data.wind), "vehicles": len(data.wind_reports)})

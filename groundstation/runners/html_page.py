@@ -1,0 +1,80 @@
+"""The pieces every self-contained floe HTML page shares (``gcs report``, the campaign
+report): a figure rendered to PNG bytes, the page's style, and a figure embedded as a
+``data:image/png;base64`` URI so the page stands alone (no external asset, mailable,
+archivable).
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import io
+from dataclasses import dataclass, field
+from typing import Any
+
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+__all__ = ["DPI", "PAGE_CSS", "FigurePng", "figure_html", "page_start", "render_png"]
+
+DPI = 100
+"""Resolution of every embedded figure (dots per inch of its ``figsize``)."""
+
+PAGE_CSS = """
+body { font-family: sans-serif; margin: 1.5em auto; max-width: 1100px; color: #222; }
+h1 { font-size: 1.4em; } h2 { font-size: 1.15em; margin-top: 1.6em; }
+table { border-collapse: collapse; font-size: 0.9em; }
+td, th { border: 1px solid #ccc; padding: 0.25em 0.6em; text-align: left; vertical-align: top; }
+th { background: #f0f0f0; }
+td.num { text-align: right; font-variant-numeric: tabular-nums; }
+figure { margin: 1em 0; } figure img { max-width: 100%; border: 1px solid #ddd; }
+figcaption { font-size: 0.85em; color: #555; }
+.warn { color: #a40; }
+"""
+
+
+@dataclass
+class FigurePng:
+    """One rendered figure: ``name`` (an id, also the PNG's file name), ``title`` (its
+    heading and ``alt`` text), the PNG bytes and what it shows (``info``, for checks)."""
+
+    name: str
+    title: str
+    png: bytes
+    info: dict[str, Any] = field(default_factory=dict)
+
+
+def render_png(fig: Figure, dpi: int = DPI) -> bytes:
+    """The PNG bytes of a matplotlib figure built with the object API (Agg canvas; no
+    pyplot, no global state)."""
+    FigureCanvasAgg(fig)
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi)
+    return buf.getvalue()
+
+
+def page_start(title: str, heading: str) -> list[str]:
+    """The lines that open a page: doctype, ``<title>``, the shared style, ``<h1>``."""
+    esc = html.escape
+    return [
+        "<!DOCTYPE html>",
+        '<html lang="en"><head><meta charset="utf-8">',
+        f"<title>{esc(title)}</title>",
+        f"<style>{PAGE_CSS}</style>",
+        "</head><body>",
+        f"<h1>{esc(heading)}</h1>",
+    ]
+
+
+def figure_html(fig: FigurePng, attrs: str = "", caption: str = "") -> str:
+    """``<h2>`` + ``<figure id="fig-NAME">`` with the PNG inline as a data URI; ``attrs``
+    (already escaped, with a leading space) go on the ``<img>``, ``caption`` (plain text)
+    under it."""
+    esc = html.escape
+    b64 = base64.b64encode(fig.png).decode("ascii")
+    tail = f"<figcaption>{esc(caption)}</figcaption>" if caption else ""
+    return (
+        f'<h2>{esc(fig.title)}</h2><figure id="fig-{esc(fig.name)}">'
+        f'<img alt="{esc(fig.title)}" src="data:image/png;base64,{b64}"{attrs}>'
+        f"{tail}</figure>"
+    )
