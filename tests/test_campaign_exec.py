@@ -3,6 +3,7 @@ that was stored, and running again completes every run exactly once."""
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import signal
 import subprocess
@@ -14,6 +15,7 @@ from typing import Any
 import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
+from environment import need
 
 from groundstation.runners.campaign_driver import open_campaign, run_campaign
 from groundstation.runners.campaign_exec import LocalPool
@@ -47,7 +49,8 @@ def comparable(rows: list[dict[str, Any]]) -> dict[tuple[Any, ...], dict[str, An
 
 
 def test_local_pool_dask_and_in_process_runs_give_identical_rows(tmp_path: Path) -> None:
-    pytest.importorskip("distributed")
+    need(importlib.util.find_spec("distributed") is not None,
+         "dask[distributed] is not installed (pip install '.[test]')")
     from groundstation.runners.campaign_dask import DaskExecutor
 
     path = campaign_file(tmp_path)

@@ -55,6 +55,8 @@ def write(tmp_path: Path, text: str, name: str = "c.yaml") -> Path:
     ("grid: {scenario: [paper-boat], seed: {from: 0, to: 999999}, uavs: [1, 2]}\n",
      "grid: 2,000,000 runs; a campaign takes at most 1,000,000"),
     ("grid: [1, 2]\n", "grid: must be a mapping"),
+    ("grid: {scenario: [paper-boat]}\nset: {boat.x_m: 2020-01-01}\n",
+     "set.boat.x_m: must be a finite number, a string"),
     ("grid: {scenario: [paper-boat]}\nper_plan: yes please\n", "per_plan: must be true or false"),
 ])
 def test_a_bad_campaign_file_is_one_line_naming_the_field(
@@ -110,6 +112,11 @@ def test_a_dotted_grid_key_is_a_column_and_reaches_the_scenario(tmp_path: Path) 
     assert [t.coords["tau"] for t in tasks] == [0.25, 0.25]  # the effective value
     assert tasks[1].scenario_data["observer"]["r_m2"] == 10
     assert tasks[1].scenario_data["planner"]["tau"] == 0.25
+    lists = parse_campaign({"grid": {"scenario": ["paper-boat"],
+                                     "fleet.headings_rad": [[0.0], [0.0, 3.14]]}},
+                           base_dir=tmp_path)
+    assert [t.scenario_data["fleet"]["headings_rad"] for t in lists.tasks()] == [
+        [0.0], [0.0, 3.14]]
 
 
 def test_every_scalar_of_metrics_json_has_a_column() -> None:

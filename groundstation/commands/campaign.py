@@ -80,14 +80,14 @@ def run(argv: list[str]) -> int:
     from groundstation.runners.campaign_store import StoreError
 
     try:
+        executor = _executor(args)
+    except ValueError as exc:
+        return _error(str(exc))
+    try:
         plan = open_campaign(args.campaign, args.out, extend=args.extend)
     except CampaignError as exc:
         return _error(str(exc))
     except StoreError as exc:
-        return _error(str(exc))
-    try:
-        executor = _executor(args)
-    except ValueError as exc:
         return _error(str(exc))
     if plan.todo == 0:  # nothing to run: no pool, no cluster
         from groundstation.runners.campaign_driver import CampaignResult

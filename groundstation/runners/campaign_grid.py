@@ -91,7 +91,7 @@ class CampaignSpec:
     overrides: dict[str, Any]
     per_plan: bool
     scenario_data: dict[str, tuple[Any, str]]
-    base_scenarios: dict[tuple[Any, ...], Scenario]
+    base_scenarios: dict[str, Scenario]
 
     @property
     def grid_keys(self) -> tuple[str, ...]:
@@ -131,8 +131,8 @@ class CampaignSpec:
                 yield self._task(point, coords, identity)
 
     def _coords(self, point: Mapping[str, Any]) -> dict[str, Any]:
-        dotted = tuple(point[k] for k in self.grid if k not in BASE_KEYS)
-        scenario = self.base_scenarios[(point["scenario"], *dotted)]
+        dotted = [point[k] for k in self.grid if k not in BASE_KEYS]
+        scenario = self.base_scenarios[_combo_key(point["scenario"], dotted)]
         uavs, objective, tau = point.get("uavs"), point.get("objective"), point.get("tau")
         coords: dict[str, Any] = {
             "scenario": point["scenario"],
@@ -245,7 +245,7 @@ def _parse_set(value: Any) -> dict[str, Any]:
         if key in BASE_KEYS:
             raise FieldError(f"set.{key}", "is a grid key; put it in grid with one value")
         _check_dotted_key(f"set.{key}", key)
-        out[key] = fields.raw(key)
+        out[key] = check_plain(f"set.{key}", fields.raw(key))
     fields.done()
     return out
 
@@ -308,8 +308,16 @@ def _check_value(key: str, path: str, value: Any) -> Any:
         if not isinstance(value, str) or not value:
             raise FieldError(path, f"must be a scenario name or file, got {value!r}")
         return value
-    if isinstance(value, float) and not math.isfinite(value):
-        raise FieldError(path, f"must be finite, got {value!r}")
+    return check_plain(path, value)
+
+
+def check_plain(path: str, value: Any) -> Any:
+    """A scenario override's value: what JSON can hold (no dates, no NaN)."""
+    try:
+        json.dumps(value, allow_nan=False)
+    except (TypeError, ValueError):
+        raise FieldError(path, "must be a finite number, a string, true/false, or a list or "
+                         f"mapping of those, got {value!r}") from None
     return value
 
 
@@ -358,12 +366,12 @@ def _check_scenarios(
     grid: Mapping[str, Sequence[Any]],
     overrides: Mapping[str, Any],
     scenario_data: Mapping[str, tuple[Any, str]],
-) -> dict[tuple[Any, ...], Scenario]:
+) -> dict[str, Scenario]:
     """Parse every scenario with every combination of dotted grid values (and ``set``);
     a failure names the grid values that caused it and the scenario's own field path.
-    Returns the parsed scenarios by (scenario, dotted values...)."""
+    Returns the parsed scenarios by :func:`_combo_key`."""
     dotted = [k for k in grid if k not in BASE_KEYS]
-    parsed: dict[tuple[Any, ...], Scenario] = {}
+    parsed: dict[str, Scenario] = {}
     for name in grid["scenario"]:
         raw, source = scenario_data[name]
         for combo in itertools.product(*(grid[k] for k in dotted)):
@@ -376,8 +384,13 @@ def _check_scenarios(
             except FieldError as exc:
                 key = _blame(exc.path, dotted, overrides)
                 raise FieldError(key, f"{label}: {exc}") from None
-            parsed[(name, *combo)] = scenario
+            parsed[_combo_key(name, combo)] = scenario
     return parsed
+
+
+def _combo_key(scenario: str, values: Sequence[Any]) -> str:
+    """A hashable key of a scenario and its dotted grid values (which may be lists)."""
+    return json.dumps([scenario, *values], sort_keys=True)
 
 
 def _blame(field_path: str, dotted: Sequence[str], overrides: Mapping[str, Any]) -> str:
