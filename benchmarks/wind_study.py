@@ -45,6 +45,10 @@ from concurrent.futures import ProcessPoolExecutor
 from dataclasses import replace
 from typing import Any
 
+from paper_study import paired
+
+from groundstation.core.arrivals import percentile
+
 Job = tuple[str, int, float, float, float, bool, int, float | None, str | None]
 
 SCENARIOS = ("paper-boat", "svalbard-2015")
@@ -101,34 +105,6 @@ def _one(job: Job) -> dict[str, Any]:
     }
 
 
-def t_quantile_975(df: int) -> float:
-    """Student's t 97.5 % quantile: exact for df <= 30 (table), Cornish-Fisher above."""
-    table = (12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228, 2.201,
-             2.179, 2.160, 2.145, 2.131, 2.120, 2.110, 2.101, 2.093, 2.086, 2.080, 2.074,
-             2.069, 2.064, 2.060, 2.056, 2.052, 2.048, 2.045, 2.042)
-    if df <= len(table):
-        return table[df - 1]
-    z = 1.959964
-    return z + (z**3 + z) / (4 * df) + (5 * z**5 + 16 * z**3 + 3 * z) / (96 * df**2)
-
-
-def paired(diffs: Sequence[float]) -> tuple[float, float]:
-    """Mean and half-width of the 95 % t interval."""
-    if len(diffs) < 2:
-        return (diffs[0] if diffs else 0.0), math.inf
-    half = t_quantile_975(len(diffs) - 1) * statistics.stdev(diffs) / math.sqrt(len(diffs))
-    return statistics.fmean(diffs), half
-
-
-def _pct(values: Sequence[float], q: float) -> float:
-    ordered = sorted(values)
-    pos = (len(ordered) - 1) * q
-    i = math.floor(pos)
-    if i >= len(ordered) - 1:
-        return ordered[-1]
-    return ordered[i] + (ordered[i + 1] - ordered[i]) * (pos - i)
-
-
 def _arrival(group: list[dict[str, Any]]) -> tuple[str, str, str, str]:
     """(pooled median | p90, median of run medians, bias, counted/superseded)."""
     errors = [e for r in group for e in r["arrival_errors_s"]]
@@ -136,7 +112,7 @@ def _arrival(group: list[dict[str, Any]]) -> tuple[str, str, str, str]:
         return "-", "-", "-", "0/" + str(sum(r["arrivals"]["superseded"] for r in group))
     absolute = [abs(e) for e in errors]
     medians = [r["arrival_error_s"]["median"] for r in group if r["arrival_error_s"]]
-    return (f"{statistics.median(absolute):.2f} / {_pct(absolute, 0.9):.1f}",
+    return (f"{statistics.median(absolute):.2f} / {percentile(absolute, 0.9):.1f}",
             f"{statistics.median(medians):.2f}", f"{statistics.median(errors):+.2f}",
             f"{len(errors)}/{sum(r['arrivals']['superseded'] for r in group)}")
 

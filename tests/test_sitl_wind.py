@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from environment import need
 
 from domain.geodesy import GeoOrigin
 from domain.wind_triangle import wind_vector_m_s
@@ -327,8 +328,8 @@ def test_ardupilot_sitl_gets_the_wind_in_a_second_defaults_file(
 
     # the launcher writes the file into the instance's directory before starting it
     true = shutil.which("true")
-    if true is None:
-        pytest.skip("no `true` binary")
+    need(true is not None, "no `true` binary to stand in for ArduPilot")
+    assert true is not None
     one = ArduPilotLaunch(0, 1, [true], tmp_path / "run" / "I0", 1, 3, "SIM_WIND_SPD 5\n")
     asyncio.run(launch([one], None, None, ORIGIN, 10.0, 100.0))
     assert (one.cwd / "floe-wind.parm").read_text(encoding="ascii") == "SIM_WIND_SPD 5\n"

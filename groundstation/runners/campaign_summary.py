@@ -36,9 +36,9 @@ def t_half_width(values: Sequence[float]) -> float | None:
     n = len(values)
     if n < 2:
         return None
-    from scipy.special import stdtrit  # = scipy.stats.t.ppf, without scipy.stats' 1.2 s import
+    from groundstation.runners.campaign_stats import t_quantile_975  # the report's quantile
 
-    return float(stdtrit(n - 1, 0.975)) * statistics.stdev(values) / math.sqrt(n)
+    return float(t_quantile_975(n - 1)) * statistics.stdev(values) / math.sqrt(n)
 
 
 def summarise(
