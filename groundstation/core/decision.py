@@ -471,11 +471,6 @@ class DecisionCore:
                                      self.config.turn_radius_m)
         return d / max(record.speed_m_s, 1.0)
 
-    def aim_point(self, record: VehicleRecord, target: str) -> tuple[float, float]:
-        """Where ``target`` is predicted to be when ``record`` arrives (module docstring)."""
-        x_m, y_m, _ = self.intercept(record, target)
-        return x_m, y_m
-
     def intercept(self, record: VehicleRecord, target: str) -> tuple[float, float, float]:
         """(x_m, y_m, t_arr_s): the aim point and the flight time to it (module docstring).
         In wind, a target the vehicle cannot catch (it drifts away through the air at the
