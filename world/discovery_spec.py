@@ -38,6 +38,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from domain.limits import MAX_COORDINATE_M, MAX_DURATION_S, MAX_TARGETS
+from world.model import Camera
 from world.yaml_fields import FieldError, Fields, check_number
 
 if TYPE_CHECKING:
@@ -59,6 +60,7 @@ __all__ = [
     "parse_search",
     "parse_tracker",
     "resolve_prior",
+    "scenario_camera",
 ]
 
 PRIOR_STREAM = 0x9E1
@@ -351,3 +353,12 @@ def resolve_prior(scenario: Scenario, targets: Sequence[TargetSpec], seed: int
     order = rng.permutation(len(drafts))
     return [PriorEntry(f"P{k + 1}", *drafts[int(i)][:3], spec.sigma_m, drafts[int(i)][3])
             for k, i in enumerate(order)]
+
+
+def scenario_camera(scenario: Scenario) -> Camera:
+    """The scenario's camera for :class:`world.model.World`: footprint ``fleet.fov_radius_m``,
+    ``observer.camera_rate_hz`` and ``observer.r_m2``, and the faults of ``camera:``."""
+    spec = scenario.camera
+    return Camera(scenario.fleet.fov_radius_m, scenario.observer.camera_rate_hz,
+                  scenario.observer.r_m2, pd=spec.pd, clutter_per_frame=spec.clutter_per_frame,
+                  labelled=spec.labelled)
