@@ -225,7 +225,7 @@ def test_campaign_overrides_reach_the_new_fields() -> None:
                        base_dir=Path("."))
     data, source = load_scenario_data("discovery")
     data["camera"]["pd"] = 0.0
-    with pytest.raises(FieldError, match="camera.pd"):
+    with pytest.raises(FieldError, match=r"camera\.pd"):
         parse_scenario(data, source=source)
     with pytest.raises(ScenarioError):
         load_scenario("/nonexistent/discovery.yaml")

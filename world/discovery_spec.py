@@ -33,16 +33,13 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 
 from domain.limits import MAX_COORDINATE_M, MAX_DURATION_S, MAX_TARGETS
 from world.model import Camera
 from world.yaml_fields import FieldError, Fields, check_number
-
-if TYPE_CHECKING:
-    from world.scenario import Scenario, TargetSpec
 
 __all__ = [
     "MAX_CLUTTER_PER_FRAME",
@@ -150,6 +147,51 @@ class SearchSpec:
     growth_m2_per_s: float = 50.0
     max_cells: int = 4
     prior_weight: float = 1.0
+
+
+class _Target(Protocol):
+    """What :func:`resolve_prior` reads of a ``world.scenario.TargetSpec`` (world.scenario
+    imports this module, so it is named by shape, not imported)."""
+
+    @property
+    def id(self) -> str: ...
+    @property
+    def x_m(self) -> float: ...
+    @property
+    def y_m(self) -> float: ...
+    @property
+    def vx_m_s(self) -> float: ...
+    @property
+    def vy_m_s(self) -> float: ...
+    @property
+    def appear_s(self) -> float: ...
+
+
+class _Fleet(Protocol):
+    @property
+    def fov_radius_m(self) -> float: ...
+
+
+class _Observer(Protocol):
+    @property
+    def camera_rate_hz(self) -> float: ...
+    @property
+    def r_m2(self) -> float: ...
+
+
+class _Scenario(Protocol):
+    """What this module reads of a ``world.scenario.Scenario``."""
+
+    @property
+    def prior(self) -> PriorSpec | None: ...
+    @property
+    def area(self) -> AreaSpec | None: ...
+    @property
+    def camera(self) -> CameraSpec: ...
+    @property
+    def fleet(self) -> _Fleet: ...
+    @property
+    def observer(self) -> _Observer: ...
 
 
 def _in_unit(f: Fields, key: str, default: float, *, closed_low: bool = False,
@@ -316,7 +358,7 @@ def parse_discovery(top: Fields, target_count: int) -> DiscoveryFields:
     return DiscoveryFields(camera, area, prior, tracker, search)
 
 
-def resolve_prior(scenario: Scenario, targets: Sequence[TargetSpec], seed: int
+def resolve_prior(scenario: _Scenario, targets: Sequence[_Target], seed: int
                   ) -> list[PriorEntry]:
     """The prior list of a run with ``seed`` whose icebergs are ``targets`` (as
     :func:`world.scenario.resolve_targets` drew them); see the module docstring. Empty
@@ -355,7 +397,7 @@ def resolve_prior(scenario: Scenario, targets: Sequence[TargetSpec], seed: int
             for k, i in enumerate(order)]
 
 
-def scenario_camera(scenario: Scenario) -> Camera:
+def scenario_camera(scenario: _Scenario) -> Camera:
     """The scenario's camera for :class:`world.model.World`: footprint ``fleet.fov_radius_m``,
     ``observer.camera_rate_hz`` and ``observer.r_m2``, and the faults of ``camera:``."""
     spec = scenario.camera
