@@ -2,7 +2,9 @@
 
 A scenario is a YAML file a user can copy and edit. The bundled ones live in
 ``world/scenarios/`` and are addressed by name (``paper-boat``, ``svalbard-2015``, ...);
-anything else is a path. Unknown or invalid fields are errors naming the field.
+anything else is a path. Unknown or invalid fields are errors naming the field. The fields
+of discovery (``camera``, ``targets.known``, ``area``, ``prior``, ``tracker``, ``search``) are
+parsed by world/discovery_spec.py.
 
 Frames: local ENU metres around ``origin``, headings in radians counter-clockwise from east.
 """
