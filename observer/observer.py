@@ -215,13 +215,14 @@ class Observer:
     def estimates_at(
         self, t_s: float, target_ids: Sequence[str]
     ) -> tuple[list[str], np.ndarray, np.ndarray]:
-        """Predict every track to ``t_s`` and return, for the listed ids whose estimate is at
-        ``t_s``, ``(ids, means (n x 2), covariances (n x 2 x 2))`` of their positions.
+        """Predict every track to ``t_s`` and return, for the listed ids (unknown ones left
+        out), ``(ids, means (n x 2), covariances (n x 2 x 2))`` of their positions.
 
         A track already past ``t_s`` is moved back to it when its committed time allows
-        (:meth:`KalmanTrack.rewind_to`: the view is a function of the committed state); one
-        committed after ``t_s`` (a later measurement) is left out (late). Unknown ids are
-        left out.
+        (:meth:`KalmanTrack.rewind_to`: the view is a function of the committed state);
+        one committed after ``t_s`` (the grid or a later measurement) stays at its own time,
+        and :meth:`correct` / :meth:`correct_pda` apply the measurement there (an error of
+        ``v (t_track - t_s)``: the caller is late by less than a tick).
         """
         t = _finite("t_s", t_s)
         self.predict_to(t)
@@ -231,8 +232,10 @@ class Observer:
         tracks = self._tracks
         for tid in target_ids:
             tr = tracks.get(tid)
-            if tr is None or (tr.t_s != t and not tr.rewind_to(t)):
+            if tr is None:
                 continue
+            if tr.t_s != t:
+                tr.rewind_to(t)
             x, y, _, _ = tr.state
             ids.append(tid)
             means.append((x, y))
@@ -244,9 +247,8 @@ class Observer:
 
     def correct(self, target_id: str, t_s: float, x_m: float, y_m: float, r_m2: float) -> None:
         """Apply a measurement already associated to ``target_id`` (no gate: the caller
-        associated it) at ``t_s``, the track's current time (see :meth:`estimates_at`).
-        Counted ``accepted``. Raises KeyError (unknown id) or ValueError (bad value, or the
-        track is not at ``t_s``)."""
+        associated it) at ``t_s`` (see :meth:`estimates_at` for a track already past it).
+        Counted ``accepted``. Raises KeyError (unknown id) or ValueError (bad value)."""
         track = self._at(target_id, t_s)
         r = _finite("r_m2", r_m2)
         if r <= 0.0:
@@ -266,7 +268,7 @@ class Observer:
         ``t_s``: measurements ``zs`` with association probabilities ``betas`` (the rest,
         ``1 - sum(betas)``, is the probability that none is the target's), see
         :meth:`KalmanTrack.correct_pda`. Counted ``accepted`` once. Raises KeyError or
-        ValueError (bad values, a linear-model track, or not at ``t_s``)."""
+        ValueError (bad values, a linear-model track)."""
         track = self._at(target_id, t_s)
         if not isinstance(track, KalmanTrack):
             raise ValueError("correct_pda needs the kalman model")
@@ -289,12 +291,14 @@ class Observer:
         self._counters["accepted"] += 1
 
     def _at(self, target_id: str, t_s: float) -> _Track:
+        """The track brought to ``t_s`` (forward, or back within its committed step); one
+        committed after ``t_s`` stays at its own time (see :meth:`estimates_at`)."""
         track = self._get(target_id)
         t = _finite("t_s", t_s)
-        if track.t_s != t and not track.rewind_to(t):
+        if track.t_s < t:
             track.predict_to(t)
-        if track.t_s != t:
-            raise ValueError(f"track {target_id!r} is at {track.t_s} s, not at t_s={t}")
+        elif track.t_s > t:
+            track.rewind_to(t)
         return track
 
     def _accept(
