@@ -144,6 +144,19 @@ class Observer:
         del self._tracks[target_id]
         del self._ever_lost[target_id]
 
+    def take_over(self, target_id: str, source_id: str) -> None:
+        """``target_id``'s filter is replaced by ``source_id``'s (a newer estimate of the same
+        object), which stops being tracked; ``target_id`` keeps its process-noise intensity
+        and its ever-lost flag. Raises KeyError if either is unknown, ValueError if equal."""
+        target, source = self._get(target_id), self._get(source_id)
+        if target_id == source_id:
+            raise ValueError(f"cannot take over {target_id!r} by itself")
+        source.set_process_noise(target.q_per_s)
+        self._tracks[target_id] = source
+        del self._tracks[source_id]
+        del self._ever_lost[source_id]
+        self._check_lost(target_id)
+
     def set_process_noise(self, target_id: str, q_per_s: float) -> None:
         """Set a track's process-noise intensity (applies from its last committed time)."""
         q = _non_negative("q_per_s", q_per_s)

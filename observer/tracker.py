@@ -237,9 +237,11 @@ class Tracker:
 
         confirmed: list[TrackEvent] = []
         deleted: list[TrackEvent] = []
+        hit_ids = {tid for j, tid in enumerate(ids) if hit[j]}
         for j, tid in enumerate(ids):
-            self._lifecycle(tid, t, bool(hit[j]), float(new_exist[j]),
-                            fp is not None and p_in[j] >= 0.5, confirmed, deleted)
+            if tid in self._life:  # not merged away earlier in this loop
+                self._lifecycle(tid, t, bool(hit[j]), float(new_exist[j]),
+                                fp is not None and p_in[j] >= 0.5, hit_ids, confirmed, deleted)
         born = [self._birth(t, z[i, 0], z[i, 1], r_m2[i], lam_b, lam_c, confirmed)
                 for i in range(len(index)) if not taken[i]]
         self._counters["assigned"] += len(assigned)
@@ -311,6 +313,7 @@ class Tracker:
         hit: bool,
         existence: float,
         in_view: bool,
+        hit_ids: set[str],
         confirmed: list[TrackEvent],
         deleted: list[TrackEvent],
     ) -> None:
@@ -323,13 +326,57 @@ class Tracker:
             life.hits += 1
         if life.status == "tentative":
             if sum(life.window) >= cfg.confirm_hits and existence >= cfg.existence_confirm_min:
-                self._confirm(tid, t, "m_of_n", confirmed)
+                older = self._stale_twin(tid, hit_ids)
+                if older is None:
+                    self._confirm(tid, t, "m_of_n", confirmed)
+                else:
+                    self._merge(older, tid, t, confirmed, deleted)
             elif life.window.count(False) > cfg.confirm_window - cfg.confirm_hits:
                 self._delete(tid, t, "unconfirmed", deleted)
         elif life.status == "prior" and hit:
             self._confirm(tid, t, "prior_seen", confirmed)
         elif existence < cfg.existence_delete:
             self._delete(tid, t, "not seen in view", deleted)
+
+    def _stale_twin(self, tid: str, hit_ids: set[str]) -> str | None:
+        """A confirmed or prior track, not hit in this scan and less precise than ``tid``,
+        that gates ``tid``'s position: ``d2 = dx' (P_old + P_new)^-1 dx <= gamma``; the
+        likeliest (smallest ``d2 + ln det(2 pi S)``), or None."""
+        new = self.observer.track(tid)
+        best, best_cost = None, math.inf
+        for oid, life in self._life.items():
+            if oid == tid or oid in hit_ids or life.status == "tentative":
+                continue
+            old = self.observer.track(oid)
+            if old.sigma <= new.sigma:
+                continue
+            a = old.cov_xy[0] + new.cov_xy[0]
+            b = old.cov_xy[1] + new.cov_xy[1]
+            c = old.cov_xy[2] + new.cov_xy[2]
+            det = a * c - b * b
+            dx, dy = new.x_m - old.x_m, new.y_m - old.y_m
+            d2 = (c * dx * dx - 2.0 * b * dx * dy + a * dy * dy) / det
+            cost = d2 + math.log((2.0 * math.pi) ** 2 * det)
+            if d2 <= self.config.gate_threshold and cost < best_cost:
+                best, best_cost = oid, cost
+        return best
+
+    def _merge(
+        self, older: str, tid: str, t: float, confirmed: list[TrackEvent],
+        deleted: list[TrackEvent],
+    ) -> None:
+        """Track coalescence: the tentative ``tid`` that reached confirmation is the stale
+        ``older`` track's iceberg found again: ``older`` takes its filter and evidence and
+        keeps its id (stable ids); ``tid`` is deleted (``merged into <older>``)."""
+        new = self._life.pop(tid)
+        life = self._life[older]
+        self.observer.take_over(older, tid)
+        life.existence = max(life.existence, new.existence)
+        life.hits += new.hits
+        life.window = new.window
+        if life.status == "prior":
+            self._confirm(older, t, "prior_seen", confirmed)
+        deleted.append(TrackEvent(t, "deleted", tid, f"merged into {older}"))
 
     def _confirm(self, tid: str, t: float, reason: str, out: list[TrackEvent]) -> None:
         life = self._life[tid]

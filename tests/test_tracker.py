@@ -264,3 +264,30 @@ def test_config_errors_name_the_field(field: str, value: object) -> None:
     with pytest.raises(ValueError, match=f"TrackerConfig.{field}") as err:
         TrackerConfig(**{field: value})  # type: ignore[arg-type]
     assert "\n" not in str(err.value)
+
+
+def test_a_stale_track_found_again_keeps_its_id() -> None:
+    """A confirmed track unseen for long (sigma ~ 300 m per axis) is too vague to claim one
+    detection against "clutter or new", so its iceberg found 250 m away starts a tentative
+    track; when that one is confirmed it is merged into the stale track, which keeps its id
+    and takes the new, precise estimate (no duplicate, no new confirmed id)."""
+    tracker = make(pd=0.85)
+    tracker.observer.add_target("A", 0.0, 0.0, 0.0, p0=[1e5, 1e5, 0.1, 0.1], q_per_s=0.0)
+    tracker.adopt("A")
+    tracker.observer.add_target("B", 0.0, 3000.0, 0.0, p0=[1e5, 1e5, 0.1, 0.1], q_per_s=0.0)
+    tracker.adopt("B")
+    events: list[TrackEvent] = []
+    for k in range(1, 5):
+        det = ScanDetection(250.0 + 0.1 * k, 100.0, R_M2)
+        events += tracker.scan(0.5 * k, "u1", Footprint(200.0, 100.0, RADIUS_M), [det]).events
+    assert [(e.kind, e.track_id, e.reason) for e in events] == [
+        ("born", "N1", "unassociated detection"),
+        ("deleted", "N1", "merged into A"),
+    ]
+    a = tracker.observer.track("A")
+    assert math.hypot(a.x_m - 250.0, a.y_m - 100.0) < 3.0 and a.sigma < 20.0
+    assert a.q_per_s == 0.0  # A keeps its own process noise
+    assert tracker.track_ids == ["A", "B"] and tracker.status("A") == "confirmed"
+    det = ScanDetection(250.5, 100.0, R_M2)
+    res = tracker.scan(3.0, "u1", Footprint(200.0, 100.0, RADIUS_M), [det])
+    assert res.assigned == {0: "A"}
