@@ -20,8 +20,10 @@ One scan (:meth:`Tracker.scan`), detections of one camera frame at ``t_s``:
    (a hit, or ``Pin >= 0.5``); without a footprint only hits count and a miss is no
    evidence (nobody knows where the camera looked).
 6. Lifecycle: tentative -> confirmed with ``confirm_hits`` hits in the last
-   ``confirm_window`` covering frames and existence ``>= existence_confirm_min``; tentative
-   deleted (``unconfirmed``) once its window holds more than ``N - M`` misses; prior ->
+   ``confirm_window`` covering frames and existence ``>= existence_confirm_min`` (or merged
+   into a stale confirmed/prior track it gates: track coalescence, ids stay stable);
+   tentative deleted (``unconfirmed``) once its window holds more than ``N - M`` misses or
+   the observer calls it lost; prior ->
    confirmed on its first hit; confirmed and prior deleted (``not seen in view``) when
    existence ``< existence_delete``.
 7. Detections no track took start tentative tracks: state at the detection, velocity 0,
@@ -202,7 +204,11 @@ class Tracker:
         lam = lam_c + lam_b
         pd = cfg.pd_evidence
 
-        ids, means, covs = self._candidates(t, fp, float(r_m2.max()) if len(r_m2) else 0.0)
+        confirmed: list[TrackEvent] = []
+        deleted: list[TrackEvent] = []
+        ids, means, covs = self._candidates(
+            t, fp, float(r_m2.max()) if len(r_m2) else 0.0, deleted
+        )
         exist = np.array([self._life[i].existence for i in ids], dtype=float)
         if fp is not None and ids:
             p_in = inside_probability(means, covs, (float(fp.x_m), float(fp.y_m)), radius)
@@ -235,8 +241,6 @@ class Tracker:
             new_exist = np.where(hit, new_exist, exist)
         new_exist = np.minimum(new_exist, cfg.existence_max)
 
-        confirmed: list[TrackEvent] = []
-        deleted: list[TrackEvent] = []
         hit_ids = {tid for j, tid in enumerate(ids) if hit[j]}
         for j, tid in enumerate(ids):
             if tid in self._life:  # not merged away earlier in this loop
@@ -254,17 +258,35 @@ class Tracker:
         )
 
     def _candidates(
-        self, t: float, fp: Footprint | None, r_max_m2: float
+        self, t: float, fp: Footprint | None, r_max_m2: float, deleted: list[TrackEvent]
     ) -> tuple[list[str], np.ndarray, np.ndarray]:
-        """Tracks at ``t`` that could be in the footprint (all without one)."""
+        """Tracks at ``t`` that could be in the footprint (all without one).
+
+        On the way: lifecycles of tracks the caller removed from the observer are dropped,
+        and tentative tracks the observer calls lost (``sqrt(trace P) > fov_radius_m``: no
+        frame can confirm them any more) are deleted (``unconfirmed``)."""
         ids, means, covs = self.observer.estimates_at(t, list(self._life))
-        if fp is None or not ids:
+        if len(ids) != len(self._life):
+            present = set(ids)
+            for tid in [tid for tid in self._life if tid not in present]:
+                del self._life[tid]
+        if not ids:
             return ids, means, covs
         a, b, c = covs[:, 0, 0], covs[:, 0, 1], covs[:, 1, 1]
-        lam_max = 0.5 * (a + c) + np.hypot(0.5 * (a - c), b)
-        reach = float(fp.radius_m) + np.sqrt(self.config.gate_threshold * (lam_max + r_max_m2))
-        dist = np.hypot(means[:, 0] - float(fp.x_m), means[:, 1] - float(fp.y_m))
-        keep = np.flatnonzero(dist <= reach)
+        lost2 = self.observer.config.fov_radius_m ** 2
+        keep_mask = np.ones(len(ids), dtype=bool)
+        for k in np.flatnonzero(a + c > lost2).tolist():
+            if self._life[ids[k]].status == "tentative":
+                self._delete(ids[k], t, "unconfirmed", deleted)
+                keep_mask[k] = False
+        if fp is not None:
+            lam_max = 0.5 * (a + c) + np.hypot(0.5 * (a - c), b)
+            reach = float(fp.radius_m) + np.sqrt(
+                self.config.gate_threshold * (lam_max + r_max_m2)
+            )
+            dist = np.hypot(means[:, 0] - float(fp.x_m), means[:, 1] - float(fp.y_m))
+            keep_mask &= dist <= reach
+        keep = np.flatnonzero(keep_mask)
         return [ids[k] for k in keep.tolist()], means[keep], covs[keep]
 
     def _jpda(
@@ -346,7 +368,7 @@ class Tracker:
         best, best_cost = None, math.inf
         for oid, life in self._life.items():
             if oid == tid or oid in hit_ids or life.status == "tentative":
-                continue
+                continue  # (every id here is in the observer: _candidates pruned the rest)
             old = self.observer.track(oid)
             if old.sigma <= new.sigma:
                 continue

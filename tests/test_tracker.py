@@ -291,3 +291,28 @@ def test_a_stale_track_found_again_keeps_its_id() -> None:
     det = ScanDetection(250.5, 100.0, R_M2)
     res = tracker.scan(3.0, "u1", Footprint(200.0, 100.0, RADIUS_M), [det])
     assert res.assigned == {0: "A"}
+
+
+def test_tentative_tracks_never_looked_at_again_die_when_lost() -> None:
+    """A tentative track the camera never covers again cannot be confirmed by any frame once
+    the observer calls it lost (sqrt(trace P) > fov_radius_m): deleted, so false alarms at a
+    footprint's trailing edge do not pile up. Tracks the caller removed are dropped."""
+    tracker = make(pd=0.85)
+    res = tracker.scan(0.0, "u1", Footprint(0.0, 0.0, RADIUS_M), [ScanDetection(140.0, 0.0, R_M2)])
+    assert [e.kind for e in res.events] == ["born"]
+    tracker.observer.add_target("A", 0.0, 0.0, 0.0, p0=[1e4, 1e4, 0.1, 0.1])
+    tracker.adopt("A")
+    tracker.observer.add_target("gone", 0.0, 0.0, 0.0)
+    tracker.adopt("gone")
+    tracker.observer.remove_target("gone")
+    deleted_at = None
+    for k in range(1, 400):
+        res = tracker.scan(0.5 * k, "u1", Footprint(5000.0, 0.0, RADIUS_M), [])
+        if res.events:
+            assert res.events == (TrackEvent(0.5 * k, "deleted", "N1", "unconfirmed"),)
+            deleted_at = 0.5 * k
+            break
+    sigma_lost = tracker.observer.config.fov_radius_m ** 2
+    assert deleted_at is not None and 30.0 < deleted_at < 120.0
+    assert tracker.track_ids == ["A"]  # a confirmed track is never deleted for being vague
+    assert tracker.observer.sigma("A") > sigma_lost
