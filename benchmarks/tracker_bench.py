@@ -279,6 +279,7 @@ def percentile(values: Sequence[float], q: float) -> float:
     return ordered[rank - 1]
 
 
+TRACKERS = ("floe-gnn", "floe-jpda", "stonesoup-gnn", "stonesoup-jpda")
 FLOE_TRACKER_NAMES = ("Footprint", "ScanDetection", "Tracker", "TrackerConfig")
 
 
@@ -320,14 +321,27 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--load", action="store_true", help="read --frames instead of recording")
     parser.add_argument("--json", type=Path, default=Path("benchmarks/tracker_bench.json"))
     parser.add_argument("--ss-delete-trace-m2", type=float, default=2.0e6)
-    parser.add_argument(
-        "--only", default="floe-gnn,floe-jpda,stonesoup-gnn,stonesoup-jpda", help="comma list"
-    )
+    parser.add_argument("--only", default=",".join(TRACKERS), help="comma list of trackers to run")
     args = parser.parse_args(argv)
     if args.rounds < 1 or not math.isfinite(args.duration_s) or args.duration_s <= 0:
         parser.error("--rounds must be >= 1 and --duration-s finite and > 0")
+    wanted = [n for n in args.only.split(",") if n]
+    unknown = [n for n in wanted if n not in TRACKERS]
+    if unknown or not wanted:
+        parser.error(f"--only: choose among {', '.join(TRACKERS)}")
+    if not math.isfinite(args.ss_delete_trace_m2) or args.ss_delete_trace_m2 <= 0:
+        parser.error("--ss-delete-trace-m2 must be finite and > 0")
+    missing_floe = floe_available()
+    if missing_floe:
+        print(missing_floe, "-- running Stone Soup only", file=sys.stderr)
+        wanted = [n for n in wanted if not n.startswith("floe")]
+        if not wanted:
+            parser.error("nothing to run without floe's tracker")
     if args.load:
-        rec = load_recording(args.frames)
+        try:
+            rec = load_recording(args.frames)
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            parser.error(f"--frames {args.frames}: not a recording ({exc})")
     else:
         rec = record(WorldParams(seed=args.seed, duration_s=args.duration_s))
         save_recording(rec, args.frames)
@@ -337,14 +351,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         "stonesoup-gnn": lambda: StoneSoupAdapter(rec, "gnn", args.ss_delete_trace_m2),
         "stonesoup-jpda": lambda: StoneSoupAdapter(rec, "jpda", args.ss_delete_trace_m2),
     }
-    wanted = [n for n in args.only.split(",") if n]
-    missing_floe = floe_available()
-    if missing_floe:
-        print(missing_floe, "-- running Stone Soup only", file=sys.stderr)
-        wanted = [n for n in wanted if not n.startswith("floe")]
-    unknown = [n for n in wanted if n not in makers]
-    if unknown:
-        parser.error(f"--only: unknown tracker(s) {', '.join(unknown)}")
     n_det = sum(len(f.detections) for f in rec.frames)
     n_clutter = sum(1 for f in rec.frames for d in f.detections if d[2] is None)
     print(
