@@ -25,13 +25,17 @@ recorded detections.
 Stone Soup configuration (facts from its documentation; our own wiring):
 transition ``CombinedLinearGaussianTransitionModel([ConstantVelocity(q)] * 2)`` with
 q = 0.1, measurement ``LinearGaussian(mapping=(0, 2), R = 5 I)``, Kalman predictor and
-updater; GNN: ``DistanceHypothesiser`` (Mahalanobis, missed distance sqrt(-2 ln(1 - 0.9999))
-= 4.29, the floe gate) + ``GNNWith2DAssignment`` in a ``MultiTargetTracker``; JPDA:
-``PDAHypothesiser`` (pd 0.85, gate 0.9999, clutter density 0.1 / (pi 150^2) per m^2) +
-``JPDA`` in a ``MultiTargetMixtureTracker``. Initiation: ``MultiMeasurementInitiator``
-(GNN inside, 3 updates to confirm, a tentative track dropped after 1 s without an update,
-i.e. three missed 2 Hz frames: about floe's 3 of 5), the new track's velocity variance 0.5
-m^2/s^2 (floe's ``new_track_vel_var_m2_s2``). Deletion: ``CovarianceBasedDeleter`` on the
+updater; one ``PDAHypothesiser`` (pd 0.85, gate 0.9999, clutter density 0.1 / (pi 150^2)
+per m^2: likelihood ratios, like floe's association); GNN: it + ``GNNWith2DAssignment`` (the
+likeliest joint assignment) in a ``MultiTargetTracker``; JPDA: it + ``JPDA`` in a
+``MultiTargetMixtureTracker``. ``stonesoup-gnn-maha`` (not run by default): Stone Soup's
+tutorial GNN, ``DistanceHypothesiser`` (Mahalanobis, missed distance
+sqrt(-2 ln(1 - 0.9999)) = 4.29, the floe gate) + ``GNNWith2DAssignment``; it lets a track
+with a large covariance take any clutter point (the distance ignores det S).
+Initiation: ``MultiMeasurementInitiator`` (the same GNN inside, 3 updates to confirm, a
+tentative track dropped after 1 s without an update, i.e. three missed 2 Hz frames: about
+floe's 3 of 5), the new track's velocity variance 0.5 m^2/s^2 (floe's
+``new_track_vel_var_m2_s2``). Deletion: ``CovarianceBasedDeleter`` on the
 position variances (``--ss-delete-trace-m2``).
 
 Mismatches (honest list): Stone Soup's ConstantVelocity is the continuous white-noise
@@ -40,7 +44,9 @@ acceleration model, ``Q = q [[dt^3/3, dt^2/2], [dt^2/2, dt]]`` per axis; floe ad
 grows alike to first order). Stone Soup's trackers know no sensor footprint: a track out of
 view gets a missed-detection hypothesis every scan (harmless for its estimate, but no
 "looked and not seen" deletion), so it deletes by covariance instead of by floe's existence
-evidence, and it predicts every track at every scan of every UAV.
+evidence, and it predicts every track at every scan of every UAV. Its PDA hypotheses have
+no birth hypothesis, so a track with a large covariance takes a false alarm far from its
+iceberg whenever ``pd N(z; z_hat, S) > lambda (1 - pd pg)``.
 """
 
 from __future__ import annotations
@@ -175,10 +181,21 @@ class StoneSoupAdapter(_Adapter):
         )
         predictor = KalmanPredictor(transition)
         updater = KalmanUpdater(measurement)
-        gate_m = math.sqrt(-2.0 * math.log(1.0 - GATE_PROBABILITY))
-        gnn = GNNWith2DAssignment(
-            DistanceHypothesiser(predictor, updater, Mahalanobis(), missed_distance=gate_m)
+        area_m2 = math.pi * p.footprint_radius_m**2
+        pda = PDAHypothesiser(
+            predictor,
+            updater,
+            clutter_spatial_density=p.clutter_per_frame / area_m2,
+            prob_detect=p.pd,
+            prob_gate=GATE_PROBABILITY,
         )
+        if association == "gnn-mahalanobis":
+            gate_m = math.sqrt(-2.0 * math.log(1.0 - GATE_PROBABILITY))
+            gnn = GNNWith2DAssignment(
+                DistanceHypothesiser(predictor, updater, Mahalanobis(), missed_distance=gate_m)
+            )
+        else:
+            gnn = GNNWith2DAssignment(pda)
         v = NEW_TRACK_VEL_VAR_M2_S2
         initiator = MultiMeasurementInitiator(
             prior_state=GaussianState(np.zeros((4, 1)), np.diag([0.0, v, 0.0, v])),
@@ -189,7 +206,7 @@ class StoneSoupAdapter(_Adapter):
             min_points=CONFIRM_HITS,
         )
         deleter = CovarianceBasedDeleter(covar_trace_thresh=delete_trace_m2, mapping=[0, 2])
-        if association == "gnn":
+        if association != "jpda":
             self.tracker: Any = MultiTargetTracker(
                 initiator=initiator,
                 deleter=deleter,
@@ -198,16 +215,7 @@ class StoneSoupAdapter(_Adapter):
                 updater=updater,
             )
         else:
-            area_m2 = math.pi * p.footprint_radius_m**2
-            jpda = JPDA(
-                PDAHypothesiser(
-                    predictor,
-                    updater,
-                    clutter_spatial_density=p.clutter_per_frame / area_m2,
-                    prob_detect=p.pd,
-                    prob_gate=GATE_PROBABILITY,
-                )
-            )
+            jpda = JPDA(pda)
             self.tracker = MultiTargetMixtureTracker(
                 initiator=initiator,
                 deleter=deleter,
@@ -279,7 +287,8 @@ def percentile(values: Sequence[float], q: float) -> float:
     return ordered[rank - 1]
 
 
-TRACKERS = ("floe-gnn", "floe-jpda", "stonesoup-gnn", "stonesoup-jpda")
+TRACKERS = ("floe-gnn", "floe-jpda", "stonesoup-gnn", "stonesoup-jpda", "stonesoup-gnn-maha")
+DEFAULT_TRACKERS = TRACKERS[:4]
 FLOE_TRACKER_NAMES = ("Footprint", "ScanDetection", "Tracker", "TrackerConfig")
 
 
@@ -321,7 +330,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--load", action="store_true", help="read --frames instead of recording")
     parser.add_argument("--json", type=Path, default=Path("benchmarks/tracker_bench.json"))
     parser.add_argument("--ss-delete-trace-m2", type=float, default=2.0e6)
-    parser.add_argument("--only", default=",".join(TRACKERS), help="comma list of trackers to run")
+    parser.add_argument(
+        "--only", default=",".join(DEFAULT_TRACKERS), help="comma list of trackers to run"
+    )
     args = parser.parse_args(argv)
     if args.rounds < 1 or not math.isfinite(args.duration_s) or args.duration_s <= 0:
         parser.error("--rounds must be >= 1 and --duration-s finite and > 0")
@@ -350,6 +361,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         "floe-jpda": lambda: FloeAdapter(rec, "jpda"),
         "stonesoup-gnn": lambda: StoneSoupAdapter(rec, "gnn", args.ss_delete_trace_m2),
         "stonesoup-jpda": lambda: StoneSoupAdapter(rec, "jpda", args.ss_delete_trace_m2),
+        "stonesoup-gnn-maha": lambda: StoneSoupAdapter(
+            rec, "gnn-mahalanobis", args.ss_delete_trace_m2
+        ),
     }
     n_det = sum(len(f.detections) for f in rec.frames)
     n_clutter = sum(1 for f in rec.frames for d in f.detections if d[2] is None)
