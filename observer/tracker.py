@@ -23,9 +23,9 @@ One scan (:meth:`Tracker.scan`), detections of one camera frame at ``t_s``:
    ``confirm_window`` covering frames and existence ``>= existence_confirm_min`` (or merged
    into a stale confirmed/prior track it gates: track coalescence, ids stay stable);
    tentative deleted (``unconfirmed``) once its window holds more than ``N - M`` misses or
-   the observer calls it lost; prior ->
-   confirmed on its first hit; confirmed and prior deleted (``not seen in view``) when
-   existence ``< existence_delete``.
+   the observer calls it lost; prior -> confirmed by the same M-of-N (one false alarm
+   near a listed phantom must not confirm it); confirmed and prior deleted
+   (``not seen in view``) when existence ``< existence_delete``.
 7. Detections no track took start tentative tracks: state at the detection, velocity 0,
    ``P0 = diag(r, r, v, v)`` (``v = new_track_vel_var_m2_s2``), existence
    ``lambda_b / (lambda_b + lambda_c)``.
@@ -44,7 +44,12 @@ from types import MappingProxyType
 import numpy as np
 
 from observer.association import gnn_assign, jpda_marginals, scan_likelihoods
-from observer.existence import existence_after_hit, existence_after_miss, inside_probability
+from observer.existence import (
+    existence_after_hit,
+    existence_after_miss,
+    inside_probability,
+    position_after_miss,
+)
 from observer.observer import Observer
 from observer.tracker_config import (
     Footprint,
@@ -54,6 +59,9 @@ from observer.tracker_config import (
     TrackEvent,
     TrackRecord,
 )
+
+#: Track coalescence needs the likeliest stale track this many times likelier than the next.
+MERGE_ODDS = 1.0
 
 COUNTER_NAMES: tuple[str, ...] = (
     "scans",
@@ -97,6 +105,7 @@ class Tracker:
         self._life: dict[str, _Life] = {}
         self._next_id = 1
         self._counters: dict[str, int] = dict.fromkeys(COUNTER_NAMES, 0)
+        self._jpda_updated = np.zeros(0, dtype=bool)
 
     # --- tracks made elsewhere ------------------------------------------------------------
     def adopt(self, track_id: str, status: str = "confirmed", existence: float | None = None,
@@ -216,6 +225,7 @@ class Tracker:
             p_in = np.zeros(len(ids))
         miss = 1.0 - exist * pd * p_in
         hit = np.zeros(len(ids), dtype=bool)
+        updated = np.zeros(len(ids), dtype=bool)  # had any update (JPDA: also hit < 0.5)
         assigned: dict[int, str] = {}
         taken = np.zeros(len(index), dtype=bool)
         if ids and len(index):
@@ -229,16 +239,20 @@ class Tracker:
                     self.observer.correct(tid, t, z[i, 0], z[i, 1], r_m2[i])
                     lik = math.exp(float(lk.log_lik[i, j]))
                     new_exist[j] = existence_after_hit(exist[j], pd, p_in[j], lik, lam)
-                    hit[j] = True
+                    hit[j] = updated[j] = True
                     taken[i] = True
                     assigned[index[i]] = tid
             else:
                 new_exist = self._jpda(t, ids, z, r_m2, lk.log_ratio, exist, p_in, pd,
                                        hit, taken, assigned, index)
+                updated |= self._jpda_updated
         else:
             new_exist = existence_after_miss(exist, pd, p_in)
         if fp is None:  # no footprint: a miss is no evidence
             new_exist = np.where(hit, new_exist, exist)
+        elif ids:
+            self._negative_information(t, ids, means, covs, updated, (fp.x_m, fp.y_m), radius,
+                                       pd)
         new_exist = np.minimum(new_exist, cfg.existence_max)
 
         hit_ids = {tid for j, tid in enumerate(ids) if hit[j]}
@@ -289,6 +303,28 @@ class Tracker:
         keep = np.flatnonzero(keep_mask)
         return [ids[k] for k in keep.tolist()], means[keep], covs[keep]
 
+    def _negative_information(
+        self,
+        t: float,
+        ids: list[str],
+        means: np.ndarray,
+        covs: np.ndarray,
+        updated: np.ndarray,
+        centre: tuple[float, float],
+        radius: float,
+        pd: float,
+    ) -> None:
+        """Tracks with no update this scan, partly in view: their position moves out of the
+        water just seen (:func:`observer.existence.position_after_miss`)."""
+        missed = np.flatnonzero(~updated)
+        if missed.size == 0:
+            return
+        mask, new_m, new_p = position_after_miss(
+            means[missed], covs[missed], (float(centre[0]), float(centre[1])), radius, pd
+        )
+        for k, j in enumerate(missed[mask].tolist()):
+            self.observer.set_position_moments(ids[j], t, new_m[k], new_p[k])
+
     def _jpda(
         self,
         t: float,
@@ -311,10 +347,12 @@ class Tracker:
         detected = beta.sum(axis=0)  # P(track j produced one of the detections)
         q_miss = existence_after_miss(exist, pd, p_in)
         new_exist = detected + (1.0 - detected) * q_miss
+        self._jpda_updated = np.zeros(len(ids), dtype=bool)
         for j, tid in enumerate(ids):
             rows = np.flatnonzero(beta[:, j] > 0.0)
             if rows.size == 0:
                 continue
+            self._jpda_updated[j] = True
             b = beta[rows, j] / new_exist[j]  # given existence
             r_eff = float(b @ r_m2[rows] / b.sum())
             self.observer.correct_pda(tid, t, z[rows], np.minimum(b, 1.0) / max(1.0, b.sum()),
@@ -355,32 +393,46 @@ class Tracker:
                     self._merge(older, tid, t, confirmed, deleted)
             elif life.window.count(False) > cfg.confirm_window - cfg.confirm_hits:
                 self._delete(tid, t, "unconfirmed", deleted)
-        elif life.status == "prior" and hit:
+        elif (
+            life.status == "prior"
+            and sum(life.window) >= cfg.confirm_hits
+            and existence >= cfg.existence_confirm_min
+        ):
             self._confirm(tid, t, "prior_seen", confirmed)
         elif existence < cfg.existence_delete:
             self._delete(tid, t, "not seen in view", deleted)
 
     def _stale_twin(self, tid: str, hit_ids: set[str]) -> str | None:
-        """A confirmed or prior track, not hit in this scan and less precise than ``tid``,
-        that gates ``tid``'s position: ``d2 = dx' (P_old + P_new)^-1 dx <= gamma``; the
-        likeliest (smallest ``d2 + ln det(2 pi S)``), or None."""
+        """The confirmed or prior track whose iceberg ``tid`` is, if that is unambiguous.
+
+        Every confirmed or prior track that gates ``tid``'s position,
+        ``d2 = dx' (P_old + P_new)^-1 dx <= gamma``, is a candidate with cost
+        ``d2 + ln det(2 pi S)``. The likeliest is returned when it was not hit in this scan,
+        is vaguer than ``tid`` (larger ``trace P``) and is at least ``MERGE_ODDS`` times
+        likelier than the runner-up (cost lower by ``2 ln MERGE_ODDS``); else None (a vague
+        track gates much of the area: a guess would take another iceberg's id)."""
         new = self.observer.track(tid)
-        best, best_cost = None, math.inf
+        costs: list[tuple[float, str]] = []
         for oid, life in self._life.items():
-            if oid == tid or oid in hit_ids or life.status == "tentative":
+            if oid == tid or life.status == "tentative":
                 continue  # (every id here is in the observer: _candidates pruned the rest)
             old = self.observer.track(oid)
-            if old.sigma <= new.sigma:
-                continue
             a = old.cov_xy[0] + new.cov_xy[0]
             b = old.cov_xy[1] + new.cov_xy[1]
             c = old.cov_xy[2] + new.cov_xy[2]
             det = a * c - b * b
             dx, dy = new.x_m - old.x_m, new.y_m - old.y_m
             d2 = (c * dx * dx - 2.0 * b * dx * dy + a * dy * dy) / det
-            cost = d2 + math.log((2.0 * math.pi) ** 2 * det)
-            if d2 <= self.config.gate_threshold and cost < best_cost:
-                best, best_cost = oid, cost
+            if d2 <= self.config.gate_threshold:
+                costs.append((d2 + math.log((2.0 * math.pi) ** 2 * det), oid))
+        if not costs:
+            return None
+        costs.sort()
+        best_cost, best = costs[0]
+        if best in hit_ids or self.observer.sigma(best) <= new.sigma:
+            return None
+        if len(costs) > 1 and costs[1][0] - best_cost < 2.0 * math.log(MERGE_ODDS):
+            return None
         return best
 
     def _merge(
