@@ -43,7 +43,7 @@ from types import MappingProxyType
 
 import numpy as np
 
-from observer.association import gnn_assign, jpda_marginals, scan_likelihoods
+from observer.association import gnn_assign, scan_likelihoods
 from observer.existence import (
     existence_after_hit,
     existence_after_miss,
@@ -59,9 +59,7 @@ from observer.tracker_config import (
     TrackEvent,
     TrackRecord,
 )
-
-#: Track coalescence needs the likeliest stale track this many times likelier than the next.
-MERGE_ODDS = 1.0
+from observer.tracker_steps import jpda_step, stale_twin
 
 COUNTER_NAMES: tuple[str, ...] = (
     "scans",
@@ -105,7 +103,6 @@ class Tracker:
         self._life: dict[str, _Life] = {}
         self._next_id = 1
         self._counters: dict[str, int] = dict.fromkeys(COUNTER_NAMES, 0)
-        self._jpda_updated = np.zeros(0, dtype=bool)
 
     # --- tracks made elsewhere ------------------------------------------------------------
     def adopt(self, track_id: str, status: str = "confirmed", existence: float | None = None,
@@ -243,9 +240,11 @@ class Tracker:
                     taken[i] = True
                     assigned[index[i]] = tid
             else:
-                new_exist = self._jpda(t, ids, z, r_m2, lk.log_ratio, exist, p_in, pd,
-                                       hit, taken, assigned, index)
-                updated |= self._jpda_updated
+                new_exist, picks = jpda_step(
+                    self.observer, t, ids, z, r_m2, lk.log_ratio, exist, p_in, pd,
+                    cfg.jpda_max_hypotheses, hit, updated, taken,
+                )
+                assigned.update({index[i]: tid for i, tid in picks.items()})
         else:
             new_exist = existence_after_miss(exist, pd, p_in)
         if fp is None:  # no footprint: a miss is no evidence
@@ -325,47 +324,6 @@ class Tracker:
         for k, j in enumerate(missed[mask].tolist()):
             self.observer.set_position_moments(ids[j], t, new_m[k], new_p[k])
 
-    def _jpda(
-        self,
-        t: float,
-        ids: list[str],
-        z: np.ndarray,
-        r_m2: np.ndarray,
-        log_ratio: np.ndarray,
-        exist: np.ndarray,
-        p_in: np.ndarray,
-        pd: float,
-        hit: np.ndarray,
-        taken: np.ndarray,
-        assigned: dict[int, str],
-        index: list[int],
-    ) -> np.ndarray:
-        """JPDA/JIPDA step; fills ``hit``, ``taken`` (detection belongs to a track with
-        probability >= 0.5), ``assigned`` (by original detection index ``index[i]``); returns
-        the new existences."""
-        beta = jpda_marginals(log_ratio, self.config.jpda_max_hypotheses)
-        detected = beta.sum(axis=0)  # P(track j produced one of the detections)
-        q_miss = existence_after_miss(exist, pd, p_in)
-        new_exist = detected + (1.0 - detected) * q_miss
-        self._jpda_updated = np.zeros(len(ids), dtype=bool)
-        for j, tid in enumerate(ids):
-            rows = np.flatnonzero(beta[:, j] > 0.0)
-            if rows.size == 0:
-                continue
-            self._jpda_updated[j] = True
-            b = beta[rows, j] / new_exist[j]  # given existence
-            r_eff = float(b @ r_m2[rows] / b.sum())
-            self.observer.correct_pda(tid, t, z[rows], np.minimum(b, 1.0) / max(1.0, b.sum()),
-                                      r_eff)
-            hit[j] = detected[j] >= 0.5
-        best = beta.argmax(axis=1) if beta.shape[1] else np.zeros(0, dtype=int)
-        for i in range(beta.shape[0]):
-            if beta[i].sum() >= 0.5:
-                taken[i] = True
-            if beta[i, best[i]] > 0.5:
-                assigned[index[i]] = ids[int(best[i])]
-        return new_exist
-
     def _lifecycle(
         self,
         tid: str,
@@ -386,7 +344,8 @@ class Tracker:
             life.hits += 1
         if life.status == "tentative":
             if sum(life.window) >= cfg.confirm_hits and existence >= cfg.existence_confirm_min:
-                older = self._stale_twin(tid, hit_ids)
+                statuses = {oid: lf.status for oid, lf in self._life.items()}
+                older = stale_twin(self.observer, statuses, tid, hit_ids, cfg.gate_threshold)
                 if older is None:
                     self._confirm(tid, t, "m_of_n", confirmed)
                 else:
@@ -401,39 +360,6 @@ class Tracker:
             self._confirm(tid, t, "prior_seen", confirmed)
         elif existence < cfg.existence_delete:
             self._delete(tid, t, "not seen in view", deleted)
-
-    def _stale_twin(self, tid: str, hit_ids: set[str]) -> str | None:
-        """The confirmed or prior track whose iceberg ``tid`` is, if that is unambiguous.
-
-        Every confirmed or prior track that gates ``tid``'s position,
-        ``d2 = dx' (P_old + P_new)^-1 dx <= gamma``, is a candidate with cost
-        ``d2 + ln det(2 pi S)``. The likeliest is returned when it was not hit in this scan,
-        is vaguer than ``tid`` (larger ``trace P``) and is at least ``MERGE_ODDS`` times
-        likelier than the runner-up (cost lower by ``2 ln MERGE_ODDS``); else None (a vague
-        track gates much of the area: a guess would take another iceberg's id)."""
-        new = self.observer.track(tid)
-        costs: list[tuple[float, str]] = []
-        for oid, life in self._life.items():
-            if oid == tid or life.status == "tentative":
-                continue  # (every id here is in the observer: _candidates pruned the rest)
-            old = self.observer.track(oid)
-            a = old.cov_xy[0] + new.cov_xy[0]
-            b = old.cov_xy[1] + new.cov_xy[1]
-            c = old.cov_xy[2] + new.cov_xy[2]
-            det = a * c - b * b
-            dx, dy = new.x_m - old.x_m, new.y_m - old.y_m
-            d2 = (c * dx * dx - 2.0 * b * dx * dy + a * dy * dy) / det
-            if d2 <= self.config.gate_threshold:
-                costs.append((d2 + math.log((2.0 * math.pi) ** 2 * det), oid))
-        if not costs:
-            return None
-        costs.sort()
-        best_cost, best = costs[0]
-        if best in hit_ids or self.observer.sigma(best) <= new.sigma:
-            return None
-        if len(costs) > 1 and costs[1][0] - best_cost < 2.0 * math.log(MERGE_ODDS):
-            return None
-        return best
 
     def _merge(
         self, older: str, tid: str, t: float, confirmed: list[TrackEvent],
