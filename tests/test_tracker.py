@@ -135,7 +135,7 @@ def test_track_outside_every_footprint_is_never_deleted() -> None:
     tracker.observer.add_target("far", 0.0, 5000.0, 0.0, p0=[100.0, 100.0, 0.0, 0.0], q_per_s=0.0)
     tracker.adopt("far")
     rng = np.random.default_rng(3)
-    for k in range(1, 1001):
+    for k in range(1, 401):
         tracker.scan(0.5 * k, "u1", Footprint(0.0, 0.0, RADIUS_M),
                      frame(rng, np.zeros((0, 2)), (0.0, 0.0), 0.85, 0.1))
     assert tracker.status("far") == "confirmed"
