@@ -14,18 +14,9 @@ Which vehicles a plan may redirect is the :class:`ReplanPolicy`'s ``commit``: wi
 only *idle* vehicles (newly joined, returned, or whose loiter ended) are planned and the
 targets of *busy* vehicles count as covered; without it every active vehicle is replanned.
 
-A vehicle flies to where its first target is predicted to be on arrival. In still air::
-
-    t_arr = D(pose, p) / V,   p <- p_hat + v_hat * t_arr      (two fixed-point iterations)
-
-with ``D`` the Dubins distance from the vehicle's pose and ``V`` its airspeed
-(:meth:`DecisionCore.travel_time_s`). The command carries the predicted arrival at the aim
-point it settled on, ``eta = t + D(pose, p) / V`` (one more evaluation at the final ``p``:
-the iteration stops before ``t_arr`` is recomputed there). In a wind ``w``
-(:meth:`DecisionCore.planning_wind_m_s`) the planner's travel times are used: the earliest
-``t_arr`` at which the vehicle, flying a Dubins path through the moving air, is over
-``p_hat + v_hat t_arr`` (:func:`planner.wind.time_in_wind_s`; in the air's frame the target
-moves at ``v_hat - w``), the aim point is ``p_hat + v_hat t_arr`` and ``eta = t + t_arr``.
+A vehicle flies to where its first target is predicted to be on arrival
+(:mod:`~groundstation.core.intercept`); the command carries the predicted arrival ``eta``.
+The planning problem is built by :mod:`~groundstation.core.planning_targets`.
 
 Wind: the vehicles' ``WindReport`` inputs are combined into one estimate
 (:mod:`~groundstation.core.wind_estimate`: median over the active vehicles' fresh reports,
@@ -70,17 +61,12 @@ from groundstation.core.events import (
     VehicleReturned,
     WindReport,
 )
+from groundstation.core.intercept import intercept, travel_time_s
+from groundstation.core.planning_targets import build_problem
 from groundstation.core.wind_estimate import WindEstimator, WindState
 from observer import MeasurementOutcome, Observer, boat_priority_q
-from planner import (
-    PlanningProblem,
-    PlanResult,
-    TargetEstimate,
-    UavPose,
-    dubins_distance_to_point,
-)
+from planner import PlanningProblem, PlanResult, TargetEstimate, UavPose
 from planner.problem import wind_problem
-from planner.wind import time_in_wind_s
 
 __all__ = ["DecisionCore", "VehicleRecord"]
 
@@ -375,17 +361,8 @@ class DecisionCore:
         if not vehicles or not targets:
             return out
         wind = self._problem_wind(t_s, out)
-        problem = PlanningProblem(
-            uavs=tuple(UavPose(v.id, v.x_m, v.y_m, v.heading_rad) for v in vehicles),
-            targets=tuple(targets),
-            turn_radius_m=self.config.turn_radius_m,
-            tau=self.config.tau,
-            min_sigma_fraction=self.config.min_sigma_fraction,
-            time_limit_s=self.config.time_limit_s,
-            objective=self.config.objective,
-            speed_m_s=self.config.speed_m_s,
-            wind_m_s=wind,
-        )
+        uavs = [UavPose(v.id, v.x_m, v.y_m, v.heading_rad) for v in vehicles]
+        problem = build_problem(self.config, uavs, targets, wind)
         if self._pending is not None:
             out.append(CancelSolve(t_s, self._pending.request_id))
         request = SolveRequest(t_s, self._next_request_id, problem, self._hint(problem), reason)
@@ -465,35 +442,16 @@ class DecisionCore:
                            self.config.loiter_radius_m, route, eta_s=t_s + t_arr_s)
 
     def travel_time_s(self, record: VehicleRecord, x_m: float, y_m: float) -> float:
-        """Predicted time (s) for ``record`` to fly from its pose to (x_m, y_m) in still air:
-        the Dubins distance at its airspeed."""
-        d = dubins_distance_to_point(record.x_m, record.y_m, record.heading_rad, x_m, y_m,
-                                     self.config.turn_radius_m)
-        return d / max(record.speed_m_s, 1.0)
+        """Predicted time (s) for ``record`` to fly from its pose to (x_m, y_m) in still air
+        (:func:`~groundstation.core.intercept.travel_time_s`)."""
+        return travel_time_s(record, x_m, y_m, self.config.turn_radius_m)
 
     def intercept(self, record: VehicleRecord, target: str) -> tuple[float, float, float]:
-        """(x_m, y_m, t_arr_s): the aim point and the flight time to it (module docstring).
-        In wind, a target the vehicle cannot catch (it drifts away through the air at the
-        airspeed or faster) is aimed at as in still air."""
+        """(x_m, y_m, t_arr_s): the aim point for ``target`` and the flight time to it
+        (:func:`~groundstation.core.intercept.intercept`)."""
         track = self.observer.track(target)
-        speed = max(record.speed_m_s, 1.0)
-        wind = self.planning_wind_m_s()
-        if wind[0] != 0.0 or wind[1] != 0.0:
-            t_arr = math.inf
-            if wind_problem(wind, speed) is None:
-                t_arr = time_in_wind_s(
-                    record.x_m, record.y_m, record.heading_rad, track.x_m, track.y_m, wind,
-                    speed, self.config.turn_radius_m, (track.vx_m_s, track.vy_m_s),
-                )
-            if math.isfinite(t_arr):
-                return (track.x_m + track.vx_m_s * t_arr, track.y_m + track.vy_m_s * t_arr,
-                        t_arr)
-        x, y = track.x_m, track.y_m
-        t_arr = 0.0
-        for _ in range(2):
-            t_arr = self.travel_time_s(record, x, y)
-            x, y = track.x_m + track.vx_m_s * t_arr, track.y_m + track.vy_m_s * t_arr
-        return x, y, self.travel_time_s(record, x, y)
+        return intercept(record, (track.x_m, track.y_m), (track.vx_m_s, track.vy_m_s),
+                         self.planning_wind_m_s(), self.config.turn_radius_m)
 
     def snapshot_assignments(self) -> Mapping[str, str | None]:
         return {v.id: v.target for v in self.vehicles.values()}
