@@ -61,6 +61,20 @@ def _quadrature(
     m: np.ndarray, p: np.ndarray, centre_xy: tuple[float, float], radius_m: float
 ) -> np.ndarray:
     """The Gauss-Legendre evaluation of the integral in the module docstring."""
+    return _disc_integrals(m, p, centre_xy, radius_m, moments=False)[0]
+
+
+def _disc_integrals(
+    m: np.ndarray,
+    p: np.ndarray,
+    centre_xy: tuple[float, float],
+    radius_m: float,
+    *,
+    moments: bool,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(M0, M1, M2)``: ``M0 = P(in disc)``; with ``moments``, ``M1 = E[y 1_D]`` (n x 2)
+    and ``M2 = E[y y' 1_D]`` (n x 2 x 2) of ``y = p - m``, from the same quadrature (the
+    chord integrals of the truncated normal along ``e2`` are closed-form)."""
     from scipy.special import ndtr  # scipy only once a scan needs it
 
     a, b, c = p[:, 0, 0], 0.5 * (p[:, 0, 1] + p[:, 1, 0]), p[:, 1, 1]
@@ -86,10 +100,60 @@ def _quadrature(
     u = d1[:, None] - r * np.cos(ang)
     h = r * np.sin(ang)
     gauss = np.exp(-0.5 * (u / s1[:, None]) ** 2) / (np.sqrt(2.0 * np.pi) * s1[:, None])
-    chord = ndtr((d2[:, None] + h) / s2[:, None]) - ndtr((d2[:, None] - h) / s2[:, None])
-    integrand = gauss * chord * r * np.sin(ang)
-    out = half * (integrand @ _WEIGHTS)
-    return np.where(ok, np.clip(out, 0.0, 1.0), 0.0)
+    lo_v = (d2[:, None] - h) / s2[:, None]
+    hi_v = (d2[:, None] + h) / s2[:, None]
+    i0 = ndtr(hi_v) - ndtr(lo_v)
+    w = gauss * r * np.sin(ang) * (half[:, None] * _WEIGHTS[None, :])
+    w = np.where(ok[:, None], w, 0.0)
+    m0 = np.clip(np.einsum("ij,ij->i", w, i0), 0.0, 1.0)
+    if not moments:
+        return m0, np.zeros((0, 2)), np.zeros((0, 2, 2))
+    phi_lo = np.exp(-0.5 * lo_v**2) / np.sqrt(2.0 * np.pi)
+    phi_hi = np.exp(-0.5 * hi_v**2) / np.sqrt(2.0 * np.pi)
+    sv = s2[:, None]
+    i1 = sv * (phi_lo - phi_hi)  # int v phi
+    i2 = sv * sv * (i0 + lo_v * phi_lo - hi_v * phi_hi)  # int v^2 phi
+    mu = np.einsum("ij,ij->i", w, u * i0)
+    mv = np.einsum("ij,ij->i", w, i1)
+    muu = np.einsum("ij,ij->i", w, u * u * i0)
+    muv = np.einsum("ij,ij->i", w, u * i1)
+    mvv = np.einsum("ij,ij->i", w, i2)
+    rot = np.stack([e1, e2], axis=2)  # columns e1, e2: y = rot @ (u, v)
+    m1 = np.einsum("nij,nj->ni", rot, np.stack([mu, mv], axis=1))
+    m2p = np.stack([np.stack([muu, muv], axis=1), np.stack([muv, mvv], axis=1)], axis=1)
+    m2 = rot @ m2p @ np.transpose(rot, (0, 2, 1))
+    return m0, m1, m2
+
+
+def position_after_miss(
+    means: np.ndarray, covs: np.ndarray, centre_xy: tuple[float, float], radius_m: float,
+    pd: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Negative information: the position density after a frame that did not see the
+    track, ``N(y; m, P) (1 - pd 1_D(y)) / (1 - pd M0)``, moment-matched to a Gaussian::
+
+        m' = m - pd M1 / Z,   P' = (P - pd M2) / Z - (m' - m)(m' - m)',   Z = 1 - pd M0
+
+    Returns ``(changed mask, m', P')`` for the tracks that change (``1e-4 < M0`` and not
+    deep inside the disc, where the cut is symmetric and nothing moves); the next frame's
+    ``Pin`` is then computed from what is left, so overlapping frames of one pass are not
+    counted as independent looks at the same water."""
+    m = np.asarray(means, dtype=float).reshape(-1, 2)
+    p = np.asarray(covs, dtype=float).reshape(-1, 2, 2)
+    dist = np.hypot(m[:, 0] - centre_xy[0], m[:, 1] - centre_xy[1])
+    margin = _SPAN_SIGMAS * np.sqrt(np.maximum(p[:, 0, 0] + p[:, 1, 1], 0.0))
+    near = np.flatnonzero(np.abs(dist - radius_m) < margin)
+    mask = np.zeros(m.shape[0], dtype=bool)
+    if near.size == 0:
+        return mask, m[:0], p[:0]
+    m0, m1, m2 = _disc_integrals(m[near], p[near], centre_xy, radius_m, moments=True)
+    z = 1.0 - pd * m0
+    delta = -pd * m1 / z[:, None]
+    new_p = (p[near] - pd * m2) / z[:, None, None] - delta[:, :, None] * delta[:, None, :]
+    det = new_p[:, 0, 0] * new_p[:, 1, 1] - new_p[:, 0, 1] * new_p[:, 1, 0]
+    good = (m0 > 1e-4) & (new_p[:, 0, 0] > 0.0) & (new_p[:, 1, 1] > 0.0) & (det > 0.0)
+    mask[near[good]] = True
+    return mask, m[near[good]] + delta[good], 0.5 * (new_p[good] + new_p[good].transpose(0, 2, 1))
 
 
 def existence_after_miss(r: np.ndarray, pd: float, p_in: np.ndarray) -> np.ndarray:

@@ -229,6 +229,26 @@ class KalmanTrack:
         self.sigma = float(self.p_view[0, 0] + self.p_view[1, 1])
         self.last_seen_s = t_s
 
+    def set_position_moments(self, t_s: float, mean_xy: np.ndarray, cov_xy: np.ndarray) -> None:
+        """Commit the estimate at ``t_s`` (== self.t_s) with new position moments
+        ``(m', P'_pp)``, carried to the velocity through the joint Gaussian (what a linear
+        update that moved the position marginal there would do)::
+
+            G = P[:, :2] P_pp^-1,   x' = x + G (m' - m),   P' = P + G (P'_pp - P_pp) G'
+        """
+        x = self.x_view
+        p = self.p_view
+        g = p[:, :2] @ np.linalg.inv(p[:2, :2])
+        dm = np.asarray(mean_xy, dtype=float).reshape(2, 1) - x[:2]
+        dp = np.asarray(cov_xy, dtype=float).reshape(2, 2) - p[:2, :2]
+        new_p = p + g @ dp @ g.T
+        self.kf.x = x + g @ dm
+        self.kf.P = 0.5 * (new_p + new_p.T)
+        self.t_anchor_s = t_s
+        self.x_view = self.kf.x
+        self.p_view = self.kf.P
+        self.sigma = float(self.p_view[0, 0] + self.p_view[1, 1])
+
     def rewind_to(self, t_s: float) -> bool:
         """Move the viewed estimate back to ``t_s`` if it is not before the committed time
         (the view is a pure function of the committed state, so nothing is lost); returns

@@ -144,6 +144,18 @@ class Observer:
         del self._tracks[target_id]
         del self._ever_lost[target_id]
 
+    def set_position_moments(
+        self, target_id: str, t_s: float, mean_xy: np.ndarray, cov_xy: np.ndarray
+    ) -> None:
+        """Replace a Kalman track's position mean and covariance at ``t_s`` (negative
+        information from a frame that did not see it, :func:`observer.existence.
+        position_after_miss`); see :meth:`KalmanTrack.set_position_moments`. Linear-model
+        tracks are left alone. Raises KeyError if unknown."""
+        track = self._at(target_id, t_s)
+        if isinstance(track, KalmanTrack):
+            track.set_position_moments(track.t_s, mean_xy, cov_xy)
+            self._check_lost(target_id)
+
     def take_over(self, target_id: str, source_id: str) -> None:
         """``target_id``'s filter is replaced by ``source_id``'s (a newer estimate of the same
         object), which stops being tracked; ``target_id`` keeps its process-noise intensity

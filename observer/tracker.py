@@ -23,9 +23,9 @@ One scan (:meth:`Tracker.scan`), detections of one camera frame at ``t_s``:
    ``confirm_window`` covering frames and existence ``>= existence_confirm_min`` (or merged
    into a stale confirmed/prior track it gates: track coalescence, ids stay stable);
    tentative deleted (``unconfirmed``) once its window holds more than ``N - M`` misses or
-   the observer calls it lost; prior ->
-   confirmed on its first hit; confirmed and prior deleted (``not seen in view``) when
-   existence ``< existence_delete``.
+   the observer calls it lost; prior -> confirmed by the same M-of-N (one false alarm
+   near a listed phantom must not confirm it); confirmed and prior deleted
+   (``not seen in view``) when existence ``< existence_delete``.
 7. Detections no track took start tentative tracks: state at the detection, velocity 0,
    ``P0 = diag(r, r, v, v)`` (``v = new_track_vel_var_m2_s2``), existence
    ``lambda_b / (lambda_b + lambda_c)``.
@@ -43,8 +43,13 @@ from types import MappingProxyType
 
 import numpy as np
 
-from observer.association import gnn_assign, jpda_marginals, scan_likelihoods
-from observer.existence import existence_after_hit, existence_after_miss, inside_probability
+from observer.association import gnn_assign, scan_likelihoods
+from observer.existence import (
+    existence_after_hit,
+    existence_after_miss,
+    inside_probability,
+    position_after_miss,
+)
 from observer.observer import Observer
 from observer.tracker_config import (
     Footprint,
@@ -54,6 +59,7 @@ from observer.tracker_config import (
     TrackEvent,
     TrackRecord,
 )
+from observer.tracker_steps import jpda_step, stale_twin
 
 COUNTER_NAMES: tuple[str, ...] = (
     "scans",
@@ -216,6 +222,7 @@ class Tracker:
             p_in = np.zeros(len(ids))
         miss = 1.0 - exist * pd * p_in
         hit = np.zeros(len(ids), dtype=bool)
+        updated = np.zeros(len(ids), dtype=bool)  # had any update (JPDA: also hit < 0.5)
         assigned: dict[int, str] = {}
         taken = np.zeros(len(index), dtype=bool)
         if ids and len(index):
@@ -229,16 +236,22 @@ class Tracker:
                     self.observer.correct(tid, t, z[i, 0], z[i, 1], r_m2[i])
                     lik = math.exp(float(lk.log_lik[i, j]))
                     new_exist[j] = existence_after_hit(exist[j], pd, p_in[j], lik, lam)
-                    hit[j] = True
+                    hit[j] = updated[j] = True
                     taken[i] = True
                     assigned[index[i]] = tid
             else:
-                new_exist = self._jpda(t, ids, z, r_m2, lk.log_ratio, exist, p_in, pd,
-                                       hit, taken, assigned, index)
+                new_exist, picks = jpda_step(
+                    self.observer, t, ids, z, r_m2, lk.log_ratio, exist, p_in, pd,
+                    cfg.jpda_max_hypotheses, hit, updated, taken,
+                )
+                assigned.update({index[i]: tid for i, tid in picks.items()})
         else:
             new_exist = existence_after_miss(exist, pd, p_in)
         if fp is None:  # no footprint: a miss is no evidence
             new_exist = np.where(hit, new_exist, exist)
+        elif ids:
+            self._negative_information(t, ids, means, covs, updated, (fp.x_m, fp.y_m), radius,
+                                       pd)
         new_exist = np.minimum(new_exist, cfg.existence_max)
 
         hit_ids = {tid for j, tid in enumerate(ids) if hit[j]}
@@ -289,44 +302,27 @@ class Tracker:
         keep = np.flatnonzero(keep_mask)
         return [ids[k] for k in keep.tolist()], means[keep], covs[keep]
 
-    def _jpda(
+    def _negative_information(
         self,
         t: float,
         ids: list[str],
-        z: np.ndarray,
-        r_m2: np.ndarray,
-        log_ratio: np.ndarray,
-        exist: np.ndarray,
-        p_in: np.ndarray,
+        means: np.ndarray,
+        covs: np.ndarray,
+        updated: np.ndarray,
+        centre: tuple[float, float],
+        radius: float,
         pd: float,
-        hit: np.ndarray,
-        taken: np.ndarray,
-        assigned: dict[int, str],
-        index: list[int],
-    ) -> np.ndarray:
-        """JPDA/JIPDA step; fills ``hit``, ``taken`` (detection belongs to a track with
-        probability >= 0.5), ``assigned`` (by original detection index ``index[i]``); returns
-        the new existences."""
-        beta = jpda_marginals(log_ratio, self.config.jpda_max_hypotheses)
-        detected = beta.sum(axis=0)  # P(track j produced one of the detections)
-        q_miss = existence_after_miss(exist, pd, p_in)
-        new_exist = detected + (1.0 - detected) * q_miss
-        for j, tid in enumerate(ids):
-            rows = np.flatnonzero(beta[:, j] > 0.0)
-            if rows.size == 0:
-                continue
-            b = beta[rows, j] / new_exist[j]  # given existence
-            r_eff = float(b @ r_m2[rows] / b.sum())
-            self.observer.correct_pda(tid, t, z[rows], np.minimum(b, 1.0) / max(1.0, b.sum()),
-                                      r_eff)
-            hit[j] = detected[j] >= 0.5
-        best = beta.argmax(axis=1) if beta.shape[1] else np.zeros(0, dtype=int)
-        for i in range(beta.shape[0]):
-            if beta[i].sum() >= 0.5:
-                taken[i] = True
-            if beta[i, best[i]] > 0.5:
-                assigned[index[i]] = ids[int(best[i])]
-        return new_exist
+    ) -> None:
+        """Tracks with no update this scan, partly in view: their position moves out of the
+        water just seen (:func:`observer.existence.position_after_miss`)."""
+        missed = np.flatnonzero(~updated)
+        if missed.size == 0:
+            return
+        mask, new_m, new_p = position_after_miss(
+            means[missed], covs[missed], (float(centre[0]), float(centre[1])), radius, pd
+        )
+        for k, j in enumerate(missed[mask].tolist()):
+            self.observer.set_position_moments(ids[j], t, new_m[k], new_p[k])
 
     def _lifecycle(
         self,
@@ -348,40 +344,22 @@ class Tracker:
             life.hits += 1
         if life.status == "tentative":
             if sum(life.window) >= cfg.confirm_hits and existence >= cfg.existence_confirm_min:
-                older = self._stale_twin(tid, hit_ids)
+                statuses = {oid: lf.status for oid, lf in self._life.items()}
+                older = stale_twin(self.observer, statuses, tid, hit_ids, cfg.gate_threshold)
                 if older is None:
                     self._confirm(tid, t, "m_of_n", confirmed)
                 else:
                     self._merge(older, tid, t, confirmed, deleted)
             elif life.window.count(False) > cfg.confirm_window - cfg.confirm_hits:
                 self._delete(tid, t, "unconfirmed", deleted)
-        elif life.status == "prior" and hit:
+        elif (
+            life.status == "prior"
+            and sum(life.window) >= cfg.confirm_hits
+            and existence >= cfg.existence_confirm_min
+        ):
             self._confirm(tid, t, "prior_seen", confirmed)
         elif existence < cfg.existence_delete:
             self._delete(tid, t, "not seen in view", deleted)
-
-    def _stale_twin(self, tid: str, hit_ids: set[str]) -> str | None:
-        """A confirmed or prior track, not hit in this scan and less precise than ``tid``,
-        that gates ``tid``'s position: ``d2 = dx' (P_old + P_new)^-1 dx <= gamma``; the
-        likeliest (smallest ``d2 + ln det(2 pi S)``), or None."""
-        new = self.observer.track(tid)
-        best, best_cost = None, math.inf
-        for oid, life in self._life.items():
-            if oid == tid or oid in hit_ids or life.status == "tentative":
-                continue  # (every id here is in the observer: _candidates pruned the rest)
-            old = self.observer.track(oid)
-            if old.sigma <= new.sigma:
-                continue
-            a = old.cov_xy[0] + new.cov_xy[0]
-            b = old.cov_xy[1] + new.cov_xy[1]
-            c = old.cov_xy[2] + new.cov_xy[2]
-            det = a * c - b * b
-            dx, dy = new.x_m - old.x_m, new.y_m - old.y_m
-            d2 = (c * dx * dx - 2.0 * b * dx * dy + a * dy * dy) / det
-            cost = d2 + math.log((2.0 * math.pi) ** 2 * det)
-            if d2 <= self.config.gate_threshold and cost < best_cost:
-                best, best_cost = oid, cost
-        return best
 
     def _merge(
         self, older: str, tid: str, t: float, confirmed: list[TrackEvent],

@@ -135,7 +135,7 @@ def test_track_outside_every_footprint_is_never_deleted() -> None:
     tracker.observer.add_target("far", 0.0, 5000.0, 0.0, p0=[100.0, 100.0, 0.0, 0.0], q_per_s=0.0)
     tracker.adopt("far")
     rng = np.random.default_rng(3)
-    for k in range(1, 1001):
+    for k in range(1, 401):
         tracker.scan(0.5 * k, "u1", Footprint(0.0, 0.0, RADIUS_M),
                      frame(rng, np.zeros((0, 2)), (0.0, 0.0), 0.85, 0.1))
     assert tracker.status("far") == "confirmed"
@@ -161,15 +161,31 @@ def test_prior_with_huge_covariance_survives_a_miss_and_a_precise_one_does_not()
     assert tracker.track_ids == ["P1"]
 
 
-def test_prior_is_confirmed_on_its_first_hit() -> None:
+def test_prior_is_confirmed_by_m_of_n_and_a_phantom_is_not_by_one_false_alarm() -> None:
+    """A listed iceberg is confirmed by the same 3-of-5 as a new one (its listing is not
+    evidence that it is there); a phantom hit by one false alarm and then missed is
+    deleted."""
     tracker = make(pd=0.85)
     tracker.observer.add_target("P1", 0.0, 0.0, 0.0, sigma0=200.0)
     tracker.adopt("P1", status="prior")
-    res = tracker.scan(1.0, "u1", Footprint(0.0, 0.0, RADIUS_M), [ScanDetection(4.0, -3.0, R_M2)])
-    assert res.assigned == {0: "P1"}
-    assert res.events == (TrackEvent(1.0, "confirmed", "P1", "prior_seen"),)
+    tracker.observer.add_target("P2", 0.0, 1000.0, 0.0, sigma0=1800.0)
+    tracker.adopt("P2", status="prior")
+    events: list[TrackEvent] = []
+    for k in range(1, 4):
+        res = tracker.scan(float(k), "u1", Footprint(0.0, 0.0, RADIUS_M),
+                           [ScanDetection(4.0, -3.0, R_M2)])
+        assert res.assigned == {0: "P1"}
+        events += res.events
+    assert events == [TrackEvent(3.0, "confirmed", "P1", "prior_seen")]
     rec = tracker.records()[0]
-    assert (rec.status, rec.hits, rec.confirmed_s) == ("confirmed", 1, 1.0)
+    assert (rec.status, rec.hits, rec.confirmed_s) == ("confirmed", 3, 3.0)
+    res = tracker.scan(4.0, "u2", Footprint(1000.0, 0.0, RADIUS_M),
+                       [ScanDetection(1040.0, 20.0, R_M2)])  # a false alarm in P2's gate
+    assert res.assigned == {0: "P2"} and tracker.status("P2") == "prior"
+    for t in (4.5, 5.0, 5.5, 6.0, 6.5):
+        events += tracker.scan(t, "u2", Footprint(1000.0, 0.0, RADIUS_M), []).events
+    assert events[-1].track_id == "P2" and events[-1].kind == "deleted"
+    assert tracker.track_ids == ["P1"]
 
 
 @pytest.mark.parametrize("association", ["gnn", "jpda"])

@@ -10,7 +10,12 @@ import numpy as np
 import pytest
 
 from observer.association import gnn_assign, jpda_marginals
-from observer.existence import existence_after_hit, existence_after_miss, inside_probability
+from observer.existence import (
+    existence_after_hit,
+    existence_after_miss,
+    inside_probability,
+    position_after_miss,
+)
 
 CASES = [
     ((0.0, 0.0), [[25.0, 0.0], [0.0, 25.0]]),  # well inside
@@ -83,3 +88,24 @@ def test_jpda_marginals_equal_brute_force() -> None:
     assert np.all(beta.sum(axis=0) <= 1.0 + 1e-12) and np.all(beta.sum(axis=1) <= 1.0 + 1e-12)
     approx = jpda_marginals(lr, 1)  # over the limit: per-track PDA, still probabilities
     assert np.all(approx.sum(axis=0) <= 1.0 + 1e-12)
+
+
+def test_position_after_a_miss_matches_monte_carlo() -> None:
+    """The moment-matched density after a miss, N(m, P) (1 - pd 1_D) / Z, against weighted
+    samples; a track deep inside the disc (symmetric cut) is left alone."""
+    rng = np.random.default_rng(9)
+    means = np.array([[100.0, 20.0], [200.0, 0.0], [0.0, 0.0]])
+    covs = np.array(
+        [[[1e4, 3e3], [3e3, 2e4]], [[400.0, 0.0], [0.0, 900.0]], [[25.0, 0.0], [0.0, 25.0]]]
+    )
+    mask, new_m, new_p = position_after_miss(means, covs, (0.0, 0.0), 150.0, 0.85)
+    assert mask.tolist() == [True, True, False]
+    for k in range(2):
+        pts = rng.multivariate_normal(means[k], covs[k], size=100_000)
+        w = np.where(np.hypot(pts[:, 0], pts[:, 1]) <= 150.0, 0.15, 1.0)
+        mean = (pts * w[:, None]).sum(axis=0) / w.sum()
+        d = pts - mean
+        cov = (d.T * w) @ d / w.sum()
+        np.testing.assert_allclose(new_m[k], mean, atol=0.03 * math.sqrt(covs[k].trace()))
+        np.testing.assert_allclose(new_p[k], cov, rtol=0.05, atol=0.02 * covs[k].trace())
+    assert new_m[0][0] > means[0][0]  # pushed out of the disc, away from its centre
