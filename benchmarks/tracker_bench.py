@@ -14,7 +14,9 @@ recorded detections.
    the frame's detections (Stone Soup has no footprint: see "Mismatches" below).
 3. Every second of mission time the confirmed tracks (extrapolated to the second from their
    last state) and the true icebergs in the area go to an
-   :class:`observer.track_quality.TrackQualityRecorder` (GOSPA c = 150 m, p = 2, alpha = 2).
+   :class:`observer.track_quality.TrackQualityRecorder` (GOSPA c = 150 m, p = 2, alpha = 2);
+   beside its measures, ``track_truth_changes`` (a track assigned to another iceberg than
+   its last one: a stale track taking over another iceberg's detections).
 4. Time per scan: the CPU time of this thread (``thread_time``) and the wall time
    (``perf_counter``) around the scan call only (inputs are built before), median and 90th
    percentile over all scans of a run; the trackers run interleaved, round
@@ -277,7 +279,9 @@ def run(rec: Recording, make: Callable[[], _Adapter]) -> RunResult:
         }
         quality.sample(next_sample_s, confirmed, truth)
         next_sample_s += 1.0
-    return RunResult(quality.to_dict(rec.params.duration_s), times, cpu_times, len(ever))
+    measures = quality.to_dict(rec.params.duration_s)
+    measures["track_truth_changes"] = quality.truth_changes
+    return RunResult(measures, times, cpu_times, len(ever))
 
 
 def percentile(values: Sequence[float], q: float) -> float:
@@ -437,6 +441,7 @@ def print_table(summary: dict[str, dict[str, Any]]) -> None:
         ("time to confirm max (s)", lambda s: s["time_to_confirm_s"]["max"]),
         ("false tracks / h", lambda s: s["false_tracks_per_hour"]),
         ("id switches", lambda s: s["id_switches"]),
+        ("track truth changes", lambda s: s.get("track_truth_changes")),
         ("confirmed tracks ever", lambda s: s["confirmed_tracks_ever"]),
         ("scan CPU median (ms)", lambda s: s["scan_cpu_ms_median"]),
         ("scan CPU p90 (ms)", lambda s: s["scan_cpu_ms_p90"]),

@@ -24,6 +24,11 @@ Definitions (:meth:`TrackQualityRecorder.to_dict`):
 - ``id_switches``: over true icebergs and consecutive samples in which the iceberg is
   assigned in both, the number of times its assigned track id differs. A track lost and
   later replaced (a gap in between) is a fragmentation, not a switch, and is not counted.
+
+Beside ``to_dict`` (not in ``metrics.json``): :attr:`TrackQualityRecorder.truth_changes`,
+the track-side view: the number of times a confirmed track is assigned to a true iceberg
+other than the last one it was assigned to (gaps allowed), e.g. a stale track that takes
+over another iceberg's detections.
 """
 
 from __future__ import annotations
@@ -80,6 +85,8 @@ class TrackQualityRecorder:
         self._samples = 0
         self._ever_matched: dict[str, bool] = {}
         self._previous: dict[str, str] = {}
+        self._track_truth: dict[str, str] = {}
+        self._truth_changes = 0
         self._id_switches = 0
         self._last_in_area = 0
         self._last_assigned = 0
@@ -121,6 +128,10 @@ class TrackQualityRecorder:
             self._ever_matched.setdefault(track_id, False)
         for truth_id, track_id in assigned.items():
             self._ever_matched[track_id] = True
+            last_truth = self._track_truth.get(track_id)
+            if last_truth is not None and last_truth != truth_id:
+                self._truth_changes += 1
+            self._track_truth[track_id] = truth_id
             seen = self._first_seen_s.get(truth_id)
             if seen is not None and truth_id not in self._confirm_delay_s and t >= seen:
                 self._confirm_delay_s[truth_id] = t - seen
@@ -141,6 +152,11 @@ class TrackQualityRecorder:
     def time_to_confirm_s(self) -> dict[str, float]:
         """True iceberg id -> its time to confirm (only those with one)."""
         return dict(self._confirm_delay_s)
+
+    @property
+    def truth_changes(self) -> int:
+        """Times a track was assigned to a true iceberg other than its last one."""
+        return self._truth_changes
 
     @property
     def false_track_ids(self) -> list[str]:

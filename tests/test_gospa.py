@@ -33,7 +33,7 @@ coordinate = st.floats(min_value=-400.0, max_value=400.0, allow_nan=False)
 point_sets = st.lists(st.tuples(coordinate, coordinate), max_size=4)
 
 
-@settings(max_examples=150, deadline=None)
+@settings(max_examples=100, deadline=None)
 @given(
     tracks=point_sets,
     truth=point_sets,

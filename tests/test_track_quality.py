@@ -89,6 +89,17 @@ def test_id_switches_between_consecutive_assigned_samples() -> None:
     rec.sample(3.0, {"N2": (0.0, 0.0)}, truth)  # b loses its track
     rec.sample(4.0, {"N2": (0.0, 0.0), "N7": (60.0, 0.0)}, truth)  # b re-acquired by N7
     assert rec.to_dict(5.0)["id_switches"] == 2  # a gap: fragmentation, not a switch
+    assert rec.truth_changes == 2  # the swap, seen from the tracks
+
+
+def test_truth_changes_count_a_track_taking_over_another_iceberg_after_a_gap() -> None:
+    rec = TrackQualityRecorder()
+    truth = {"a": (0.0, 0.0), "b": (2000.0, 0.0)}
+    rec.sample(0.0, {"N1": (0.0, 0.0)}, truth)
+    rec.sample(1.0, {"N1": (900.0, 0.0)}, truth)  # stale: matches nothing
+    rec.sample(2.0, {"N1": (2000.0, 5.0)}, truth)  # takes over b
+    assert rec.truth_changes == 1
+    assert rec.to_dict(3.0)["id_switches"] == 0  # neither iceberg saw two ids in a row
 
 
 def test_results_do_not_depend_on_the_callers_order() -> None:

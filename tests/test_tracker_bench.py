@@ -93,6 +93,7 @@ def test_scoring_an_oracle_and_a_blind_tracker(rec: Recording) -> None:
     m = oracle.measures
     assert m["false_tracks_per_hour"] == 0.0
     assert m["id_switches"] == 0
+    assert m["track_truth_changes"] == 0
     assert m["gospa_mean_m"] > 0.0  # icebergs not yet seen are missed
     assert m["time_to_confirm_s"]["max"] <= 1.0  # confirmed at the next 1 s sample
     seen = made[0].seen
