@@ -1,6 +1,6 @@
 """What the world tells the daemon's core, and what the daemon journals of it: scripted
-scenario events (targets appearing, removed), camera detections, the metrics sampled every
-mission second, and the periodic ``track`` and ``truth`` lines reports draw."""
+scenario events (targets appearing, removed), camera frames and detections, the metrics
+sampled every mission second, and the periodic ``track`` and ``truth`` lines reports draw."""
 
 from __future__ import annotations
 
@@ -52,6 +52,11 @@ class WorldFeed:
                           source="scenario")
         elif isinstance(event, ev.TargetRemoved):
             self._journal("target_removed", target=event.target, source="scenario")
+        self._core_event(event)
+
+    def frame(self, event: ev.CameraFrame) -> None:
+        """A camera frame's footprint for the core (journalled as its input, like every
+        input; its detections follow with the same ``t_s`` and vehicle)."""
         self._core_event(event)
 
     def detection(self, event: ev.Detection) -> bool:
