@@ -20,6 +20,7 @@ from typing import Any
 
 from matplotlib import colormaps
 from matplotlib.cm import ScalarMappable
+from matplotlib.collections import LineCollection
 from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
 from matplotlib.patches import Rectangle
@@ -72,21 +73,30 @@ def _draw_map(ax: Any, fig: Figure, data: RunData, tracking: TrackingData) -> di
             ax.plot(pts[-1][1], pts[-1][2], "s", color="0.55", ms=5, zorder=2)
     gone = tracking.deleted()
     final = tracking.final_status()
+    paths: dict[str, list[list[tuple[float, float]]]] = {s: [] for s in STATUSES}
+    ends: dict[str, list[tuple[float, float]]] = {s: [] for s in (*STATUSES, "deleted")}
     for tid, samples in sorted(tracking.tracks.items()):
         for status, run in _runs(samples):
-            style = STYLE[status]
-            ax.plot([s.x_m for s in run], [s.y_m for s in run], color=style["color"],
-                    ls=style["ls"], lw=style["lw"], zorder=3)
+            paths[status].append([(s.x_m, s.y_m) for s in run])
         last = samples[-1]
-        if tid in gone:
-            ax.plot(last.x_m, last.y_m, "x", color="0.45", ms=5, zorder=4)
-            continue
-        style = STYLE[final[tid]]
-        ax.plot(last.x_m, last.y_m, style["marker"], ms=7, mec=style["color"], mew=1.5,
-                mfc=style["color"] if style["filled"] else "none", zorder=4)
-        if final[tid] != "tentative":
+        kind = "deleted" if tid in gone else final[tid]
+        ends[kind].append((last.x_m, last.y_m))
+        if kind in ("confirmed", "prior"):
             ax.annotate(tid, (last.x_m, last.y_m), textcoords="offset points", xytext=(4, 4),
                         fontsize=7)
+    for status in STATUSES:  # one collection per style: a long run has thousands of tracks
+        style = STYLE[status]
+        if paths[status]:
+            ax.add_collection(LineCollection(paths[status], colors=style["color"],
+                                             linestyles=style["ls"], linewidths=style["lw"],
+                                             zorder=3))
+        if ends[status]:
+            xs, ys = zip(*ends[status], strict=True)
+            ax.plot(xs, ys, style["marker"], ls="none", ms=7, mec=style["color"], mew=1.5,
+                    mfc=style["color"] if style["filled"] else "none", zorder=4)
+    if ends["deleted"]:
+        xs, ys = zip(*ends["deleted"], strict=True)
+        ax.plot(xs, ys, "x", ls="none", color="0.45", ms=5, zorder=4)
     for status in STATUSES:  # legend entries
         style = STYLE[status]
         ax.plot([], [], color=style["color"], ls=style["ls"], marker=style["marker"],
