@@ -9,8 +9,9 @@ from dataclasses import dataclass, field
 from enum import StrEnum
 from typing import Any
 
-from observer import ObserverConfig
+from observer import ObserverConfig, TrackerConfig
 from planner import Objective
+from planner.search_cells import SearchConfig
 
 __all__ = ["BatteryAction", "CoreConfig", "ReplanPolicy", "config_from_dict", "config_to_dict"]
 
@@ -90,6 +91,16 @@ class CoreConfig:
     what the core plans with while no vehicle reports its own (``core/wind_estimate.py``)."""
     wind_aware: bool = True
     """False: plan and predict as in still air even in wind (the wind-blind baseline)."""
+    tracker: TrackerConfig = field(default_factory=TrackerConfig)
+    """The multi-target tracker's settings (used only once unlabelled detections, camera
+    frames or prior targets arrive: ``core/tracking.py``)."""
+    search: SearchConfig | None = None
+    """Search cells over ``area_m`` (``planner/search_cells.py``); None: no search."""
+    area_m: tuple[float, float, float, float] | None = None
+    """The operating area (x_min, x_max, y_min, y_max), m; search needs it."""
+    tentative_weight: float = 1.0
+    """A tentative track's planning value is ``tentative_weight * max(sigma, mean sigma
+    of the confirmed and prior tracks)`` (``core/planning_targets.py``)."""
 
     def __post_init__(self) -> None:
         if self.turn_radius_m <= 0:
@@ -115,6 +126,24 @@ class CoreConfig:
         object.__setattr__(self, "wind_xy_m_s", (wind[0], wind[1]))
         if not isinstance(self.wind_aware, bool):
             raise ValueError(f"wind_aware must be true or false, got {self.wind_aware!r}")
+        if self.area_m is not None:
+            try:
+                area = tuple(float(c) for c in self.area_m)
+            except (TypeError, ValueError):
+                area = ()
+            if len(area) != 4 or not all(math.isfinite(c) for c in area) or not (
+                area[1] > area[0] and area[3] > area[2]
+            ):
+                raise ValueError("area_m must be x_min < x_max, y_min < y_max (finite), "
+                                 f"got {self.area_m!r}")
+            object.__setattr__(self, "area_m", area)
+        if self.search is not None and self.area_m is None:
+            raise ValueError("search needs area_m (the operating area)")
+        w = self.tentative_weight
+        if isinstance(w, bool) or not isinstance(w, (int, float)) or not (
+            math.isfinite(w) and w >= 0
+        ):
+            raise ValueError(f"tentative_weight must be finite and >= 0, got {w!r}")
 
 
 def config_to_dict(config: CoreConfig) -> dict[str, Any]:
@@ -123,6 +152,8 @@ def config_to_dict(config: CoreConfig) -> dict[str, Any]:
     out["objective"] = str(config.objective)
     out["battery_low_action"] = str(config.battery_low_action)
     out["wind_xy_m_s"] = list(config.wind_xy_m_s)
+    if config.area_m is not None:
+        out["area_m"] = list(config.area_m)
     return out
 
 
@@ -138,6 +169,10 @@ def config_from_dict(data: Mapping[str, Any]) -> CoreConfig:
             values["policy"] = ReplanPolicy(**values["policy"])
         if "observer" in values:
             values["observer"] = ObserverConfig(**values["observer"])
+        if "tracker" in values:
+            values["tracker"] = TrackerConfig(**values["tracker"])
+        if values.get("search") is not None:
+            values["search"] = SearchConfig(**values["search"])
         return CoreConfig(**values)
     except TypeError as exc:
         raise ValueError(f"core config: {exc}") from exc

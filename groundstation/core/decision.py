@@ -14,18 +14,9 @@ Which vehicles a plan may redirect is the :class:`ReplanPolicy`'s ``commit``: wi
 only *idle* vehicles (newly joined, returned, or whose loiter ended) are planned and the
 targets of *busy* vehicles count as covered; without it every active vehicle is replanned.
 
-A vehicle flies to where its first target is predicted to be on arrival. In still air::
-
-    t_arr = D(pose, p) / V,   p <- p_hat + v_hat * t_arr      (two fixed-point iterations)
-
-with ``D`` the Dubins distance from the vehicle's pose and ``V`` its airspeed
-(:meth:`DecisionCore.travel_time_s`). The command carries the predicted arrival at the aim
-point it settled on, ``eta = t + D(pose, p) / V`` (one more evaluation at the final ``p``:
-the iteration stops before ``t_arr`` is recomputed there). In a wind ``w``
-(:meth:`DecisionCore.planning_wind_m_s`) the planner's travel times are used: the earliest
-``t_arr`` at which the vehicle, flying a Dubins path through the moving air, is over
-``p_hat + v_hat t_arr`` (:func:`planner.wind.time_in_wind_s`; in the air's frame the target
-moves at ``v_hat - w``), the aim point is ``p_hat + v_hat t_arr`` and ``eta = t + t_arr``.
+A vehicle flies to where its first target is predicted to be on arrival
+(:mod:`~groundstation.core.intercept`); the command carries the predicted arrival ``eta``.
+The planning problem is built by :mod:`~groundstation.core.planning_targets`.
 
 Wind: the vehicles' ``WindReport`` inputs are combined into one estimate
 (:mod:`~groundstation.core.wind_estimate`: median over the active vehicles' fresh reports,
@@ -38,7 +29,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 from groundstation.core.commands import (
     CancelSolve,
@@ -46,77 +37,49 @@ from groundstation.core.commands import (
     FlyToTarget,
     Note,
     PlanAdopted,
-    ReleaseVehicle,
-    SendHome,
     SolveRequest,
 )
 from groundstation.core.config import CoreConfig
 from groundstation.core.events import (
-    BatteryLow,
     BoatPosition,
+    CameraFrame,
     Detection,
     Event,
     LoiterEnded,
-    OperatorOverride,
-    OperatorResume,
     PlanSolved,
     TargetAdded,
     TargetRemoved,
     Telemetry,
     Tick,
     VehicleJoined,
-    VehicleLost,
-    VehicleRebooted,
-    VehicleReturned,
     WindReport,
 )
+from groundstation.core.fleet import ACTIVE, VehicleRecord, status_change
+from groundstation.core.intercept import intercept, travel_time_s
+from groundstation.core.planning_targets import build_problem, search_targets, track_targets
+from groundstation.core.tracking import TrackBook, TrackerFactory
+from groundstation.core.views import SearchCellView, TrackView, search_cell_view
 from groundstation.core.wind_estimate import WindEstimator, WindState
 from observer import MeasurementOutcome, Observer, boat_priority_q
-from planner import (
-    PlanningProblem,
-    PlanResult,
-    TargetEstimate,
-    UavPose,
-    dubins_distance_to_point,
-)
+from planner import PlanningProblem, PlanResult, UavPose
 from planner.problem import wind_problem
-from planner.wind import time_in_wind_s
+from planner.search_cells import SearchGrid
 
 __all__ = ["DecisionCore", "VehicleRecord"]
-
-ACTIVE = "active"
-OVERRIDDEN = "overridden"
-LOST = "lost"
-HOME = "home"
-
-
-@dataclass
-class VehicleRecord:
-    """What the core knows of one vehicle."""
-
-    id: str
-    x_m: float
-    y_m: float
-    heading_rad: float
-    speed_m_s: float
-    pose_t_s: float
-    status: str = ACTIVE
-    target: str | None = None
-    busy: bool = False
-    aim_xy_m: tuple[float, float] | None = None
-    route: tuple[str, ...] = field(default=())
-
-    @property
-    def idle(self) -> bool:
-        return self.status == ACTIVE and not self.busy
-
 
 class DecisionCore:
     """Events and time in, commands out (see module docstring)."""
 
-    def __init__(self, config: CoreConfig) -> None:
+    def __init__(self, config: CoreConfig, tracker_factory: TrackerFactory | None = None) -> None:
         self.config = config
         self.observer = Observer(config.observer)
+        self.tracks = TrackBook(self.observer, config.tracker, tracker_factory)
+        """The multi-target tracker's side (``core/tracking.py``)."""
+        self.search: SearchGrid | None = None
+        if config.search is not None and config.area_m is not None:
+            x0, x1, y0, y1 = config.area_m
+            self.search = SearchGrid(_Area(x0, x1, y0, y1), config.search)
+        self._prior_points: dict[str, tuple[float, float]] = {}
         self.vehicles: dict[str, VehicleRecord] = {}
         self.t_s = 0.0
         self.last_result: PlanResult | None = None
@@ -145,6 +108,7 @@ class DecisionCore:
             self.t_s = event.t_s
         out: list[Command] = []
         if isinstance(event, Tick):
+            out += self._process_scans(event.t_s)
             self.observer.predict_to(event.t_s)
             self._apply_priority()
         elif isinstance(event, Telemetry):
@@ -152,6 +116,8 @@ class DecisionCore:
                           event.speed_m_s)
         elif isinstance(event, Detection):
             out += self._on_detection(event)
+        elif isinstance(event, CameraFrame):
+            self._on_frame(event)
         elif isinstance(event, PlanSolved):
             out += self._on_solved(event)
         elif isinstance(event, BoatPosition):
@@ -216,12 +182,20 @@ class DecisionCore:
     def _on_detection(self, event: Detection) -> list[Command]:
         out: list[Command] = []
         self.last_measurement = None
+        if event.target is None and self._tracking():
+            r_m2 = self.config.observer.r_m2 if event.r_m2 is None else event.r_m2
+            self._count("detections_buffered" if self.tracks.detection(event, r_m2)
+                        else "detections_invalid")
+            return out
+        if event.target is not None:
+            self.tracks.labelled(event)
         if event.target is not None and event.target not in self.observer.target_ids:
             if not (math.isfinite(event.x_m) and math.isfinite(event.y_m)):
                 self._count("detections_invalid")
                 return out
             self.observer.add_target(event.target, event.t_s, event.x_m, event.y_m,
                                      sigma0=event.r_m2)
+            self.tracks.adopt(event.target)
             out.append(Note(event.t_s, "target_discovered", event.vehicle, event.target))
             self._mark_dirty("target discovered")
             return out
@@ -241,15 +215,18 @@ class DecisionCore:
                 event.target, event.t_s, event.x_m, event.y_m, vx_m_s=event.vx_m_s,
                 vy_m_s=event.vy_m_s, sigma0=event.sigma0, q_per_s=event.q_per_s,
             )
+            self.tracks.adopt(event.target, prior=event.prior is True)
+            if event.prior is True and self.search is not None:
+                self._prior_points[event.target] = (event.x_m, event.y_m)
+                self.search.set_prior_points(list(self._prior_points.values()))
             self._mark_dirty("target added")
         elif isinstance(event, TargetRemoved):
             if event.target not in self.observer.target_ids:
                 out.append(Note(event.t_s, "unknown_target", target=event.target))
                 return out
             self.observer.remove_target(event.target)
-            for v in self.vehicles.values():
-                if v.target == event.target:
-                    v.target, v.busy, v.aim_xy_m = None, False, None
+            self.tracks.forget(event.target)
+            self._free_vehicles(event.target)
             self._mark_dirty("target removed")
         elif isinstance(event, VehicleJoined):
             record = self.vehicles.get(event.vehicle)
@@ -279,7 +256,7 @@ class DecisionCore:
         if self.config.policy.commit or record.target not in record.route:
             return []
         rest = record.route[record.route.index(record.target) + 1:]
-        known = set(self.observer.target_ids)
+        known = self._known_targets()
         rest = tuple(t for t in rest if t in known)
         if not rest:
             return []
@@ -287,40 +264,13 @@ class DecisionCore:
         return [command] if command is not None else []
 
     def _on_status_change(self, event: Event) -> list[Command]:
-        out: list[Command] = []
         vehicle = getattr(event, "vehicle", None)
         record = self.vehicles.get(vehicle) if isinstance(vehicle, str) else None
         if record is None:
-            return out
-        t_s = event.t_s
-        if isinstance(event, VehicleLost):
-            if record.status == ACTIVE:
-                record.status, record.busy = LOST, False
-                self._mark_dirty("vehicle lost")
-        elif isinstance(event, VehicleReturned):
-            if record.status == LOST:
-                record.status, record.busy = ACTIVE, False
-                self._mark_dirty("vehicle returned")
-        elif isinstance(event, VehicleRebooted):
-            if record.status in (ACTIVE, LOST):
-                record.status, record.busy, record.target = ACTIVE, False, None
-                self._mark_dirty("vehicle rebooted")
-        elif isinstance(event, OperatorOverride):
-            if record.status != OVERRIDDEN:
-                record.status, record.busy = OVERRIDDEN, False
-                out.append(ReleaseVehicle(t_s, record.id, "operator override"))
-                self._mark_dirty("operator override")
-        elif isinstance(event, OperatorResume):
-            if record.status in (OVERRIDDEN, HOME):
-                record.status, record.busy, record.target = ACTIVE, False, None
-                self._mark_dirty("operator resume")
-        elif isinstance(event, BatteryLow) and record.status == ACTIVE:
-            record.status, record.busy, record.target = HOME, False, None
-            if self.config.battery_low_action == "rtl":
-                out.append(SendHome(t_s, record.id, "battery low"))
-            else:
-                out.append(ReleaseVehicle(t_s, record.id, "battery low"))
-            self._mark_dirty("battery low")
+            return []
+        out, reason = status_change(record, event, self.config.battery_low_action)
+        if reason is not None:
+            self._mark_dirty(reason)
         return out
 
     # ------------------------------------------------------------------ planning
@@ -368,24 +318,15 @@ class DecisionCore:
             v.target for v in self.vehicles.values()
             if v.status == ACTIVE and v.busy and v.target is not None
         } if self.config.policy.commit else set()
-        targets = [
-            TargetEstimate(tr.id, tr.x_m, tr.y_m, tr.sigma)
-            for tr in self.observer.tracks() if tr.id not in covered
-        ]
+        targets = track_targets(self.observer.tracks(), self.tracks.status, covered,
+                                self.config.tentative_weight)
+        if self.search is not None:
+            targets += search_targets(self.search.top(t_s, exclude=covered))
         if not vehicles or not targets:
             return out
         wind = self._problem_wind(t_s, out)
-        problem = PlanningProblem(
-            uavs=tuple(UavPose(v.id, v.x_m, v.y_m, v.heading_rad) for v in vehicles),
-            targets=tuple(targets),
-            turn_radius_m=self.config.turn_radius_m,
-            tau=self.config.tau,
-            min_sigma_fraction=self.config.min_sigma_fraction,
-            time_limit_s=self.config.time_limit_s,
-            objective=self.config.objective,
-            speed_m_s=self.config.speed_m_s,
-            wind_m_s=wind,
-        )
+        uavs = [UavPose(v.id, v.x_m, v.y_m, v.heading_rad) for v in vehicles]
+        problem = build_problem(self.config, uavs, targets, wind)
         if self._pending is not None:
             out.append(CancelSolve(t_s, self._pending.request_id))
         request = SolveRequest(t_s, self._next_request_id, problem, self._hint(problem), reason)
@@ -429,7 +370,7 @@ class DecisionCore:
         result = event.result
         self.last_result = result
         self.plans_adopted += 1
-        known = set(self.observer.target_ids)
+        known = self._known_targets()
         assignments: dict[str, str] = {}
         fly: list[Command] = []
         for uav in request.problem.uavs:
@@ -465,35 +406,86 @@ class DecisionCore:
                            self.config.loiter_radius_m, route, eta_s=t_s + t_arr_s)
 
     def travel_time_s(self, record: VehicleRecord, x_m: float, y_m: float) -> float:
-        """Predicted time (s) for ``record`` to fly from its pose to (x_m, y_m) in still air:
-        the Dubins distance at its airspeed."""
-        d = dubins_distance_to_point(record.x_m, record.y_m, record.heading_rad, x_m, y_m,
-                                     self.config.turn_radius_m)
-        return d / max(record.speed_m_s, 1.0)
+        """Predicted time (s) for ``record`` to fly from its pose to (x_m, y_m) in still air
+        (:func:`~groundstation.core.intercept.travel_time_s`)."""
+        return travel_time_s(record, x_m, y_m, self.config.turn_radius_m)
 
     def intercept(self, record: VehicleRecord, target: str) -> tuple[float, float, float]:
-        """(x_m, y_m, t_arr_s): the aim point and the flight time to it (module docstring).
-        In wind, a target the vehicle cannot catch (it drifts away through the air at the
-        airspeed or faster) is aimed at as in still air."""
-        track = self.observer.track(target)
-        speed = max(record.speed_m_s, 1.0)
-        wind = self.planning_wind_m_s()
-        if wind[0] != 0.0 or wind[1] != 0.0:
-            t_arr = math.inf
-            if wind_problem(wind, speed) is None:
-                t_arr = time_in_wind_s(
-                    record.x_m, record.y_m, record.heading_rad, track.x_m, track.y_m, wind,
-                    speed, self.config.turn_radius_m, (track.vx_m_s, track.vy_m_s),
-                )
-            if math.isfinite(t_arr):
-                return (track.x_m + track.vx_m_s * t_arr, track.y_m + track.vy_m_s * t_arr,
-                        t_arr)
-        x, y = track.x_m, track.y_m
-        t_arr = 0.0
-        for _ in range(2):
-            t_arr = self.travel_time_s(record, x, y)
-            x, y = track.x_m + track.vx_m_s * t_arr, track.y_m + track.vy_m_s * t_arr
-        return x, y, self.travel_time_s(record, x, y)
+        """(x_m, y_m, t_arr_s): the aim point for ``target`` and the flight time to it
+        (:func:`~groundstation.core.intercept.intercept`)."""
+        if self.search is not None and target in self.search:
+            xy, v = self.search.centre(target), (0.0, 0.0)  # a search cell does not move
+        else:
+            track = self.observer.track(target)
+            xy, v = (track.x_m, track.y_m), (track.vx_m_s, track.vy_m_s)
+        return intercept(record, xy, v, self.planning_wind_m_s(), self.config.turn_radius_m)
+
+    # ------------------------------------------------------------------ tracks, search
+    def _tracking(self) -> bool:
+        """Unlabelled detections go to the tracker (Kalman tracks); the field test's linear
+        model keeps the observer's nearest-track association."""
+        return self.config.observer.model == "kalman"
+
+    def _on_frame(self, event: CameraFrame) -> None:
+        if not self.tracks.frame(event):
+            self._count("frames_invalid")
+            return
+        if self.search is not None:
+            self.search.cover(event.t_s, event.x_m, event.y_m, event.radius_m)
+
+    def _process_scans(self, t_s: float) -> list[Command]:
+        """Buffered scans due by ``t_s`` through the tracker; its events become notes, a
+        confirmation or deletion marks the plan dirty, a deleted track leaves the observer
+        and frees its vehicles (as ``TargetRemoved``)."""
+        out: list[Command] = []
+        for scan, events in self.tracks.process(t_s):
+            self._count("scans")
+            for ev in events:
+                out.append(Note(ev.t_s, f"track_{ev.kind}", scan.vehicle or None, ev.track_id,
+                                ev.reason))
+                if ev.kind == "confirmed":
+                    self._mark_dirty("track confirmed")
+                elif ev.kind == "deleted":
+                    if ev.track_id in self.observer.target_ids:
+                        self.observer.remove_target(ev.track_id)
+                    self._prior_points.pop(ev.track_id, None)
+                    self._free_vehicles(ev.track_id)
+                    self._mark_dirty("track deleted")
+        return out
+
+    def _free_vehicles(self, target: str) -> None:
+        for v in self.vehicles.values():
+            if v.target == target:
+                v.target, v.busy, v.aim_xy_m = None, False, None
+
+    def _known_targets(self) -> set[str]:
+        """Ids a plan may send a vehicle to: the tracks, and the search cells."""
+        known = set(self.observer.target_ids)
+        if self.search is not None:
+            known.update(self.search.ids)
+        return known
+
+    def track_views(self) -> list[TrackView]:
+        """Every track with its status (``core/views.py``), sorted by id."""
+        return [
+            TrackView(tr.id, self.tracks.status(tr.id), tr.x_m, tr.y_m, tr.sigma,
+                      self.tracks.existence(tr.id), tr.t_s)
+            for tr in self.observer.tracks()
+        ]
+
+    def search_view(self) -> list[SearchCellView]:
+        """Every search cell with its value now (empty when search is off)."""
+        if self.search is None:
+            return []
+        return [search_cell_view(c) for c in self.search.values(self.t_s)]
 
     def snapshot_assignments(self) -> Mapping[str, str | None]:
         return {v.id: v.target for v in self.vehicles.values()}
+
+
+@dataclass(frozen=True)
+class _Area:
+    x_min_m: float
+    x_max_m: float
+    y_min_m: float
+    y_max_m: float

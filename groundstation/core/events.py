@@ -14,6 +14,7 @@ from planner import PlanResult
 __all__ = [
     "BatteryLow",
     "BoatPosition",
+    "CameraFrame",
     "Detection",
     "Event",
     "LoiterEnded",
@@ -52,8 +53,24 @@ class Telemetry:
 
 
 @dataclass(frozen=True)
+class CameraFrame:
+    """A vehicle's camera took a frame whose footprint is the disc of ``radius_m`` around
+    (x_m, y_m): the icebergs inside it could have been seen (evidence of absence for the
+    tracks inside it that no detection of the frame confirms; search cells inside it are
+    covered). The frame's detections carry the same ``t_s`` and ``vehicle``."""
+
+    t_s: float
+    vehicle: str
+    x_m: float
+    y_m: float
+    radius_m: float
+
+
+@dataclass(frozen=True)
 class Detection:
-    """A camera measurement of a target's position (``target`` None: associate it)."""
+    """A camera measurement of a target's position (``target`` None: an unlabelled
+    detection, buffered with the other detections of its frame (same ``t_s`` and
+    ``vehicle``) and handed to the tracker as one scan at the next ``Tick``)."""
 
     t_s: float
     vehicle: str | None
@@ -75,6 +92,9 @@ class TargetAdded:
     vy_m_s: float = 0.0
     sigma0: float | None = None
     q_per_s: float | None = None
+    prior: bool = False
+    """A listed, unverified iceberg (e.g. a satellite pass): tracked and planned, deleted
+    when a camera looks where it should be and does not see it."""
 
 
 @dataclass(frozen=True)
@@ -183,6 +203,7 @@ Event = (
     Tick
     | Telemetry
     | Detection
+    | CameraFrame
     | TargetAdded
     | TargetRemoved
     | LoiterEnded

@@ -86,6 +86,8 @@ def event_to_record(event: Event) -> dict[str, Any]:
         if f.name == "t_s":
             continue
         value = getattr(event, f.name)
+        if f.name == "prior" and value is False:
+            continue  # TargetAdded lines read as before priors existed
         record[f.name] = result_to_record(value) if isinstance(value, PlanResult) else value
     return record
 

@@ -1,14 +1,34 @@
 """The decision core's configuration as a scenario describes it (one mapping for every
-frontend: ``gcs simulate``, ``gcs run --scenario`` and replay)."""
+frontend: ``gcs simulate``, ``gcs run --scenario`` and replay).
+
+The tracker's settings: the camera's ``pd`` and ``clutter_per_frame`` are the tracker's
+``pd`` and ``clutter_per_frame`` (the tracker models the camera it is fed by), and the
+scenario's ``tracker:`` mapping overrides any key (``TrackerConfig`` validates them). Search:
+the scenario's ``search:`` over its ``area:``.
+"""
 
 from __future__ import annotations
 
 from groundstation.core.config import CoreConfig, ReplanPolicy
-from observer import ObserverConfig
+from observer import ObserverConfig, TrackerConfig
 from planner import Objective
+from planner.search_cells import SearchConfig
 from world.scenario import Scenario
 
-__all__ = ["core_config_for"]
+__all__ = ["core_config_for", "tracker_config_for"]
+
+
+def tracker_config_for(scenario: Scenario) -> TrackerConfig:
+    """The camera's pd and clutter, then the scenario's ``tracker:`` overrides."""
+    values: dict[str, object] = {
+        "pd": scenario.camera.pd,
+        "clutter_per_frame": scenario.camera.clutter_per_frame,
+    }
+    values.update(scenario.tracker)
+    try:
+        return TrackerConfig(**values)  # type: ignore[arg-type]
+    except TypeError as exc:
+        raise ValueError(f"tracker: {exc}") from exc
 
 
 def core_config_for(scenario: Scenario, objective: str | None = None) -> CoreConfig:
@@ -39,7 +59,21 @@ def core_config_for(scenario: Scenario, objective: str | None = None) -> CoreCon
         priority_far_m=obs.priority_far_m,
         wind_xy_m_s=_plain(scenario.wind.mean_xy_m_s),
         wind_aware=scenario.planner.wind_aware,
+        tracker=tracker_config_for(scenario),
+        search=_search(scenario),
+        area_m=None if scenario.area is None else (
+            scenario.area.x_min_m, scenario.area.x_max_m,
+            scenario.area.y_min_m, scenario.area.y_max_m,
+        ),
     )
+
+
+def _search(scenario: Scenario) -> SearchConfig | None:
+    spec = scenario.search
+    if spec is None:
+        return None
+    return SearchConfig(cell_m=spec.cell_m, growth_m2_per_s=spec.growth_m2_per_s,
+                        max_cells=spec.max_cells, prior_weight=spec.prior_weight)
 
 
 def _plain(wind_xy_m_s: tuple[float, float]) -> tuple[float, float]:

@@ -63,6 +63,7 @@ from groundstation.core.events import (
 from groundstation.core.metrics import MetricsRecorder
 from groundstation.core.records import command_to_record, event_to_record
 from groundstation.core.scenario_config import core_config_for
+from groundstation.runners.sim_discovery import Discovery, discovery_mode
 from groundstation.runners.sim_vehicle import OfflineVehicle
 from planner import solve_plan
 from world.dynamics import UavState
@@ -149,6 +150,8 @@ class _Simulation:
         self.wind = WindField(scenario.wind, options.seed)
         self.run = SimulationRun(scenario, options, metrics={})
         targets = resolve_targets(scenario, self.rng)
+        self.discovery = (Discovery(scenario, options.seed, targets)
+                          if discovery_mode(scenario) else None)
         boat = scenario.boat
         camera = Camera(scenario.fleet.fov_radius_m, scenario.observer.camera_rate_hz,
                         scenario.observer.r_m2)
@@ -245,6 +248,8 @@ class _Simulation:
             spec = item.target
             self.world.add_iceberg(Iceberg(spec.id, spec.x_m, spec.y_m, spec.vx_m_s,
                                            spec.vy_m_s, self.scenario.observer.iceberg_q_per_s))
+            if not self.scenario.targets_known:
+                return  # the ground station learns of it from the camera (and the prior)
             self.feed(TargetAdded(t_s, spec.id, spec.x_m, spec.y_m, spec.vx_m_s, spec.vy_m_s,
                                   spec.sigma0))
             return
@@ -277,6 +282,19 @@ class _Simulation:
         elif item.kind == "battery_low":
             self.feed(BatteryLow(t_s, vehicle_id))
 
+    def feed_observed(self, event: Event) -> None:
+        """A camera input to the core; a detection is journalled, and an accepted labelled
+        one counts for the visits."""
+        if self.options.journal and isinstance(event, Detection):
+            self.run.journal.append({"event": "detection", "t": event.t_s,
+                                     "vehicle": event.vehicle, "target": event.target,
+                                     "x_m": event.x_m, "y_m": event.y_m})
+        self.feed(event)
+        if isinstance(event, Detection) and event.target is not None:
+            outcome = self.core.last_measurement
+            if outcome is not None and outcome.accepted:
+                self.metrics.seen(event.t_s, event.vehicle, event.target)
+
     def report_wind(self, t_s: float) -> None:
         """Each flying, commanded vehicle's WIND at 1 Hz, as ArduPlane sends it (EXTRA3):
         its estimate is taken to be the wind it flies in (the core's settling rule skips
@@ -298,6 +316,8 @@ class _Simulation:
         for vehicle in self.vehicles.values():
             s = vehicle.state
             self.feed(VehicleJoined(0.0, vehicle.id, s.x_m, s.y_m, s.heading_rad, s.speed_m_s))
+        for added in self.discovery.prior_events() if self.discovery else []:
+            self.feed(added)
         steps = round(self.duration_s / self.dt_s)
         next_sample_s = 0.0
         for k in range(steps + 1):
@@ -331,17 +351,15 @@ class _Simulation:
                     self.feed(LoiterEnded(t_s + self.dt_s, vehicle.id))
             self.world.step(self.dt_s)
             positions = {v.id: (v.state.x_m, v.state.y_m) for v in self.vehicles.values()}
+            if self.discovery is not None:
+                for event in self.discovery.observe(self.world, positions,
+                                                    lambda v: self.vehicles[v].lost):
+                    self.feed_observed(event)
+                continue
             for m in self.world.observe(positions):
                 if self.vehicles[m.vehicle].lost:
                     continue
-                if self.options.journal:
-                    self.run.journal.append({"event": "detection", "t": m.t_s,
-                                             "vehicle": m.vehicle, "target": m.target,
-                                             "x_m": m.x_m, "y_m": m.y_m})
-                self.feed(Detection(m.t_s, m.vehicle, m.target, m.x_m, m.y_m, m.r_m2))
-                outcome = self.core.last_measurement
-                if outcome is not None and outcome.accepted:
-                    self.metrics.seen(m.t_s, m.vehicle, m.target)
+                self.feed_observed(Detection(m.t_s, m.vehicle, m.target, m.x_m, m.y_m, m.r_m2))
         wall = time.perf_counter() - wall_start
         metrics = self.metrics.to_dict(wall)
         metrics["realtime_factor"] = self.duration_s / wall if wall > 0 else math.inf
@@ -353,25 +371,35 @@ class _Simulation:
         metrics["objective"] = self.core.config.objective
         metrics["wind"] = wind_record(self.scenario.wind)
         metrics["observer_counters"] = dict(self.core.observer.counters)
+        if self.discovery is not None:
+            metrics.update(self.discovery.metrics(self.duration_s))
         self.run.metrics = metrics
         return self.run
 
     def sample(self, t_s: float) -> None:
-        tracks = self.core.observer.tracks()
+        """Metrics, plots and journal once a mission second; the uncertainty is over the
+        confirmed and prior tracks (tentative ones are candidates, not icebergs)."""
+        status = {v.id: v.status for v in self.core.track_views()}
+        tracks = [tr for tr in self.core.observer.tracks() if status[tr.id] != "tentative"]
         truth = self.world.true_positions()
         self.metrics.sample_tracks(t_s, tracks, truth)
+        if self.discovery is not None:
+            self.discovery.sample(t_s, self.core, truth)
         for tr in tracks:
             self.run.target_estimates.setdefault(tr.id, []).append((t_s, tr.x_m, tr.y_m,
                                                                     tr.sigma))
         for target, (x, y) in truth.items():
             self.run.target_truth.setdefault(target, []).append((t_s, x, y))
         if self.options.journal:
-            for tr in tracks:
+            for tr in self.core.observer.tracks():
                 self.run.journal.append({
                     "event": "track", "t": t_s, "target": tr.id, "x_m": tr.x_m, "y_m": tr.y_m,
                     "vx_m_s": tr.vx_m_s, "vy_m_s": tr.vy_m_s, "sigma": tr.sigma,
-                    "lost": tr.lost,
+                    "lost": tr.lost, "status": status[tr.id],
                 })
+            search = self.discovery.search_record(t_s, self.core) if self.discovery else None
+            if search is not None:
+                self.run.journal.append(search)
             for target, (x, y) in truth.items():
                 self.run.journal.append({"event": "truth", "t": t_s, "target": target,
                                          "x_m": x, "y_m": y})

@@ -1,0 +1,82 @@
+"""What the decision core knows of each vehicle, and how fleet status events change it."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from groundstation.core.commands import Command, ReleaseVehicle, SendHome
+from groundstation.core.events import (
+    BatteryLow,
+    Event,
+    OperatorOverride,
+    OperatorResume,
+    VehicleLost,
+    VehicleRebooted,
+    VehicleReturned,
+)
+
+__all__ = ["ACTIVE", "HOME", "LOST", "OVERRIDDEN", "VehicleRecord", "status_change"]
+
+ACTIVE = "active"
+OVERRIDDEN = "overridden"
+LOST = "lost"
+HOME = "home"
+
+
+@dataclass
+class VehicleRecord:
+    """What the core knows of one vehicle."""
+
+    id: str
+    x_m: float
+    y_m: float
+    heading_rad: float
+    speed_m_s: float
+    pose_t_s: float
+    status: str = ACTIVE
+    target: str | None = None
+    busy: bool = False
+    aim_xy_m: tuple[float, float] | None = None
+    route: tuple[str, ...] = field(default=())
+
+    @property
+    def idle(self) -> bool:
+        return self.status == ACTIVE and not self.busy
+
+
+def status_change(record: VehicleRecord, event: Event,
+                  battery_low_action: str) -> tuple[list[Command], str | None]:
+    """Apply a lost/returned/rebooted/override/resume/battery event to ``record``: the
+    commands it causes and the reason to replan (None: nothing changed)."""
+    out: list[Command] = []
+    reason: str | None = None
+    t_s = event.t_s
+    if isinstance(event, VehicleLost):
+        if record.status == ACTIVE:
+            record.status, record.busy = LOST, False
+            reason = "vehicle lost"
+    elif isinstance(event, VehicleReturned):
+        if record.status == LOST:
+            record.status, record.busy = ACTIVE, False
+            reason = "vehicle returned"
+    elif isinstance(event, VehicleRebooted):
+        if record.status in (ACTIVE, LOST):
+            record.status, record.busy, record.target = ACTIVE, False, None
+            reason = "vehicle rebooted"
+    elif isinstance(event, OperatorOverride):
+        if record.status != OVERRIDDEN:
+            record.status, record.busy = OVERRIDDEN, False
+            out.append(ReleaseVehicle(t_s, record.id, "operator override"))
+            reason = "operator override"
+    elif isinstance(event, OperatorResume):
+        if record.status in (OVERRIDDEN, HOME):
+            record.status, record.busy, record.target = ACTIVE, False, None
+            reason = "operator resume"
+    elif isinstance(event, BatteryLow) and record.status == ACTIVE:
+        record.status, record.busy, record.target = HOME, False, None
+        if battery_low_action == "rtl":
+            out.append(SendHome(t_s, record.id, "battery low"))
+        else:
+            out.append(ReleaseVehicle(t_s, record.id, "battery low"))
+        reason = "battery low"
+    return out, reason

@@ -1,0 +1,154 @@
+"""The decision core's side of the multi-target tracker (``observer.Tracker``).
+
+Unlabelled detections (``Detection.target`` None) are not applied one by one: the core
+buffers them per camera frame, keyed by ``(t_s, vehicle)``, together with the frame's
+footprint when a :class:`~groundstation.core.events.CameraFrame` for that key came, and
+hands every buffered scan with ``t_s <= t`` to :meth:`observer.Tracker.scan` at the next
+``Tick(t)``, in ``(t_s, vehicle)`` order, before the observer is predicted to ``t``. So a
+whole frame is associated at once (global assignment), whatever order its lines came in.
+
+A frame that also brought *labelled* detections (``target`` given: applied at once, as
+before the tracker existed) is scanned without its footprint: the tracker never hears of
+those hits, so the footprint would count the labelled tracks in view as misses.
+
+The tracker is created on first need (a frame, an unlabelled detection or a prior target),
+adopting every track the observer already holds as ``confirmed``: a run with a labelled
+camera and no prior never creates it, so it computes exactly what it did before the tracker
+existed. Tracks the core creates itself (``TargetAdded``, a labelled detection of an unknown
+target) are adopted as ``confirmed``; ``TargetAdded(prior=True)`` as ``prior`` with
+existence 0.5.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+from groundstation.core.events import CameraFrame, Detection
+from observer import Footprint, Observer, ScanDetection, Tracker, TrackerConfig, TrackEvent
+
+__all__ = ["PendingScan", "TrackBook", "TrackerFactory"]
+
+TrackerFactory = Callable[[Observer, TrackerConfig], Tracker]
+
+CONFIRMED = "confirmed"
+PRIOR = "prior"
+TENTATIVE = "tentative"
+
+
+@dataclass
+class PendingScan:
+    """One camera frame's unlabelled detections, waiting for the next tick."""
+
+    t_s: float
+    vehicle: str
+    footprint: Footprint | None = None
+    detections: list[ScanDetection] = field(default_factory=list)
+    labelled: bool = False
+
+
+class TrackBook:
+    """Buffers scans, owns the tracker, and answers track status (module docstring)."""
+
+    def __init__(self, observer: Observer, config: TrackerConfig,
+                 factory: TrackerFactory | None = None) -> None:
+        self._observer = observer
+        self._config = config
+        self._factory: TrackerFactory = factory or Tracker
+        self.tracker: Tracker | None = None
+        self._scans: dict[tuple[float, str], PendingScan] = {}
+
+    # ------------------------------------------------------------------ lifecycle
+    def ensure(self) -> Tracker:
+        """The tracker, created (adopting every existing track as confirmed) if need be."""
+        if self.tracker is None:
+            self.tracker = self._factory(self._observer, self._config)
+            for track_id in self._observer.target_ids:
+                self.tracker.adopt(track_id, status=CONFIRMED, existence=1.0)
+        return self.tracker
+
+    def adopt(self, track_id: str, *, prior: bool = False) -> None:
+        """A track the core created (TargetAdded, labelled detection)."""
+        if prior:
+            self.ensure().adopt(track_id, status=PRIOR, existence=0.5)
+        elif self.tracker is not None:
+            self.tracker.adopt(track_id, status=CONFIRMED, existence=1.0)
+
+    def forget(self, track_id: str) -> None:
+        """The core removed the target (TargetRemoved)."""
+        if self.tracker is not None:
+            self.tracker.forget(track_id)
+
+    def status(self, track_id: str) -> str:
+        """``tentative``, ``confirmed`` or ``prior`` (``confirmed`` for a track the tracker
+        does not know, e.g. every track while there is no tracker)."""
+        if self.tracker is None:
+            return CONFIRMED
+        try:
+            return str(self.tracker.status(track_id))
+        except KeyError:
+            return CONFIRMED
+
+    def existence(self, track_id: str) -> float:
+        if self.tracker is None:
+            return 1.0
+        try:
+            return float(self.tracker.existence(track_id))
+        except KeyError:
+            return 1.0
+
+    # ------------------------------------------------------------------ buffering
+    def _scan(self, t_s: float, vehicle: str | None) -> PendingScan:
+        key = (t_s, vehicle or "")
+        scan = self._scans.get(key)
+        if scan is None:
+            scan = self._scans[key] = PendingScan(t_s, vehicle or "")
+        return scan
+
+    def frame(self, event: CameraFrame) -> bool:
+        """Buffer a frame's footprint; False (ignored) if a value is not finite or the
+        radius not > 0."""
+        values = (event.t_s, event.x_m, event.y_m, event.radius_m)
+        if not all(math.isfinite(v) for v in values) or not event.radius_m > 0:
+            return False
+        self.ensure()
+        self._scan(event.t_s, event.vehicle).footprint = Footprint(
+            event.x_m, event.y_m, event.radius_m)
+        return True
+
+    def detection(self, event: Detection, r_m2: float) -> bool:
+        """Buffer an unlabelled detection (``r_m2``: its noise variance, the observer's
+        default when the detection gives none); False if a value is not finite."""
+        values = (event.t_s, event.x_m, event.y_m, r_m2)
+        if not all(math.isfinite(v) for v in values) or not r_m2 > 0:
+            return False
+        self.ensure()
+        self._scan(event.t_s, event.vehicle).detections.append(
+            ScanDetection(event.x_m, event.y_m, r_m2))
+        return True
+
+    def labelled(self, event: Detection) -> None:
+        """A labelled detection: its frame (if one is buffered) loses its footprint."""
+        scan = self._scans.get((event.t_s, event.vehicle or ""))
+        if scan is not None:
+            scan.labelled = True
+
+    @property
+    def pending(self) -> int:
+        return len(self._scans)
+
+    def process(self, t_s: float) -> list[tuple[PendingScan, tuple[TrackEvent, ...]]]:
+        """Scan every buffered frame with ``t_s`` at or before ``t_s``, in order; each
+        scan with the tracker's events."""
+        due = sorted(key for key in self._scans if key[0] <= t_s)
+        if not due:
+            return []
+        tracker = self.ensure()
+        out = []
+        for key in due:
+            scan = self._scans.pop(key)
+            footprint = None if scan.labelled else scan.footprint
+            result = tracker.scan(scan.t_s, scan.vehicle, footprint, scan.detections)
+            out.append((scan, tuple(result.events)))
+        return out
