@@ -1,19 +1,17 @@
 """The daemon with the multi-target tracker: the status JSON's tracker keys and the
 console's counts, the scenario world in discovery mode (unknown icebergs not announced, the
 prior announced as prior targets, camera frames before their unlabelled detections), and a
-short ``gcs run --scenario discovery`` whose journal holds frames, track statuses, search
-lines and track notes, replays IDENTICAL and reports the tracking figure."""
+short ``gcs run --scenario discovery`` (in this process) whose journal holds frames, track
+statuses, search lines and track notes, replays IDENTICAL and reports the tracking figure."""
 
 from __future__ import annotations
 
 import contextlib
 import io
 import json
-import subprocess
-import sys
 from pathlib import Path
 
-from daemon_run import status_text
+from daemon_run import run_gcs, status_text
 
 from domain.geodesy import GeoOrigin
 from groundstation.cli import main
@@ -26,6 +24,8 @@ from groundstation.daemon.control_requests import jsonable
 from groundstation.daemon.daemon import Daemon
 from groundstation.daemon.journal import Journal, read_journal
 from groundstation.daemon.world import ScenarioWorld, discovery_mode
+from groundstation.runners.report_data import load_run_data
+from groundstation.runners.report_track_plots import plot_tracking
 from planner.search_cells import SearchConfig
 from world.scenario import load_scenario, resolve_targets
 
@@ -99,20 +99,25 @@ def test_scenario_world_in_discovery_mode(tmp_path: Path) -> None:
 
 
 def test_discovery_run_replays_identical_and_reports(tmp_path: Path) -> None:
-    runs = tmp_path / "runs"
-    proc = subprocess.run(
-        [sys.executable, "-m", "groundstation.cli", "run", "--vehicles", "sim:3",
-         "--scenario", "discovery", "--duration", "40", "--speedup", "50", "--sim-airborne",
-         "--run-dir", str(runs), "--http", "off", "--detections", "off", "--status", "quiet"],
-        capture_output=True, text=True, timeout=120)
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    [run] = list(runs.iterdir())
-    lines = read_journal(run / "journal.jsonl")
+    """``gcs run --scenario discovery`` in this process until its journal holds two rounds
+    of track lines and a tentative track in one (a few mission seconds at 50x)."""
+
+    def enough(journal: list[dict[str, object]]) -> bool:
+        tracks = [x for x in journal if x["event"] == "track"]
+        return (len({x["t"] for x in tracks}) >= 2
+                and any(x.get("status") == "tentative" for x in tracks))
+
+    daemon, lines = run_gcs(tmp_path, "--vehicles", "sim:3", "--scenario", "discovery",
+                            "--duration", "60", "--speedup", "50", "--sim-airborne",
+                            until=enough)
+    run = daemon.run_dir
     kinds = {x.get("kind") for x in lines if x["event"] == "input"}
     assert {"CameraFrame", "Detection", "TargetAdded"} <= kinds
     assert any(x["event"] == "input" and x.get("kind") == "TargetAdded" and x.get("prior")
                for x in lines)
-    assert {x.get("status") for x in lines if x["event"] == "track"} >= {"prior"}
+    assert not any(x["event"] == "input" and x.get("kind") == "Detection" and x.get("target")
+                   for x in lines)  # the camera is unlabelled
+    assert {x.get("status") for x in lines if x["event"] == "track"} >= {"prior", "tentative"}
     assert any(x["event"] == "search" for x in lines)
     assert any(x["event"] == "track_born" for x in lines)
     out = io.StringIO()
@@ -120,7 +125,7 @@ def test_discovery_run_replays_identical_and_reports(tmp_path: Path) -> None:
         assert main(["replay", str(run), "--no-resolve", "--json"]) == 0
     report = json.loads(out.getvalue())
     assert report["identical"] and report["track_samples_compared"] > 10
-    with contextlib.redirect_stdout(io.StringIO()):
-        assert main(["report", str(run), "--out", str(tmp_path / "report"), "--quiet"]) == 0
-    figures = json.loads((tmp_path / "report" / "figures.json").read_text())
-    assert figures["tracking"]["search_cells"] > 0
+    assert report["decisions_recorded"] == report["decisions_replayed"] > 0
+    figure = plot_tracking(load_run_data(run))  # the report's figure of the daemon's lines
+    assert figure is not None and figure.info["search_cells"] > 0
+    assert figure.info["counts"]["born"] >= 1 and figure.info["tracks"]["prior"]
