@@ -24,7 +24,11 @@ class FakeControl:
     """Three vehicles flying to their targets and circling them; targets drifting at their
     velocity, ``sigma`` growing 1/s and reset when a vehicle is within FOV; journal events
     pushed to every subscriber. ``advance(dt_s)`` moves the world; ``calls`` records writes;
-    ``refuse`` (a reason) makes every write refused."""
+    ``refuse`` (a reason) makes every write refused.
+
+    The tracker's side, as the daemon reports it: ``tracks`` (A confirmed, B a prior entry,
+    C tentative, and a tentative ``N7`` with no target entry), ``track_counts`` and a 3 x 3
+    grid of 500 m ``search_cells`` whose values grow with time (the last cell most)."""
 
     def __init__(self, n_vehicles: int = 3) -> None:
         self.t = 0.0
@@ -37,6 +41,7 @@ class FakeControl:
         for tid, x, y, vx, vy in (("A", 600.0, 300.0, 0.5, -0.3), ("B", -400.0, 500.0, 0.0, 1.0),
                                   ("C", 200.0, -600.0, -1.0, 0.2)):
             self._new_target(tid, x, y, vx, vy, 10.0)
+        self.statuses = {"A": "confirmed", "B": "prior", "C": "tentative"}
         self.vehicles: list[dict[str, Any]] = []
         names = list(self.targets)
         for i in range(n_vehicles):
@@ -119,7 +124,23 @@ class FakeControl:
                      "source": "vehicles", "vehicles": ["uav1", "uav2"],
                      "label": "12.0 m/s from 270° (vehicles uav1,uav2)", "planning": True},
             "events": list(self._events),
+            **self._tracker(),
         }
+
+    def _tracker(self) -> dict[str, Any]:
+        tracks = [{"id": tid, "status": self.statuses.get(tid, "confirmed"),
+                   "x_m": tg["x_m"], "y_m": tg["y_m"], "sigma_m2": tg["sigma"],
+                   "existence": 0.5 if tid in ("B", "C") else 1.0, "t_s": round(self.t, 3)}
+                  for tid, tg in self.targets.items()]
+        tracks.append({"id": "N7", "status": "tentative", "x_m": -900.0, "y_m": 900.0,
+                       "sigma_m2": 400.0, "existence": 0.3, "t_s": round(self.t, 3)})
+        counts = {s: sum(1 for t in tracks if t["status"] == s)
+                  for s in ("confirmed", "tentative", "prior")}
+        cells = [{"id": f"S{k}", "x_m": -1000.0 + 500.0 * (k % 3),
+                  "y_m": -1000.0 + 500.0 * (k // 3), "size_m": 500.0,
+                  "value_m2": round((k + 1) * (10.0 + self.t), 1), "last_covered_s": None}
+                 for k in range(9)]
+        return {"tracks": tracks, "track_counts": counts, "search_cells": cells}
 
     async def _iterate(self, q: asyncio.Queue[dict[str, Any] | None]) -> AsyncIterator[
             dict[str, Any]]:

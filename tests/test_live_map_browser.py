@@ -6,7 +6,11 @@ targets drifting), and the real daemon ``gcs run --vehicles sim:3 --sim-airborne
 between two reads of the page's state and two screenshots, a target added by clicking on the
 map with the token appears in the daemon's state (and, for the real daemon, in its next
 plan), a target can be removed from the page, and a read-only page cannot change anything;
-the header shows the wind the daemon plans with (the map draws its arrow).
+the header shows the wind the daemon plans with (the map draws its arrow). The tracker's
+layers: every target and track is drawn in its status' style (``window.floe.layers`` counts
+what the last frame drew, checked against the page's state), search cells are shaded by
+value (canvas pixels), the counts head the targets table, and a ``track_confirmed`` note
+reaches the events pane while a ``track_born`` does not.
 Screenshots are saved in pytest's tmp dir and checked (PNG, map drawn: many colours).
 
 Marked ``browser``. Without chromium/chromedriver/selenium the test fails in CI (CI set) with
@@ -253,6 +257,7 @@ def test_live_page(driver: Any, backend: Backend, tmp_path: Path) -> None:
                     else "wind calm (none)"), wind
     rows = drv.find_elements(By.CSS_SELECTOR, "#vehicles tbody tr")
     assert len(rows) == 3
+    check_tracker_layers(drv, backend)
     first = vehicle_positions(drv)
     png1 = screenshot(drv, shots / "read-only-1.png")
     check_map_drawn(png1)
@@ -336,6 +341,74 @@ def test_live_page(driver: Any, backend: Backend, tmp_path: Path) -> None:
               and "401" not in e.get("message", "")]  # the read-only writes above
     drv.get("about:blank")  # leave no page reconnecting to a stopped server
     assert errors == [], errors
+
+
+def expected_layers(state: dict[str, Any]) -> dict[str, int]:
+    """What the map must draw for ``state``: each target in its tracker status (confirmed
+    when the tracker does not list it), each listed track without a target entry, and every
+    search cell."""
+    def finite(item: dict[str, Any]) -> bool:
+        return all(isinstance(item.get(k), int | float) and math.isfinite(item[k])
+                   for k in ("x_m", "y_m"))
+
+    status = {str(t["id"]): t["status"] for t in state.get("tracks") or []}
+    out = {"search": len(state.get("search_cells") or []), "confirmed": 0, "tentative": 0,
+           "prior": 0}
+    ids = set()
+    for t in state.get("targets") or []:
+        ids.add(str(t["id"]))
+        if finite(t):
+            out[status.get(str(t["id"]), "confirmed")] += 1
+    for t in state.get("tracks") or []:
+        if str(t["id"]) not in ids and finite(t):
+            out[t["status"]] += 1
+    return out
+
+
+def pixel_blueness(drv: Any, x_m: float, y_m: float) -> int:
+    """Blue minus red of the map canvas at world point (x_m, y_m), the median of a 5 x 5
+    patch (a grid line or a label through the point does not decide)."""
+    return int(drv.execute_script(
+        "const c = document.getElementById('map'), d = window.devicePixelRatio || 1;"
+        "const p = window.floe.toScreen(arguments[0], arguments[1]);"
+        "const img = c.getContext('2d').getImageData(Math.round(p[0] * d) - 2,"
+        " Math.round(p[1] * d) - 2, 5, 5).data; const v = [];"
+        "for (let i = 0; i < img.length; i += 4) v.push(img[i + 2] - img[i]);"
+        "v.sort((a, b) => a - b); return v[12];", x_m, y_m))
+
+
+def check_tracker_layers(drv: Any, backend: Backend) -> None:
+    """The tracker's layers are drawn as the state says (both backends); on the fake, which
+    has every kind, also that each kind is there and the search shading follows value."""
+    from selenium.webdriver.common.by import By
+
+    def drawn_as_stated() -> dict[str, int] | None:
+        state, layers = drv.execute_script(
+            "return [window.floe.state, window.floe.layers]")
+        want = expected_layers(state)
+        return want if layers == want else None
+
+    want = wait_for(drawn_as_stated, "the map to draw the tracker's layers as stated")
+    if backend.real:
+        return
+    assert want == {"search": 9, "confirmed": 1, "tentative": 2, "prior": 1}
+    assert drv.find_element(By.ID, "track-counts").text == (
+        "1 confirmed · 2 tentative · 1 prior · 9 search cells")
+    statuses = {row.get_attribute("data-id"): row.find_elements(By.TAG_NAME, "td")[-1].text
+                for row in drv.find_elements(By.CSS_SELECTOR, "#targets tbody tr")}
+    assert statuses == {"A": "confirmed", "B": "prior", "C": "tentative"}
+    # S6 (centre -1000, 0) holds 7/9 of the top value, S0 (-1000, -1000) 1/9: off-centre
+    # points of each, away from the axes and the targets
+    strong, weak = pixel_blueness(drv, -1100.0, 100.0), pixel_blueness(drv, -1100.0, -900.0)
+    background = 240 - 223  # #dfe9f0
+    assert strong > weak + 20 and weak > background + 5, (strong, weak)
+    server = backend.server if isinstance(backend, FakeBackend) else None
+    assert server is not None
+    server.call(lambda: server.control.emit("track_born", target="N8", detail="unassociated"))
+    server.call(lambda: server.control.emit("track_confirmed", target="N7", detail="3 of 5"))
+    wait_for(lambda: "track_confirmed" in drv.find_element(By.ID, "events").text,
+             "the track_confirmed note among the events")
+    assert "track_born" not in drv.find_element(By.ID, "events").text
 
 
 def check_pan_and_zoom(drv: Any, backend: FakeBackend) -> None:

@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any
 from groundstation.core import events as ev
 from groundstation.daemon.control_contract import VEHICLE_ACTIONS
 from groundstation.daemon.log_lines import is_operator_event
+from groundstation.daemon.track_views import search_dicts, track_counts, track_dicts
 from groundstation.daemon.wind_view import vehicle_wind, wind_summary
 
 if TYPE_CHECKING:
@@ -77,6 +78,7 @@ class DaemonController:
             }
             for tr in d.core.observer.tracks()
         ]
+        tracks = track_dicts(d.core.track_views())
         return {
             "t": t,
             "unix_s": d.clock.unix_s(),
@@ -87,6 +89,9 @@ class DaemonController:
             "operating_center_m": list(d.area_center()),
             "vehicles": vehicles,
             "targets": targets,
+            "tracks": tracks,
+            "track_counts": track_counts(tracks),
+            "search_cells": search_dicts(d.core.search_view()),
             "boat": {"x_m": d.boat_xy_m[0], "y_m": d.boat_xy_m[1]} if d.boat_xy_m else None,
             "fov_radius_m": d.core_config.observer.fov_radius_m,
             "plan": d.last_plan,

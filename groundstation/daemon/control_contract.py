@@ -21,7 +21,13 @@ State snapshot (``state()``), JSON-able, the same document the live page draws::
                     "wind": {"wx_m_s", "wy_m_s", "speed_m_s", "from_deg"} | None (its own
                     accepted WIND estimate)}],
       "targets": [{"id", "x_m", "y_m", "vx_m_s", "vy_m_s", "sigma", "cov_xy": [pxx, pxy, pyy],
-                   "lost", "last_seen_s"}],
+                   "lost", "last_seen_s"}] (every track the observer holds, tentative ones
+                  included),
+      "tracks": [{"id", "status" (tentative|confirmed|prior), "x_m", "y_m", "sigma_m2",
+                  "existence" (0..1), "t_s"}] (the tracker's view of the same tracks),
+      "track_counts": {"confirmed", "tentative", "prior"},
+      "search_cells": [{"id", "x_m", "y_m", "size_m", "value_m2", "last_covered_s"}]
+                      ([] when the core does not search),
       "boat": {"x_m", "y_m"} | None,
       "fov_radius_m": float,
       "plan": {"t", "routes", "status", "solve_time_s"} | None,

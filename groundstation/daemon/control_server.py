@@ -77,7 +77,8 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 WEB_DIR = Path(__file__).with_name("web")
-STATIC_FILES = {"app.js": "text/javascript", "style.css": "text/css"}
+STATIC_FILES = {"app.js": "text/javascript", "layers.js": "text/javascript",
+                "style.css": "text/css"}
 WRITE_METHODS = frozenset({"POST", "PUT", "PATCH", "DELETE"})
 CSP = ("default-src 'self'; script-src 'self'; style-src 'self'; img-src 'self' data: http: "
        "https:; connect-src 'self' ws: wss:; frame-ancestors 'none'")

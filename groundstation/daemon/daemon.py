@@ -27,6 +27,7 @@ from groundstation.core.commands import (
     CancelSolve,
     Command,
     FlyToTarget,
+    Note,
     PlanAdopted,
     ReleaseVehicle,
     SendHome,
@@ -226,8 +227,10 @@ class Daemon:
             self.solver.submit(command)
             return
         advisory = self.config.advisory or None
+        extra = (self.feed.notes.fields(command.kind, command.target)
+                 if isinstance(command, Note) else {})  # track_deleted: was it confirmed
         self._journal_command(command, advisory=advisory if isinstance(command, FlyToTarget)
-                              else None)
+                              else None, **extra)
         if isinstance(command, CancelSolve):
             self.solver.cancel(command.request_id)
         elif isinstance(command, PlanAdopted):

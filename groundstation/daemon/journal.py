@@ -33,7 +33,7 @@ log = logging.getLogger(__name__)
 _RECENT = 200
 _SUBSCRIBER_QUEUE = 1000
 #: Journal events dropped first when held lines exceed the cap (periodic, re-derivable).
-TELEMETRY_EVENTS = frozenset({"track", "truth", "detection", "statustext"})
+TELEMETRY_EVENTS = frozenset({"track", "truth", "detection", "statustext", "search"})
 #: Core inputs (``event: input``) of these kinds count as telemetry too.
 TELEMETRY_INPUTS = frozenset({"Telemetry", "Tick", "Detection", "BoatPosition"})
 

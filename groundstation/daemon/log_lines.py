@@ -21,6 +21,12 @@ full precision).
 
 A ``wind`` line (the core's estimate changed meaningfully) is an operator event, and so is
 a ``wind_outlier`` (a problem); the vehicles' periodic ``WindReport`` inputs are not.
+
+The tracker's notes: ``track_confirmed`` is an operator event, and so is a
+``track_deleted`` of a track that was confirmed or a prior entry (its line says
+``confirmed: true``, or does not say); ``track_born`` and the deletion of a never-confirmed
+tentative track (``confirmed: false``) are state updates, as clutter makes them frequent
+(``daemon/track_views.py``).
 """
 
 from __future__ import annotations
@@ -97,6 +103,7 @@ OPERATOR_EVENTS = PROBLEM_EVENTS | frozenset(
         "wind",
         "start",
         "stop",
+        "track_confirmed",
     }
 )
 """The events every operator view shows (plus the conditional ones of the module doc)."""
@@ -114,6 +121,8 @@ def is_operator_event(line: Mapping[str, Any]) -> bool:
         return isinstance(severity, int) and severity <= MAV_SEVERITY_WARNING
     if event in ("clock_check", "arm", "param_set"):
         return line.get("ok") is False
+    if event == "track_deleted":
+        return line.get("confirmed") is not False
     return False
 
 

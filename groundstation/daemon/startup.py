@@ -17,7 +17,6 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import dataclasses
-import functools
 import json
 import logging
 import platform
@@ -42,6 +41,7 @@ from groundstation.daemon.control import DaemonController
 from groundstation.daemon.control_server import ControlLimits, ControlServer, binding_warning
 from groundstation.daemon.daemon import Daemon
 from groundstation.daemon.embedded import EmbeddedFactory, EmbeddedVehicles
+from groundstation.daemon.feed_lines import FeedLines
 from groundstation.daemon.gc_guard import frozen_heap
 from groundstation.daemon.run_files import open_run_files
 from groundstation.daemon.signing_gate import SigningGate, load_signing_keys
@@ -445,7 +445,7 @@ async def _start_detection_feed(
         return
     host, port = config.detections.host, config.detections.port
 
-    feed = DetectionFeed(host, port, functools.partial(_feed_detection, daemon))
+    feed = DetectionFeed(host, port, FeedLines(daemon))
     alerts.feed_counters = lambda: dataclasses.asdict(feed.counters)
     try:
         await feed.start()
@@ -457,31 +457,3 @@ async def _start_detection_feed(
     bound_host, bound_port = getattr(feed, "address", (host, port))
     chosen = " (a free port; --detections HOST:PORT to choose)" if port == 0 else ""
     print_fn(f"gcs run: detection feed on udp:{bound_host}:{bound_port}{chosen}")
-
-
-def _field(item: Any, name: str) -> Any:
-    return item.get(name) if isinstance(item, dict) else getattr(item, name, None)
-
-
-def _feed_detection(daemon: Daemon, item: Any) -> None:
-    """One line of the detection feed (design.md) -> the core (boat or detection); without
-    a mission origin it is dropped and counted (``daemon.detections_no_origin``)."""
-    lat, lon = _field(item, "lat_deg"), _field(item, "lon_deg")
-    if daemon.origin_or_none is None or lat is None or lon is None:
-        daemon.detections_no_origin += 1
-        return
-    x, y, _ = daemon.origin.to_local(float(lat), float(lon))
-    t = daemon.clock.now_s()
-    if _field(item, "kind") == "boat":
-        daemon.set_boat(x, y)
-        return
-    sysid = _field(item, "vehicle")
-    session = daemon.sessions.get(int(sysid)) if isinstance(sysid, int) else None
-    sigma = _field(item, "sigma_m")
-    r = float(sigma) ** 2 if isinstance(sigma, int | float) and sigma > 0 else None
-    target = _field(item, "target")
-    daemon.add_detection(
-        ev.Detection(
-            t, session.id if session else None, str(target) if target is not None else None, x, y, r
-        )
-    )

@@ -6,8 +6,10 @@ token is** (``RUN/control.json``), the newest plan as readable routes
 (vehicles 1,2,3)``, or its fallback's source: ``config``, ``scenario``, ``none``), links
 that heard no vehicle, dropped detections and signing refusals. Then one row per vehicle
 (id, system id, status, mode, armed, altitude, target, battery, link, uploads ok/failed,
-upload retries, its own wind estimate as ``speed/from``), one per target (id, position,
-sigma, lost, last seen), one line per link (frames received, dropped unread, bad, foreign)
+upload retries, its own wind estimate as ``speed/from``), the tracker's counts
+(``tracks: 9 confirmed, 3 tentative, 1 prior; 100 search cells``), one row per confirmed or
+prior target (id, position, sigma, lost, last seen, status; tentative tracks are only
+counted: clutter makes many), one line per link (frames received, dropped unread, bad, foreign)
 and the newest operator events (``log_lines.is_operator_event``; problems in colour).
 Redrawn once a wall second in place (``rich.live.Live``); the console's own lines
 (warnings, the start lines) stay above it. Colours come from ``rich``: none on a dumb
@@ -35,6 +37,7 @@ from groundstation.daemon.log_lines import (
     line_level,
     plan_detail,
 )
+from groundstation.daemon.track_views import count_line, track_counts, track_dicts
 from groundstation.daemon.wind_view import wind_label, wind_text
 from groundstation.mavlink.telemetry_events import VehicleSnapshot
 
@@ -176,14 +179,22 @@ def _vehicles(daemon: Daemon) -> Table:
     return table
 
 
-def _targets(daemon: Daemon) -> Table:
+def _targets(daemon: Daemon) -> list[RenderableType]:
+    """The tracker's counts, then the confirmed and prior targets (tentative: counted)."""
     t = daemon.clock.now_s()
-    table = _table("target", "x m>", "y m>", "sigma>", "lost", "seen s>")
+    tracks = track_dicts(daemon.core.track_views())
+    status = {v["id"]: v["status"] for v in tracks}
+    table = _table("target", "x m>", "y m>", "sigma>", "lost", "seen s>", "status")
     for tr in daemon.core.observer.tracks():
+        if status.get(tr.id) == "tentative":
+            continue
         seen = None if tr.last_seen_s is None else t - tr.last_seen_s
+        kind = status.get(tr.id, "confirmed")
         table.add_row(tr.id, f"{tr.x_m:.0f}", f"{tr.y_m:.0f}", f"{tr.sigma:.2f}",
-                      Text("LOST", style="bold red") if tr.lost else "", _fmt(seen, ".0f"))
-    return table
+                      Text("LOST", style="bold red") if tr.lost else "", _fmt(seen, ".0f"),
+                      Text(kind, style="magenta" if kind == "prior" else ""))
+    counts = track_counts(tracks)
+    return [Text(count_line(counts, len(daemon.core.search_view()))), table]
 
 
 def _recent(lines: Iterable[dict[str, Any]]) -> list[RenderableType]:
@@ -204,7 +215,7 @@ def render_status(
     trouble = set(link_lines(stats, only_trouble=True))
     links = [Text(text, style="yellow" if text in trouble else "", no_wrap=True,
                   overflow="ellipsis") for text in link_lines(stats)]
-    return Group(*_header(daemon, alerts), _vehicles(daemon), _targets(daemon), *links,
+    return Group(*_header(daemon, alerts), _vehicles(daemon), *_targets(daemon), *links,
                  Text(""), *_recent(tally.recent))
 
 

@@ -7,6 +7,15 @@ radius of a flying vehicle at the camera rate (2 Hz), as ``Detection`` events. T
 positions come from ``positions()``: the built-in simulator's true positions (``sim:N``) or
 the vehicles' telemetry (real or ArduPilot SITL vehicles: the paper's 2015 field test).
 The random targets are drawn as ``gcs simulate`` draws them (same seed, same icebergs).
+
+**Discovery mode** (:func:`discovery_mode`: an unlabelled camera, a prior or search; the
+offline runner's rule, ``runners/sim_discovery.py``): the scenario's icebergs are announced
+only if ``targets.known``; the prior list (``world.discovery_spec.resolve_prior``, its own
+generator) is announced at the first step as ``TargetAdded(prior=True)`` at the listed
+position, velocity 0, ``sigma0 = 2 sigma_m^2`` (``sigma_m^2`` per axis); and the camera
+(``scenario_camera``: ``pd``, clutter, labels) reports frames, each a ``CameraFrame`` then
+its ``Detection`` events at the same mission time. Otherwise the camera measures as it
+always did (no frame, no extra draw).
 """
 
 from __future__ import annotations
@@ -16,12 +25,19 @@ from collections.abc import Callable, Mapping
 import numpy as np
 
 from groundstation.core import events as ev
-from world.model import Boat, Camera, Iceberg, World
+from world.discovery_spec import PriorEntry, resolve_prior, scenario_camera
+from world.model import Boat, Iceberg, World
 from world.scenario import Scenario, resolve_targets
 
-__all__ = ["ScenarioWorld"]
+__all__ = ["ScenarioWorld", "discovery_mode"]
 
 STEP_S = 0.1
+
+
+def discovery_mode(scenario: Scenario) -> bool:
+    """An unlabelled camera, a prior or search (the module docstring)."""
+    return (not scenario.camera.labelled or scenario.prior is not None
+            or scenario.search is not None)
 
 
 class ScenarioWorld:
@@ -38,15 +54,15 @@ class ScenarioWorld:
         rng = np.random.default_rng(seed)
         targets = resolve_targets(scenario, rng)
         boat = scenario.boat
-        camera = Camera(
-            scenario.fleet.fov_radius_m, scenario.observer.camera_rate_hz, scenario.observer.r_m2
-        )
         self.world = World(
             [],
             Boat(boat.x_m, boat.y_m, boat.heading_rad, boat.speed_m_s) if boat else None,
-            camera,
+            scenario_camera(scenario),
             rng,
         )
+        self.discovery = discovery_mode(scenario)
+        self.prior: list[PriorEntry] = resolve_prior(scenario, targets, seed)
+        self._prior_due = bool(self.prior)
         self._script: list[tuple[float, str, object]] = [(t.appear_s, "add", t) for t in targets]
         for event in scenario.events:
             if event.kind == "target_added" and event.target is not None:
@@ -60,6 +76,10 @@ class ScenarioWorld:
     def step_to(self, t_s: float) -> list[ev.Event]:
         """Advance to ``t_s``; the core events that happened (targets, detections)."""
         out: list[ev.Event] = []
+        if self._prior_due:
+            self._prior_due = False
+            out += [ev.TargetAdded(self.t_s, p.id, p.x_m, p.y_m, sigma0=2.0 * p.sigma_m**2,
+                                   prior=True) for p in self.prior]
         positions = dict(self.positions())
         while self.t_s < t_s - 1e-9:
             dt = min(STEP_S, t_s - self.t_s)
@@ -68,7 +88,22 @@ class ScenarioWorld:
                 out += self._apply(action, payload)
             self.world.step(dt)
             self.t_s += dt
+            if self.discovery:
+                out += self._frames(positions)
+                continue
             for m in self.world.observe(positions):
+                self.measurements += 1
+                out.append(ev.Detection(self.t_s, m.vehicle, m.target, m.x_m, m.y_m, m.r_m2))
+        return out
+
+    def _frames(self, positions: Mapping[str, tuple[float, float]]) -> list[ev.Event]:
+        """The camera's frames due now: each a ``CameraFrame`` and then its detections, all
+        at this mission time (one scan for the core)."""
+        out: list[ev.Event] = []
+        for frame in self.world.observe_frames(positions):
+            out.append(ev.CameraFrame(self.t_s, frame.vehicle, frame.x_m, frame.y_m,
+                                      frame.radius_m))
+            for m in frame.detections:
                 self.measurements += 1
                 out.append(ev.Detection(self.t_s, m.vehicle, m.target, m.x_m, m.y_m, m.r_m2))
         return out
@@ -92,6 +127,8 @@ class ScenarioWorld:
                     self.scenario.observer.iceberg_q_per_s,
                 )
             )
+            if not self.scenario.targets_known:
+                return []  # floe learns of it from the camera (and the prior)
             return [
                 ev.TargetAdded(
                     t, spec.id, spec.x_m, spec.y_m, spec.vx_m_s, spec.vy_m_s, spec.sigma0

@@ -25,6 +25,7 @@ from groundstation.runners.report_plots import (
     plot_uncertainty,
     plot_wind,
 )
+from groundstation.runners.report_track_plots import plot_tracking
 from groundstation.storage import (
     StorageError,
     atomic_write_bytes,
@@ -73,6 +74,24 @@ def _events(data: RunData) -> list[tuple[float, str, str, str]]:
     return sorted(rows, key=lambda r: r[0])
 
 
+def _lifecycle_html(data: RunData) -> list[str]:
+    """The tracker's births, confirmations and deletions as a table (``id="tracks"``);
+    nothing for a journal without them."""
+    lifecycle = data.tracking.lifecycle
+    if not lifecycle:
+        return []
+    esc = html.escape
+    out = ['<h2>Track births, confirmations and deletions</h2><table id="tracks"><tr>'
+           "<th>t (s)</th><th>track</th><th>event</th><th>detail</th></tr>"]
+    for e in lifecycle[:_EVENT_ROWS]:
+        out.append(f"<tr><td>{e.t_s:.1f}</td><td>{esc(e.track)}</td><td>{esc(e.kind)}</td>"
+                   f"<td>{esc(e.detail)}</td></tr>")
+    out.append("</table>")
+    if len(lifecycle) > _EVENT_ROWS:
+        out.append(f"<p>... {len(lifecycle) - _EVENT_ROWS} more</p>")
+    return out
+
+
 def render_html(data: RunData, figures: list[FigurePng]) -> str:
     """The page (see the module docstring)."""
     esc = html.escape
@@ -108,6 +127,7 @@ def render_html(data: RunData, figures: list[FigurePng]) -> str:
         out.append("</table>")
         if len(data.wind) > _EVENT_ROWS:
             out.append(f"<p>... {len(data.wind) - _EVENT_ROWS} more</p>")
+    out += _lifecycle_html(data)
     events = _events(data)
     out.append("<h2>Upload retries, link losses, overrides</h2>")
     if events:
@@ -161,6 +181,7 @@ def build_report(
         ("timeline", plot_timeline),
         ("solves", plot_solves),
         ("wind", plot_wind),
+        ("tracking", plot_tracking),
     ):
         note(f"drawing {name}")
         fig = draw(data)

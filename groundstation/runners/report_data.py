@@ -15,6 +15,10 @@ Wind: the core's estimate over time from the ``wind`` lines (a meaningful change
 start is the fallback of the ``start`` record's core configuration), each vehicle's own
 reports from the ``WindReport`` inputs, and the ``wind_outlier`` notes.
 
+Tracker: ``track`` lines with a ``status``, ``search`` lines and the ``track_*`` notes
+(:mod:`~groundstation.runners.report_track_data`); tentative tracks are left out of the
+per-target estimates (the map and uncertainty figures) and drawn in the tracking figure.
+
 Times are mission seconds for journals; for a bare tlog, seconds since its first record.
 """
 
@@ -39,6 +43,7 @@ from groundstation.runners.replay_journal import (
     skipped_summary,
 )
 from groundstation.runners.replay_tlog import TlogError, TlogSummary, read_tlog
+from groundstation.runners.report_track_data import TrackingData, tracking_of
 
 __all__ = ["ReportError", "RunData", "load_run_data"]
 
@@ -76,6 +81,8 @@ class RunData:
     tlog: TlogSummary | None = None
     warnings: list[str] = field(default_factory=list)
     end_t_s: float = 0.0
+    tracking: TrackingData = field(default_factory=TrackingData)
+    """The multi-target tracker's lines (empty for journals from before it)."""
 
     def mean_uncertainty(self) -> list[tuple[float, float]]:
         """[t, mean sigma over the targets estimated at t] (metrics' series if present)."""
@@ -146,6 +153,8 @@ def _from_journal(data: RunData, journal: LoadedJournal) -> None:
                 )
             continue
         if event == "track" and r.get("target") is not None:
+            if r.get("status") == "tentative":  # the tracking figure draws those
+                continue
             data.target_estimates.setdefault(str(r["target"]), []).append(
                 (t, _num(r.get("x_m")), _num(r.get("y_m")), _num(r.get("sigma")))
             )
@@ -214,6 +223,10 @@ def _from_journal(data: RunData, journal: LoadedJournal) -> None:
                               "vehicles": [str(v) for v in r.get("vehicles") or []]})
         elif event == "wind_outlier":
             data.wind_outliers.append({"t": t, "vehicle": vehicle, "detail": r.get("detail")})
+    data.tracking = tracking_of(journal.records)
+    if data.tracking.skipped:
+        data.warnings.append(f"{journal.path}: {data.tracking.skipped} malformed tracker "
+                             "entries (track, search or track_* lines) skipped")
     for plan in data.plans:  # gcs run's plan lines lack hit_time_limit; the inputs have it
         full = solved.get(str(plan["request"]))
         if full is not None and full.get("hit_time_limit"):
@@ -434,6 +447,12 @@ def summary_rows(data: RunData) -> list[tuple[str, str]]:
     rows.append(("overrides and releases", str(len(data.overrides))))
     if data.wind or data.wind_reports:
         rows.append(("wind", wind_summary(data)))
+    if data.tracking.present():
+        c = data.tracking.counts()
+        rows.append(("tracker", f"{c['born']} born, {c['confirmed']} confirmed, "
+                     f"{c['deleted']} deleted; at the end {c.get('final_confirmed', 0)} "
+                     f"confirmed, {c.get('final_tentative', 0)} tentative, "
+                     f"{c.get('final_prior', 0)} prior"))
     if data.tlog is not None:
         tl = data.tlog
         ids = ", ".join(f"{k} ({v.frames} frames)" for k, v in tl.systems.items())

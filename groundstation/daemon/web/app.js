@@ -32,7 +32,9 @@
     connections: 0,            // WebSocket connections opened (1 + reconnections)
     dirty: true,
     hover: false,              // pointer over the map
+    layers: { search: 0, confirmed: 0, tentative: 0, prior: 0 },  // drawn in the last frame
   };
+  const L = window.floeLayers;
 
   // ------------------------------------------------------------------ helpers
   const esc = (s) => String(s).replace(/[&<>"']/g, (c) => ({
@@ -167,6 +169,7 @@
     if (app.view.auto && !app.hover && app.mode === "select") fitView(false);
     updateVehicles(doc);
     updateTargets(doc);
+    $("track-counts").textContent = L.countsText(doc);
     app.dirty = true;
   }
 
@@ -278,15 +281,20 @@
 
   function updateTargets(doc) {
     const targets = Array.isArray(doc.targets) ? doc.targets : [];
+    const index = L.trackIndex(doc);
     if (app.selected !== null && !targets.some((t) => String(t.id) === app.selected)) {
       select(null);
     }
     keyedRows($("targets").tBodies[0], targets, () => {
       const row = document.createElement("tr");
-      row.innerHTML = "<td></td><td></td><td></td><td></td><td></td><td></td>";
+      row.innerHTML = "<td></td><td></td><td></td><td></td><td></td><td></td><td></td>";
       return row;
     }, (row, t) => {
       const c = row.cells;
+      const status = L.statusOf(index, t.id);
+      setCell(c[6], status === "confirmed" && !index.has(String(t.id)) ? "" : status);
+      row.classList.toggle("tentative", status === "tentative");
+      row.classList.toggle("prior", status === "prior");
       setCell(c[0], String(t.id));
       setCell(c[1], fmt(t.sigma, 1));
       setCell(c[2], num(t.sigma) ? fmt(Math.sqrt(Math.max(0, t.sigma)), 1) : "–");
@@ -360,6 +368,12 @@
       if (Array.isArray(v.aim)) add(v.aim[0], v.aim[1]);
     }
     for (const t of doc.targets || []) add(t.x_m, t.y_m);
+    for (const t of doc.tracks || []) add(t.x_m, t.y_m);
+    for (const c of doc.search_cells || []) {
+      if (!num(c.size_m)) continue;
+      add(c.x_m - c.size_m / 2, c.y_m - c.size_m / 2);
+      add(c.x_m + c.size_m / 2, c.y_m + c.size_m / 2);
+    }
     if (doc.boat) add(doc.boat.x_m, doc.boat.y_m);
     return pts;
   }
@@ -516,10 +530,16 @@
   }
 
   function drawTargets(doc, fov) {
+    const index = L.trackIndex(doc);
+    const drawn = new Set();
     for (const t of doc.targets || []) {
       if (!num(t.x_m) || !num(t.y_m)) continue;
+      const status = L.statusOf(index, t.id);
+      const style = L.STYLE[status];
+      drawn.add(String(t.id));
+      app.layers[status] += 1;
       const [sx, sy] = toScreen(t.x_m, t.y_m);
-      const colour = targetColour(t, fov);
+      const colour = style.colour || targetColour(t, fov);
       const e = ellipse(t);
       ctx.save();
       ctx.translate(sx, sy);
@@ -527,9 +547,9 @@
       ctx.beginPath();
       ctx.ellipse(0, 0, Math.max(3, e.r1 * app.view.scale), Math.max(3, e.r2 * app.view.scale),
                   0, 0, 2 * Math.PI);
-      ctx.fillStyle = colour + "22"; ctx.fill();
-      ctx.strokeStyle = colour; ctx.lineWidth = 1.5;
-      if (t.lost) ctx.setLineDash([5, 4]);
+      if (style.fill) { ctx.fillStyle = colour + "22"; ctx.fill(); }
+      ctx.strokeStyle = colour; ctx.lineWidth = style.fill ? 1.5 : 1.2;
+      ctx.setLineDash(t.lost ? [5, 4] : style.dash);
       ctx.stroke();
       ctx.restore();
       if (num(t.vx_m_s) && num(t.vy_m_s) && Math.hypot(t.vx_m_s, t.vy_m_s) > 1e-3) {
@@ -538,15 +558,20 @@
         const k = len < 14 ? 14 / Math.max(len, 1e-6) : 1;
         arrow(sx, sy, sx + (ex - sx) * k, sy + (ey - sy) * k, colour, 1.5);
       }
-      ctx.fillStyle = colour;
-      ctx.beginPath(); ctx.arc(sx, sy, 3.5, 0, 2 * Math.PI); ctx.fill();
+      L.marker(ctx, style.marker, sx, sy, colour);
       if (String(t.id) === app.selected) {
         ctx.strokeStyle = "#16324a"; ctx.lineWidth = 2;
         ctx.beginPath(); ctx.arc(sx, sy, 10, 0, 2 * Math.PI); ctx.stroke();
       }
-      ctx.fillStyle = "#1d2630";
-      ctx.font = "bold 12px system-ui, sans-serif";
-      ctx.fillText(String(t.id) + (t.lost ? " (lost)" : ""), sx + 7, sy - 7);
+      ctx.fillStyle = status === "tentative" ? "#6d7f90" : "#1d2630";
+      ctx.font = (status === "tentative" ? "" : "bold ") + "12px system-ui, sans-serif";
+      ctx.fillText(String(t.id) + (t.lost ? " (lost)" : status === "prior" ? " (prior)" : ""),
+                   sx + 7, sy - 7);
+    }
+    for (const [id, view] of index) {  // tracks the page has no target entry for
+      if (!drawn.has(id) && L.drawBareTrack(ctx, view, toScreen, app.view.scale)) {
+        app.layers[view.status] += 1;
+      }
     }
   }
 
@@ -661,6 +686,8 @@
         ctx.beginPath(); ctx.arc(cx, cy, doc.operating_radius_m * app.view.scale, 0, 2 * Math.PI);
         ctx.stroke(); ctx.setLineDash([]);
       }
+      app.layers = { search: 0, confirmed: 0, tentative: 0, prior: 0 };
+      app.layers.search = L.drawSearch(ctx, doc, toScreen, app.view.scale);
       drawBoat(doc);
       drawTargets(doc, fov);
       drawVehicles(doc, fov);
@@ -818,6 +845,7 @@
     get connected() { return app.wsOpen; },
     get connections() { return app.connections; },
     get mode() { return app.mode; },
+    get layers() { return Object.assign({}, app.layers); },
     windLabel,
     toScreen, toWorld,
   };
