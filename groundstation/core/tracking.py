@@ -60,18 +60,20 @@ class TrackBook:
         self._scans: dict[tuple[float, str], PendingScan] = {}
 
     # ------------------------------------------------------------------ lifecycle
-    def ensure(self) -> Tracker:
-        """The tracker, created (adopting every existing track as confirmed) if need be."""
+    def ensure(self, *, but: str | None = None) -> Tracker:
+        """The tracker, created (adopting every existing track but ``but`` as confirmed)
+        if need be."""
         if self.tracker is None:
             self.tracker = self._factory(self._observer, self._config)
             for track_id in self._observer.target_ids:
-                self.tracker.adopt(track_id, status=CONFIRMED, existence=1.0)
+                if track_id != but:
+                    self.tracker.adopt(track_id, status=CONFIRMED, existence=1.0)
         return self.tracker
 
     def adopt(self, track_id: str, *, prior: bool = False) -> None:
         """A track the core created (TargetAdded, labelled detection)."""
         if prior:
-            self.ensure().adopt(track_id, status=PRIOR, existence=0.5)
+            self.ensure(but=track_id).adopt(track_id, status=PRIOR, existence=0.5)
         elif self.tracker is not None:
             self.tracker.adopt(track_id, status=CONFIRMED, existence=1.0)
 
