@@ -7,12 +7,21 @@ One object per line, one or more lines per datagram (UTF-8, ``\\n``-separated)::
     {"v": 1, "kind": "boat", "time_s": 13.0, "vehicle": null, "target": null,
      "lat_deg": 78.92, "lon_deg": 11.90, "sigma_m": 0.0}
 
+    {"v": 1, "kind": "frame", "time_s": 12.5, "vehicle": 2, "target": null,
+     "lat_deg": 78.93, "lon_deg": 11.95, "sigma_m": 0.0, "radius_m": 150.0}
+
 ``time_s`` is the sender's clock (seconds; the simulator's mission time); ``vehicle`` the
 seeing vehicle's MAVLink system id (1-255) or null; ``target`` an id or null (the observer
 associates it); ``sigma_m`` the measurement's standard deviation per axis (m, >= 0).
+A ``frame`` line says the camera took a frame whose footprint is the disc of ``radius_m``
+(finite, > 0, at most ``MAX_FOOTPRINT_RADIUS_M``) around ``lat_deg, lon_deg``; its
+detections (none if it saw nothing) follow it in the same datagram with the same ``time_s``
+and ``vehicle``. A frame in view of a track without a detection of it is evidence that the
+track is not there. A frame's ``target`` is null; ``radius_m`` is ignored on other kinds.
 Other keys are ignored (forward compatibility); a missing or wrong required key, ``v`` other
-than 1, non-finite numbers, latitude/longitude out of range, bad UTF-8 or a line longer than
-``MAX_LINE_BYTES`` make the line **malformed**.
+than 1, non-finite numbers, latitude/longitude out of range, a frame without a finite
+positive ``radius_m`` or with a target, bad UTF-8 or a line longer than ``MAX_LINE_BYTES``
+make the line **malformed**.
 
 A well-formed line is then checked in time, per stream (``kind``, ``vehicle``):
 
@@ -29,6 +38,7 @@ order above, so each dropped line counts once.
 from __future__ import annotations
 
 import asyncio
+import dataclasses
 import json
 import logging
 import math
@@ -46,6 +56,7 @@ __all__ = [
     "FeedError",
     "FeedFilter",
     "encode_detection",
+    "encode_frame",
     "parse_line",
 ]
 
@@ -53,7 +64,9 @@ log = logging.getLogger(__name__)
 
 DEFAULT_ADDRESS = ("127.0.0.1", 14600)
 MAX_LINE_BYTES = 4096
-KINDS = ("detection", "boat")
+KINDS = ("detection", "boat", "frame")
+MAX_FOOTPRINT_RADIUS_M = 10_000.0
+"""A frame's ``radius_m`` above this is garbage (a camera at 120 m sees ~150 m around)."""
 
 
 class FeedError(DataError):
@@ -62,7 +75,7 @@ class FeedError(DataError):
 
 @dataclass(frozen=True)
 class FeedDetection:
-    """One accepted line of the feed."""
+    """One accepted line of the feed (``radius_m``: a frame's footprint, else None)."""
 
     time_s: float
     kind: str
@@ -71,6 +84,7 @@ class FeedDetection:
     lat_deg: float
     lon_deg: float
     sigma_m: float
+    radius_m: float | None = None
 
 
 @dataclass
@@ -143,7 +157,7 @@ def parse_line(line: bytes | str) -> FeedDetection:
     kind = obj.get("kind")
     if kind not in KINDS:
         raise FeedError(f"kind: expected one of {', '.join(KINDS)}")
-    return FeedDetection(
+    det = FeedDetection(
         time_s=_finite(obj, "time_s"),
         kind=str(kind),
         vehicle=_vehicle(obj.get("vehicle")),
@@ -152,18 +166,38 @@ def parse_line(line: bytes | str) -> FeedDetection:
         lon_deg=_finite(obj, "lon_deg", -180.0, 180.0),
         sigma_m=_finite(obj, "sigma_m", 0.0, math.inf),
     )
+    if kind != "frame":
+        return det
+    if det.target is not None:
+        raise FeedError("target: must be null for a frame")
+    radius_m = _finite(obj, "radius_m", 0.0, MAX_FOOTPRINT_RADIUS_M)
+    if radius_m <= 0.0:
+        raise FeedError("radius_m: must be > 0 for a frame")
+    return dataclasses.replace(det, radius_m=radius_m)
 
 
 def encode_detection(time_s: float, lat_deg: float, lon_deg: float, *,
                      kind: str = "detection", vehicle: int | None = None,
-                     target: str | None = None, sigma_m: float = 0.0) -> bytes:
+                     target: str | None = None, sigma_m: float = 0.0,
+                     radius_m: float | None = None) -> bytes:
     """One feed line (with its ``\\n``) for senders; raises :class:`FeedError` on values the
-    receiver would drop as malformed."""
-    line = (json.dumps({"v": 1, "kind": kind, "time_s": time_s, "vehicle": vehicle,
-                        "target": target, "lat_deg": lat_deg, "lon_deg": lon_deg,
-                        "sigma_m": sigma_m}, allow_nan=True) + "\n").encode("utf-8")
+    receiver would drop as malformed. ``radius_m`` is written when given (frames need it)."""
+    obj: dict[str, Any] = {"v": 1, "kind": kind, "time_s": time_s, "vehicle": vehicle,
+                           "target": target, "lat_deg": lat_deg, "lon_deg": lon_deg,
+                           "sigma_m": sigma_m}
+    if radius_m is not None:
+        obj["radius_m"] = radius_m
+    line = (json.dumps(obj, allow_nan=True) + "\n").encode("utf-8")
     parse_line(line[:-1])  # same rules as the receiver
     return line
+
+
+def encode_frame(time_s: float, lat_deg: float, lon_deg: float, radius_m: float, *,
+                 vehicle: int | None = None) -> bytes:
+    """A ``frame`` line: the camera of ``vehicle`` took a frame of the disc of
+    ``radius_m`` around ``lat_deg, lon_deg`` at ``time_s`` (its detections follow)."""
+    return encode_detection(time_s, lat_deg, lon_deg, kind="frame", vehicle=vehicle,
+                            radius_m=radius_m)
 
 
 class FeedFilter:

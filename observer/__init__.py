@@ -5,11 +5,27 @@ from observer.config import ObserverConfig
 from observer.observer import Observer
 from observer.priority import boat_priority_q
 from observer.records import MeasurementOutcome, TrackSnapshot
+from observer.tracker import Tracker
+from observer.tracker_config import (
+    Footprint,
+    ScanDetection,
+    ScanResult,
+    TrackerConfig,
+    TrackEvent,
+    TrackRecord,
+)
 
 __all__ = [
+    "Footprint",
     "MeasurementOutcome",
     "Observer",
     "ObserverConfig",
+    "ScanDetection",
+    "ScanResult",
+    "TrackEvent",
+    "TrackRecord",
     "TrackSnapshot",
+    "Tracker",
+    "TrackerConfig",
     "boat_priority_q",
 ]

@@ -196,6 +196,71 @@ class KalmanTrack:
         self.sigma = float(self.p_view[0, 0] + self.p_view[1, 1])
         self.last_seen_s = t_s
 
+    def correct_pda(
+        self, t_s: float, zs: np.ndarray, betas: np.ndarray, r_m2: float
+    ) -> None:
+        """Probabilistic data association update at ``t_s`` (== self.t_s).
+
+        ``zs`` (k x 2) are the candidate measurements, ``betas`` (k) their association
+        probabilities, ``beta0 = 1 - sum(betas)`` the probability that none is the target's.
+        With ``nu_i = z_i - C x^-`` and the combined innovation ``nu = sum_i beta_i nu_i``::
+
+            x   = x^- + K nu                         (filterpy's update with z = C x^- + nu)
+            P   = beta0 P^- + (1 - beta0) P_c + K (sum_i beta_i nu_i nu_i' - nu nu') K'
+
+        where ``K`` and ``P_c`` (Joseph form, eq. (11)) are those of the ordinary update.
+        """
+        self.kf.x = self.x_view.copy()
+        self.kf.P = self.p_view.copy()
+        self.t_anchor_s = t_s
+        p_prior = self.kf.P
+        hx = (C @ self.kf.x).ravel()
+        nus = np.asarray(zs, dtype=float).reshape(-1, 2) - hx
+        b = np.asarray(betas, dtype=float).ravel()
+        beta0 = max(0.0, 1.0 - float(b.sum()))
+        nu = b @ nus
+        self.kf.update(hx + nu, R=r_m2 * np.eye(2))
+        k = self.kf.K
+        spread = (nus * b[:, None]).T @ nus - np.outer(nu, nu)
+        p = beta0 * p_prior + (1.0 - beta0) * self.kf.P + k @ spread @ k.T
+        self.kf.P = 0.5 * (p + p.T)
+        self.x_view = self.kf.x
+        self.p_view = self.kf.P
+        self.sigma = float(self.p_view[0, 0] + self.p_view[1, 1])
+        self.last_seen_s = t_s
+
+    def set_position_moments(self, t_s: float, mean_xy: np.ndarray, cov_xy: np.ndarray) -> None:
+        """Commit the estimate at ``t_s`` (== self.t_s) with new position moments
+        ``(m', P'_pp)``, carried to the velocity through the joint Gaussian (what a linear
+        update that moved the position marginal there would do)::
+
+            G = P[:, :2] P_pp^-1,   x' = x + G (m' - m),   P' = P + G (P'_pp - P_pp) G'
+        """
+        x = self.x_view
+        p = self.p_view
+        g = p[:, :2] @ np.linalg.inv(p[:2, :2])
+        dm = np.asarray(mean_xy, dtype=float).reshape(2, 1) - x[:2]
+        dp = np.asarray(cov_xy, dtype=float).reshape(2, 2) - p[:2, :2]
+        new_p = p + g @ dp @ g.T
+        self.kf.x = x + g @ dm
+        self.kf.P = 0.5 * (new_p + new_p.T)
+        self.t_anchor_s = t_s
+        self.x_view = self.kf.x
+        self.p_view = self.kf.P
+        self.sigma = float(self.p_view[0, 0] + self.p_view[1, 1])
+
+    def rewind_to(self, t_s: float) -> bool:
+        """Move the viewed estimate back to ``t_s`` if it is not before the committed time
+        (the view is a pure function of the committed state, so nothing is lost); returns
+        whether the track is now at ``t_s``."""
+        if t_s == self.t_s:
+            return True
+        if t_s < self.t_anchor_s or t_s > self.t_s:
+            return False
+        self.t_s = t_s
+        self._refresh_view()
+        return True
+
     # --- read-out -------------------------------------------------------------------------
     @property
     def state(self) -> tuple[float, float, float, float]:

@@ -33,6 +33,13 @@ class LinearTrack:
         if t_s > self.t_s:
             self.t_s = t_s
 
+    def rewind_to(self, t_s: float) -> bool:
+        """Move the estimate back to ``t_s`` if not before the last measurement."""
+        if t_s < self.t_ref_s or t_s > self.t_s:
+            return t_s == self.t_s
+        self.t_s = t_s
+        return True
+
     def set_process_noise(self, q_per_s: float) -> None:
         self.q_per_s = q_per_s
 

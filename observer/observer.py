@@ -24,6 +24,8 @@ import numbers
 from collections.abc import Mapping, Sequence
 from types import MappingProxyType
 
+import numpy as np
+
 from observer.config import ObserverConfig
 from observer.kalman_track import KalmanBatch, KalmanTrack, load_filterpy
 from observer.linear_track import LinearTrack
@@ -142,6 +144,31 @@ class Observer:
         del self._tracks[target_id]
         del self._ever_lost[target_id]
 
+    def set_position_moments(
+        self, target_id: str, t_s: float, mean_xy: np.ndarray, cov_xy: np.ndarray
+    ) -> None:
+        """Replace a Kalman track's position mean and covariance at ``t_s`` (negative
+        information from a frame that did not see it, :func:`observer.existence.
+        position_after_miss`); see :meth:`KalmanTrack.set_position_moments`. Linear-model
+        tracks are left alone. Raises KeyError if unknown."""
+        track = self._at(target_id, t_s)
+        if isinstance(track, KalmanTrack):
+            track.set_position_moments(track.t_s, mean_xy, cov_xy)
+            self._check_lost(target_id)
+
+    def take_over(self, target_id: str, source_id: str) -> None:
+        """``target_id``'s filter is replaced by ``source_id``'s (a newer estimate of the same
+        object), which stops being tracked; ``target_id`` keeps its process-noise intensity
+        and its ever-lost flag. Raises KeyError if either is unknown, ValueError if equal."""
+        target, source = self._get(target_id), self._get(source_id)
+        if target_id == source_id:
+            raise ValueError(f"cannot take over {target_id!r} by itself")
+        source.set_process_noise(target.q_per_s)
+        self._tracks[target_id] = source
+        del self._tracks[source_id]
+        del self._ever_lost[source_id]
+        self._check_lost(target_id)
+
     def set_process_noise(self, target_id: str, q_per_s: float) -> None:
         """Set a track's process-noise intensity (applies from its last committed time)."""
         q = _non_negative("q_per_s", q_per_s)
@@ -208,6 +235,96 @@ class Observer:
                 "unassociated", None, "no_track", None if best_id is None else best_d2
             )
         return self._accept(best_id, t, x, y, r, best_d2)
+
+    # --- associated updates (the multi-target tracker's path) ------------------------------
+    def estimates_at(
+        self, t_s: float, target_ids: Sequence[str]
+    ) -> tuple[list[str], np.ndarray, np.ndarray]:
+        """Predict every track to ``t_s`` and return, for the listed ids (unknown ones left
+        out), ``(ids, means (n x 2), covariances (n x 2 x 2))`` of their positions.
+
+        A track already past ``t_s`` is moved back to it when its committed time allows
+        (:meth:`KalmanTrack.rewind_to`: the view is a function of the committed state);
+        one committed after ``t_s`` (the grid or a later measurement) stays at its own time,
+        and :meth:`correct` / :meth:`correct_pda` apply the measurement there (an error of
+        ``v (t_track - t_s)``: the caller is late by less than a tick).
+        """
+        t = _finite("t_s", t_s)
+        self.predict_to(t)
+        ids: list[str] = []
+        means: list[tuple[float, float]] = []
+        covs: list[tuple[float, float, float]] = []
+        tracks = self._tracks
+        for tid in target_ids:
+            tr = tracks.get(tid)
+            if tr is None:
+                continue
+            if tr.t_s != t:
+                tr.rewind_to(t)
+            x, y, _, _ = tr.state
+            ids.append(tid)
+            means.append((x, y))
+            covs.append(tr.cov_xy)
+        mean_arr = np.array(means, dtype=float).reshape(-1, 2)
+        c = np.array(covs, dtype=float).reshape(-1, 3)
+        cov_arr = np.stack([c[:, 0], c[:, 1], c[:, 1], c[:, 2]], axis=1).reshape(-1, 2, 2)
+        return ids, mean_arr, cov_arr
+
+    def correct(self, target_id: str, t_s: float, x_m: float, y_m: float, r_m2: float) -> None:
+        """Apply a measurement already associated to ``target_id`` (no gate: the caller
+        associated it) at ``t_s`` (see :meth:`estimates_at` for a track already past it).
+        Counted ``accepted``. Raises KeyError (unknown id) or ValueError (bad value)."""
+        track = self._at(target_id, t_s)
+        r = _finite("r_m2", r_m2)
+        if r <= 0.0:
+            raise ValueError(f"r_m2 must be > 0, got {r_m2!r}")
+        x, y = _finite("x_m", x_m), _finite("y_m", y_m)
+        self._accept(target_id, track.t_s, x, y, r, math.nan)  # d2: the caller's gate
+
+    def correct_pda(
+        self,
+        target_id: str,
+        t_s: float,
+        zs: Sequence[Sequence[float]] | np.ndarray,
+        betas: Sequence[float] | np.ndarray,
+        r_m2: float,
+    ) -> None:
+        """Probabilistic data association update of a Kalman track at its current time
+        ``t_s``: measurements ``zs`` with association probabilities ``betas`` (the rest,
+        ``1 - sum(betas)``, is the probability that none is the target's), see
+        :meth:`KalmanTrack.correct_pda`. Counted ``accepted`` once. Raises KeyError or
+        ValueError (bad values, a linear-model track)."""
+        track = self._at(target_id, t_s)
+        if not isinstance(track, KalmanTrack):
+            raise ValueError("correct_pda needs the kalman model")
+        z = np.asarray(zs, dtype=float).reshape(-1, 2)
+        b = np.asarray(betas, dtype=float).ravel()
+        r = _finite("r_m2", r_m2)
+        if (
+            b.shape[0] != z.shape[0]
+            or not np.all(np.isfinite(z))
+            or not np.all(np.isfinite(b))
+            or np.any(b < 0.0)
+            or float(b.sum()) > 1.0 + 1e-9
+            or r <= 0.0
+        ):
+            raise ValueError("correct_pda: zs, betas (>= 0, sum <= 1) and r_m2 > 0 must match")
+        if z.shape[0] == 0 or float(b.sum()) <= 0.0:
+            return
+        track.correct_pda(track.t_s, z, b, r)
+        self._check_lost(target_id)
+        self._counters["accepted"] += 1
+
+    def _at(self, target_id: str, t_s: float) -> _Track:
+        """The track brought to ``t_s`` (forward, or back within its committed step); one
+        committed after ``t_s`` stays at its own time (see :meth:`estimates_at`)."""
+        track = self._get(target_id)
+        t = _finite("t_s", t_s)
+        if track.t_s < t:
+            track.predict_to(t)
+        elif track.t_s > t:
+            track.rewind_to(t)
+        return track
 
     def _accept(
         self, target_id: str, t: float, x: float, y: float, r: float, d2: float

@@ -10,7 +10,8 @@ A scenario attribute ``faults`` (a list of ``--fault`` specs), if the scenario f
 one, is added as is. Without a scenario: origin = home, no world (no detection feed),
 vehicles start at home with headings spread over the circle, calm air. The vehicles fly in
 ``WindField(wind, seed)`` (:mod:`sitl.sim_wind`): the scenario's wind unless the caller
-gives another (``--wind``), and the seed the detection feed draws the icebergs with.
+gives another (``--wind``), and the seed the detection feed draws the icebergs with. The feed
+sends frame lines unless the scenario's camera is the paper's (``CameraSpec.classic``).
 """
 
 from __future__ import annotations
@@ -125,8 +126,10 @@ def scenario_setup(
     specs, skipped = _event_faults(scenario, count)
     specs += [str(spec) for spec in getattr(scenario, "faults", ()) or ()]
 
+    frames = not scenario.camera.classic  # the paper's camera: no frame lines, as before
+
     def factory(seed: int, anonymous: bool) -> DetectionFeed:
-        return DetectionFeed.for_scenario(scenario, seed, origin, anonymous)
+        return DetectionFeed.for_scenario(scenario, seed, origin, anonymous, frames=frames)
 
     return SitlSetup(
         origin,

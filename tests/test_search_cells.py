@@ -38,7 +38,7 @@ def test_cells_tile_the_area_and_values_grow_and_reset_when_covered() -> None:
     assert grid.value_m2("S3-7", 30.0) == pytest.approx(50.0 * 10.0)
     top = grid.top(30.0)
     assert len(top) == 4 and "S3-7" not in {c.id for c in top}
-    assert [c.id for c in grid.top(30.0, exclude={top[0].id})][0] == top[1].id
+    assert next(c.id for c in grid.top(30.0, exclude={top[0].id})) == top[1].id
     assert grid.cover(40.0, float("nan"), 0.0, 150.0) == 0
 
 

@@ -11,10 +11,20 @@ importing the simulator. See ``sitl/faults.py`` for what each kind does.
 
 from __future__ import annotations
 
+from typing import Any
+
 from domain.errors import ConfigError
 from domain.modes import ArduPlaneMode
+from world.yaml_fields import FieldError
 
-__all__ = ["FAULT_KINDS", "SIM_MODES", "FaultError", "fault_mode", "parse_fault_spec"]
+__all__ = [
+    "FAULT_KINDS",
+    "SIM_MODES",
+    "FaultError",
+    "fault_mode",
+    "parse_fault_spec",
+    "parse_scenario_faults",
+]
 
 FAULT_KINDS = ("loss", "dup", "reorder", "delay", "drop", "kill", "reboot", "mode", "battery")
 SIM_MODES = {m.name: int(m) for m in ArduPlaneMode if m <= 16 and m != 14}
@@ -121,3 +131,18 @@ def _validate(kind: str, options: dict[str, str], spec: str) -> None:
         and not (options["mode"].isdigit() and int(options["mode"]) in SIM_MODES.values())
     ):
         raise FaultError(f"fault {spec!r}: unknown mode {options['mode']!r}")
+
+
+def parse_scenario_faults(items: list[Any]) -> tuple[str, ...]:
+    """``--fault`` specs (``VEHICLES:KIND[:key=value,...]``) applied by the MAVLink simulator
+    (``gcs sitl``, ``gcs run --vehicles sim:N``); the offline simulator has no links."""
+    specs: list[str] = []
+    for i, item in enumerate(items):
+        if not isinstance(item, str):
+            raise FieldError(f"faults[{i}]", f"must be a fault spec string, got {item!r}")
+        try:
+            parse_fault_spec(item, 255)
+        except FaultError as exc:
+            raise FieldError(f"faults[{i}]", str(exc)) from exc
+        specs.append(item)
+    return tuple(specs)

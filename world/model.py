@@ -13,11 +13,25 @@ Iceberg dynamics per step ``dt`` (the observer's constant-velocity model, eq. (3
 
 Boat: fixed course, ``p <- p + speed (cos psi, sin psi) dt``.
 
-Camera: at every tick ``t = k / rate_hz`` each UAV measures every iceberg within
-``fov_radius_m`` (horizontal distance) of it: ``z = p + n``, ``n ~ N(0, r I)``.
-:meth:`World.observe` is meant to be called after each :meth:`World.step`; it returns the
-measurements of the camera tick reached since the previous call (at most one tick per call),
-stamped with the current ``t_s`` (the tick itself when the step divides the camera period).
+Camera: at every tick ``t = k / rate_hz`` each UAV takes one frame of the disc of radius
+``fov_radius_m`` (horizontal distance) around it. Each iceberg in the disc is detected with
+probability ``pd`` and measured ``z = p + n``, ``n ~ N(0, r I)``; then ``N ~ Poisson(lambda)``
+false alarms (``lambda = clutter_per_frame``) fall uniformly over the disc
+(``rho = R sqrt(u1)``, ``theta = 2 pi u2``), reported with the same variance ``r``. A labelled
+camera reports the iceberg's id (``Measurement.target``), an unlabelled one ``None`` and
+lists the frame's detections sorted by measured position, so their order says nothing about
+the truth; ``Measurement.truth`` always holds the true iceberg (``None`` for a false alarm).
+:meth:`World.observe_frames` is meant to be called after each :meth:`World.step`; it returns
+the frames of the camera tick reached since the previous call (at most one tick per call;
+one frame per vehicle, even without a detection), stamped with the current ``t_s`` (the tick
+itself when the step divides the camera period). :meth:`World.observe` is the same tick as
+a flat list of measurements.
+
+Random streams: the noise comes from the camera's generator as it always has; the
+detection draws (one uniform per iceberg in view, only if ``pd < 1``) and the false alarms
+(only if ``clutter_per_frame > 0``) come from two generators spawned from the camera's
+(``Generator.spawn`` does not advance it). So the paper's camera (``pd = 1``, no clutter)
+draws exactly what it drew before these faults existed.
 """
 
 from __future__ import annotations
@@ -55,30 +69,57 @@ class Boat:
 
 @dataclass(frozen=True)
 class Measurement:
-    """One camera measurement of one iceberg by one vehicle."""
+    """One camera measurement by one vehicle: ``target`` is what the camera reports (the
+    iceberg's id if labelled, else None), ``truth`` the iceberg really seen (None for a
+    false alarm, whose ``true_x_m, true_y_m`` is the false alarm's own point)."""
 
     t_s: float
     vehicle: str
-    target: str
+    target: str | None
     x_m: float
     y_m: float
     r_m2: float
     true_x_m: float
     true_y_m: float
+    truth: str | None = None
+
+
+@dataclass(frozen=True)
+class Frame:
+    """One camera frame: the footprint disc (centre, radius) and what was reported in it."""
+
+    t_s: float
+    vehicle: str
+    x_m: float
+    y_m: float
+    radius_m: float
+    detections: tuple[Measurement, ...]
 
 
 class Camera:
-    """Down-looking camera: footprint radius, frame rate, noise variance per axis."""
+    """Down-looking camera: footprint radius, frame rate, noise variance per axis, and its
+    faults (module docstring). The defaults are the paper's camera: never misses, never
+    lies, labelled (a scenario's ``camera:`` defaults to unlabelled: see
+    ``world.discovery_spec.scenario_camera``)."""
 
-    def __init__(self, fov_radius_m: float = 150.0, rate_hz: float = 2.0, r_m2: float = 5.0):
+    def __init__(self, fov_radius_m: float = 150.0, rate_hz: float = 2.0, r_m2: float = 5.0,
+                 *, pd: float = 1.0, clutter_per_frame: float = 0.0, labelled: bool = True):
         for name, value in (("fov_radius_m", fov_radius_m), ("rate_hz", rate_hz)):
             if not math.isfinite(value) or value <= 0.0:
                 raise ValueError(f"Camera.{name} must be finite and > 0, got {value!r}")
         if not math.isfinite(r_m2) or r_m2 < 0.0:
             raise ValueError(f"Camera.r_m2 must be finite and >= 0, got {r_m2!r}")
+        if not (math.isfinite(pd) and 0.0 < pd <= 1.0):
+            raise ValueError(f"Camera.pd must be in (0, 1], got {pd!r}")
+        if not (math.isfinite(clutter_per_frame) and clutter_per_frame >= 0.0):
+            raise ValueError(
+                f"Camera.clutter_per_frame must be finite and >= 0, got {clutter_per_frame!r}")
         self.fov_radius_m = float(fov_radius_m)
         self.rate_hz = float(rate_hz)
         self.r_m2 = float(r_m2)
+        self.pd = float(pd)
+        self.clutter_per_frame = float(clutter_per_frame)
+        self.labelled = bool(labelled)
 
     def tick(self, t_s: float) -> int:
         """Index of the last camera tick at or before ``t_s``: ``floor(t rate)``."""
@@ -115,6 +156,7 @@ class World:
         self.camera = camera
         self._rng = rng
         (self._camera_rng,) = rng.spawn(1)
+        self._detect_rng, self._clutter_rng = self._camera_rng.spawn(2)
         self.icebergs: dict[str, Iceberg] = {}
         self._iceberg_rngs: dict[str, np.random.Generator] = {}
         self._last_tick: int | None = None
@@ -155,7 +197,12 @@ class World:
         self.t_s += dt_s
 
     def observe(self, uav_positions: Mapping[str, Sequence[float]]) -> list[Measurement]:
-        """Measurements due at the current time (empty between camera ticks).
+        """Measurements due at the current time (empty between camera ticks): the
+        detections of :meth:`observe_frames`, frame after frame."""
+        return [m for frame in self.observe_frames(uav_positions) for m in frame.detections]
+
+    def observe_frames(self, uav_positions: Mapping[str, Sequence[float]]) -> list[Frame]:
+        """Frames due at the current time (empty between camera ticks), one per vehicle.
 
         ``uav_positions`` maps a vehicle name to its position ``(x_m, y_m, ...)``; only the
         horizontal coordinates matter. Vehicles and icebergs are visited in sorted order, so
@@ -165,29 +212,48 @@ class World:
         if self._last_tick is not None and tick <= self._last_tick:
             return []
         self._last_tick = tick
-        out: list[Measurement] = []
-        fov2 = self.camera.fov_radius_m**2
-        sd = math.sqrt(self.camera.r_m2)
+        radius_m = self.camera.fov_radius_m
+        frames: list[Frame] = []
         for vehicle in sorted(uav_positions):
             pos = uav_positions[vehicle]
             ux, uy = float(pos[0]), float(pos[1])
-            for iid in sorted(self.icebergs):
-                ice = self.icebergs[iid]
-                if (ice.x_m - ux) ** 2 + (ice.y_m - uy) ** 2 > fov2:
-                    continue
-                n = self._camera_rng.normal(0.0, sd, size=2)
-                out.append(
-                    Measurement(
-                        t_s=self.t_s,
-                        vehicle=vehicle,
-                        target=iid,
-                        x_m=ice.x_m + float(n[0]),
-                        y_m=ice.y_m + float(n[1]),
-                        r_m2=self.camera.r_m2,
-                        true_x_m=ice.x_m,
-                        true_y_m=ice.y_m,
-                    )
-                )
+            detections = self._detections(vehicle, ux, uy) + self._clutter(vehicle, ux, uy)
+            if not self.camera.labelled:
+                detections.sort(key=lambda m: (m.x_m, m.y_m))
+            frames.append(Frame(self.t_s, vehicle, ux, uy, radius_m, tuple(detections)))
+        return frames
+
+    def _detections(self, vehicle: str, ux: float, uy: float) -> list[Measurement]:
+        camera = self.camera
+        fov2 = camera.fov_radius_m**2
+        sd = math.sqrt(camera.r_m2)
+        out: list[Measurement] = []
+        for iid in sorted(self.icebergs):
+            ice = self.icebergs[iid]
+            if (ice.x_m - ux) ** 2 + (ice.y_m - uy) ** 2 > fov2:
+                continue
+            if camera.pd < 1.0 and self._detect_rng.random() >= camera.pd:
+                continue
+            n = self._camera_rng.normal(0.0, sd, size=2)
+            out.append(Measurement(
+                t_s=self.t_s, vehicle=vehicle, target=iid if camera.labelled else None,
+                x_m=ice.x_m + float(n[0]), y_m=ice.y_m + float(n[1]), r_m2=camera.r_m2,
+                true_x_m=ice.x_m, true_y_m=ice.y_m, truth=iid,
+            ))
+        return out
+
+    def _clutter(self, vehicle: str, ux: float, uy: float) -> list[Measurement]:
+        """False alarms: Poisson count, uniform over the footprint disc."""
+        camera = self.camera
+        if camera.clutter_per_frame <= 0.0:
+            return []
+        out: list[Measurement] = []
+        for _ in range(int(self._clutter_rng.poisson(camera.clutter_per_frame))):
+            u = self._clutter_rng.random(2)
+            rho = camera.fov_radius_m * math.sqrt(float(u[0]))
+            theta = 2.0 * math.pi * float(u[1])
+            x, y = ux + rho * math.cos(theta), uy + rho * math.sin(theta)
+            out.append(Measurement(self.t_s, vehicle, None, x, y, camera.r_m2, x, y, None))
         return out
 
     def true_positions(self) -> dict[str, tuple[float, float]]:

@@ -2,7 +2,9 @@
 
 A scenario is a YAML file a user can copy and edit. The bundled ones live in
 ``world/scenarios/`` and are addressed by name (``paper-boat``, ``svalbard-2015``, ...);
-anything else is a path. Unknown or invalid fields are errors naming the field.
+anything else is a path. Unknown or invalid fields are errors naming the field. The fields
+of discovery (``camera``, ``targets.known``, ``area``, ``prior``, ``tracker``, ``search``) are
+parsed by world/discovery_spec.py.
 
 Frames: local ENU metres around ``origin``, headings in radians counter-clockwise from east.
 """
@@ -26,7 +28,8 @@ from domain.limits import (
     MAX_SPEED_M_S,
     MAX_TARGETS,
 )
-from world.fault_spec import FaultError, parse_fault_spec
+from world.discovery_spec import AreaSpec, CameraSpec, PriorSpec, SearchSpec, parse_discovery
+from world.fault_spec import parse_scenario_faults
 from world.wind import MAX_WIND_M_S, WindSpec
 from world.yaml_fields import FieldError, Fields, load_yaml_file, load_yaml_text
 
@@ -181,6 +184,12 @@ class Scenario:
     faults: tuple[str, ...] = field(default=())
     source: str = ""
     wind: WindSpec = field(default_factory=WindSpec)
+    camera: CameraSpec = field(default_factory=CameraSpec)  # world/discovery_spec.py
+    targets_known: bool = True
+    area: AreaSpec | None = None
+    prior: PriorSpec | None = None
+    tracker: dict[str, float | int | str] = field(default_factory=dict)
+    search: SearchSpec | None = None
 
     def launch_point(self) -> tuple[float, float]:
         """Where the UAVs start: the given point, else the boat, else the origin."""
@@ -250,15 +259,18 @@ def parse_scenario(data: Any, *, source: str = "") -> Scenario:
     fleet = _parse_fleet(top.sub("fleet"))
     boat = _parse_boat(top.sub("boat")) if top.has("boat") else None
     top.raw("boat")
-    targets, random_targets = _parse_targets(top.sub("targets"))
+    targets_f = top.sub("targets")
+    targets_known = targets_f.boolean("known", True)
+    targets, random_targets = _parse_targets(targets_f)
     observer = _parse_observer(top.sub("observer"))
     planner = _parse_planner(top.sub("planner"))
     policy = _parse_policy(top.sub("policy"))
     events = tuple(
         _parse_event(Fields(item, f"events[{i}]")) for i, item in enumerate(top.items("events"))
     )
-    faults = _parse_faults(top.items("faults"))
+    faults = parse_scenario_faults(top.items("faults"))
     wind = _parse_wind(top.sub("wind"))
+    more = parse_discovery(top, len(targets) + (random_targets.count if random_targets else 0))
     top.done()
     ids = [t.id for t in targets] + [e.target.id for e in events if e.target is not None]
     duplicates = sorted({i for i in ids if ids.count(i) > 1})
@@ -282,22 +294,13 @@ def parse_scenario(data: Any, *, source: str = "") -> Scenario:
         faults=faults,
         source=source,
         wind=wind,
+        camera=more.camera,
+        targets_known=targets_known,
+        area=more.area,
+        prior=more.prior,
+        tracker=more.tracker,
+        search=more.search,
     )
-
-
-def _parse_faults(items: list[Any]) -> tuple[str, ...]:
-    """``--fault`` specs (``VEHICLES:KIND[:key=value,...]``) applied by the MAVLink simulator
-    (``gcs sitl``, ``gcs run --vehicles sim:N``); the offline simulator has no links."""
-    specs: list[str] = []
-    for i, item in enumerate(items):
-        if not isinstance(item, str):
-            raise FieldError(f"faults[{i}]", f"must be a fault spec string, got {item!r}")
-        try:
-            parse_fault_spec(item, 255)
-        except FaultError as exc:
-            raise FieldError(f"faults[{i}]", str(exc)) from exc
-        specs.append(item)
-    return tuple(specs)
 
 
 def resolve_targets(scenario: Scenario, rng: np.random.Generator) -> list[TargetSpec]:

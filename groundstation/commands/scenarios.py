@@ -10,7 +10,9 @@ from world.scenario import bundled_scenarios, load_scenario
 def run(argv: list[str]) -> int:
     parser = argparse.ArgumentParser(prog="gcs scenarios", description=__doc__)
     parser.parse_args(argv)
-    for name in bundled_scenarios():
+    names = bundled_scenarios()
+    width = max([16, *(len(name) for name in names)])
+    for name in names:
         scenario = load_scenario(name)
-        print(f"{name:<16} {scenario.description}")
+        print(f"{name:<{width}} {scenario.description}")
     return 0
