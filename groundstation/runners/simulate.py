@@ -66,8 +66,8 @@ from groundstation.core.scenario_config import core_config_for
 from groundstation.runners.sim_discovery import Discovery, discovery_mode
 from groundstation.runners.sim_vehicle import OfflineVehicle
 from planner import solve_plan
-from world.dynamics import UavState
 from world.discovery_spec import scenario_camera
+from world.dynamics import UavState
 from world.model import Boat, Iceberg, World
 from world.scenario import Scenario, ScriptedEvent, resolve_targets
 from world.wind import WindField, WindSpec
