@@ -333,6 +333,8 @@ class _Simulation:
             if on_second and not self.scenario.wind.calm:
                 self.report_wind(t_s)
             self.feed(Tick(t_s))
+            for hit_t_s, hit_vehicle, track in self.core.scan_hits:
+                self.metrics.seen(hit_t_s, hit_vehicle, track)  # unlabelled: the tracker's
             if on_second:
                 self.sample(t_s)
                 next_sample_s += 1.0
