@@ -19,6 +19,11 @@ from planner.instance import Instance
 
 Routes = list[list[int]]
 _EPS = 1e-9
+MAX_DESCENT_MOVES = 20_000
+"""A descent stops after this many improving moves. With tied values (identical sigmas)
+and objectives of order 1e6, rounding noise above ``_EPS`` can make a chain move back to
+where it came from forever (measured: a 13-target discovery problem never ended in
+deterministic mode, which has no clock to stop it); converging descents make far fewer."""
 
 
 class RouteCoster:
@@ -125,11 +130,17 @@ class LocalSearch:
         self.inst = inst
         self.coster = RouteCoster(inst)
         self.rng = random.Random(seed)
-        self.should_stop = should_stop or (lambda: False)
+        self._caller_stop = should_stop or (lambda: False)
+        self._move_cap = MAX_DESCENT_MOVES
         self.moves = 0  # improving moves applied (tests: the deadline is polled)
+
+    def should_stop(self) -> bool:
+        """The caller's stop, or this descent's move budget spent."""
+        return self._caller_stop() or self.moves >= self._move_cap
 
     # -- descent -------------------------------------------------------------------------
     def descend(self, routes: Routes) -> Routes:
+        self._move_cap = self.moves + MAX_DESCENT_MOVES
         routes = [list(r) for r in routes]
         costs = [self.coster.cost(u, r) for u, r in enumerate(routes)]
         improved = True
@@ -164,7 +175,8 @@ class LocalSearch:
                     delta, v, p = best_insertion(coster, routes, costs, option)
                     if delta < best[0]:
                         best = (delta, v, p, option)
-                if best[1] >= 0:
+                if best[1] >= 0 and not (best[1] == u and best[2] == pos and best[3] == chain):
+                    # (putting the chain back where it was is no move, whatever rounding says)
                     v, p, option = best[1], best[2], best[3]
                     routes[v] = routes[v][:p] + option + routes[v][p:]
                     costs[v] = coster.cost(v, routes[v])
@@ -295,7 +307,7 @@ class LocalSearch:
         current, current_cost = best, best_cost
         since = 0
         for _ in range(iterations):
-            if self.should_stop():
+            if self._caller_stop():
                 break
             if patience is not None and since >= patience:
                 break

@@ -18,6 +18,12 @@ A vehicle flies to where its first target is predicted to be on arrival
 (:mod:`~groundstation.core.intercept`); the command carries the predicted arrival ``eta``.
 The planning problem is built by :mod:`~groundstation.core.planning_targets`.
 
+Unlabelled detections are buffered per camera frame and scanned by the tracker at the next
+tick (:mod:`~groundstation.core.tracking`); its births, confirmations and deletions are
+``track_*`` notes; a deleted track leaves the plan like a removed target.
+Search cells (``planner/search_cells.py``) are covered by ``CameraFrame`` footprints and
+planned as targets at their centres.
+
 Wind: the vehicles' ``WindReport`` inputs are combined into one estimate
 (:mod:`~groundstation.core.wind_estimate`: median over the active vehicles' fresh reports,
 else the configured fallback), recomputed on every report and tick; a meaningful change is
@@ -80,6 +86,7 @@ class DecisionCore:
             x0, x1, y0, y1 = config.area_m
             self.search = SearchGrid(_Area(x0, x1, y0, y1), config.search)
         self._prior_points: dict[str, tuple[float, float]] = {}
+        self.scan_hits: list[tuple[float, str, str]] = []  # (t_s, vehicle, track): last tick
         self.vehicles: dict[str, VehicleRecord] = {}
         self.t_s = 0.0
         self.last_result: PlanResult | None = None
@@ -438,8 +445,10 @@ class DecisionCore:
         confirmation or deletion marks the plan dirty, a deleted track leaves the observer
         and frees its vehicles (as ``TargetRemoved``)."""
         out: list[Command] = []
-        for scan, events in self.tracks.process(t_s):
+        self.scan_hits = []
+        for scan, events, hits in self.tracks.process(t_s):
             self._count("scans")
+            self.scan_hits += [(scan.t_s, scan.vehicle, track) for track in hits]
             for ev in events:
                 out.append(Note(ev.t_s, f"track_{ev.kind}", scan.vehicle or None, ev.track_id,
                                 ev.reason))

@@ -7,7 +7,8 @@ else):
 * **confirmed and prior tracks**: their uncertainty ``sigma = trace(P_xy)``, as in the
   paper (every track is confirmed while there is no tracker, so labelled runs plan exactly
   as before);
-* **tentative tracks**: a confirmation visit, worth
+* **tentative tracks**: a confirmation visit, worth (``tentative_weight`` is 0 by
+  default, measured: see ``CoreConfig.tentative_weight``; then they are not planned)
   ``sigma_plan = tentative_weight * max(sigma, mean sigma of the confirmed and prior
   tracks)`` (their own sigma right after birth is the camera's noise, a few m^2, which the
   planner's 10 % rule would drop: a tentative track is as urgent as an average track, since

@@ -140,9 +140,10 @@ class TrackBook:
     def pending(self) -> int:
         return len(self._scans)
 
-    def process(self, t_s: float) -> list[tuple[PendingScan, tuple[TrackEvent, ...]]]:
+    def process(self, t_s: float
+                ) -> list[tuple[PendingScan, tuple[TrackEvent, ...], tuple[str, ...]]]:
         """Scan every buffered frame with ``t_s`` at or before ``t_s``, in order; each
-        scan with the tracker's events."""
+        scan with the tracker's events and the tracks its detections were assigned to."""
         due = sorted(key for key in self._scans if key[0] <= t_s)
         if not due:
             return []
@@ -152,5 +153,6 @@ class TrackBook:
             scan = self._scans.pop(key)
             footprint = None if scan.labelled else scan.footprint
             result = tracker.scan(scan.t_s, scan.vehicle, footprint, scan.detections)
-            out.append((scan, tuple(result.events)))
+            hits = tuple(sorted(set(result.assigned.values())))
+            out.append((scan, tuple(result.events), hits))
         return out

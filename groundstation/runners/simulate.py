@@ -66,8 +66,9 @@ from groundstation.core.scenario_config import core_config_for
 from groundstation.runners.sim_discovery import Discovery, discovery_mode
 from groundstation.runners.sim_vehicle import OfflineVehicle
 from planner import solve_plan
+from world.discovery_spec import scenario_camera
 from world.dynamics import UavState
-from world.model import Boat, Camera, Iceberg, World
+from world.model import Boat, Iceberg, World
 from world.scenario import Scenario, ScriptedEvent, resolve_targets
 from world.wind import WindField, WindSpec
 
@@ -153,8 +154,7 @@ class _Simulation:
         self.discovery = (Discovery(scenario, options.seed, targets)
                           if discovery_mode(scenario) else None)
         boat = scenario.boat
-        camera = Camera(scenario.fleet.fov_radius_m, scenario.observer.camera_rate_hz,
-                        scenario.observer.r_m2)
+        camera = scenario_camera(scenario)
         self.world = World(
             [], Boat(boat.x_m, boat.y_m, boat.heading_rad, boat.speed_m_s) if boat else None,
             camera, self.rng,
@@ -333,6 +333,8 @@ class _Simulation:
             if on_second and not self.scenario.wind.calm:
                 self.report_wind(t_s)
             self.feed(Tick(t_s))
+            for hit_t_s, hit_vehicle, track in self.core.scan_hits:
+                self.metrics.seen(hit_t_s, hit_vehicle, track)  # unlabelled: the tracker's
             if on_second:
                 self.sample(t_s)
                 next_sample_s += 1.0
