@@ -24,6 +24,10 @@ Per (scenario, fleet size, wind speed) it prints:
 * detections per visit (accepted measurements / visits), a measure of how long a loiter
   keeps its target in the camera's view.
 
+``--aware-part costs|intercept`` makes the aware run of each pair use the wind in its
+planning costs only, or in its intercept (aim points) only (``wind_parts.py``): which half
+of wind-awareness costs what (docs/wind.md, "Measured").
+
 ``--json FILE`` writes every run's figures (the arrival errors of every run included);
 ``--report FILE`` prints the tables again from such a file. ``--directions`` prints the
 10 m/s rows per wind direction too. The machine is shared: use ``nice -n 10``. On 2 cores
@@ -46,10 +50,11 @@ from dataclasses import replace
 from typing import Any
 
 from paper_study import paired
+from wind_parts import AWARE_PARTS, core_class
 
 from groundstation.core.arrivals import percentile
 
-Job = tuple[str, int, float, float, float, bool, int, float | None, str | None]
+Job = tuple[str, int, float, float, float, bool, int, float | None, str | None, str]
 
 SCENARIOS = ("paper-boat", "svalbard-2015")
 
@@ -62,7 +67,7 @@ def _one(job: Job) -> dict[str, Any]:
     from world.scenario import load_scenario
     from world.wind import WindSpec
 
-    scenario_name, uavs, speed, from_deg, gust, aware, seed, duration, objective = job
+    scenario_name, uavs, speed, from_deg, gust, aware, seed, duration, objective, part = job
     kept: list[Any] = []
 
     class Recorder(MetricsRecorder):
@@ -85,17 +90,20 @@ def _one(job: Job) -> dict[str, Any]:
     if objective is not None:
         planner = replace(planner, objective=objective)
     scenario = replace(scenario, wind=wind, planner=planner)
-    original = simulate.MetricsRecorder
+    original, original_core = simulate.MetricsRecorder, simulate.DecisionCore
     simulate.MetricsRecorder = Recorder  # type: ignore[misc, assignment]
+    simulate.DecisionCore = core_class(part) if aware else original_core  # type: ignore[misc]
     try:
         m = run_simulation(scenario, SimulationOptions(
             seed=seed, uavs=uavs, duration_s=duration, snapshot_times_s=(1.0,))).metrics
     finally:
         simulate.MetricsRecorder = original  # type: ignore[misc]
+        simulate.DecisionCore = original_core  # type: ignore[misc]
     recorder = kept[-1]
     return {
         "scenario": scenario_name, "uavs": uavs, "wind_m_s": speed, "from_deg": from_deg,
         "gust_m_s": gust, "aware": aware, "seed": seed, "objective": planner.objective,
+        "aware_part": part,
         "duration_s": m["duration_s"], "mean": m["mean_uncertainty"],
         "max": m["max_uncertainty"], "visits": len(m["visits"]),
         "accepted": recorder.accepted,
@@ -186,7 +194,8 @@ def jobs_for(args: argparse.Namespace) -> list[Job]:
                     for seed in range(args.first_seed, args.first_seed + args.seeds):
                         for aware in (True, False):
                             out.append((scenario, uavs, speed, from_deg, args.gust, aware,
-                                        seed, args.duration, args.objective))
+                                        seed, args.duration, args.objective,
+                                        args.aware_part))
     # the long runs first, so the pool's last minutes are not one svalbard run alone
     out.sort(key=lambda j: 0 if j[0] == "svalbard-2015" else 1)
     return out
@@ -204,6 +213,10 @@ def main() -> int:
     parser.add_argument("--first-seed", type=int, default=0)
     parser.add_argument("--duration", type=float, default=None)
     parser.add_argument("--objective", default=None, help="override the scenarios' objective")
+    parser.add_argument("--aware-part", default="all", choices=sorted(AWARE_PARTS),
+                        help="the aware run's use of the wind: all (the shipped core), costs "
+                        "(planner costs only, still-air intercept) or intercept (aim points "
+                        "only, still-air costs); benchmarks/wind_parts.py")
     parser.add_argument("--quick", action="store_true",
                         help="seeds 0-2, directions 90 and 270, winds 0 and 10 m/s")
     parser.add_argument("--directions", action="store_true",
