@@ -80,6 +80,7 @@ class _Life:
     hits: int
     born_s: float
     confirmed_s: float | None
+    keep: bool = False
 
 
 def _finite(v: object) -> bool:
@@ -106,9 +107,11 @@ class Tracker:
 
     # --- tracks made elsewhere ------------------------------------------------------------
     def adopt(self, track_id: str, status: str = "confirmed", existence: float | None = None,
-              t_s: float | None = None) -> None:
+              t_s: float | None = None, *, keep: bool = False) -> None:
         """Take over the lifecycle of ``track_id`` (already in the observer): ``confirmed``
         (default existence 1.0) or ``prior`` (default 0.5); capped at ``existence_max``.
+        ``keep``: an operator's target (announced, not found by the camera): its existence
+        is still updated, but missing evidence never deletes it; only the caller removes it.
 
         Raises:
             KeyError: not in the observer. ValueError: already adopted, or a bad value.
@@ -130,6 +133,7 @@ class Tracker:
             hits=0,
             born_s=born,
             confirmed_s=born if status == "confirmed" else None,
+            keep=keep,
         )
 
     def forget(self, track_id: str) -> None:
@@ -358,7 +362,7 @@ class Tracker:
             and existence >= cfg.existence_confirm_min
         ):
             self._confirm(tid, t, "prior_seen", confirmed)
-        elif existence < cfg.existence_delete:
+        elif existence < cfg.existence_delete and not life.keep:
             self._delete(tid, t, "not seen in view", deleted)
 
     def _merge(

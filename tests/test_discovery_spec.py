@@ -229,3 +229,18 @@ def test_campaign_overrides_reach_the_new_fields() -> None:
         parse_scenario(data, source=source)
     with pytest.raises(ScenarioError):
         load_scenario("/nonexistent/discovery.yaml")
+
+
+def test_prior_variance_grows_with_the_listings_age() -> None:
+    """``drift_m_s``: a listing ``age_s`` old is announced with variance
+    ``sigma_m^2 + (drift_m_s age_s)^2`` per axis; without it, ``sigma_m^2``."""
+    plain = scenario(prior={"listed": 4, "max_age_s": 600, "sigma_m": 30})
+    aged = scenario(prior={"listed": 4, "max_age_s": 600, "sigma_m": 30, "drift_m_s": 0.3})
+    targets = resolve_targets(aged, np.random.default_rng(2))
+    for p, a in zip(resolve_prior(plain, targets, 2), resolve_prior(aged, targets, 2),
+                    strict=True):
+        assert (p.x_m, p.y_m, p.age_s) == (a.x_m, a.y_m, a.age_s)  # same draws
+        assert p.variance_m2 == pytest.approx(900.0)
+        assert a.variance_m2 == pytest.approx(900.0 + (0.3 * a.age_s) ** 2)
+    with pytest.raises(FieldError, match="prior.drift_m_s"):
+        scenario(prior={"listed": 1, "drift_m_s": -1})

@@ -332,3 +332,19 @@ def test_tentative_tracks_never_looked_at_again_die_when_lost() -> None:
     assert deleted_at is not None and 30.0 < deleted_at < 120.0
     assert tracker.track_ids == ["A"]  # a confirmed track is never deleted for being vague
     assert tracker.observer.sigma("A") > sigma_lost
+
+
+def test_a_kept_track_loses_existence_in_view_but_is_never_deleted() -> None:
+    """``keep`` (an operator's target): the same misses that delete a plain confirmed track
+    lower its existence to the same value but leave it tracked and confirmed."""
+    tracker = make(pd=0.85)
+    for tid, keep in (("A", False), ("K", True)):
+        tracker.observer.add_target(tid, 0.0, 10.0, 0.0, p0=[4.0, 4.0, 0.01, 0.01])
+        tracker.adopt(tid, keep=keep)
+    deleted: list[str] = []
+    for k in range(1, 20):
+        res = tracker.scan(0.5 * k, "u1", Footprint(0.0, 0.0, RADIUS_M), [])
+        deleted += [e.track_id for e in res.events if e.kind == "deleted"]
+    assert deleted == ["A"]
+    assert tracker.status("K") == "confirmed" and "K" in tracker.observer.target_ids
+    assert tracker.existence("K") < 0.05

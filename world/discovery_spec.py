@@ -32,12 +32,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Protocol
 
 import numpy as np
 
-from domain.limits import MAX_COORDINATE_M, MAX_DURATION_S, MAX_TARGETS
+from domain.limits import MAX_COORDINATE_M, MAX_DURATION_S, MAX_SPEED_M_S, MAX_TARGETS
 from world.model import Camera
 from world.yaml_fields import FieldError, Fields, check_number
 
@@ -115,7 +115,12 @@ class AreaSpec:
 @dataclass(frozen=True)
 class PriorEntry:
     """One iceberg of the prior list: listed position, age of the listing (s), position
-    standard deviation per axis (m), and the true iceberg (None: a phantom)."""
+    standard deviation per axis (m), and the true iceberg (None: a phantom). ``drift_m_s``:
+    the standard deviation per axis of the drift the ground station assumes for a stale
+    listing, so the variance it announces per axis is::
+
+        variance_m2 = sigma_m^2 + (drift_m_s * age_s)^2
+    """
 
     id: str
     x_m: float
@@ -123,6 +128,12 @@ class PriorEntry:
     age_s: float
     sigma_m: float
     truth_id: str | None
+    drift_m_s: float = 0.0
+
+    @property
+    def variance_m2(self) -> float:
+        """The announced position variance per axis (m^2), the class docstring's."""
+        return self.sigma_m**2 + (self.drift_m_s * self.age_s) ** 2
 
 
 @dataclass(frozen=True)
@@ -135,6 +146,7 @@ class PriorSpec:
     phantoms: int = 0
     sigma_m: float = 30.0
     entries: tuple[PriorEntry, ...] = ()
+    drift_m_s: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -255,6 +267,7 @@ def parse_prior(f: Fields, area: AreaSpec | None, target_count: int) -> PriorSpe
     """``prior:``; ``target_count`` is the scenario's listed plus random icebergs."""
     sigma_m = f.number("sigma_m", 30.0, minimum=0.0, exclusive_minimum=True,
                        maximum=MAX_COORDINATE_M)
+    drift_m_s = f.number("drift_m_s", 0.0, minimum=0.0, maximum=MAX_SPEED_M_S)
     items = f.items("list")
     if items:
         for key in ("listed", "max_age_s", "phantoms"):
@@ -267,12 +280,13 @@ def parse_prior(f: Fields, area: AreaSpec | None, target_count: int) -> PriorSpe
         if twice:
             raise FieldError(f.path_of("list"), f"duplicate id {twice[0]!r}")
         f.done()
-        return PriorSpec(sigma_m=sigma_m, entries=entries)
+        return PriorSpec(sigma_m=sigma_m, entries=entries, drift_m_s=drift_m_s)
     spec = PriorSpec(
         listed=f.integer("listed", 0, minimum=0, maximum=MAX_TARGETS),
         max_age_s=f.number("max_age_s", 0.0, minimum=0.0, maximum=MAX_DURATION_S),
         phantoms=f.integer("phantoms", 0, minimum=0, maximum=MAX_TARGETS),
         sigma_m=sigma_m,
+        drift_m_s=drift_m_s,
     )
     if spec.listed > target_count:
         raise FieldError(f.path_of("listed"),
@@ -373,7 +387,7 @@ def resolve_prior(scenario: _Scenario, targets: Sequence[_Target], seed: int
             if entry.truth_id is not None and entry.truth_id not in ids:
                 raise FieldError(f"prior.list[{i}].truth",
                                  f"names no iceberg of the scenario: {entry.truth_id!r}")
-        return list(spec.entries)
+        return [replace(entry, drift_m_s=spec.drift_m_s) for entry in spec.entries]
     rng = np.random.default_rng([int(seed), PRIOR_STREAM])
     present = [t for t in targets if t.appear_s <= 0.0]
     count = min(spec.listed, len(present))
@@ -393,7 +407,8 @@ def resolve_prior(scenario: _Scenario, targets: Sequence[_Target], seed: int
                        float(rng.uniform(area.y_min_m, area.y_max_m)),
                        float(rng.uniform(0.0, spec.max_age_s)), None))
     order = rng.permutation(len(drafts))
-    return [PriorEntry(f"P{k + 1}", *drafts[int(i)][:3], spec.sigma_m, drafts[int(i)][3])
+    return [PriorEntry(f"P{k + 1}", *drafts[int(i)][:3], spec.sigma_m, drafts[int(i)][3],
+                       spec.drift_m_s)
             for k, i in enumerate(order)]
 
 

@@ -16,7 +16,9 @@ adopting every track the observer already holds as ``confirmed``: a run with a l
 camera and no prior never creates it, so it computes exactly what it did before the tracker
 existed. Tracks the core creates itself (``TargetAdded``, a labelled detection of an unknown
 target) are adopted as ``confirmed``; ``TargetAdded(prior=True)`` as ``prior`` with
-existence 0.5.
+existence 0.5. Confirmed adoptions are kept (``keep``): a target the operator announced or
+a labelled camera named is removed only by ``TargetRemoved``, never by missing evidence (a
+known iceberg out of its predicted place is a track to correct, not a false alarm).
 """
 
 from __future__ import annotations
@@ -67,7 +69,7 @@ class TrackBook:
             self.tracker = self._factory(self._observer, self._config)
             for track_id in self._observer.target_ids:
                 if track_id != but:
-                    self.tracker.adopt(track_id, status=CONFIRMED, existence=1.0)
+                    self.tracker.adopt(track_id, status=CONFIRMED, existence=1.0, keep=True)
         return self.tracker
 
     def adopt(self, track_id: str, *, prior: bool = False) -> None:
@@ -75,7 +77,7 @@ class TrackBook:
         if prior:
             self.ensure(but=track_id).adopt(track_id, status=PRIOR, existence=0.5)
         elif self.tracker is not None:
-            self.tracker.adopt(track_id, status=CONFIRMED, existence=1.0)
+            self.tracker.adopt(track_id, status=CONFIRMED, existence=1.0, keep=True)
 
     def forget(self, track_id: str) -> None:
         """The core removed the target (TargetRemoved)."""

@@ -12,7 +12,8 @@ The random targets are drawn as ``gcs simulate`` draws them (same seed, same ice
 offline runner's rule, ``runners/sim_discovery.py``): the scenario's icebergs are announced
 only if ``targets.known``; the prior list (``world.discovery_spec.resolve_prior``, its own
 generator) is announced at the first step as ``TargetAdded(prior=True)`` at the listed
-position, velocity 0, ``sigma0 = 2 sigma_m^2`` (``sigma_m^2`` per axis); and the camera
+position, velocity 0, ``sigma0 = 2 variance_m2`` (``PriorEntry.variance_m2`` per axis);
+and the camera
 (``scenario_camera``: ``pd``, clutter, labels) reports frames, each a ``CameraFrame`` then
 its ``Detection`` events at the same mission time. Otherwise the camera measures as it
 always did (no frame, no extra draw).
@@ -78,7 +79,7 @@ class ScenarioWorld:
         out: list[ev.Event] = []
         if self._prior_due:
             self._prior_due = False
-            out += [ev.TargetAdded(self.t_s, p.id, p.x_m, p.y_m, sigma0=2.0 * p.sigma_m**2,
+            out += [ev.TargetAdded(self.t_s, p.id, p.x_m, p.y_m, sigma0=2.0 * p.variance_m2,
                                    prior=True) for p in self.prior]
         positions = dict(self.positions())
         while self.t_s < t_s - 1e-9:

@@ -7,7 +7,8 @@ search. Then:
 * the scenario's icebergs are announced to the core (``TargetAdded``) only if
   ``targets.known``; the prior (``world.discovery_spec.resolve_prior``, its own generator)
   is announced at t = 0 as ``TargetAdded(prior=True)`` at the listed position, velocity 0,
-  ``sigma0 = 2 sigma_m^2`` (the variance ``sigma_m^2`` per axis), as the daemon does;
+  ``sigma0 = 2 variance_m2`` (``PriorEntry.variance_m2`` per axis: the listing's noise
+  and its age's drift), as the daemon does;
 * the camera's frames (``World.observe_frames``) reach the core as one ``CameraFrame`` each
   followed by its ``Detection`` events (of a vehicle that is not lost);
 * every mission second the confirmed tracks and the true icebergs in the area go to
@@ -55,7 +56,7 @@ class Discovery:
 
     def prior_events(self) -> list[TargetAdded]:
         return [
-            TargetAdded(0.0, p.id, p.x_m, p.y_m, sigma0=2.0 * p.sigma_m**2, prior=True)
+            TargetAdded(0.0, p.id, p.x_m, p.y_m, sigma0=2.0 * p.variance_m2, prior=True)
             for p in self.prior
         ]
 
