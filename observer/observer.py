@@ -26,6 +26,7 @@ from types import MappingProxyType
 
 import numpy as np
 
+from observer.checks import finite_number
 from observer.config import ObserverConfig
 from observer.kalman_track import KalmanBatch, KalmanTrack, load_filterpy
 from observer.linear_track import LinearTrack
@@ -42,17 +43,10 @@ COUNTER_NAMES: tuple[str, ...] = (
 _Track = KalmanTrack | LinearTrack
 
 
-def _finite(name: str, value: float) -> float:
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise ValueError(f"{name} must be a number, got {value!r}")
-    v = float(value)
-    if not math.isfinite(v):
-        raise ValueError(f"{name} must be finite, got {value!r}")
-    return v
 
 
 def _non_negative(name: str, value: float) -> float:
-    v = _finite(name, value)
+    v = finite_number(name, value)
     if v < 0.0:
         raise ValueError(f"{name} must be >= 0, got {value!r}")
     return v
@@ -107,12 +101,12 @@ class Observer:
             raise ValueError(f"target_id must be a non-empty string, got {target_id!r}")
         if target_id in self._tracks:
             raise ValueError(f"target_id {target_id!r} is already tracked")
-        t = _finite("t_s", t_s)
+        t = finite_number("t_s", t_s)
         state = (
-            _finite("x_m", x_m),
-            _finite("y_m", y_m),
-            _finite("vx_m_s", vx_m_s),
-            _finite("vy_m_s", vy_m_s),
+            finite_number("x_m", x_m),
+            finite_number("y_m", y_m),
+            finite_number("vx_m_s", vx_m_s),
+            finite_number("vy_m_s", vy_m_s),
         )
         q = self.config.q_per_s if q_per_s is None else _non_negative("q_per_s", q_per_s)
         s0 = None if sigma0 is None else _non_negative("sigma0", sigma0)
@@ -177,7 +171,7 @@ class Observer:
     # --- time -----------------------------------------------------------------------------
     def predict_to(self, t_s: float) -> None:
         """Advance every track to ``t_s``; a track already at or past ``t_s`` is left alone."""
-        t = _finite("t_s", t_s)
+        t = finite_number("t_s", t_s)
         due = [(tid, tr) for tid, tr in self._tracks.items() if t > tr.t_s]
         if not due:
             return
@@ -249,7 +243,7 @@ class Observer:
         and :meth:`correct` / :meth:`correct_pda` apply the measurement there (an error of
         ``v (t_track - t_s)``: the caller is late by less than a tick).
         """
-        t = _finite("t_s", t_s)
+        t = finite_number("t_s", t_s)
         self.predict_to(t)
         ids: list[str] = []
         means: list[tuple[float, float]] = []
@@ -275,10 +269,10 @@ class Observer:
         associated it) at ``t_s`` (see :meth:`estimates_at` for a track already past it).
         Counted ``accepted``. Raises KeyError (unknown id) or ValueError (bad value)."""
         track = self._at(target_id, t_s)
-        r = _finite("r_m2", r_m2)
+        r = finite_number("r_m2", r_m2)
         if r <= 0.0:
             raise ValueError(f"r_m2 must be > 0, got {r_m2!r}")
-        x, y = _finite("x_m", x_m), _finite("y_m", y_m)
+        x, y = finite_number("x_m", x_m), finite_number("y_m", y_m)
         self._accept(target_id, track.t_s, x, y, r, math.nan)  # d2: the caller's gate
 
     def correct_pda(
@@ -299,7 +293,7 @@ class Observer:
             raise ValueError("correct_pda needs the kalman model")
         z = np.asarray(zs, dtype=float).reshape(-1, 2)
         b = np.asarray(betas, dtype=float).ravel()
-        r = _finite("r_m2", r_m2)
+        r = finite_number("r_m2", r_m2)
         if (
             b.shape[0] != z.shape[0]
             or not np.all(np.isfinite(z))
@@ -319,7 +313,7 @@ class Observer:
         """The track brought to ``t_s`` (forward, or back within its committed step); one
         committed after ``t_s`` stays at its own time (see :meth:`estimates_at`)."""
         track = self._get(target_id)
-        t = _finite("t_s", t_s)
+        t = finite_number("t_s", t_s)
         if track.t_s < t:
             track.predict_to(t)
         elif track.t_s > t:

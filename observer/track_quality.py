@@ -34,20 +34,11 @@ over another iceberg's detections.
 from __future__ import annotations
 
 import math
-import numbers
 import statistics
 from collections.abc import Mapping
 
+from observer.checks import finite_number
 from observer.gospa import GospaResult, Point, gospa
-
-
-def _finite(name: str, value: object) -> float:
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise ValueError(f"{name} must be a number, got {value!r}")
-    v = float(value)
-    if not math.isfinite(v):
-        raise ValueError(f"{name} must be finite, got {value!r}")
-    return v
 
 
 def _point(name: str, value: object) -> Point:
@@ -57,7 +48,7 @@ def _point(name: str, value: object) -> Point:
         x, y = value  # type: ignore[misc]
     except (TypeError, ValueError):
         raise ValueError(f"{name} must be an (x, y) pair, got {value!r}") from None
-    return (_finite(name, x), _finite(name, y))
+    return (finite_number(name, x), finite_number(name, y))
 
 
 def _points(name: str, points: Mapping[str, Point]) -> dict[str, Point]:
@@ -96,15 +87,15 @@ class TrackQualityRecorder:
     ) -> None:
         """A camera frame at ``t_s`` with footprint ``(x_m, y_m, radius_m)``; ``truth_xy``:
         the true icebergs' positions then (any set that includes those in view)."""
-        t = _finite("t_s", t_s)
+        t = finite_number("t_s", t_s)
         try:
             fx, fy, fr = footprint_xy_r
         except (TypeError, ValueError):
             raise ValueError(
                 f"footprint_xy_r must be (x_m, y_m, radius_m), got {footprint_xy_r!r}"
             ) from None
-        cx, cy = _finite("footprint_xy_r x_m", fx), _finite("footprint_xy_r y_m", fy)
-        r = _finite("footprint_xy_r radius_m", fr)
+        cx, cy = finite_number("footprint_xy_r x_m", fx), finite_number("footprint_xy_r y_m", fy)
+        r = finite_number("footprint_xy_r radius_m", fr)
         if r <= 0.0:
             raise ValueError(f"footprint_xy_r radius_m must be > 0, got {fr!r}")
         for truth_id, (x, y) in _points("truth_xy", truth_xy).items():
@@ -116,7 +107,7 @@ class TrackQualityRecorder:
     ) -> GospaResult:
         """One sample (every second of mission time); returns its GOSPA result (indices in
         the id-sorted order of ``confirmed`` and ``truth_in_area``)."""
-        t = _finite("t_s", t_s)
+        t = finite_number("t_s", t_s)
         tracks = _points("confirmed", confirmed)
         truth = _points("truth_in_area", truth_in_area)
         track_ids, truth_ids = list(tracks), list(truth)
@@ -165,7 +156,7 @@ class TrackQualityRecorder:
 
     def to_dict(self, duration_s: float) -> dict[str, object]:
         """The measures for ``metrics.json`` (JSON-plain; ``None`` where undefined)."""
-        duration = _finite("duration_s", duration_s)
+        duration = finite_number("duration_s", duration_s)
         if duration <= 0.0:
             raise ValueError(f"duration_s must be > 0, got {duration_s!r}")
         delays = sorted(self._confirm_delay_s.values())

@@ -1,0 +1,20 @@
+"""Argument checks shared by the observer's modules (one-line ValueErrors naming the
+argument)."""
+
+from __future__ import annotations
+
+import math
+import numbers
+
+__all__ = ["finite_number"]
+
+
+def finite_number(name: str, value: object) -> float:
+    """``value`` as a float if it is a real number (not a bool) and finite; else ValueError
+    naming ``name``."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise ValueError(f"{name} must be a number, got {value!r}")
+    v = float(value)
+    if not math.isfinite(v):
+        raise ValueError(f"{name} must be finite, got {value!r}")
+    return v
