@@ -242,5 +242,5 @@ def test_prior_variance_grows_with_the_listings_age() -> None:
         assert (p.x_m, p.y_m, p.age_s) == (a.x_m, a.y_m, a.age_s)  # same draws
         assert p.variance_m2 == pytest.approx(900.0)
         assert a.variance_m2 == pytest.approx(900.0 + (0.3 * a.age_s) ** 2)
-    with pytest.raises(FieldError, match="prior.drift_m_s"):
+    with pytest.raises(FieldError, match=r"prior\.drift_m_s"):
         scenario(prior={"listed": 1, "drift_m_s": -1})
