@@ -119,8 +119,10 @@ def test_a_dotted_grid_key_is_a_column_and_reaches_the_scenario(tmp_path: Path) 
         [0.0], [0.0, 3.14]]
 
 
-def test_every_scalar_of_metrics_json_has_a_column() -> None:
-    metrics = run_simulation(load_scenario("svalbard-2015"), SimulationOptions(
+@pytest.mark.parametrize("scenario", ["svalbard-2015", "discovery"])
+def test_every_scalar_of_metrics_json_has_a_column(scenario: str) -> None:
+    """discovery: its track-quality keys too (gospa_mean_m, time_to_confirm_s, ...)."""
+    metrics = run_simulation(load_scenario(scenario), SimulationOptions(
         duration_s=10, snapshot_times_s=(0.0,))).metrics
     columns = metrics_columns()
     flat = flatten_metrics(metrics)

@@ -59,6 +59,13 @@ _METRICS: dict[str, str] = {
     "wind_from_deg": "float64",
     "wind_gust_m_s": "float64",
     **{f"observer_counters_{name}": "int64" for name in COUNTER_NAMES},
+    # discovery mode's track quality (observer/track_quality.py); null in labelled runs
+    "gospa_mean_m": "float64",
+    "true_confirmed_fraction": "float64",
+    "time_to_confirm_s_median": "float64",
+    "time_to_confirm_s_max": "float64",
+    "false_tracks_per_hour": "float64",
+    "id_switches": "int64",
 }
 
 COORDINATE_METRICS = ("scenario", "uavs", "seed", "objective", "uncertainty_series")
