@@ -62,7 +62,7 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -93,18 +93,16 @@ class RunResult:
     confirmed_ever: int
 
 
-class _Adapter:
+class _Adapter(Protocol):
     """A tracker behind one interface: ``scan(frame_index)`` (timed) and
     ``confirmed(t_s) -> {id: (x, y)}`` (not timed)."""
 
-    def scan(self, k: int) -> None:
-        raise NotImplementedError
+    def scan(self, k: int) -> None: ...
 
-    def confirmed(self, t_s: float) -> dict[str, tuple[float, float]]:
-        raise NotImplementedError
+    def confirmed(self, t_s: float) -> dict[str, tuple[float, float]]: ...
 
 
-class FloeAdapter(_Adapter):
+class FloeAdapter:
     """floe's ``observer.Tracker`` (GNN or JPDA) with the frame's footprint."""
 
     def __init__(self, rec: Recording, association: str) -> None:
@@ -148,7 +146,7 @@ class FloeAdapter(_Adapter):
         return out
 
 
-class StoneSoupAdapter(_Adapter):
+class StoneSoupAdapter:
     """Stone Soup's GNN (MultiTargetTracker) or JPDA (MultiTargetMixtureTracker)."""
 
     def __init__(self, rec: Recording, association: str, delete_trace_m2: float) -> None:

@@ -23,10 +23,11 @@ from groundstation.daemon.control import DaemonController
 from groundstation.daemon.control_requests import jsonable
 from groundstation.daemon.daemon import Daemon
 from groundstation.daemon.journal import Journal, read_journal
-from groundstation.daemon.world import ScenarioWorld, discovery_mode
+from groundstation.daemon.world import ScenarioWorld
 from groundstation.runners.report_data import load_run_data
 from groundstation.runners.report_track_plots import plot_tracking
 from planner.search_cells import SearchConfig
+from world.discovery_spec import discovery_mode
 from world.scenario import load_scenario, resolve_targets
 
 ORIGIN = GeoOrigin(78.9, 11.9, 0.0)

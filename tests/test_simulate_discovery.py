@@ -13,8 +13,8 @@ import pytest
 
 from groundstation.cli import main
 from groundstation.core import tracking
-from groundstation.runners.sim_discovery import discovery_mode
 from groundstation.runners.simulate import SimulationOptions, run_simulation
+from world.discovery_spec import discovery_mode
 from world.scenario import load_scenario
 
 SMALL_DISCOVERY = """\

@@ -51,6 +51,7 @@ __all__ = [
     "PriorEntry",
     "PriorSpec",
     "SearchSpec",
+    "discovery_mode",
     "parse_area",
     "parse_camera",
     "parse_prior",
@@ -204,6 +205,15 @@ class _Scenario(Protocol):
     def fleet(self) -> _Fleet: ...
     @property
     def observer(self) -> _Observer: ...
+    @property
+    def search(self) -> SearchSpec | None: ...
+
+
+def discovery_mode(scenario: _Scenario) -> bool:
+    """Whether the ground station must find the icebergs itself: an unlabelled camera, a
+    prior or search. The offline runner and the daemon's scenario world both ask this."""
+    return not scenario.camera.labelled or scenario.prior is not None or (
+        scenario.search is not None)
 
 
 def _in_unit(f: Fields, key: str, default: float, *, closed_low: bool = False,

@@ -8,8 +8,8 @@ positions come from ``positions()``: the built-in simulator's true positions (``
 the vehicles' telemetry (real or ArduPilot SITL vehicles: the paper's 2015 field test).
 The random targets are drawn as ``gcs simulate`` draws them (same seed, same icebergs).
 
-**Discovery mode** (:func:`discovery_mode`: an unlabelled camera, a prior or search; the
-offline runner's rule, ``runners/sim_discovery.py``): the scenario's icebergs are announced
+**Discovery mode** (``world.discovery_spec.discovery_mode``: an unlabelled camera, a prior
+or search, the rule the offline runner follows too): the scenario's icebergs are announced
 only if ``targets.known``; the prior list (``world.discovery_spec.resolve_prior``, its own
 generator) is announced at the first step as ``TargetAdded(prior=True)`` at the listed
 position, velocity 0, ``sigma0 = 2 variance_m2`` (``PriorEntry.variance_m2`` per axis);
@@ -26,19 +26,13 @@ from collections.abc import Callable, Mapping
 import numpy as np
 
 from groundstation.core import events as ev
-from world.discovery_spec import PriorEntry, resolve_prior, scenario_camera
+from world.discovery_spec import PriorEntry, discovery_mode, resolve_prior, scenario_camera
 from world.model import Boat, Iceberg, World
 from world.scenario import Scenario, resolve_targets
 
-__all__ = ["ScenarioWorld", "discovery_mode"]
+__all__ = ["ScenarioWorld"]
 
 STEP_S = 0.1
-
-
-def discovery_mode(scenario: Scenario) -> bool:
-    """An unlabelled camera, a prior or search (the module docstring)."""
-    return (not scenario.camera.labelled or scenario.prior is not None
-            or scenario.search is not None)
 
 
 class ScenarioWorld:

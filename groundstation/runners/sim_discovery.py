@@ -32,17 +32,11 @@ from world.discovery_spec import resolve_prior
 from world.model import World
 from world.scenario import Scenario, TargetSpec
 
-__all__ = ["SEARCH_RECORD_S", "Discovery", "discovery_mode"]
+__all__ = ["SEARCH_RECORD_S", "Discovery"]
 
 SEARCH_RECORD_S = 10.0
 TENTATIVE = "tentative"
 CONFIRMED = "confirmed"
-
-
-def discovery_mode(scenario: Scenario) -> bool:
-    """Camera unlabelled, or a prior, or search (module docstring)."""
-    return (not scenario.camera.labelled or scenario.prior is not None
-            or scenario.search is not None)
 
 
 class Discovery:
