@@ -1,13 +1,13 @@
 """The tracker's state in the operator views: status JSON pieces from the core's views
-(fakes of the core's ``TrackView``/``SearchCellView``), which track notes are operator
+(``TrackView``/``SearchCellView``), which track notes are operator
 events, and replay comparing the track notes."""
 
 from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass
 
+from groundstation.core.views import SearchCellView, TrackView
 from groundstation.daemon.log_lines import is_operator_event, line_level
 from groundstation.daemon.track_views import (
     TrackNotes,
@@ -19,38 +19,17 @@ from groundstation.daemon.track_views import (
 from groundstation.runners.replay_compare import decision_of_record
 
 
-@dataclass(frozen=True)
-class FakeTrackView:
-    id: str
-    status: str
-    x_m: float
-    y_m: float
-    sigma_m2: float
-    existence: float
-    t_s: float
-
-
-@dataclass(frozen=True)
-class FakeCell:
-    id: str
-    x_m: float
-    y_m: float
-    size_m: float
-    value_m2: float
-    last_covered_s: float | None
-
-
 def test_track_and_search_dicts_are_plain_rounded_json() -> None:
-    views = [FakeTrackView("N1", "tentative", 10.04, -3.06, 900.0, 0.41234, 12.5),
-             FakeTrackView("A", "confirmed", 500.0, 20.0, 4.0, 1.0, 12.5),
-             FakeTrackView("P1", "prior", 1.0, 2.0, math.nan, 0.5, 12.5)]
+    views = [TrackView("N1", "tentative", 10.04, -3.06, 900.0, 0.41234, 12.5),
+             TrackView("A", "confirmed", 500.0, 20.0, 4.0, 1.0, 12.5),
+             TrackView("P1", "prior", 1.0, 2.0, math.nan, 0.5, 12.5)]
     tracks = track_dicts(views)
     assert tracks[0] == {"id": "N1", "status": "tentative", "x_m": 10.0, "y_m": -3.1,
                          "sigma_m2": 900.0, "existence": 0.412, "t_s": 12.5}
     assert tracks[2]["sigma_m2"] is None  # NaN is no JSON number
     assert track_counts(tracks) == {"confirmed": 1, "tentative": 1, "prior": 1}
-    cells = search_dicts([FakeCell("c3", 450.0, 150.0, 300.0, 1234.56, None),
-                          FakeCell("c4", 750.0, 150.0, 300.0, 0.0, 40.0)])
+    cells = search_dicts([SearchCellView("c3", 450.0, 150.0, 300.0, 1234.56, None),
+                          SearchCellView("c4", 750.0, 150.0, 300.0, 0.0, 40.0)])
     assert cells == [
         {"id": "c3", "x_m": 450.0, "y_m": 150.0, "size_m": 300.0, "value_m2": 1234.6,
          "last_covered_s": None},

@@ -23,14 +23,13 @@ them all).
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Sequence
-from typing import Any, Protocol
+from collections.abc import Iterable
+from typing import Any
+
+from groundstation.core.views import SearchCellView, TrackView
 
 __all__ = [
-    "SearchCellLike",
     "TrackNotes",
-    "TrackSource",
-    "TrackViewLike",
     "count_line",
     "search_dicts",
     "track_counts",
@@ -40,56 +39,13 @@ __all__ = [
 STATUSES = ("confirmed", "tentative", "prior")
 
 
-class TrackViewLike(Protocol):
-    """What the core's ``TrackView`` holds (read-only attributes)."""
-
-    @property
-    def id(self) -> str: ...
-    @property
-    def status(self) -> str: ...
-    @property
-    def x_m(self) -> float: ...
-    @property
-    def y_m(self) -> float: ...
-    @property
-    def sigma_m2(self) -> float: ...
-    @property
-    def existence(self) -> float: ...
-    @property
-    def t_s(self) -> float: ...
-
-
-class SearchCellLike(Protocol):
-    """What the core's ``SearchCellView`` holds."""
-
-    @property
-    def id(self) -> str: ...
-    @property
-    def x_m(self) -> float: ...
-    @property
-    def y_m(self) -> float: ...
-    @property
-    def size_m(self) -> float: ...
-    @property
-    def value_m2(self) -> float: ...
-    @property
-    def last_covered_s(self) -> float | None: ...
-
-
-class TrackSource(Protocol):
-    """The decision core's side: its track and search views."""
-
-    def track_views(self) -> Sequence[TrackViewLike]: ...
-    def search_view(self) -> Sequence[SearchCellLike]: ...
-
-
 def _round(value: float | None, digits: int) -> float | None:
     if value is None or not math.isfinite(value):
         return None
     return round(float(value), digits)
 
 
-def track_dicts(views: Iterable[TrackViewLike]) -> list[dict[str, Any]]:
+def track_dicts(views: Iterable[TrackView]) -> list[dict[str, Any]]:
     """The status JSON's ``tracks`` (see the module docstring)."""
     return [
         {
@@ -105,7 +61,7 @@ def track_dicts(views: Iterable[TrackViewLike]) -> list[dict[str, Any]]:
     ]
 
 
-def search_dicts(cells: Iterable[SearchCellLike]) -> list[dict[str, Any]]:
+def search_dicts(cells: Iterable[SearchCellView]) -> list[dict[str, Any]]:
     """The status JSON's ``search_cells``."""
     return [
         {
