@@ -442,8 +442,9 @@ class DecisionCore:
 
     def _process_scans(self, t_s: float) -> list[Command]:
         """Buffered scans due by ``t_s`` through the tracker; its events become notes, a
-        confirmation or deletion marks the plan dirty, a deleted track leaves the observer
-        and frees its vehicles (as ``TargetRemoved``)."""
+        confirmation or deletion marks the plan dirty, a deleted track (already gone from
+        the observer: the tracker removes it) frees its vehicles (as ``TargetRemoved``).
+        The search cells' prior weights stay those of the prior as listed."""
         out: list[Command] = []
         self.scan_hits = []
         for scan, events, hits in self.tracks.process(t_s):
@@ -454,10 +455,7 @@ class DecisionCore:
                                 ev.reason))
                 if ev.kind == "confirmed":
                     self._mark_dirty("track confirmed")
-                elif ev.kind == "deleted":
-                    if ev.track_id in self.observer.target_ids:
-                        self.observer.remove_target(ev.track_id)
-                    self._prior_points.pop(ev.track_id, None)
+                elif ev.kind == "deleted":  # the tracker removed it from the observer
                     self._free_vehicles(ev.track_id)
                     self._mark_dirty("track deleted")
         return out
