@@ -19,8 +19,10 @@ Definitions (:meth:`TrackQualityRecorder.to_dict`):
   which both exist (``None`` when none). An iceberg already tracked before any camera saw it
   (a known target) gets the gap between ``t_f`` and the next sample.
 - ``false_tracks_per_hour``: confirmed track ids never assigned to a true iceberg in any
-  sample where they were confirmed, per hour of ``duration_s``. A track on an iceberg
-  outside the area counts as false (only icebergs in the area are in the samples).
+  sample where they were confirmed, per hour of ``duration_s``. A track on a real iceberg
+  outside the area is not false: the tracks the area's assignment leaves over are assigned
+  (pairs closer than ``c``) to the true icebergs outside the area, when the caller gives
+  them; they count for nothing else.
 - ``id_switches``: over true icebergs and consecutive samples in which the iceberg is
   assigned in both, the number of times its assigned track id differs. A track lost and
   later replaced (a gap in between) is a fragmentation, not a switch, and is not counted.
@@ -103,13 +105,21 @@ class TrackQualityRecorder:
                 self._first_seen_s[truth_id] = t
 
     def sample(
-        self, t_s: float, confirmed: Mapping[str, Point], truth_in_area: Mapping[str, Point]
+        self,
+        t_s: float,
+        confirmed: Mapping[str, Point],
+        truth_in_area: Mapping[str, Point],
+        truth_outside: Mapping[str, Point] | None = None,
     ) -> GospaResult:
         """One sample (every second of mission time); returns its GOSPA result (indices in
-        the id-sorted order of ``confirmed`` and ``truth_in_area``)."""
+        the id-sorted order of ``confirmed`` and ``truth_in_area``). ``truth_outside``: the
+        true icebergs outside the area; confirmed tracks the area's assignment leaves over
+        are assigned to them alike (pairs closer than ``c``) only to tell a track on a real
+        iceberg outside the area from a false one."""
         t = finite_number("t_s", t_s)
         tracks = _points("confirmed", confirmed)
         truth = _points("truth_in_area", truth_in_area)
+        outside = _points("truth_outside", truth_outside or {})
         track_ids, truth_ids = list(tracks), list(truth)
         result = gospa(list(tracks.values()), list(truth.values()), c_m=self.c_m, p=self.p)
         self._gospa_sum_m += result.distance_m
@@ -117,6 +127,7 @@ class TrackQualityRecorder:
         assigned = {truth_ids[j]: track_ids[i] for i, j in result.matches}
         for track_id in track_ids:
             self._ever_matched.setdefault(track_id, False)
+        self._match_outside(tracks, set(assigned.values()), outside)
         for truth_id, track_id in assigned.items():
             self._ever_matched[track_id] = True
             last_truth = self._track_truth.get(track_id)
@@ -133,6 +144,16 @@ class TrackQualityRecorder:
         self._last_in_area = len(truth)
         self._last_assigned = len(assigned)
         return result
+
+    def _match_outside(self, tracks: dict[str, Point], taken: set[str],
+                       outside: dict[str, Point]) -> None:
+        left = {k: xy for k, xy in tracks.items() if k not in taken}
+        if not left or not outside:
+            return
+        left_ids = list(left)
+        result = gospa(list(left.values()), list(outside.values()), c_m=self.c_m, p=self.p)
+        for i, _ in result.matches:
+            self._ever_matched[left_ids[i]] = True
 
     @property
     def first_seen_s(self) -> dict[str, float]:

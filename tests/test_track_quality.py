@@ -132,3 +132,21 @@ def test_bad_input_names_the_field(call: object, field: str) -> None:
 def test_bad_parameters() -> None:
     with pytest.raises(ValueError, match="c_m"):
         TrackQualityRecorder(c_m=-1.0)
+
+
+def test_a_track_on_a_real_iceberg_outside_the_area_is_not_false() -> None:
+    rec = TrackQualityRecorder()
+    inside = {"a": (0.0, 0.0)}
+    outside = {"d": (-500.0, 0.0)}
+    # N1 on a; N2 on d (outside the area); N3 near nothing; N4 a second track on d: the
+    # outside assignment is one-to-one too, so only one of N2/N4 is a real iceberg's track.
+    rec.sample(0.0, {"N1": (0.0, 0.0), "N2": (-510.0, 0.0), "N3": (900.0, 0.0),
+                     "N4": (-495.0, 0.0)}, inside, outside)
+    assert rec.false_track_ids == ["N2", "N3"]
+    # the outside icebergs count for nothing else: the fraction and GOSPA see the area only
+    assert rec.to_dict(1800.0)["true_confirmed_fraction"] == 1.0
+    alone = TrackQualityRecorder()
+    alone.sample(0.0, {"N1": (0.0, 0.0), "N2": (-510.0, 0.0), "N3": (900.0, 0.0),
+                       "N4": (-495.0, 0.0)}, inside)
+    assert alone.false_track_ids == ["N2", "N3", "N4"]
+    assert alone.to_dict(1800.0)["gospa_mean_m"] == rec.to_dict(1800.0)["gospa_mean_m"]

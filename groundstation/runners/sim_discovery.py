@@ -78,7 +78,9 @@ class Discovery:
     def sample(self, t_s: float, core: DecisionCore,
                truth: Mapping[str, tuple[float, float]]) -> None:
         confirmed = {v.id: (v.x_m, v.y_m) for v in core.track_views() if v.status == CONFIRMED}
-        self.quality.sample(t_s, confirmed, self.in_area(truth))
+        inside = self.in_area(truth)
+        outside = {k: xy for k, xy in truth.items() if k not in inside}
+        self.quality.sample(t_s, confirmed, inside, outside)
 
     def search_record(self, t_s: float, core: DecisionCore) -> dict[str, Any] | None:
         """A ``search`` journal line when one is due (every ``SEARCH_RECORD_S``)."""
