@@ -7,6 +7,7 @@ from observer.priority import boat_priority_q
 from observer.records import MeasurementOutcome, TrackSnapshot
 from observer.tracker import Tracker
 from observer.tracker_config import (
+    UNCONFIRMED,
     Footprint,
     ScanDetection,
     ScanResult,
@@ -16,6 +17,7 @@ from observer.tracker_config import (
 )
 
 __all__ = [
+    "UNCONFIRMED",
     "Footprint",
     "MeasurementOutcome",
     "Observer",

@@ -52,6 +52,7 @@ from observer.existence import (
 )
 from observer.observer import Observer
 from observer.tracker_config import (
+    UNCONFIRMED,
     Footprint,
     ScanDetection,
     ScanResult,
@@ -280,8 +281,9 @@ class Tracker:
         """Tracks at ``t`` that could be in the footprint (all without one).
 
         On the way: lifecycles of tracks the caller removed from the observer are dropped,
-        and tentative tracks the observer calls lost (``sqrt(trace P) > fov_radius_m``: no
-        frame can confirm them any more) are deleted (``unconfirmed``)."""
+        tentative tracks the observer calls lost (``sqrt(trace P) > fov_radius_m``: no
+        frame can confirm them any more) are deleted (``unconfirmed``), and confirmed and
+        prior tracks beyond ``lost_sigma_m`` (``lost``), unless kept."""
         ids, means, covs = self.observer.estimates_at(t, list(self._life))
         if len(ids) != len(self._life):
             present = set(ids)
@@ -294,8 +296,13 @@ class Tracker:
         keep_mask = np.ones(len(ids), dtype=bool)
         for k in np.flatnonzero(a + c > lost2).tolist():
             if self._life[ids[k]].status == "tentative":
-                self._delete(ids[k], t, "unconfirmed", deleted)
+                self._delete(ids[k], t, UNCONFIRMED, deleted)
                 keep_mask[k] = False
+        if self.config.lost_sigma_m is not None:
+            for k in np.flatnonzero(keep_mask & (a + c > self.config.lost_sigma_m ** 2)).tolist():
+                if not self._life[ids[k]].keep:
+                    self._delete(ids[k], t, "lost", deleted)
+                    keep_mask[k] = False
         if fp is not None:
             lam_max = 0.5 * (a + c) + np.hypot(0.5 * (a - c), b)
             reach = float(fp.radius_m) + np.sqrt(
@@ -355,7 +362,7 @@ class Tracker:
                 else:
                     self._merge(older, tid, t, confirmed, deleted)
             elif life.window.count(False) > cfg.confirm_window - cfg.confirm_hits:
-                self._delete(tid, t, "unconfirmed", deleted)
+                self._delete(tid, t, UNCONFIRMED, deleted)
         elif (
             life.status == "prior"
             and sum(life.window) >= cfg.confirm_hits

@@ -11,6 +11,8 @@ from dataclasses import dataclass, field
 ASSOCIATIONS: tuple[str, ...] = ("gnn", "jpda")
 STATUSES: tuple[str, ...] = ("tentative", "confirmed", "prior")
 EVENT_KINDS: tuple[str, ...] = ("born", "confirmed", "deleted")
+UNCONFIRMED = "unconfirmed"
+"""A deletion's reason for a tentative track that was never confirmed."""
 
 
 def _number(name: str, value: object) -> float:
@@ -48,6 +50,11 @@ class TrackerConfig:
             footprint covered the track.
         existence_confirm_min: a tentative track is confirmed only with existence >= this.
         existence_delete: confirmed and prior tracks are deleted below this existence.
+        lost_sigma_m: confirmed and prior tracks are deleted (``lost``) once
+            ``sqrt(trace P_xy) > lost_sigma_m`` (m): a track that vague is no longer a place
+            to fly to but an area to search, and the search cells cover it (a covariance
+            deleter, like Stone Soup's ``CovarianceBasedDeleter``). ``None``: never (the
+            paper's tracks are kept whatever their uncertainty).
         existence_max: cap on the existence probability (< 1); it bounds how much evidence a
             track can bank, so that ``ceil(ln(odds_delete / odds_max) / ln(1 - pd))``
             full misses in view delete it (6 at pd 0.85 with the defaults).
@@ -71,6 +78,7 @@ class TrackerConfig:
     confirm_window: int = 5
     existence_confirm_min: float = 0.5
     existence_delete: float = 0.05
+    lost_sigma_m: float | None = None
     existence_max: float = 0.999
     pd_evidence_max: float = 0.99
     new_track_vel_var_m2_s2: float = 0.5
@@ -114,6 +122,10 @@ class TrackerConfig:
             raise ValueError(
                 "TrackerConfig.existence_confirm_min must lie in (existence_delete, "
                 f"existence_max], got {self.existence_confirm_min!r}"
+            )
+        if self.lost_sigma_m is not None and _number("lost_sigma_m", self.lost_sigma_m) <= 0.0:
+            raise ValueError(
+                f"TrackerConfig.lost_sigma_m must be > 0 or None, got {self.lost_sigma_m!r}"
             )
         if not isinstance(self.id_prefix, str) or not self.id_prefix:
             raise ValueError(

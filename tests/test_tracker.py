@@ -274,7 +274,8 @@ def test_pda_update_with_one_certain_detection_is_the_kalman_update() -> None:
     [("association", "nn"), ("pd", 0.0), ("pd", 1.5), ("clutter_per_frame", -1.0),
      ("confirm_hits", 6), ("confirm_window", 0), ("existence_delete", 1.0),
      ("gate_probability", math.nan), ("new_track_vel_var_m2_s2", 0.0), ("id_prefix", ""),
-     ("confirm_hits", True), ("existence_confirm_min", 0.01)],
+     ("confirm_hits", True), ("existence_confirm_min", 0.01), ("lost_sigma_m", 0.0),
+     ("lost_sigma_m", math.inf)],
 )
 def test_config_errors_name_the_field(field: str, value: object) -> None:
     with pytest.raises(ValueError, match=f"TrackerConfig.{field}") as err:
@@ -348,3 +349,27 @@ def test_a_kept_track_loses_existence_in_view_but_is_never_deleted() -> None:
     assert deleted == ["A"]
     assert tracker.status("K") == "confirmed" and "K" in tracker.observer.target_ids
     assert tracker.existence("K") < 0.05
+
+
+def test_lost_sigma_deletes_vague_confirmed_and_prior_tracks_when_they_pass_it() -> None:
+    """``lost_sigma_m``: a confirmed or prior track is deleted (``lost``) at the first scan
+    where ``sqrt(trace P_xy)`` exceeds it, wherever the camera looks; a kept track and a
+    precise one stay. The time follows from P: with P0 = diag(100, 100, 0.1, 0.1) and no
+    process noise, trace P(t) = 200 + 0.2 t^2, which passes 300^2 at t = 670.4 s."""
+    tracker = make(pd=0.85, lost_sigma_m=300.0)
+    for tid, status, keep in (("C", "confirmed", False), ("P", "prior", False),
+                              ("K", "confirmed", True)):
+        tracker.observer.add_target(tid, 0.0, 0.0, 1000.0 * len(tid), p0=[100.0, 100.0, 0.1, 0.1],
+                                    q_per_s=0.0)
+        tracker.adopt(tid, status=status, keep=keep)
+    tracker.observer.add_target("S", 0.0, 0.0, 9000.0, p0=[1.0, 1.0, 1e-6, 1e-6], q_per_s=0.0)
+    tracker.adopt("S")
+    events: list[TrackEvent] = []
+    for k in range(1, 1601):
+        events += tracker.scan(0.5 * k, "u1", Footprint(-5000.0, 0.0, RADIUS_M), []).events
+    t_lost = math.sqrt((300.0**2 - 200.0) / 0.2)
+    assert [(e.kind, e.track_id, e.reason) for e in events] == [
+        ("deleted", "C", "lost"), ("deleted", "P", "lost")]
+    assert all(t_lost <= e.t_s < t_lost + 0.5 for e in events)
+    assert tracker.track_ids == ["K", "S"]
+    assert "C" not in tracker.observer.target_ids and "P" not in tracker.observer.target_ids

@@ -76,6 +76,7 @@ TRACKER_KEYS = (
     "existence_confirm_min",
     "new_track_vel_var_m2_s2",
     "gate_probability",
+    "lost_sigma_m",
 )
 """The keys of ``tracker:`` (observer.TrackerConfig's fields a scenario may set)."""
 
@@ -329,6 +330,9 @@ def parse_tracker(f: Fields) -> dict[str, float | int | str]:
     if f.has("new_track_vel_var_m2_s2"):
         out["new_track_vel_var_m2_s2"] = f.number(
             "new_track_vel_var_m2_s2", minimum=0.0, exclusive_minimum=True, maximum=1e6)
+    if f.has("lost_sigma_m"):
+        out["lost_sigma_m"] = f.number("lost_sigma_m", minimum=0.0, exclusive_minimum=True,
+                                       maximum=1e7)
     delete, confirm = out.get("existence_delete"), out.get("existence_confirm_min")
     if isinstance(delete, float) and isinstance(confirm, float) and delete >= confirm:
         raise FieldError(f.path_of("existence_delete"),
