@@ -183,3 +183,33 @@ def test_core_config_with_tracker_and_search_round_trips() -> None:
                         search=SearchConfig(cell_m=300.0), area_m=(0.0, 3000.0, 0.0, 3000.0))
     data = json.loads(json.dumps(config_to_dict(config)))
     assert config_from_dict(data) == config
+
+
+def test_clutter_born_and_deleted_unconfirmed_asks_for_no_plan() -> None:
+    """A tentative track (not planned: tentative_weight 0) deleted unconfirmed changes no
+    plan, so no solve is requested; a confirmed track's deletion asks for one, and so does
+    an unconfirmed deletion once tentative tracks are planned."""
+    for weight, expected in ((0.0, []), (1.0, ["track deleted"])):
+        core = DecisionCore(CoreConfig(
+            policy=ReplanPolicy(on_events=True, period_s=None, commit=False),
+            observer=ObserverConfig(model="kalman", q_per_s=0.01, r_m2=25.0),
+            tracker=TrackerConfig(pd=0.9, clutter_per_frame=0.1),
+            tentative_weight=weight,
+        ))
+        core.handle(VehicleJoined(0.0, "1", 0.0, 0.0, 0.0, 22.0))
+        core.handle(TargetAdded(0.0, "K", 3000.0, 3000.0, sigma0=50.0))  # always a target
+        for c in core.handle(Tick(0.0)):
+            if isinstance(c, SolveRequest):
+                core.handle(PlanSolved(0.0, c.request_id, solve_plan(c.problem, c.hint)))
+        out = frame(core, 0.5, (500.0, 300.0), (520.0, 310.0))  # one false alarm
+        assert len(notes(out, "track_born")) == 1
+        reasons: list[str] = []
+        deleted: list[Note] = []
+        t = 0.5
+        while not deleted and t < 10.0:
+            t += 0.5
+            out = frame(core, t, (500.0, 300.0))
+            deleted += notes(out, "track_deleted")
+            reasons += [c.reason for c in out if isinstance(c, SolveRequest)]
+        assert [n.detail for n in deleted] == ["unconfirmed"]
+        assert reasons == expected
