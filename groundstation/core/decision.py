@@ -60,7 +60,7 @@ from groundstation.core.events import (
     VehicleJoined,
     WindReport,
 )
-from groundstation.core.fleet import ACTIVE, VehicleRecord, status_change
+from groundstation.core.fleet import ACTIVE, VehicleRecord, free_vehicles, status_change
 from groundstation.core.intercept import intercept, travel_time_s
 from groundstation.core.planning_targets import build_problem, search_targets, track_targets
 from groundstation.core.tracking import TrackBook, TrackerFactory
@@ -233,7 +233,7 @@ class DecisionCore:
                 return out
             self.observer.remove_target(event.target)
             self.tracks.forget(event.target)
-            self._free_vehicles(event.target)
+            free_vehicles(self.vehicles.values(), event.target)
             self._mark_dirty("target removed")
         elif isinstance(event, VehicleJoined):
             record = self.vehicles.get(event.vehicle)
@@ -444,10 +444,9 @@ class DecisionCore:
         """Buffered scans due by ``t_s`` through the tracker; its events become notes, a
         confirmation or deletion marks the plan dirty, a deleted track (already gone from
         the observer: the tracker removes it) frees its vehicles (as ``TargetRemoved``).
-        A tentative track deleted unconfirmed (mostly clutter) is no reason to replan when
-        no plan could hold it (``tentative_weight`` 0) and no vehicle flew to it: on
-        ``discovery`` such deletions asked for 903 of 1 078 plans (seed 6) and each new
-        plan could turn a vehicle away from the track it was about to reach.
+        An unconfirmed deletion (mostly clutter) no plan held nor vehicle flew to asks for
+        no plan (on ``discovery`` seed 6 they were 903 of 1 078 plans, each a chance to
+        turn a vehicle away from the track it was about to reach).
         The search cells' prior weights stay those of the prior as listed."""
         out: list[Command] = []
         self.scan_hits = []
@@ -460,19 +459,11 @@ class DecisionCore:
                 if ev.kind == "confirmed":
                     self._mark_dirty("track confirmed")
                 elif ev.kind == "deleted":  # the tracker removed it from the observer
-                    freed = self._free_vehicles(ev.track_id)
+                    freed = free_vehicles(self.vehicles.values(), ev.track_id)
                     if freed or ev.reason != UNCONFIRMED or self.config.tentative_weight > 0:
                         self._mark_dirty("track deleted")
         return out
 
-    def _free_vehicles(self, target: str) -> bool:
-        """Release the vehicles flying to ``target``; True if there were any."""
-        freed = False
-        for v in self.vehicles.values():
-            if v.target == target:
-                v.target, v.busy, v.aim_xy_m = None, False, None
-                freed = True
-        return freed
 
     def _known_targets(self) -> set[str]:
         """Ids a plan may send a vehicle to: the tracks, and the search cells."""

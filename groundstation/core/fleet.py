@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 from groundstation.core.commands import Command, ReleaseVehicle, SendHome
@@ -15,7 +16,8 @@ from groundstation.core.events import (
     VehicleReturned,
 )
 
-__all__ = ["ACTIVE", "HOME", "LOST", "OVERRIDDEN", "VehicleRecord", "status_change"]
+__all__ = ["ACTIVE", "HOME", "LOST", "OVERRIDDEN", "VehicleRecord", "free_vehicles",
+           "status_change"]
 
 ACTIVE = "active"
 OVERRIDDEN = "overridden"
@@ -80,3 +82,13 @@ def status_change(record: VehicleRecord, event: Event,
             out.append(ReleaseVehicle(t_s, record.id, "battery low"))
         reason = "battery low"
     return out, reason
+
+
+def free_vehicles(records: Iterable[VehicleRecord], target: str) -> bool:
+    """Release the vehicles flying to ``target`` (it is gone); True if there were any."""
+    freed = False
+    for record in records:
+        if record.target == target:
+            record.target, record.busy, record.aim_xy_m = None, False, None
+            freed = True
+    return freed
