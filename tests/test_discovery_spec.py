@@ -64,8 +64,9 @@ def test_discovery_and_paper_boat_clutter() -> None:
     assert d.area == AreaSpec(0.0, 3000.0, 0.0, 3000.0)
     assert d.prior is not None and (d.prior.listed, d.prior.max_age_s, d.prior.phantoms) == (
         8, 600.0, 1)
-    assert d.search == SearchSpec(300.0, 50.0, 4, 1.0) and d.duration_s == 1800.0
+    assert d.search == SearchSpec(300.0, 25.0, 4, 0.0) and d.duration_s == 1800.0
     assert d.fleet.count == 3 and d.tracker["association"] == "gnn"
+    assert d.tracker["lost_sigma_m"] == 300.0
     targets = resolve_targets(d, np.random.default_rng(5))
     assert len(targets) == 12
     outside = [t for t in targets if not d.area.contains(t.x_m, t.y_m)]
@@ -87,7 +88,7 @@ def test_fields_parse() -> None:
                         {"id": "P2", "x_m": 5, "y_m": 6, "sigma_m": 10}], "sigma_m": 20},
         tracker={"association": "jpda", "confirm_hits": 2, "confirm_window": 4,
                  "existence_delete": 0.1, "existence_confirm_min": 0.6,
-                 "new_track_vel_var_m2_s2": 1.5, "gate_probability": 0.99},
+                 "new_track_vel_var_m2_s2": 1.5, "gate_probability": 0.99, "lost_sigma_m": 450},
         search={"cell_m": 250, "max_cells": 6},
     )
     assert s.camera == CameraSpec(0.5, 2.0, True) and not s.targets_known
@@ -95,7 +96,8 @@ def test_fields_parse() -> None:
         PriorEntry("P1", 3.0, 4.0, 60.0, 20.0, "A"), PriorEntry("P2", 5.0, 6.0, 0.0, 10.0, None))
     assert s.tracker == {"association": "jpda", "confirm_hits": 2, "confirm_window": 4,
                          "existence_delete": 0.1, "existence_confirm_min": 0.6,
-                         "new_track_vel_var_m2_s2": 1.5, "gate_probability": 0.99}
+                         "new_track_vel_var_m2_s2": 1.5, "gate_probability": 0.99,
+                         "lost_sigma_m": 450.0}
     assert s.search == SearchSpec(250.0, 50.0, 6, 1.0)
     assert s.area is not None and s.area.contains(0, 2000) and not s.area.contains(-1, 5)
     camera = scenario_camera(s)
@@ -136,6 +138,7 @@ def test_fields_parse() -> None:
     ({"tracker": {"confirm_hits": 6, "confirm_window": 5}},
      "tracker.confirm_hits: must be <= confirm_window (5), got 6"),
     ({"tracker": {"existence_delete": 1}}, "tracker.existence_delete: must be in (0, 1), got 1"),
+    ({"tracker": {"lost_sigma_m": 0}}, "tracker.lost_sigma_m: must be > 0"),
     ({"tracker": {"existence_delete": 0.6, "existence_confirm_min": 0.5}},
      "tracker.existence_delete: must be below existence_confirm_min"),
     ({"tracker": {"gate_probability": 0}}, "tracker.gate_probability: must be in (0, 1)"),
