@@ -6,6 +6,8 @@ from __future__ import annotations
 import json
 from typing import Any
 
+import pytest
+
 from groundstation.core.commands import Command, FlyToTarget, Note, SolveRequest
 from groundstation.core.config import CoreConfig, ReplanPolicy, config_from_dict, config_to_dict
 from groundstation.core.decision import DecisionCore
@@ -17,6 +19,7 @@ from groundstation.core.events import (
     Tick,
     VehicleJoined,
 )
+from groundstation.core.planning_targets import track_targets
 from groundstation.core.records import event_to_record, record_to_event
 from observer import Observer, ObserverConfig, Tracker, TrackerConfig
 from planner import solve_plan
@@ -213,3 +216,22 @@ def test_clutter_born_and_deleted_unconfirmed_asks_for_no_plan() -> None:
             reasons += [c.reason for c in out if isinstance(c, SolveRequest)]
         assert [n.detail for n in deleted] == ["unconfirmed"]
         assert reasons == expected
+
+
+def test_tentative_visit_is_worth_its_existence_times_the_mean_firm_sigma() -> None:
+    """sigma_plan = tentative_weight * existence * max(sigma, mean firm sigma): a lone false
+    alarm's track (existence ~0.09) is worth a tenth of a likely iceberg's (existence 0.9),
+    confirmed tracks their own sigma, covered tracks nothing, weight 0 nothing planned."""
+    obs = Observer(ObserverConfig(model="kalman", q_per_s=0.0, r_m2=5.0))
+    for tid, p0 in (("A", 100.0), ("B", 300.0), ("C", 2.0), ("D", 2.0), ("E", 2.0)):
+        obs.add_target(tid, 0.0, 10.0, 20.0, p0=[p0, p0, 0.0, 0.0])
+    status = {"A": "confirmed", "B": "prior", "C": "tentative", "D": "tentative",
+              "E": "tentative"}
+    existence = {"A": 1.0, "B": 0.5, "C": 0.09, "D": 0.9, "E": 0.9}
+    targets = track_targets(obs.tracks(), status.__getitem__, {"E"}, 2.0, existence.__getitem__)
+    got = {t.id: t.sigma for t in targets}
+    mean_firm = (200.0 + 600.0) / 2
+    assert got == pytest.approx({"A": 200.0, "B": 600.0, "C": 2.0 * 0.09 * mean_firm,
+                                 "D": 2.0 * 0.9 * mean_firm})
+    zero = track_targets(obs.tracks(), status.__getitem__, set(), 0.0, existence.__getitem__)
+    assert {t.id: t.sigma for t in zero if t.sigma > 0} == {"A": 200.0, "B": 600.0}

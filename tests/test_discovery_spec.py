@@ -247,3 +247,12 @@ def test_prior_variance_grows_with_the_listings_age() -> None:
         assert a.variance_m2 == pytest.approx(900.0 + (0.3 * a.age_s) ** 2)
     with pytest.raises(FieldError, match=r"prior\.drift_m_s"):
         scenario(prior={"listed": 1, "drift_m_s": -1})
+
+
+def test_planner_tentative_weight_reaches_the_core() -> None:
+    from groundstation.core.scenario_config import core_config_for
+
+    assert core_config_for(scenario()).tentative_weight == 0.0
+    assert core_config_for(scenario(planner={"tentative_weight": 0.5})).tentative_weight == 0.5
+    with pytest.raises(FieldError, match="planner.tentative_weight: must be >= 0"):
+        scenario(planner={"tentative_weight": -1})

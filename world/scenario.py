@@ -140,13 +140,16 @@ class ObserverSpec:
 class PlannerSpec:
     """Planner settings. The default objective is ``latency`` (docs/planner.md, "Choosing
     the objective"); the paper's reproduction scenarios name ``sequence``. ``wind_aware``
-    false plans and predicts as in still air whatever the wind (the wind-blind baseline)."""
+    false plans and predicts as in still air whatever the wind (the wind-blind baseline).
+    ``tentative_weight``: the core's ``CoreConfig.tentative_weight`` (confirmation visits
+    to tentative tracks; 0: none)."""
 
     tau: float = 0.5
     objective: str = "latency"
     time_limit_s: float = 2.0
     min_sigma_fraction: float = 0.1
     wind_aware: bool = True
+    tentative_weight: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -447,6 +450,7 @@ def _parse_planner(f: Fields) -> PlannerSpec:
         time_limit_s=f.number("time_limit_s", 2.0, minimum=0.0, exclusive_minimum=True),
         min_sigma_fraction=f.number("min_sigma_fraction", 0.1, minimum=0.0, maximum=1.0),
         wind_aware=f.boolean("wind_aware", True),
+        tentative_weight=f.number("tentative_weight", 0.0, minimum=0.0, maximum=1e6),
     )
     f.done()
     return spec

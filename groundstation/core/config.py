@@ -99,12 +99,13 @@ class CoreConfig:
     area_m: tuple[float, float, float, float] | None = None
     """The operating area (x_min, x_max, y_min, y_max), m; search needs it."""
     tentative_weight: float = 0.0
-    """A tentative track's planning value is ``tentative_weight * max(sigma, mean sigma
-    of the confirmed and prior tracks)`` (``core/planning_targets.py``). 0 (measured
-    best on paper-boat-clutter, 3 UAVs: mean uncertainty 3 767 / 5 632 at 0 against
-    9 078 / 6 157 at 0.25 and 15 980 / 7 375 at 1, seeds 2 / 3; the labelled paper-boat
-    gives 3 654 / 5 220): a real iceberg is confirmed within the pass that found it (M of
-    N frames), so what is left tentative is mostly clutter, and visits to it are lost."""
+    """A tentative track's planning value is ``tentative_weight * existence * max(sigma,
+    mean sigma of the confirmed and prior tracks)`` (``core/planning_targets.py``; a
+    scenario's ``planner.tentative_weight``). 0 (measured best: a real iceberg is
+    confirmed within the pass that found it, M of N frames, so what is left tentative is
+    mostly clutter, and visits to it are lost): paper-boat-clutter, 3 UAVs, seeds 0-19,
+    mean uncertainty 4 932 +- 973 m^2 (13/20 bounded) at 0 against 6 127 +- 1 766
+    (11/20) at 1; discovery in docs/tracker.md."""
 
     def __post_init__(self) -> None:
         if self.turn_radius_m <= 0:

@@ -326,7 +326,7 @@ class DecisionCore:
             if v.status == ACTIVE and v.busy and v.target is not None
         } if self.config.policy.commit else set()
         targets = track_targets(self.observer.tracks(), self.tracks.status, covered,
-                                self.config.tentative_weight)
+                                self.config.tentative_weight, self.tracks.existence)
         if self.search is not None:
             targets += search_targets(self.search.top(t_s, exclude=covered))
         if not vehicles or not targets:

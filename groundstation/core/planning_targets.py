@@ -9,8 +9,11 @@ else):
   as before);
 * **tentative tracks**: a confirmation visit, worth (``tentative_weight`` is 0 by
   default, measured: see ``CoreConfig.tentative_weight``; then they are not planned)
-  ``sigma_plan = tentative_weight * max(sigma, mean sigma of the confirmed and prior
-  tracks)`` (their own sigma right after birth is the camera's noise, a few m^2, which the
+  ``sigma_plan = tentative_weight * r * max(sigma, mean sigma of the confirmed and prior
+  tracks)``, ``r`` the tracker's existence probability (the visit finds an iceberg with
+  probability ``r``: a single false alarm's track has ``r = lambda_b / (lambda_b +
+  lambda_c)``, 0.09 with the defaults, two hits make it ~1) (their own sigma right after
+  birth is the camera's noise, a few m^2, which the
   planner's 10 % rule would drop: a tentative track is as urgent as an average track, since
   unconfirmed it can neither be planned as an iceberg nor deleted as clutter without a
   look); with no confirmed or prior track, its own sigma;
@@ -39,6 +42,7 @@ def track_targets(
     status_of: Callable[[str], str],
     covered: set[str],
     tentative_weight: float,
+    existence_of: Callable[[str], float] = lambda _track: 1.0,
 ) -> list[TargetEstimate]:
     """Tracks as planning targets (module docstring), in the order given."""
     statuses = [status_of(tr.id) for tr in tracks]
@@ -51,7 +55,8 @@ def track_targets(
     for tr, status in zip(tracks, statuses, strict=True):
         if tr.id in covered:
             continue
-        sigma = tr.sigma if status != TENTATIVE else tentative_weight * max(tr.sigma, mean)
+        sigma = tr.sigma if status != TENTATIVE else (
+            tentative_weight * existence_of(tr.id) * max(tr.sigma, mean))
         out.append(TargetEstimate(tr.id, tr.x_m, tr.y_m, sigma))
     return out
 

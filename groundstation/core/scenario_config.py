@@ -59,6 +59,7 @@ def core_config_for(scenario: Scenario, objective: str | None = None) -> CoreCon
         priority_far_m=obs.priority_far_m,
         wind_xy_m_s=_plain(scenario.wind.mean_xy_m_s),
         wind_aware=scenario.planner.wind_aware,
+        tentative_weight=scenario.planner.tentative_weight,
         tracker=tracker_config_for(scenario),
         search=_search(scenario),
         area_m=None if scenario.area is None else (
