@@ -189,10 +189,10 @@ def test_core_config_with_tracker_and_search_round_trips() -> None:
 
 
 def test_clutter_born_and_deleted_unconfirmed_asks_for_no_plan() -> None:
-    """A tentative track (not planned: tentative_weight 0) deleted unconfirmed changes no
-    plan, so no solve is requested; a confirmed track's deletion asks for one, and so does
-    an unconfirmed deletion once tentative tracks are planned."""
-    for weight, expected in ((0.0, []), (1.0, ["track deleted"])):
+    """A tentative track deleted unconfirmed that no route holds (tentative_weight 0: never
+    planned) changes no plan, so no solve is requested; once tentative tracks are planned
+    (weight 5) and a plan routes a vehicle through it, its deletion asks for one."""
+    for weight, expected in ((0.0, []), (5.0, ["track deleted"])):
         core = DecisionCore(CoreConfig(
             policy=ReplanPolicy(on_events=True, period_s=None, commit=False),
             observer=ObserverConfig(model="kalman", q_per_s=0.01, r_m2=25.0),
@@ -201,11 +201,13 @@ def test_clutter_born_and_deleted_unconfirmed_asks_for_no_plan() -> None:
         ))
         core.handle(VehicleJoined(0.0, "1", 0.0, 0.0, 0.0, 22.0))
         core.handle(TargetAdded(0.0, "K", 3000.0, 3000.0, sigma0=50.0))  # always a target
-        for c in core.handle(Tick(0.0)):
-            if isinstance(c, SolveRequest):
-                core.handle(PlanSolved(0.0, c.request_id, solve_plan(c.problem, c.hint)))
         out = frame(core, 0.5, (500.0, 300.0), (520.0, 310.0))  # one false alarm
-        assert len(notes(out, "track_born")) == 1
+        (born,) = notes(out, "track_born")
+        core.handle(TargetAdded(0.5, "K2", 3000.0, -3000.0, sigma0=50.0))  # asks for a plan
+        for c in core.handle(Tick(0.5)):
+            if isinstance(c, SolveRequest):
+                core.handle(PlanSolved(0.5, c.request_id, solve_plan(c.problem, c.hint)))
+        assert (born.target in core.vehicles["1"].route) is (weight > 0)
         reasons: list[str] = []
         deleted: list[Note] = []
         t = 0.5

@@ -444,7 +444,7 @@ class DecisionCore:
         """Buffered scans due by ``t_s`` through the tracker; its events become notes, a
         confirmation or deletion marks the plan dirty, a deleted track (already gone from
         the observer: the tracker removes it) frees its vehicles (as ``TargetRemoved``).
-        An unconfirmed deletion (mostly clutter) no plan held nor vehicle flew to asks for
+        An unconfirmed deletion (mostly clutter) that no vehicle's route held asks for
         no plan (on ``discovery`` seed 6 they were 903 of 1 078 plans, each a chance to
         turn a vehicle away from the track it was about to reach).
         The search cells' prior weights stay those of the prior as listed."""
@@ -459,8 +459,9 @@ class DecisionCore:
                 if ev.kind == "confirmed":
                     self._mark_dirty("track confirmed")
                 elif ev.kind == "deleted":  # the tracker removed it from the observer
+                    held = any(ev.track_id in v.route for v in self.vehicles.values())
                     freed = free_vehicles(self.vehicles.values(), ev.track_id)
-                    if freed or ev.reason != UNCONFIRMED or self.config.tentative_weight > 0:
+                    if freed or held or ev.reason != UNCONFIRMED:
                         self._mark_dirty("track deleted")
         return out
 
