@@ -254,5 +254,5 @@ def test_planner_tentative_weight_reaches_the_core() -> None:
 
     assert core_config_for(scenario()).tentative_weight == 0.0
     assert core_config_for(scenario(planner={"tentative_weight": 0.5})).tentative_weight == 0.5
-    with pytest.raises(FieldError, match="planner.tentative_weight: must be >= 0"):
+    with pytest.raises(FieldError, match=r"planner\.tentative_weight: must be >= 0"):
         scenario(planner={"tentative_weight": -1})
