@@ -105,7 +105,8 @@ class CoreConfig:
     confirmed within the pass that found it, M of N frames, so what is left tentative is
     mostly clutter, and visits to it are lost): paper-boat-clutter, 3 UAVs, seeds 0-19,
     mean uncertainty 4 932 +- 973 m^2 (13/20 bounded) at 0 against 6 127 +- 1 766
-    (11/20) at 1; discovery in docs/tracker.md."""
+    (11/20) at 1; discovery, seeds 0-9, true icebergs confirmed at the end 0.979 at 0
+    against 0.972 at 1, which costs 5x the CPU (170 against 34 s a run)."""
 
     def __post_init__(self) -> None:
         if self.turn_radius_m <= 0:
