@@ -4,14 +4,13 @@ journal plumbing, and replay of windy and of pre-wind journals."""
 
 from __future__ import annotations
 
-import contextlib
-import io
 import json
 import math
 from pathlib import Path
 
 import pytest
 import yaml
+from simulate_run import simulate_text
 from test_core_decision import join, of_type, solve_all
 
 from groundstation.cli import main
@@ -178,16 +177,6 @@ wind: {speed_m_s: 12, from_deg: 250}
 CALM = SCENARIO.split("wind: {")[0]
 
 
-def _simulate(tmp_path: Path, text: str) -> Path:
-    scenario = tmp_path / "s.yaml"
-    scenario.write_text(text)
-    out = tmp_path / "run"
-    with contextlib.redirect_stdout(io.StringIO()):
-        assert main(["simulate", "--scenario", str(scenario), "--out", str(out), "--quiet",
-                     "--no-plots"]) == 0
-    return out
-
-
 def _replay(run: Path, capsys: pytest.CaptureFixture[str]) -> dict:
     capsys.readouterr()
     assert main(["replay", str(run), "--json"]) == 0
@@ -198,7 +187,7 @@ def test_windy_run_and_a_pre_wind_journal_replay_identical(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     (tmp_path / "windy").mkdir()
-    windy = _simulate(tmp_path / "windy", SCENARIO)
+    windy = simulate_text(tmp_path / "windy", SCENARIO)
     lines = (windy / "journal.jsonl").read_text().splitlines()
     plans = [json.loads(line) for line in lines if '"event": "plan"' in line]
     assert plans and all("wind_m_s" in p["problem"] for p in plans)
@@ -206,7 +195,7 @@ def test_windy_run_and_a_pre_wind_journal_replay_identical(
     assert report["identical"] is True and report["problems_equal"] == len(plans)
     # still air, journalled as before wind existed: no wind keys in the start line
     (tmp_path / "calm").mkdir()
-    calm = _simulate(tmp_path / "calm", CALM)
+    calm = simulate_text(tmp_path / "calm", CALM)
     journal = calm / "journal.jsonl"
     records = [json.loads(line) for line in journal.read_text().splitlines()]
     for record in records:

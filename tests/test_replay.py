@@ -9,6 +9,7 @@ import shutil
 from pathlib import Path
 
 import pytest
+from simulate_run import simulate_text
 
 from groundstation.cli import main
 from groundstation.runners.replay import replay_journal
@@ -49,26 +50,7 @@ policy: {replan: event, commit: true}
 @pytest.fixture(scope="module")
 def event_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A recorded 3-vehicle run with loiters, an override, a resume and a low battery."""
-    root = tmp_path_factory.mktemp("event-run")
-    scenario = root / "scenario.yaml"
-    scenario.write_text(SCENARIO)
-    out = root / "run"
-    with contextlib.redirect_stdout(io.StringIO()):
-        assert (
-            main(
-                [
-                    "simulate",
-                    "--scenario",
-                    str(scenario),
-                    "--out",
-                    str(out),
-                    "--quiet",
-                    "--no-plots",
-                ]
-            )
-            == 0
-        )
-    return out
+    return simulate_text(tmp_path_factory.mktemp("event-run"), SCENARIO)
 
 
 @pytest.fixture(scope="module")

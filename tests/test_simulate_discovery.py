@@ -4,12 +4,11 @@ tracker."""
 
 from __future__ import annotations
 
-import contextlib
-import io
 import json
 from pathlib import Path
 
 import pytest
+from simulate_run import simulate_text
 
 from groundstation.cli import main
 from groundstation.core import tracking
@@ -41,14 +40,7 @@ policy: {replan: both, period_s: 10.0}
 
 @pytest.fixture(scope="module")
 def discovery_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    root = tmp_path_factory.mktemp("discovery-run")
-    scenario = root / "scenario.yaml"
-    scenario.write_text(SMALL_DISCOVERY)
-    out = root / "run"
-    with contextlib.redirect_stdout(io.StringIO()):
-        assert main(["simulate", "--scenario", str(scenario), "--out", str(out), "--quiet",
-                     "--no-plots"]) == 0
-    return out
+    return simulate_text(tmp_path_factory.mktemp("discovery-run"), SMALL_DISCOVERY)
 
 
 def test_discovery_run_journals_tracks_notes_and_search(discovery_run: Path) -> None:
