@@ -6,7 +6,13 @@ from __future__ import annotations
 import math
 import numbers
 
-__all__ = ["finite_number"]
+__all__ = ["finite_number", "is_finite_number"]
+
+
+def is_finite_number(value: object) -> bool:
+    """A real number (not a bool) that is finite."""
+    return (isinstance(value, numbers.Real) and not isinstance(value, bool)
+            and math.isfinite(float(value)))
 
 
 def finite_number(name: str, value: object) -> float:

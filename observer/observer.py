@@ -20,13 +20,12 @@ Measurement handling (:meth:`Observer.measure`):
 from __future__ import annotations
 
 import math
-import numbers
 from collections.abc import Mapping, Sequence
 from types import MappingProxyType
 
 import numpy as np
 
-from observer.checks import finite_number
+from observer.checks import finite_number, is_finite_number
 from observer.config import ObserverConfig
 from observer.kalman_track import KalmanBatch, KalmanTrack, load_filterpy
 from observer.linear_track import LinearTrack
@@ -43,21 +42,11 @@ COUNTER_NAMES: tuple[str, ...] = (
 _Track = KalmanTrack | LinearTrack
 
 
-
-
 def _non_negative(name: str, value: float) -> float:
     v = finite_number(name, value)
     if v < 0.0:
         raise ValueError(f"{name} must be >= 0, got {value!r}")
     return v
-
-
-def _is_finite_number(value: object) -> bool:
-    return (
-        isinstance(value, numbers.Real)
-        and not isinstance(value, bool)
-        and math.isfinite(float(value))
-    )
 
 
 class Observer:
@@ -197,7 +186,7 @@ class Observer:
     ) -> MeasurementOutcome:
         """Apply one position measurement; never raises on bad measurement data."""
         r = self.config.r_m2 if r_m2 is None else r_m2
-        if not all(_is_finite_number(v) for v in (t_s, x_m, y_m, r)) or r <= 0.0:
+        if not all(is_finite_number(v) for v in (t_s, x_m, y_m, r)) or r <= 0.0:
             return self._reject("rejected_invalid", target_id, "invalid", None)
         t, x, y, r = float(t_s), float(x_m), float(y_m), float(r)
         if target_id is not None and (

@@ -44,6 +44,7 @@ from types import MappingProxyType
 import numpy as np
 
 from observer.association import gnn_assign, scan_likelihoods
+from observer.checks import is_finite_number
 from observer.existence import (
     existence_after_hit,
     existence_after_miss,
@@ -84,12 +85,6 @@ class _Life:
     keep: bool = False
 
 
-def _finite(v: object) -> bool:
-    return (
-        isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(float(v))
-    )
-
-
 class Tracker:
     """Lifecycle of the observer's tracks from unlabelled scans; see the module docstring."""
 
@@ -124,7 +119,7 @@ class Tracker:
         if status not in ("confirmed", "prior"):
             raise ValueError(f"status must be 'confirmed' or 'prior', got {status!r}")
         r = (1.0 if status == "confirmed" else 0.5) if existence is None else existence
-        if not _finite(r) or not 0.0 < float(r) <= 1.0:
+        if not is_finite_number(r) or not 0.0 < float(r) <= 1.0:
             raise ValueError(f"existence must be in (0, 1], got {existence!r}")
         born = self.observer.track(track_id).t_s if t_s is None else float(t_s)
         self._life[track_id] = _Life(
@@ -186,21 +181,21 @@ class Tracker:
         dets = list(detections)
         self._counters["scans"] += 1
         self._counters["detections"] += len(dets)
-        if not _finite(t_s):
+        if not is_finite_number(t_s):
             self._counters["rejected_scans"] += 1
             self._counters["rejected_invalid"] += len(dets)
             return ScanResult(events=(), rejected=len(dets))
         t = float(t_s)
         fp = footprint
         if fp is not None and not (
-            all(_finite(v) for v in (fp.x_m, fp.y_m, fp.radius_m)) and fp.radius_m > 0.0
+            all(is_finite_number(v) for v in (fp.x_m, fp.y_m, fp.radius_m)) and fp.radius_m > 0.0
         ):
             self._counters["rejected_footprint"] += 1
             fp = None
         index: list[int] = []
         rows: list[tuple[float, float, float]] = []
         for k, d in enumerate(dets):
-            if all(_finite(v) for v in (d.x_m, d.y_m, d.r_m2)) and d.r_m2 > 0.0:
+            if all(is_finite_number(v) for v in (d.x_m, d.y_m, d.r_m2)) and d.r_m2 > 0.0:
                 index.append(k)
                 rows.append((float(d.x_m), float(d.y_m), float(d.r_m2)))
         rejected = len(dets) - len(index)

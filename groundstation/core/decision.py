@@ -465,7 +465,6 @@ class DecisionCore:
                         self._mark_dirty("track deleted")
         return out
 
-
     def _known_targets(self) -> set[str]:
         """Ids a plan may send a vehicle to: the tracks, and the search cells."""
         known = set(self.observer.target_ids)
