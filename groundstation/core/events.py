@@ -8,6 +8,7 @@ never sees a socket, a clock or a MAVLink message.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Protocol
 
 from planner import PlanResult
 
@@ -80,6 +81,19 @@ class Detection:
     r_m2: float | None = None
 
 
+class PriorListing(Protocol):
+    """What announcing a listed iceberg needs (``world.discovery_spec.PriorEntry`` has it)."""
+
+    @property
+    def id(self) -> str: ...
+    @property
+    def x_m(self) -> float: ...
+    @property
+    def y_m(self) -> float: ...
+    @property
+    def variance_m2(self) -> float: ...
+
+
 @dataclass(frozen=True)
 class TargetAdded:
     """A target the ground station must keep track of from now on."""
@@ -95,6 +109,13 @@ class TargetAdded:
     prior: bool = False
     """A listed, unverified iceberg (e.g. a satellite pass): tracked and planned, deleted
     when a camera looks where it should be and does not see it."""
+
+    @classmethod
+    def listed(cls, t_s: float, entry: PriorListing) -> TargetAdded:
+        """A prior listing announced at ``t_s``: at its position, velocity 0, ``sigma0 =
+        2 variance_m2`` (``variance_m2`` per axis, e.g. ``world``'s ``PriorEntry``)."""
+        return cls(t_s, entry.id, entry.x_m, entry.y_m, sigma0=2.0 * entry.variance_m2,
+                   prior=True)
 
 
 @dataclass(frozen=True)

@@ -73,8 +73,7 @@ class ScenarioWorld:
         out: list[ev.Event] = []
         if self._prior_due:
             self._prior_due = False
-            out += [ev.TargetAdded(self.t_s, p.id, p.x_m, p.y_m, sigma0=2.0 * p.variance_m2,
-                                   prior=True) for p in self.prior]
+            out += [ev.TargetAdded.listed(self.t_s, p) for p in self.prior]
         positions = dict(self.positions())
         while self.t_s < t_s - 1e-9:
             dt = min(STEP_S, t_s - self.t_s)

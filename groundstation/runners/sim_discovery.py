@@ -49,10 +49,7 @@ class Discovery:
         self._next_search_s = 0.0
 
     def prior_events(self) -> list[TargetAdded]:
-        return [
-            TargetAdded(0.0, p.id, p.x_m, p.y_m, sigma0=2.0 * p.variance_m2, prior=True)
-            for p in self.prior
-        ]
+        return [TargetAdded.listed(0.0, p) for p in self.prior]
 
     def observe(self, world: World, positions: Mapping[str, tuple[float, float]],
                 lost: Callable[[str], bool]) -> list[Event]:
