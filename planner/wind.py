@@ -63,6 +63,7 @@ FloatArray = npt.NDArray[np.float64]
 __all__ = [
     "NEAR_STEP_S",
     "first_leg_times_s",
+    "potential_s",
     "straight_leg_times_s",
     "time_in_wind_s",
 ]
@@ -89,6 +90,28 @@ def straight_leg_times_s(
     w_perp = wx * ey - wy * ex
     ground = w_par + np.sqrt(v * v - w_perp * w_perp)
     return np.where(dist > 0.0, dist / ground, 0.0)
+
+
+def potential_s(
+    xy_m: FloatArray, wind_xy_m_s: tuple[float, float], airspeed_m_s: float
+) -> FloatArray:
+    """The wind's potential (s) at the rows of ``xy_m`` (N x 2): ``phi(p) = -(w . p) /
+    (V^2 - |w|^2)``. Needs |w| < V.
+
+    Any flight at airspeed V over a ground path (straight, turning, crabbing) makes good
+    ``g = w . u + sqrt((w . u)^2 + V^2 - |w|^2)`` along its course ``u`` (from
+    ``|g u - w| = V``), so ``1/g = (sqrt((w . u)^2 + V^2 - |w|^2) - w . u) / (V^2 - |w|^2)``
+    and its time splits into a part that is the same both ways along the path and an
+    exact differential::
+
+        T = T_sym + phi(p_end) - phi(p_start),
+        T_sym = integral sqrt((w . u)^2 + V^2 - |w|^2) / (V^2 - |w|^2) ds   (u -> -u: same)
+
+    Downwind ``phi`` falls: every flight is credited the wind's push along it, which a
+    flight back repays to the second. Over a closed tour the potential cancels."""
+    wx, wy = wind_xy_m_s
+    v = float(airspeed_m_s)
+    return -(xy_m[:, 0] * wx + xy_m[:, 1] * wy) / (v * v - wx * wx - wy * wy)
 
 
 def first_leg_times_s(

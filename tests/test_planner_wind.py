@@ -42,7 +42,8 @@ from planner.dubins import dubins_candidates_to_points, dubins_distances_to_poin
 from planner.exact_dp import solve_dp
 from planner.instance import build_instance
 from planner.solve import PlanSolver
-from planner.wind import first_leg_times_s, straight_leg_times_s, time_in_wind_s
+from planner.wind import first_leg_times_s, potential_s, straight_leg_times_s, time_in_wind_s
+from world.dynamics import UavState, step_kinematics
 
 V = 22.0
 R = 105.0
@@ -199,6 +200,61 @@ def test_cost_matrix_in_wind_is_airspeed_times_time() -> None:
     assert inst.d_avg == pytest.approx(inst.d.sum() / 30)
 
 
+def test_flight_time_is_symmetric_part_plus_potential_on_any_flown_path() -> None:
+    """T = integral sqrt((w.u)^2 + V^2 - |w|^2) / (V^2 - |w|^2) ds + phi(end) - phi(start)
+    (planner.wind.potential_s), integrated over a curving flight of the simulator's
+    kinematics (turns at varying rates, crabbing), not over a formula of planner.wind."""
+    wind = wind_of(12.0, 0.7)
+    wx, wy = wind
+    k = V * V - wx * wx - wy * wy
+    state = UavState(0.0, 0.0, 2.0, V)
+    start = (state.x_m, state.y_m)
+    sym_s, dt_s = 0.0, 0.01
+    for step in range(6000):  # 60 s: straight, left and right turns, back across the wind
+        rate = 0.2 * math.sin(step * dt_s / 7.0)
+        nxt = step_kinematics(state, rate, dt_s, wind_xy_m_s=wind)
+        dx, dy = nxt.x_m - state.x_m, nxt.y_m - state.y_m
+        ds = math.hypot(dx, dy)
+        w_par = (wx * dx + wy * dy) / ds
+        sym_s += ds * math.sqrt(w_par * w_par + k) / k
+        state = nxt
+    phi = potential_s(np.array([start, (state.x_m, state.y_m)]), wind, V)
+    assert sym_s + phi[1] - phi[0] == pytest.approx(6000 * dt_s, rel=1e-5)
+    assert abs(phi[1] - phi[0]) > 1.0  # the flight went somewhere along the wind
+
+
+def test_distance_term_is_travel_time_without_the_wind_potential() -> None:
+    """d_f2 = d - V (phi_j - phi_i): between targets symmetric and equal to V T_sym of the
+    straight leg; a UAV's first legs V T minus the potential; d_avg, hops unchanged."""
+    rng = random.Random(11)
+    wind = wind_of(12.0, 2.2)
+    wx, wy = wind
+    k = V * V - wx * wx - wy * wy
+    problem = PlanningProblem(
+        uavs=(UavPose("u", 100.0, 50.0, 0.3), UavPose("v", 900.0, 1200.0, -2.0)),
+        targets=tuple(TargetEstimate(f"t{k}", rng.uniform(0, 2000), rng.uniform(0, 2000), 5.0)
+                      for k in range(5)),
+        turn_radius_m=R, wind_m_s=wind,
+    )
+    inst = build_instance(problem)
+    nodes = [(u.x_m, u.y_m) for u in problem.uavs] + [(t.x_m, t.y_m) for t in problem.targets]
+    for i, j in itertools.permutations(range(7), 2):
+        (x0, y0), (x1, y1) = nodes[i], nodes[j]
+        credit = V * (wx * (x1 - x0) + wy * (y1 - y0)) / k
+        assert inst.d_f2[i, j] == pytest.approx(inst.d[i, j] + credit, rel=1e-9, abs=1e-6)
+        assert inst.d_f2[i, j] > 0.0
+        if i >= 2 and j >= 2:
+            dist = math.hypot(x1 - x0, y1 - y0)
+            w_par = (wx * (x1 - x0) + wy * (y1 - y0)) / dist
+            assert inst.d_f2[i, j] == pytest.approx(V * dist * math.sqrt(w_par**2 + k) / k)
+    targets = inst.d_f2[2:, 2:]
+    assert np.allclose(targets, targets.T)
+    assert not np.allclose(inst.d[2:, 2:], inst.d[2:, 2:].T)
+    assert inst.d_f2.sum() == pytest.approx(inst.d.sum())  # so d_avg and mu are unchanged
+    still = build_instance(replace(problem, wind_m_s=None))
+    assert still.d_f2 is still.d
+
+
 def test_still_air_plans_are_bit_identical() -> None:
     rng = random.Random(8)
     problem = PlanningProblem(
@@ -321,7 +377,16 @@ def reference_parts(p: PlanningProblem) -> tuple[list[TargetEstimate], dict, flo
 
 def objective(p: PlanningProblem, routes: Mapping[str, Sequence[str]], parts: tuple) -> float:
     if p.objective != "latency":
-        return reference_objective(p, routes, parts)
+        # F2 without the wind's potential, by route: sum of V T plus V w.(end - start) /
+        # (V^2 - |w|^2) (the arc-wise d_f2 of planner.instance, telescoped)
+        wx, wy = p.wind_m_s or (0.0, 0.0)
+        where = {t.id: (t.x_m, t.y_m) for t in p.targets}
+        credit = 0.0
+        for u in p.uavs:
+            if routes[u.id]:
+                ex, ey = where[routes[u.id][-1]]
+                credit += V * (wx * (ex - u.x_m) + wy * (ey - u.y_m)) / (V * V - wx * wx - wy * wy)
+        return reference_objective(p, routes, parts) + p.tau * parts[2] * credit
     kept, d, _, _ = parts
     sigma = {t.id: t.sigma for t in kept}
     total = 0.0
