@@ -140,6 +140,14 @@ def test_cli_user_errors_are_one_line_with_status_2(
     assert "Traceback" not in err
 
 
+@pytest.mark.parametrize("objective", ["sequence", "arrival", "latency"])
+def test_cli_objective_takes_every_planner_objective(objective: str, tmp_path: Path) -> None:
+    status = main(["simulate", "--scenario", "paper-boat", "--duration", "10", "--no-plots",
+                   "--quiet", "--objective", objective, "--out", str(tmp_path)])
+    assert status == 0
+    assert json.loads((tmp_path / "metrics.json").read_text())["objective"] == objective
+
+
 def test_arrival_objective_runs_and_is_reported() -> None:
     metrics = simulate("paper-boat", 3, seed=1, duration_s=60.0, objective="arrival")
     assert metrics["objective"] == "arrival"

@@ -28,6 +28,7 @@ from groundstation.storage import (
     atomic_write_text,
     describe_os_error,
 )
+from planner import Objective
 from world.scenario import ScenarioError, bundled_scenarios, load_scenario
 from world.wind import parse_wind_text
 
@@ -85,7 +86,7 @@ def _parser() -> argparse.ArgumentParser:
     )
     parser.add_argument(
         "--objective",
-        choices=("sequence", "arrival"),
+        choices=[m.value for m in Objective],
         default=None,
         help="planner objective (default: the scenario's)",
     )
