@@ -41,7 +41,7 @@ from planner.bound import in_arc_bound, lp_bound
 from planner.dubins import dubins_candidates_to_points, dubins_distances_to_points
 from planner.exact_dp import solve_dp
 from planner.instance import build_instance
-from planner.solve import PlanSolver
+from planner.solve import PlanSolver, idle_assignment
 from planner.wind import first_leg_times_s, potential_s, straight_leg_times_s, time_in_wind_s
 from world.dynamics import UavState, step_kinematics
 
@@ -253,6 +253,21 @@ def test_distance_term_is_travel_time_without_the_wind_potential() -> None:
     assert inst.d_f2.sum() == pytest.approx(inst.d.sum())  # so d_avg and mu are unchanged
     still = build_instance(replace(problem, wind_m_s=None))
     assert still.d_f2 is still.d
+
+
+def test_idle_uavs_go_to_the_nearest_target_without_the_wind_credit() -> None:
+    """An idle UAV heading north between a target 1 km downwind (33 s) and one 600 m
+    upwind (55 s) in 10 m/s: by travel time the downwind one is nearer, without the
+    potential the upwind one (V T_sym 876 m against 1 308 m), as in still air."""
+    problem = PlanningProblem(
+        uavs=(UavPose("u", 0.0, 0.0, math.pi / 2),),
+        targets=(TargetEstimate("down", 1000.0, 0.0, 1.0), TargetEstimate("up", -600.0, 0.0, 1.0)),
+        turn_radius_m=R, wind_m_s=(10.0, 0.0),
+    )
+    inst = build_instance(problem)
+    assert inst.d[0, 1] < inst.d[0, 2] and inst.d_f2[0, 2] < inst.d_f2[0, 1]
+    assert idle_assignment(inst, [[]]) == {"u": "up"}
+    assert idle_assignment(build_instance(replace(problem, wind_m_s=None)), [[]]) == {"u": "up"}
 
 
 def test_still_air_plans_are_bit_identical() -> None:
