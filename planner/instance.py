@@ -9,32 +9,35 @@ ground speed along their track, the first leg the fastest Dubins flight in the m
 It is asymmetric (d_ij != d_ji); every method below uses d_ij only in the direction of the
 arc i -> j. With w = 0 it is exactly the still-air matrix (the wind code is not entered).
 
-The distance term F2 sums ``d_f2``, the travel time without the wind's potential
+Every objective charges ``d_net``, the same times without the wind's potential
 (planner.wind.potential_s: T_ij = T_sym,ij + phi_j - phi_i over any flown path):
 
-    d_f2_ij = V T_sym,ij = d_ij - V (phi_j - phi_i),   phi(p) = -(w . p) / (V^2 - |w|^2).
+    d_net_ij = V T_sym,ij = d_ij - V (phi_j - phi_i),   phi(p) = -(w . p) / (V^2 - |w|^2).
 
-Summed along a route it telescopes: F2 with d is F2 with d_f2 plus mu V (phi(route end) -
-phi(UAV)), a credit for every metre a route ends downwind of where its UAV is. The fleet
-stays near its targets, so whatever a plan gains that way a later flight pays back; a plan
-made every few seconds would claim the same credit again each time (measured, docs/wind.md:
-with d in F2 the planner left downwind UAVs without a route twice as often as in still air,
-and mean uncertainty on paper-boat was 13-37 % worse than wind-blind planning at 10-15 m/s).
-Arrival times (the hops of ``arrival`` and ``latency``, the idle rule) keep the true d: a
-target's arrival time depends on the potential only through its UAV's and its own position,
-never through the order. d_avg is the same for both (the potential differences sum to 0
-over all ordered pairs), so mu is too. In still air d_f2 is d.
+The potential part of a flight's time depends only on where it starts and ends, so in a
+plan it is a transfer, not a cost: along a route it sums to phi(last target) - phi(UAV), a
+credit for ending downwind (F2); in an arrival time it is phi(target) - phi(UAV), a credit
+for serving a target from upwind (the hops of ``arrival`` and ``latency``). Neither is
+earned: the fleet stays with its targets, so what a plan gains that way a later flight pays
+back to the second, and a plan made every few seconds would claim it again each time.
+Measured (docs/wind.md): with d the planner left downwind UAVs without a route twice as
+often as in still air, and mean uncertainty on paper-boat was 13-37 % worse than wind-blind
+planning at 10-15 m/s (sequence) and 9-16 % (latency, 5 UAVs). The true times (d) stay what
+the core aims and predicts arrivals with (planner.wind.time_in_wind_s). d_avg is the same
+for both (the potential differences sum to 0 over all ordered pairs), so mu is too. In
+still air d_net is d.
 
 Paper objective ("sequence"), with t[uav] = 1 and t = 1 + p for the p-th target of a path:
 
-    J = -(1 - tau) F1 + tau F2,   F1 = sum_i sigma_i (N - t_i),   F2 = mu sum_(i,j) y_ij d_f2_ij.
+    J = -(1 - tau) F1 + tau F2,   F1 = sum_i sigma_i (N - t_i),   F2 = mu sum_(i,j) y_ij d_net_ij.
 
 Writing H_i for the hop count p_i, F1 = (N - 1) S - sum_i sigma_i H_i with S = sum sigma, so
 
-    J = -(1 - tau) (N - 1) S + (1 - tau) sum_i sigma_i H_i + tau mu sum_arcs d_f2_ij.
+    J = -(1 - tau) (N - 1) S + (1 - tau) sum_i sigma_i H_i + tau mu sum_arcs d_net_ij.
 
 "arrival" replaces the hop count by the arrival time in units of the mean hop time:
-H_i = (D_i / speed) / (d_avg / speed) = D_i / d_avg, D_i = path length (m) to target i,
+H_i = (D_i / speed) / (d_avg / speed) = D_i / d_avg, D_i = path length (m) to target i
+(summed over d_net),
 i.e. F1' = sum_i sigma_i (N - 1 - arrival_i / T_hop), T_hop = d_avg / speed_m_s. (If
 d_avg = 0 every D_i is 0 and H_i = 0.)
 
@@ -49,7 +52,7 @@ counts it twice.) Here H_i = a_i, the hop length is h_ij = d_ij / speed_m_s, tau
 as 0, mu is reported as 0, the constant is 0; F1 = L and F2 = 0.
 
 All three are "cumulative hop" objectives and a path's cost is a sum over its arcs: arc
-(i -> j) costs a d_f2_ij + b h_ij R_j, where R_j is the sigma of j and of every target after it
+(i -> j) costs a d_net_ij + b h_ij R_j, where R_j is the sigma of j and of every target after it
 on the path, a = tau mu (`arc_weight`), b = 1 - tau, h_ij = 1 (sequence), d_ij / d_avg
 (arrival) or d_ij / speed_m_s (latency); J = constant + sum of arc costs.
 
@@ -100,8 +103,8 @@ class Instance:
     m: int
     n: int
     d: FloatArray  # N x N distances (m): still air, or V x the travel time in the wind
-    d_f2: FloatArray  # N x N distances F2 sums (m): d without the wind's potential
-    hop: FloatArray  # N x N hop lengths (1, d / d_avg or d / speed_m_s)
+    d_net: FloatArray  # N x N what the objectives charge (m): d without the wind's potential
+    hop: FloatArray  # N x N hop lengths (1, d_net / d_avg or d_net / speed_m_s)
     sigma: FloatArray  # length n, kept targets
     mu: float  # 0 for latency
     d_avg: float
@@ -129,8 +132,8 @@ class Instance:
         return -(1.0 - self.tau) * (self.n_nodes - 1) * float(self.sigma.sum())
 
     def arc_weight(self) -> FloatArray:
-        """tau mu d_f2: distance part of every arc."""
-        return self.tau * self.mu * self.d_f2
+        """tau mu d_net: distance part of every arc."""
+        return self.tau * self.mu * self.d_net
 
     def route_cost(self, uav: int, route: Sequence[int]) -> float:
         """Variable cost of one path (targets as 0-based kept indices); 0 if empty."""
@@ -143,7 +146,7 @@ class Instance:
         for k in route:
             node = m + k
             hops += self.hop[prev, node]
-            cost += a * self.d_f2[prev, node] + b * self.sigma[k] * hops
+            cost += a * self.d_net[prev, node] + b * self.sigma[k] * hops
             prev = node
         return cost
 
@@ -158,7 +161,7 @@ class Instance:
             for k in route:
                 node = m + k
                 hops += self.hop[prev, node]
-                dist += self.d_f2[prev, node]
+                dist += self.d_net[prev, node]
                 weighted += self.sigma[k] * hops
                 prev = node
         if self.latency:
@@ -210,12 +213,12 @@ def build_instance(problem: PlanningProblem) -> Instance:
                 d[i, m + k] = dubins_distance_to_point(
                     u.x_m, u.y_m, u.heading_rad, t.x_m, t.y_m, problem.turn_radius_m
                 )
-        d_f2 = d
+        d_net = d
     else:
         d = _wind_costs(problem, xy, m, wind)
         phi = problem.speed_m_s * potential_s(xy, wind, problem.speed_m_s)
-        d_f2 = d + (phi[:, None] - phi[None, :])  # V T_sym (module docstring)
-        np.fill_diagonal(d_f2, 0.0)
+        d_net = d + (phi[:, None] - phi[None, :])  # V T_sym (module docstring)
+        np.fill_diagonal(d_net, 0.0)
     size = m + n
     d_avg = float(d.sum() / (size * (size - 1))) if size > 1 else 0.0
     sigma = np.array([t.sigma for t in targets], dtype=float)
@@ -227,9 +230,9 @@ def build_instance(problem: PlanningProblem) -> Instance:
         mu = f1m / f2avg if f1m != 0.0 and f2avg != 0.0 else 1.0
     tau = problem.tau
     if problem.objective == Objective.ARRIVAL:
-        hop = d / d_avg if d_avg > 0.0 else np.zeros_like(d)
+        hop = d_net / d_avg if d_avg > 0.0 else np.zeros_like(d)
     elif problem.objective == Objective.LATENCY:
-        hop = d / problem.speed_m_s
+        hop = d_net / problem.speed_m_s
         tau, mu = 0.0, 0.0
     else:
         hop = np.ones_like(d)
@@ -242,7 +245,7 @@ def build_instance(problem: PlanningProblem) -> Instance:
         m=m,
         n=n,
         d=d,
-        d_f2=d_f2,
+        d_net=d_net,
         hop=hop,
         sigma=sigma,
         mu=mu,

@@ -95,8 +95,9 @@ def idle_assignment(inst: Instance, routes: Sequence[Sequence[int]]) -> dict[str
     """Idle-UAV rule: UAVs whose route is empty get distinct targets no route starts with.
 
     Repeatedly the closest pair (idle UAV, free target) by Dubins distance (in wind: the
-    travel time without the wind's potential, ``d_f2``, as F2 counts it: a move downwind is
-    no nearer for being quick, since coming back costs what it saved) is matched (ties:
+    travel time without the wind's potential, ``d_net``, as the objectives count it: a
+    move downwind is no nearer for being quick, since coming back costs what it saved) is
+    matched (ties:
     UAV, then target, in input order), where a target is free if it is no route's first
     target and no idle UAV has it yet. Only when no free target is left (more UAVs than
     kept targets) does an idle UAV share one: its nearest kept target. Sending an idle UAV
@@ -110,7 +111,7 @@ def idle_assignment(inst: Instance, routes: Sequence[Sequence[int]]) -> dict[str
     idle = [u for u, route in enumerate(routes) if not route]
     taken = {route[0] for route in routes if route}
     pairs = sorted(
-        (float(inst.d_f2[u, m + k]), u, k) for u in idle for k in range(inst.n) if k not in taken
+        (float(inst.d_net[u, m + k]), u, k) for u in idle for k in range(inst.n) if k not in taken
     )
     for _, u, k in pairs:
         if k in taken or inst.problem.uavs[u].id in out:
@@ -120,7 +121,7 @@ def idle_assignment(inst: Instance, routes: Sequence[Sequence[int]]) -> dict[str
     for u in idle:
         uav_id = inst.problem.uavs[u].id
         if uav_id not in out:
-            out[uav_id] = inst.target_id(int(inst.d_f2[u, m:].argmin()))
+            out[uav_id] = inst.target_id(int(inst.d_net[u, m:].argmin()))
     return {inst.problem.uavs[u].id: out[inst.problem.uavs[u].id] for u in idle}
 
 

@@ -224,7 +224,7 @@ def test_flight_time_is_symmetric_part_plus_potential_on_any_flown_path() -> Non
 
 
 def test_distance_term_is_travel_time_without_the_wind_potential() -> None:
-    """d_f2 = d - V (phi_j - phi_i): between targets symmetric and equal to V T_sym of the
+    """d_net = d - V (phi_j - phi_i): between targets symmetric and equal to V T_sym of the
     straight leg; a UAV's first legs V T minus the potential; d_avg, hops unchanged."""
     rng = random.Random(11)
     wind = wind_of(12.0, 2.2)
@@ -241,18 +241,18 @@ def test_distance_term_is_travel_time_without_the_wind_potential() -> None:
     for i, j in itertools.permutations(range(7), 2):
         (x0, y0), (x1, y1) = nodes[i], nodes[j]
         credit = V * (wx * (x1 - x0) + wy * (y1 - y0)) / k
-        assert inst.d_f2[i, j] == pytest.approx(inst.d[i, j] + credit, rel=1e-9, abs=1e-6)
-        assert inst.d_f2[i, j] > 0.0
+        assert inst.d_net[i, j] == pytest.approx(inst.d[i, j] + credit, rel=1e-9, abs=1e-6)
+        assert inst.d_net[i, j] > 0.0
         if i >= 2 and j >= 2:
             dist = math.hypot(x1 - x0, y1 - y0)
             w_par = (wx * (x1 - x0) + wy * (y1 - y0)) / dist
-            assert inst.d_f2[i, j] == pytest.approx(V * dist * math.sqrt(w_par**2 + k) / k)
-    targets = inst.d_f2[2:, 2:]
+            assert inst.d_net[i, j] == pytest.approx(V * dist * math.sqrt(w_par**2 + k) / k)
+    targets = inst.d_net[2:, 2:]
     assert np.allclose(targets, targets.T)
     assert not np.allclose(inst.d[2:, 2:], inst.d[2:, 2:].T)
-    assert inst.d_f2.sum() == pytest.approx(inst.d.sum())  # so d_avg and mu are unchanged
+    assert inst.d_net.sum() == pytest.approx(inst.d.sum())  # so d_avg and mu are unchanged
     still = build_instance(replace(problem, wind_m_s=None))
-    assert still.d_f2 is still.d
+    assert still.d_net is still.d
 
 
 def test_idle_uavs_go_to_the_nearest_target_without_the_wind_credit() -> None:
@@ -265,7 +265,7 @@ def test_idle_uavs_go_to_the_nearest_target_without_the_wind_credit() -> None:
         turn_radius_m=R, wind_m_s=(10.0, 0.0),
     )
     inst = build_instance(problem)
-    assert inst.d[0, 1] < inst.d[0, 2] and inst.d_f2[0, 2] < inst.d_f2[0, 1]
+    assert inst.d[0, 1] < inst.d[0, 2] and inst.d_net[0, 2] < inst.d_net[0, 1]
     assert idle_assignment(inst, [[]]) == {"u": "up"}
     assert idle_assignment(build_instance(replace(problem, wind_m_s=None)), [[]]) == {"u": "up"}
 
@@ -366,7 +366,8 @@ def wind_problem(seed: int, objective: str) -> PlanningProblem:
 
 
 def reference_parts(p: PlanningProblem) -> tuple[list[TargetEstimate], dict, float, float]:
-    """Costs (V x time) from the scalar references, then mu as in the paper."""
+    """Costs (V x time, net of the wind's potential) from the scalar references, then mu as
+    in the paper."""
     wind = p.wind_m_s or (0.0, 0.0)
     kept = list(p.targets)  # sigma in [10, 100]: the 10 % rule keeps all
     nodes = [(u.id, u.x_m, u.y_m) for u in p.uavs] + [(t.id, t.x_m, t.y_m) for t in kept]
@@ -382,7 +383,11 @@ def reference_parts(p: PlanningProblem) -> tuple[list[TargetEstimate], dict, flo
             else:
                 speed = ground_speed_along_m_s(math.atan2(yb - ya, xb - xa), wind, V)
                 t_s = math.hypot(xb - xa, yb - ya) / (speed or math.nan)
-            d[ia, ib] = V * t_s
+            # what the objectives charge: V T net of the wind's potential, V w.(b - a) /
+            # (V^2 - |w|^2) added back (planner.instance, "d_net")
+            credit_s = (wind[0] * (xb - xa) + wind[1] * (yb - ya)) / (
+                V * V - wind[0] ** 2 - wind[1] ** 2)
+            d[ia, ib] = V * (t_s + credit_s)
     size = len(nodes)
     d_avg = sum(d.values()) / (size * (size - 1))
     ordered = sorted((t.sigma for t in kept), reverse=True)
@@ -392,16 +397,7 @@ def reference_parts(p: PlanningProblem) -> tuple[list[TargetEstimate], dict, flo
 
 def objective(p: PlanningProblem, routes: Mapping[str, Sequence[str]], parts: tuple) -> float:
     if p.objective != "latency":
-        # F2 without the wind's potential, by route: sum of V T plus V w.(end - start) /
-        # (V^2 - |w|^2) (the arc-wise d_f2 of planner.instance, telescoped)
-        wx, wy = p.wind_m_s or (0.0, 0.0)
-        where = {t.id: (t.x_m, t.y_m) for t in p.targets}
-        credit = 0.0
-        for u in p.uavs:
-            if routes[u.id]:
-                ex, ey = where[routes[u.id][-1]]
-                credit += V * (wx * (ex - u.x_m) + wy * (ey - u.y_m)) / (V * V - wx * wx - wy * wy)
-        return reference_objective(p, routes, parts) + p.tau * parts[2] * credit
+        return reference_objective(p, routes, parts)
     kept, d, _, _ = parts
     sigma = {t.id: t.sigma for t in kept}
     total = 0.0
