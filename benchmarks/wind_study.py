@@ -22,7 +22,10 @@ Per (scenario, fleet size, wind speed) it prints:
   | blind, and paired per (seed, direction): the mean of ``aware / blind - 1`` in % with
   its 95 % t interval, and wins/losses (runs where aware is lower/higher);
 * detections per visit (accepted measurements / visits), a measure of how long a loiter
-  keeps its target in the camera's view.
+  keeps its target in the camera's view;
+* "no route %": the share of (plan, vehicle) slots after t = 1 s in which the plan gave the
+  vehicle no route (the idle rule then sends it somewhere), aware | blind: the symptom of
+  the wind's credit (docs/wind.md, "The wind's credit").
 
 ``--aware-part costs|intercept`` makes the aware run of each pair use the wind in its
 planning costs only, or in its intercept (aim points) only (``wind_parts.py``): which half
@@ -31,8 +34,8 @@ of wind-awareness costs what (docs/wind.md, "Measured").
 ``--json FILE`` writes every run's figures (the arrival errors of every run included);
 ``--report FILE`` prints the tables again from such a file. ``--directions`` prints the
 10 m/s rows per wind direction too. The machine is shared: use ``nice -n 10``. On 2 cores
-the full grid (1040 runs, about 1 s each) took 14 min with other work on the machine;
-``--quick`` (72 runs) under 2 min.
+the full grid (1040 runs) took 4 min (14 min with other work on the machine); ``--quick``
+(72 runs) well under a minute.
 """
 
 from __future__ import annotations
@@ -94,8 +97,9 @@ def _one(job: Job) -> dict[str, Any]:
     simulate.MetricsRecorder = Recorder  # type: ignore[misc, assignment]
     simulate.DecisionCore = core_class(part) if aware else original_core  # type: ignore[misc]
     try:
-        m = run_simulation(scenario, SimulationOptions(
-            seed=seed, uavs=uavs, duration_s=duration, snapshot_times_s=(1.0,))).metrics
+        run = run_simulation(scenario, SimulationOptions(
+            seed=seed, uavs=uavs, duration_s=duration, snapshot_times_s=(1.0,), journal=True))
+        m = run.metrics
     finally:
         simulate.MetricsRecorder = original  # type: ignore[misc]
         simulate.DecisionCore = original_core  # type: ignore[misc]
@@ -110,7 +114,16 @@ def _one(job: Job) -> dict[str, Any]:
         "arrival_errors_s": [round(e, 4) for e in recorder.arrivals.errors_s],
         "arrival_error_s": m["arrival_error_s"], "arrival_bias_s": m["arrival_bias_s"],
         "arrivals": m["arrivals"], "rtf": m["realtime_factor"],
+        "no_route": _no_route(run.journal),
     }
+
+
+def _no_route(journal: list[dict[str, Any]]) -> list[int]:
+    """[vehicle slots without a route, vehicle slots] over the run's plans after t = 1 s
+    (at t = 0 every sigma is 0 and one UAV gets every target by design)."""
+    slots = [not route for r in journal if r["event"] == "plan" and r["t"] > 1.0
+             for route in r["routes"].values()]
+    return [sum(slots), len(slots)]
 
 
 def _arrival(group: list[dict[str, Any]]) -> tuple[str, str, str, str]:
@@ -139,8 +152,8 @@ def report(rows: list[dict[str, Any]], by_direction: bool = False,
     lines = [
         head + "| arrival err med / p90 s (aware \\| blind) | run medians | bias s |"
         " counted/superseded | mean sigma aware \\| blind | aware vs blind (95 % CI) |"
-        " wins/losses | det./visit |",
-        "|---|---|---|" + ("---|" if by_direction else "") + "---|---|---|---|---|---|---|---|",
+        " wins/losses | det./visit | no route % |",
+        "|---|---|---|" + ("---|" if by_direction else "") + "---|---|---|---|---|---|---|---|---|",
     ]
     cell = {(r["scenario"], r["uavs"], r["wind_m_s"], r["from_deg"], r["seed"], r["aware"]): r
             for r in rows}
@@ -172,8 +185,17 @@ def report(rows: list[dict[str, Any]], by_direction: bool = False,
             f" {statistics.fmean(r['mean'] for r in aware):,.0f} \\|"
             f" {statistics.fmean(r['mean'] for r in blind):,.0f} | {ci} |"
             f" {sum(x < y for x, y in pairs)}/{sum(x > y for x, y in pairs)} | {det} |"
+            f" {_no_route_share(aware)} \\| {_no_route_share(blind)} |"
         )
     return "\n".join(lines)
+
+
+def _no_route_share(group: list[dict[str, Any]]) -> str:
+    """Percentage of plan slots that left a vehicle without a route ("-": rows written
+    before the count existed)."""
+    counts = [r["no_route"] for r in group if "no_route" in r]
+    total = sum(c[1] for c in counts)
+    return f"{100.0 * sum(c[0] for c in counts) / total:.1f}" if total else "-"
 
 
 def write_rows(path: str, rows: list[dict[str, Any]]) -> None:
