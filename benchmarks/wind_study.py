@@ -32,7 +32,8 @@ planning costs only, or in its intercept (aim points) only (``wind_parts.py``): 
 of wind-awareness costs what (docs/wind.md, "Measured").
 
 ``--json FILE`` writes every run's figures (the arrival errors of every run included);
-``--report FILE`` prints the tables again from such a file. ``--directions`` prints the
+``--report FILE...`` prints the tables again from such files (their runs pooled: seeds
+0-9 of one file and 10-29 of another make 30-seed rows). ``--directions`` prints the
 10 m/s rows per wind direction too. The machine is shared: use ``nice -n 10``. On 2 cores
 the full grid (1040 runs) took 4 min (14 min with other work on the machine); ``--quick``
 (72 runs) well under a minute.
@@ -245,11 +246,14 @@ def main() -> int:
                         help="also print the 10 m/s rows per direction")
     parser.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
     parser.add_argument("--json", help="also write every run's figures to this file")
-    parser.add_argument("--report", help="print the tables from a --json file and exit")
+    parser.add_argument("--report", nargs="+", metavar="JSON",
+                        help="print the tables from --json files (their runs pooled) and exit")
     args = parser.parse_args()
     if args.report:
-        with open(args.report, encoding="utf-8") as handle:
-            rows = json.load(handle)
+        rows = []
+        for path in args.report:
+            with open(path, encoding="utf-8") as handle:
+                rows += json.load(handle)
     else:
         if args.quick:
             args.seeds, args.from_deg, args.winds = 3, "90,270", "0,10"
