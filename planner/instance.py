@@ -22,7 +22,7 @@ earned: the fleet stays with its targets, so what a plan gains that way a later 
 back to the second, and a plan made every few seconds would claim it again each time.
 Measured (docs/wind.md): with d the planner left downwind UAVs without a route twice as
 often as in still air, and mean uncertainty on paper-boat was 13-37 % worse than wind-blind
-planning at 10-15 m/s (sequence) and 9-16 % (latency, 5 UAVs). The true times (d) stay what
+planning at 10-15 m/s (sequence) and 8-19 % (latency, 5 UAVs). The true times (d) stay what
 the core aims and predicts arrivals with (planner.wind.time_in_wind_s). d_avg is the same
 for both (the potential differences sum to 0 over all ordered pairs), so mu is too. In
 still air d_net is d.
