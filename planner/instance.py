@@ -48,13 +48,14 @@ d_avg = 0 every D_i is 0 and H_i = 0.)
 L is the first-order time-integrated uncertainty: if every track kept its sigma_i until the
 visit and dropped to 0 then, integral_0^T sum_i sigma_i(t) dt = sum_i sigma_i a_i for any
 horizon T past the last arrival. (The distance is in a_i already; "arrival" with tau > 0
-counts it twice.) Here H_i = a_i, the hop length is h_ij = d_ij / speed_m_s, tau is taken
+counts it twice.) Here H_i = a_i, the hop length is h_ij = d_net_ij / speed_m_s, tau is taken
 as 0, mu is reported as 0, the constant is 0; F1 = L and F2 = 0.
 
 All three are "cumulative hop" objectives and a path's cost is a sum over its arcs: arc
-(i -> j) costs a d_net_ij + b h_ij R_j, where R_j is the sigma of j and of every target after it
-on the path, a = tau mu (`arc_weight`), b = 1 - tau, h_ij = 1 (sequence), d_ij / d_avg
-(arrival) or d_ij / speed_m_s (latency); J = constant + sum of arc costs.
+(i -> j) costs a d_net_ij + b h_ij R_j, where R_j is the sigma of j and of every target
+after it on the path, a = tau mu (`arc_weight`), b = 1 - tau, h_ij = 1 (sequence),
+d_net_ij / d_avg (arrival) or d_net_ij / speed_m_s (latency); J = constant + sum of arc
+costs.
 
 mu = F1max / F2avg unless given; F2avg = d_avg (N - m); F1max = sum_k sigma_(k) (N - t_k),
 sigma sorted descending, t_k = 2 + k // m; mu = 1 if either is 0.

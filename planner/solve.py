@@ -94,15 +94,14 @@ def hint_routes(inst: Instance, hint: Mapping[str, Sequence[str]]) -> list[list[
 def idle_assignment(inst: Instance, routes: Sequence[Sequence[int]]) -> dict[str, str]:
     """Idle-UAV rule: UAVs whose route is empty get distinct targets no route starts with.
 
-    Repeatedly the closest pair (idle UAV, free target) by Dubins distance (in wind: the
-    travel time without the wind's potential, ``d_net``, as the objectives count it: a
-    move downwind is no nearer for being quick, since coming back costs what it saved) is
-    matched (ties:
-    UAV, then target, in input order), where a target is free if it is no route's first
-    target and no idle UAV has it yet. Only when no free target is left (more UAVs than
-    kept targets) does an idle UAV share one: its nearest kept target. Sending an idle UAV
-    where another UAV already flies sent all three UAVs to one iceberg at t = 0 of
-    paper-boat (docs/planner.md, "Idle UAVs").
+    Repeatedly the closest pair (idle UAV, free target) is matched (ties: UAV, then
+    target, in input order), where a target is free if it is no route's first target and no
+    idle UAV has it yet. Closest by Dubins distance; in wind by the travel time without the
+    wind's potential (``d_net``, as the objectives count it: a move downwind is no nearer
+    for being quick, since coming back costs what it saved). Only when no free target is
+    left (more UAVs than kept targets) does an idle UAV share one: its nearest kept target.
+    Sending an idle UAV where another UAV already flies sent all three UAVs to one iceberg
+    at t = 0 of paper-boat (docs/planner.md, "Idle UAVs").
     """
     out: dict[str, str] = {}
     if inst.n == 0:

@@ -223,9 +223,10 @@ def test_flight_time_is_symmetric_part_plus_potential_on_any_flown_path() -> Non
     assert abs(phi[1] - phi[0]) > 1.0  # the flight went somewhere along the wind
 
 
-def test_distance_term_is_travel_time_without_the_wind_potential() -> None:
+def test_charged_costs_are_travel_times_without_the_wind_potential() -> None:
     """d_net = d - V (phi_j - phi_i): between targets symmetric and equal to V T_sym of the
-    straight leg; a UAV's first legs V T minus the potential; d_avg, hops unchanged."""
+    straight leg; a UAV's first legs V T minus the potential; the same sum as d (so d_avg and
+    mu); the latency hops are d_net / V."""
     rng = random.Random(11)
     wind = wind_of(12.0, 2.2)
     wx, wy = wind
@@ -251,6 +252,8 @@ def test_distance_term_is_travel_time_without_the_wind_potential() -> None:
     assert np.allclose(targets, targets.T)
     assert not np.allclose(inst.d[2:, 2:], inst.d[2:, 2:].T)
     assert inst.d_net.sum() == pytest.approx(inst.d.sum())  # so d_avg and mu are unchanged
+    latency = build_instance(replace(problem, objective="latency"))  # type: ignore[arg-type]
+    assert np.allclose(latency.hop, inst.d_net / V)
     still = build_instance(replace(problem, wind_m_s=None))
     assert still.d_net is still.d
 
