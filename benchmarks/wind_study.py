@@ -19,8 +19,9 @@ Per (scenario, fleet size, wind speed) it prints:
   every run pooled, and the median of the per-run medians; the median signed error (bias,
   > 0: late); arrivals counted and superseded (summed over runs);
 * the run-average uncertainty (metrics.json ``mean_uncertainty``), the mean over runs aware
-  | blind, and paired per (seed, direction): the mean of ``aware / blind - 1`` in % with
-  its 95 % t interval, and wins/losses (runs where aware is lower/higher);
+  | blind, and paired per (seed, direction): the geometric mean of ``aware / blind``, as
+  a change in %, with its 95 % t interval (``ratio_interval``), and wins/losses (runs
+  where aware is lower/higher);
 * detections per visit (accepted measurements / visits), a measure of how long a loiter
   keeps its target in the camera's view;
 * "no route %": the share of (plan, vehicle) slots after t = 1 s in which the plan gave the
@@ -152,8 +153,8 @@ def report(rows: list[dict[str, Any]], by_direction: bool = False,
     head = "| scenario | UAVs | wind m/s " + ("| from " if by_direction else "")
     lines = [
         head + "| arrival err med / p90 s (aware \\| blind) | run medians | bias s |"
-        " counted/superseded | mean sigma aware \\| blind | aware vs blind (95 % CI) |"
-        " wins/losses | det./visit | no route % |",
+        " counted/superseded | mean sigma aware \\| blind |"
+        " aware / blind, geometric mean (95 % CI) | wins/losses | det./visit | no route % |",
         "|---|---|---|" + ("---|" if by_direction else "") + "---|---|---|---|---|---|---|---|---|",
     ]
     cell = {(r["scenario"], r["uavs"], r["wind_m_s"], r["from_deg"], r["seed"], r["aware"]): r
@@ -171,10 +172,7 @@ def report(rows: list[dict[str, Any]], by_direction: bool = False,
         pairs = [(r["mean"], cell[k]["mean"]) for r in aware
                  if (k := (r["scenario"], r["uavs"], r["wind_m_s"], r["from_deg"], r["seed"],
                            False)) in cell]
-        diffs = [100.0 * (x / y - 1.0) for x, y in pairs if y > 0]
-        avg, half = paired(diffs) if diffs else (0.0, math.inf)
-        ci = f"{avg:+.1f} % [{avg - half:+.1f}, {avg + half:+.1f}]" if len(diffs) > 1 else (
-            f"{avg:+.1f} %")
+        ci = ratio_interval(pairs)
         det = "{:.1f} \\| {:.1f}".format(*(
             sum(r["accepted"] for r in g) / max(1, sum(r["visits"] for r in g))
             for g in (aware, blind)))
@@ -189,6 +187,27 @@ def report(rows: list[dict[str, Any]], by_direction: bool = False,
             f" {_no_route_share(aware)} \\| {_no_route_share(blind)} |"
         )
     return "\n".join(lines)
+
+
+def ratio_interval(pairs: Sequence[tuple[float, float]]) -> str:
+    """aware against blind as the geometric mean of the paired ratios, in %, with its 95 %
+    t interval: with ``l_k = ln(aware_k / blind_k)``,
+
+        exp(mean l) - 1    [exp(mean l - h) - 1, exp(mean l + h) - 1],
+        h = t_975(n - 1) s_l / sqrt(n).
+
+    Unlike the mean of ``aware / blind - 1`` it is symmetric: swapping aware and blind
+    gives the reciprocal ratio. The mean of the ratios is not: for paired runs whose
+    ratio spreads by e^(+-0.25), as these chaotic runs do, it is about s_l^2 / 2 = 3 %
+    above 0 when neither side is better, and above 0 the other way round too."""
+    logs = [math.log(x / y) for x, y in pairs if x > 0 and y > 0]
+    if not logs:
+        return "-"
+    avg, half = paired(logs)
+    if len(logs) < 2:
+        return f"{100.0 * math.expm1(avg):+.1f} %"
+    return (f"{100.0 * math.expm1(avg):+.1f} % [{100.0 * math.expm1(avg - half):+.1f},"
+            f" {100.0 * math.expm1(avg + half):+.1f}]")
 
 
 def _no_route_share(group: list[dict[str, Any]]) -> str:
