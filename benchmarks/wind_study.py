@@ -35,9 +35,10 @@ of wind-awareness costs what (docs/wind.md, "Measured").
 ``--json FILE`` writes every run's figures (the arrival errors of every run included);
 ``--report FILE...`` prints the tables again from such files (their runs pooled: seeds
 0-9 of one file and 10-29 of another make 30-seed rows). ``--directions`` prints the
-10 m/s rows per wind direction too. The machine is shared: use ``nice -n 10``. On 2 cores
-the full grid (1040 runs) took 4 min (14 min with other work on the machine); ``--quick``
-(72 runs) well under a minute.
+10 m/s rows per wind direction too; ``--fields`` the paired visits, accepted detections
+and largest uncertainty (aware / blind, as the mean uncertainty). The machine is shared:
+use ``nice -n 10``. On 2 cores the full grid (1040 runs) took 4 min (14 min with other
+work on the machine); ``--quick`` (72 runs) well under a minute.
 """
 
 from __future__ import annotations
@@ -189,6 +190,26 @@ def report(rows: list[dict[str, Any]], by_direction: bool = False,
     return "\n".join(lines)
 
 
+def field_report(rows: list[dict[str, Any]]) -> str:
+    """Markdown table: aware / blind (``ratio_interval``) of the visits, the accepted
+    detections and the run's largest uncertainty (metrics.json ``max_uncertainty``) per
+    (scenario, UAVs, wind)."""
+    fields = ("visits", "accepted", "max")
+    lines = ["| scenario | UAVs | wind m/s | pairs | " + " | ".join(
+                 f"{f}: aware / blind" for f in fields) + " |",
+             "|---|---|---|---|" + "---|" * len(fields)]
+    cell = {(r["scenario"], r["uavs"], r["wind_m_s"], r["from_deg"], r["seed"], r["aware"]): r
+            for r in rows}
+    for key in _keys(rows, False):
+        pairs = [(r, cell[k]) for r in rows if r["aware"] and (r["scenario"], r["uavs"],
+                 r["wind_m_s"]) == key and (k := (*key, r["from_deg"], r["seed"], False)) in cell]
+        if key[2] == 0 or not pairs:
+            continue
+        lines.append(f"| {key[0]} | {key[1]} | {key[2]:g} | {len(pairs)} | " + " | ".join(
+            ratio_interval([(a[f], b[f]) for a, b in pairs]) for f in fields) + " |")
+    return "\n".join(lines)
+
+
 def ratio_interval(pairs: Sequence[tuple[float, float]]) -> str:
     """aware against blind as the geometric mean of the paired ratios, in %, with its 95 %
     t interval: with ``l_k = ln(aware_k / blind_k)``,
@@ -263,6 +284,9 @@ def main() -> int:
                         help="seeds 0-2, directions 90 and 270, winds 0 and 10 m/s")
     parser.add_argument("--directions", action="store_true",
                         help="also print the 10 m/s rows per direction")
+    parser.add_argument("--fields", action="store_true",
+                        help="also print aware / blind of the visits, detections and largest "
+                        "uncertainty")
     parser.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
     parser.add_argument("--json", help="also write every run's figures to this file")
     parser.add_argument("--report", nargs="+", metavar="JSON",
@@ -288,6 +312,9 @@ def main() -> int:
     if args.directions:
         print()
         print(report(rows, by_direction=True, speeds=(10.0,)))
+    if args.fields:
+        print()
+        print(field_report(rows))
     return 0
 
 
