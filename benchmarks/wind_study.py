@@ -158,8 +158,6 @@ def report(rows: list[dict[str, Any]], by_direction: bool = False,
         " aware / blind, geometric mean (95 % CI) | wins/losses | det./visit | no route % |",
         "|---|---|---|" + ("---|" if by_direction else "") + "---|---|---|---|---|---|---|---|---|",
     ]
-    cell = {(r["scenario"], r["uavs"], r["wind_m_s"], r["from_deg"], r["seed"], r["aware"]): r
-            for r in rows}
     for key in _keys(rows, by_direction):
         if speeds is not None and key[2] not in speeds:
             continue
@@ -170,9 +168,7 @@ def report(rows: list[dict[str, Any]], by_direction: bool = False,
         if not aware or not blind:
             continue
         a, b = _arrival(aware), _arrival(blind)
-        pairs = [(r["mean"], cell[k]["mean"]) for r in aware
-                 if (k := (r["scenario"], r["uavs"], r["wind_m_s"], r["from_deg"], r["seed"],
-                           False)) in cell]
+        pairs = [(x["mean"], y["mean"]) for x, y in _pairs(group)]
         ci = ratio_interval(pairs)
         det = "{:.1f} \\| {:.1f}".format(*(
             sum(r["accepted"] for r in g) / max(1, sum(r["visits"] for r in g))
@@ -190,6 +186,15 @@ def report(rows: list[dict[str, Any]], by_direction: bool = False,
     return "\n".join(lines)
 
 
+def _pairs(group: list[dict[str, Any]]) -> list[tuple[dict[str, Any], dict[str, Any]]]:
+    """(aware run, blind run) of every (scenario, UAVs, wind, direction, seed) in `group`
+    that has both."""
+    blind = {(r["scenario"], r["uavs"], r["wind_m_s"], r["from_deg"], r["seed"]): r
+             for r in group if not r["aware"]}
+    return [(r, blind[k]) for r in group if r["aware"] and (k := (
+        r["scenario"], r["uavs"], r["wind_m_s"], r["from_deg"], r["seed"])) in blind]
+
+
 def field_report(rows: list[dict[str, Any]]) -> str:
     """Markdown table: aware / blind (``ratio_interval``) of the visits, the accepted
     detections and the run's largest uncertainty (metrics.json ``max_uncertainty``) per
@@ -198,11 +203,8 @@ def field_report(rows: list[dict[str, Any]]) -> str:
     lines = ["| scenario | UAVs | wind m/s | pairs | " + " | ".join(
                  f"{f}: aware / blind" for f in fields) + " |",
              "|---|---|---|---|" + "---|" * len(fields)]
-    cell = {(r["scenario"], r["uavs"], r["wind_m_s"], r["from_deg"], r["seed"], r["aware"]): r
-            for r in rows}
     for key in _keys(rows, False):
-        pairs = [(r, cell[k]) for r in rows if r["aware"] and (r["scenario"], r["uavs"],
-                 r["wind_m_s"]) == key and (k := (*key, r["from_deg"], r["seed"], False)) in cell]
+        pairs = _pairs([r for r in rows if (r["scenario"], r["uavs"], r["wind_m_s"]) == key])
         if key[2] == 0 or not pairs:
             continue
         lines.append(f"| {key[0]} | {key[1]} | {key[2]:g} | {len(pairs)} | " + " | ".join(

@@ -219,7 +219,6 @@ def build_instance(problem: PlanningProblem) -> Instance:
         d = _wind_costs(problem, xy, m, wind)
         phi = problem.speed_m_s * potential_s(xy, wind, problem.speed_m_s)
         d_net = d + (phi[:, None] - phi[None, :])  # V T_sym (module docstring)
-        np.fill_diagonal(d_net, 0.0)
     size = m + n
     d_avg = float(d.sum() / (size * (size - 1))) if size > 1 else 0.0
     sigma = np.array([t.sigma for t in targets], dtype=float)
