@@ -90,6 +90,7 @@ PREARM_CHECK_BIT = 0x10000000  # MAV_SYS_STATUS_PREARM_CHECK
 _ARMED_FLAG = 128  # MAV_MODE_FLAG_SAFETY_ARMED
 _CUSTOM_MODE_FLAG = 1  # MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
 _UINT16_UNKNOWN = 65535
+_MISSION_STATE_MAX = 5  # MISSION_STATE_COMPLETE, the last MISSION_STATE value
 _INITIALISING = 16  # ArduPlane mode INITIALISING
 _STATUSTEXT_CHUNK = 50
 _MAX_SPEED_M_S = 150.0
@@ -220,6 +221,7 @@ class VehicleTelemetry:
             time_boot_ms=boot_ms,
             mission_current_seq=None,
             mission_total=None,
+            mission_state=None,
             armed=None,
             mode=None,
             mode_name=None,
@@ -373,8 +375,12 @@ class VehicleTelemetry:
         seq = int(msg.seq)
         total_raw = int(getattr(msg, "total", 0) or 0)
         total = None if total_raw in (0, _UINT16_UNKNOWN) else total_raw
+        state_raw = int(getattr(msg, "mission_state", 0) or 0)
+        state = state_raw if 0 < state_raw <= _MISSION_STATE_MAX else None
         old = self._snap.mission_current_seq
-        self._snap = replace(self._snap, mission_current_seq=seq, mission_total=total)
+        self._snap = replace(
+            self._snap, mission_current_seq=seq, mission_total=total, mission_state=state
+        )
         if seq != old:
             return [MissionCurrentChanged(now_s, old, seq, total)]
         return []

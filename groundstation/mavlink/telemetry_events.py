@@ -159,6 +159,9 @@ class VehicleSnapshot:
     armed: bool | None = None
     mission_current_seq: int | None = None
     mission_total: int | None = None
+    mission_state: int | None = None
+    """MISSION_CURRENT's ``mission_state`` (MAVLink 2 extension, MISSION_STATE_*); None
+    where the autopilot does not report it (0, UNKNOWN, or a MAVLink 1 frame)."""
     battery_remaining_pct: float | None = None
     battery_voltage_v: float | None = None
     prearm_ok: bool | None = None

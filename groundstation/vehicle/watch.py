@@ -25,6 +25,7 @@ from groundstation.vehicle.settings import ControllerSettings
 __all__ = ["MAV_LANDED_STATE_ON_GROUND", "ModeChange", "Watch"]
 
 MAV_LANDED_STATE_ON_GROUND = 1
+MISSION_STATE_COMPLETE = 5  # MAVLink MISSION_STATE_COMPLETE: every item executed
 TEXT_LOOKBACK_S = 3.0
 CLOCK_TOLERANCE = 0.2
 
@@ -33,13 +34,16 @@ CLOCK_TOLERANCE = 0.2
 class ModeChange:
     """A sustained mode change out of AUTO/GUIDED and what it was: ``kind`` is
     ``battery`` (the autopilot's battery failsafe), ``mission_end`` (its RTL at the end of
-    a mission) or ``override``; ``reason`` as journalled."""
+    a mission) or ``override`` (an operator's, or a failsafe floe cannot tell from one);
+    ``reason`` as journalled; ``evidence`` what decided a battery failsafe or a mission
+    end (None for an override: the default needs none)."""
 
     since_s: float
     mode: int
     name: str
     kind: str
     reason: str
+    evidence: str | None = None
 
 
 class Watch:
@@ -59,6 +63,8 @@ class Watch:
         self.texts: collections.deque[tuple[float, str]] = collections.deque(maxlen=20)
         self.progress: tuple[float, float] | None = None  # (best distance m, since_s)
         self._last_seq: int | None = None
+        self._reached: tuple[float, int] | None = None  # the last MISSION_ITEM_REACHED
+        self._complete_frames = 0  # MISSION_CURRENTs in a row that said COMPLETE
         self._clock_ref: tuple[float, int] | None = None
         self.clock_checked = False
 
@@ -96,15 +102,28 @@ class Watch:
             self.forget_mode_change()
         return self.taken.observe(taken and not ours, t_s)
 
+    @property
+    def mode_change_pending(self) -> bool:
+        """A mode out of AUTO/GUIDED that is not floe's was seen while floe had the vehicle,
+        and whose it was is not decided yet (:meth:`mode_change`)."""
+        return self._change is not None
+
     def forget_mode_change(self) -> None:
         self._change = None
         self._mode.reset()
 
     def mode_change(self, s: VehicleSnapshot, t_s: float, active: bool) -> ModeChange | None:
-        """A mode change that lasted ``override_grace_s``, attributed on signals: RTL with
-        low battery readings (or the autopilot CRITICAL and a battery STATUSTEXT) is the
-        battery failsafe; RTL at the mission's last item (or "Mission complete" as a hint)
-        is the mission's end; anything else is an override (``failsafe`` when CRITICAL)."""
+        """A mode change that lasted ``override_grace_s``, attributed on ArduPilot's signals
+        (design.md; docs/daemon.md "Whose mode change it was"):
+
+        * **battery failsafe**: RTL with low battery readings, or the autopilot CRITICAL
+          and a battery STATUSTEXT;
+        * **mission end**: RTL of an active vehicle whose mission really ended
+          (:meth:`mission_ended`);
+        * anything else is the **operator's** (``reason`` ``failsafe`` when the autopilot
+          is CRITICAL or said "failsafe": floe cannot tell such a failsafe from a pilot's
+          switch, and treats both alike). Unsure is the operator's.
+        """
         change = self._change
         if change is None or not self._mode.confirmed or t_s - change[0] < self.s.override_grace_s:
             return None
@@ -115,24 +134,63 @@ class Watch:
         )
         critical = s.system_status in (MAV_STATE_CRITICAL, MAV_STATE_EMERGENCY)
         rtl = mode == ArduPlaneMode.RTL
-        if rtl and (self.battery.low_readings or (critical and "batt" in texts)):
-            return ModeChange(since, mode, name, "battery", "battery failsafe")
-        seq, total = s.mission_current_seq, s.mission_total
-        at_end = seq is not None and total is not None and seq >= total - 1
-        if rtl and active and (at_end or "mission complete" in texts):
-            return ModeChange(since, mode, name, "mission_end", "mission end")
+        if rtl and self.battery.low_readings:
+            return ModeChange(since, mode, name, "battery", "battery failsafe", "low readings")
+        if rtl and critical and "batt" in texts:
+            return ModeChange(
+                since, mode, name, "battery", "battery failsafe", "CRITICAL and battery text"
+            )
+        ended = self.mission_ended(s, since)
+        if rtl and active and ended is not None:
+            return ModeChange(since, mode, name, "mission_end", "mission end", ended)
         reason = "failsafe" if critical or "failsafe" in texts else f"mode {name}"
         return ModeChange(since, mode, name, "override", reason)
+
+    def mission_ended(self, s: VehicleSnapshot, since_s: float) -> str | None:
+        """What shows that the autopilot ran off the end of its mission around ``since_s``
+        (the mode change), or None. ArduPilot's MISSION_CURRENT counts the items without
+        home (item 0): ``total`` is the number of items after home, so the last item has
+        ``seq == total`` (MAVLink's definition). Its own end of a mission is one of:
+
+        * its STATUSTEXT "Mission complete" (ArduPlane: "Mission complete, changing mode to
+          RTL") within ``TEXT_LOOKBACK_S`` before the change, or after it;
+        * MISSION_ITEM_REACHED of the last item (``seq >= total``) in that window;
+        * two MISSION_CURRENTs in a row with ``mission_state`` MISSION_STATE_COMPLETE.
+
+        Flying the last item is not its end: floe's missions end in an unlimited loiter,
+        which ArduPilot never completes, so an RTL there is somebody's switch. A vehicle that
+        reports ``mission_state`` and says anything but COMPLETE (PAUSED after a pilot's
+        switch) did not end its mission, whatever the other signals say."""
+        if s.mission_state is not None and s.mission_state != MISSION_STATE_COMPLETE:
+            return None
+        if self._complete_frames >= 2:
+            return "mission_state COMPLETE"
+        after = since_s - TEXT_LOOKBACK_S
+        if any(tt >= after and "mission complete" in text.lower() for tt, text in self.texts):
+            return "Mission complete"
+        total = s.mission_total
+        if self._reached is None or total is None or total < 1:
+            return None
+        reached_s, seq = self._reached
+        if reached_s >= after and seq >= total:
+            return f"last item {seq} of {total} reached"
+        return None
 
     # ------------------------------------------------------------------ progress
     def reset_progress(self) -> None:
         self.progress = None
 
-    def mission_seq(self, seq: int) -> None:
-        """A MISSION_CURRENT frame: an advance to a later item is progress."""
+    def mission_current(self, seq: int, state: int | None) -> None:
+        """A MISSION_CURRENT frame: an advance to a later item is progress; its
+        ``mission_state`` is evidence of a mission's end (:meth:`mission_ended`)."""
         if self._last_seq is not None and seq > self._last_seq:
             self.progress = None
         self._last_seq = seq
+        self._complete_frames = self._complete_frames + 1 if state == MISSION_STATE_COMPLETE else 0
+
+    def item_reached(self, seq: int, t_s: float) -> None:
+        """A MISSION_ITEM_REACHED (evidence of a mission's end when it is the last item)."""
+        self._reached = (t_s, seq)
 
     def position(self, s: VehicleSnapshot, aim_xy_m: tuple[float, float], near_m: float,
                  t_s: float) -> None:  # fmt: skip
