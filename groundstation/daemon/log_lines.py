@@ -42,6 +42,7 @@ __all__ = [
     "format_routes",
     "is_operator_event",
     "line_level",
+    "override_detail",
     "plan_detail",
     "short_value",
     "wind_detail",
@@ -67,6 +68,7 @@ PROBLEM_EVENTS = frozenset(
         "resume_refused",
         "command_refused",
         "launch_timeout",
+        "launch_held",
         "stop_wait_timeout",
         "target_refused",
         "detections_dropped",
@@ -89,6 +91,7 @@ OPERATOR_EVENTS = PROBLEM_EVENTS | frozenset(
         "vehicle_joined",
         "origin",
         "launch",
+        "launch_request",
         "waiting",
         "on_ground",
         "target_added",
@@ -162,6 +165,8 @@ def describe_line(line: Mapping[str, Any]) -> str:
         return f"{head} plan {format_routes(line['routes'])} ({plan_detail(line)})"
     if event == "wind" and isinstance(line.get("speed_m_s"), int | float):
         return f"{head} wind {wind_detail(line)}"
+    if event == "override" and line.get("vehicle") is not None:
+        return f"{head} {override_detail(line)}"
     parts = [head, event]
     for key, value in line.items():
         if key in _SKIP or isinstance(value, Mapping):
@@ -181,6 +186,26 @@ def plan_detail(line: Mapping[str, Any]) -> str:
     if line.get("reason"):
         detail.append(str(line["reason"]))
     return ", ".join(detail)
+
+
+def override_detail(line: Mapping[str, Any]) -> str:
+    """``operator took vehicle 1 (RTL): floe stops commanding it ...`` of an ``override``
+    line: who took it (the operator, another ground station, a failsafe floe cannot tell
+    from a pilot's switch) and how it is given back."""
+    vehicle, reason = line.get("vehicle"), str(line.get("reason", ""))
+    mode = line.get("mode")
+    if reason.startswith("mode "):
+        who = f"operator took vehicle {vehicle} ({mode or reason[5:]})"
+    elif reason == "failsafe":
+        who = f"failsafe took vehicle {vehicle} ({mode or '?'}), or its operator did"
+    elif reason.startswith("api"):
+        who = f"operator released vehicle {vehicle} ({reason})"
+    else:
+        who = f"vehicle {vehicle} taken over: {reason}"
+    return (
+        f"{who}; floe stops commanding it until it is given back "
+        f"(AUTO, or 'gcs vehicle resume {vehicle}')"
+    )
 
 
 def wind_detail(line: Mapping[str, Any]) -> str:

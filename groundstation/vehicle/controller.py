@@ -110,6 +110,7 @@ class VehicleController(ControllerState):
         grounded = False
         if kind in ("HEARTBEAT", "GLOBAL_POSITION_INT", "EXTENDED_SYS_STATE"):
             grounded = self.watch.flight(s, t)
+            self._track_flight(grounded)
         if grounded and self.state is S.ACTIVE:
             self._leave("landed", t, S.ON_GROUND, alt_m=s.alt_m, armed=s.armed)
         if kind == "HEARTBEAT":
@@ -119,7 +120,7 @@ class VehicleController(ControllerState):
             if self.watch.battery.confirmed(t):
                 self._battery_low(t)
         elif kind == "MISSION_CURRENT" and s.mission_current_seq is not None:
-            self.watch.mission_seq(s.mission_current_seq)
+            self.watch.mission_current(s.mission_current_seq, s.mission_state)
             loiter = self._loiter
             if loiter is not None and loiter.observe_current(s.mission_current_seq, t):
                 self._loiter_ended(t, loiter)
@@ -134,6 +135,24 @@ class VehicleController(ControllerState):
             self._launch_deadline_s = None
             self.joined("launched")
 
+    def _track_flight(self, grounded: bool) -> None:
+        """Whether it has flown, and how it came down after it did (before the state
+        changes on this frame: the state says whose it was when it came down)."""
+        if self.watch.flying.confirmed:
+            self.has_flown = True
+            self.came_down = None
+            self._operator_launch = False
+        elif grounded and self.has_flown and self.came_down is None:
+            mode = self.snap.mode_name or "?"
+            self.came_down = {
+                S.ACTIVE: f"came down in {mode} while floe flew it",
+                S.JOINING: f"came down in {mode} while floe was taking it",
+                S.LAUNCHING: f"came down in {mode} while floe launched it",
+                S.OVERRIDDEN: f"came down in {mode} while the operator had it",
+                S.MANUAL: f"came down in {mode}, not floe's",
+                S.HOME: f"came down in {mode} after floe sent it home",
+            }.get(self.state, f"came down in {mode}")
+
     def _on_event(self, event: TelemetryEvent) -> None:
         t = event.t_s
         if isinstance(event, ModeChanged):
@@ -143,6 +162,7 @@ class VehicleController(ControllerState):
             self.journal("mode", old=event.old_name, mode=event.new_name, cause=cause)
             self._own_mode = event.new if ours else None
         elif isinstance(event, MissionItemReached):
+            self.watch.item_reached(event.seq, t)
             loiter = self._loiter
             if loiter is not None and loiter.observe_reached(event.seq, t):
                 self._loiter_ended(t, loiter)
@@ -189,15 +209,24 @@ class VehicleController(ControllerState):
         if change is None or self.state not in IN_HAND:
             return
         if change.kind == "battery":
-            self.journal("autopilot_mode", mode=change.name, reason=change.reason)
+            self.journal(
+                "autopilot_mode", mode=change.name, reason=change.reason, evidence=change.evidence
+            )
+            self._own_mode = change.mode  # accounted for (the core sends it home)
             self._battery_low(t)
         elif change.kind == "mission_end":
-            # our missions end in an unlimited loiter: one that ran off its end is taken
-            # back with a fresh mission (the core replans it as idle)
-            self.journal("autopilot_mode", mode=change.name, reason=change.reason)
+            # our missions end in an unlimited loiter: one that ran off its end (a mission
+            # cut short by a failed upload) is taken back with a fresh one (the core replans
+            # it as idle)
+            self.journal(
+                "autopilot_mode", mode=change.name, reason=change.reason, evidence=change.evidence
+            )
+            # the autopilot's RTL is accounted for until floe's fresh mission changes the mode
+            # (a pilot's switch to another mode is still theirs)
+            self._own_mode = change.mode
             self._core(ev.VehicleRebooted(t, self.vehicle))
         else:
-            self.override(t, change.reason)
+            self.override(t, change.reason, change.name)
 
     def _on_reboot(self, event: Rebooted) -> None:
         self.journal(
@@ -304,8 +333,9 @@ class VehicleController(ControllerState):
         self._core_pose()
         self._core(ev.VehicleReturned(t, self.vehicle))
 
-    def override(self, t: float, reason: str) -> None:
-        """Someone else took the vehicle: stop commanding it, replan the others."""
+    def override(self, t: float, reason: str, mode: str | None = None) -> None:
+        """Someone else took the vehicle (``mode``: the mode it was switched to, when that
+        is how): stop commanding it until it is given back, replan the others."""
         if self.state is S.OVERRIDDEN:
             return
         was_planned = self.state is S.ACTIVE
@@ -315,7 +345,7 @@ class VehicleController(ControllerState):
         self._loiter = None
         self.watch.reset_progress()
         self._abort_job(cancel=True)
-        self.journal("override", reason=reason)
+        self.journal("override", reason=reason, mode=mode or self.snap.mode_name)
         if was_planned:
             self._core(ev.OperatorOverride(t, self.vehicle))
 
@@ -334,6 +364,10 @@ class VehicleController(ControllerState):
             self._battery_reported = False
             self.watch.battery.reset()
         self.state = S.ACTIVE
+        # the mode it is given back in (RTL, FBWA... through the API) is floe's to change:
+        # not a new operator's change. A switch to another one after this is.
+        self._own_mode = self.snap.mode
+        self.watch.forget_mode_change()
         self.watch.reset_progress()
         self._core_pose()
         self._core(ev.OperatorResume(t, self.vehicle))
@@ -357,11 +391,32 @@ class VehicleController(ControllerState):
         self._retry_at_s = min(self._retry_at_s, self.t_s)
 
     def launch(self) -> tuple[bool, str]:
-        """An operator asks for a launch (only of a vehicle on the ground)."""
-        if self.state not in (S.ON_GROUND, S.CONNECTING):
+        """An operator asks for a launch: of a vehicle on the ground, the only way to launch
+        one that came down after it flew (also one taken over or sent home that came down
+        there: its state then says ``on_ground``)."""
+        down = self.state in (S.OVERRIDDEN, S.HOME) and self.watch.grounded.confirmed
+        if self.state not in (S.ON_GROUND, S.CONNECTING) and not down:
             return False, f"vehicle {self.vehicle} is {self.status}, not on the ground"
+        if down:
+            self.state = S.ON_GROUND
+            self._pending_home = False
+        self._operator_launch = True
+        self.journal("launch_request", by="operator", came_down=self.came_down)
         self._launch_request()
         return True, ""
+
+    def _hold_launch(self) -> None:
+        """A launch floe would start on its own (``--launch``) of a vehicle that came down
+        after it flew: never. Said once per landing; the operator's launch lifts it."""
+        self.launch_requested = False
+        why = self.came_down or "came down after it flew"
+        self.journal("launch_held", reason=why, logged=True)
+        self._out.append(
+            io.Warn(
+                f"vehicle {self.vehicle}: {why}; floe will not launch it again on its own "
+                f"('gcs vehicle launch {self.vehicle}' launches it)"
+            )
+        )
 
     def _assess(self) -> None:
         s = self.snap
@@ -388,6 +443,9 @@ class VehicleController(ControllerState):
         if self.state is not S.ON_GROUND:
             self.state = S.ON_GROUND
             self.journal("on_ground", prearm_ok=s.prearm_ok)
+        if self.launch_requested and self.has_flown and not self._operator_launch:
+            self._hold_launch()
+            return
         if self.launch_requested and s.prearm_ok and not self.s.advisory:
             self.state = S.LAUNCHING
             # the mode it waited in on the ground (MANUAL...) is floe's own while launching,

@@ -63,6 +63,12 @@ class ControllerState:
         self.state = S.CONNECTING
         self.link = "ok"
         self.launch_requested = settings.launch
+        self.has_flown = False
+        """Seen flying in this session: once it comes down, floe never launches it again on
+        its own initiative (only an operator's :meth:`launch` does)."""
+        self.came_down: str | None = None
+        """How it came down after it flew (None while it flies, or before it ever did)."""
+        self._operator_launch = False  # an operator's launch request, until it flies
         self.stopping = False
         self.snap = VehicleSnapshot(system_id=system_id)
         self.t_s = 0.0
@@ -129,9 +135,16 @@ class ControllerState:
         """A command waits while a reboot is suspected (a ``time_boot_ms`` that went back,
         not yet confirmed or cleared by the next frames): one stray frame must not cost
         the vehicle its mission, nor may a command reach a vehicle that may have
-        rebooted. A confirmed reboot aborts the job; a cleared suspicion lets it go on."""
+        rebooted. A confirmed reboot aborts the job; a cleared suspicion lets it go on.
+
+        It also waits while a mode change out of AUTO/GUIDED is not yet attributed
+        (``override_grace_s``): a pilot's RTL seen just before floe's next upload or its
+        switch to AUTO must not be undone by them. An override aborts the job; a battery
+        failsafe or a mission end of the autopilot's own lets it go on."""
         commanding = io.SetMode | io.UploadMission | io.SetCurrent | io.Arm
-        return isinstance(request, commanding) and self.snap.reboot_suspected
+        if not isinstance(request, commanding):
+            return False
+        return self.snap.reboot_suspected or self.watch.mode_change_pending
 
     # ------------------------------------------------------------------ outputs
     def journal(self, event: str, *, logged: bool = False, **fields: Any) -> None:
