@@ -13,8 +13,11 @@ directions for ``for_s``), ``kill`` (the autopilot process dies for ``for_s``: i
 sending, its connections drop, then it comes back rebooted on the ground where it came
 down, disarmed, ``time_boot_ms`` from 0, INITIALISING then MANUAL, the mission reloaded
 from storage), ``reboot``, ``mode`` (the operator switches mode, e.g. to FBWA
-or RTL, as with the RC transmitter) and ``battery`` (the pack suddenly reads ``pct``
-percent). Events come from ``--fault`` specs or a scenario's scripted events.
+or RTL, as with the RC transmitter), ``battery`` (the pack suddenly reads ``pct``
+percent) and ``airspeed`` (the pitot reads wrong from ``at``, for ``for_s`` or for good:
+ArduPlane's health check disables the sensor 4.4 s later, its WIND estimate degrades, and
+it re-enables the sensor about 30 s after the fault ends; :mod:`sitl.sim_airspeed`).
+Events come from ``--fault`` specs or a scenario's scripted events.
 
 Spec grammar (command line)::
 
@@ -23,6 +26,7 @@ Spec grammar (command line)::
     3:reorder:p=0.1           1:drop:at=60,for=20              2:reboot:at=120
     2:kill:at=60,for=30
     1:mode:at=90,mode=FBWA    3:battery:at=200,pct=10
+    1:airspeed:at=120         1:airspeed:at=120,for=60
 
 One builder: every fault spec floe makes is spelt by :func:`fault_spec`, the whole list
 (the user's ``--fault``/``sim_fault`` specs, then the all-links impairments of
@@ -57,7 +61,8 @@ __all__ = [
 
 @dataclass(frozen=True)
 class FaultEvent:
-    """A scheduled fault: ``kind`` kill | reboot | mode | battery | drop."""
+    """A scheduled fault: ``kind`` kill | reboot | mode | battery | drop | airspeed |
+    airspeed_ok (the end of an airspeed fault)."""
 
     t_s: float
     kind: str
@@ -135,7 +140,8 @@ class VehicleFaults:
             self.down.push(item, t_s, self.rng)
 
     def due_events(self, t_s: float) -> list[FaultEvent]:
-        """Autopilot events (kill, reboot, mode, battery) whose time has come, each once."""
+        """Autopilot events (kill, reboot, mode, battery, airspeed) whose time has come,
+        each once."""
         out = []
         while self._next_event < len(self.events) and self.events[self._next_event].t_s <= t_s:
             event = self.events[self._next_event]
@@ -173,6 +179,10 @@ def apply_fault(faults: VehicleFaults, kind: str, options: dict[str, str]) -> No
         faults.add_event(FaultEvent(at, "mode", mode=fault_mode(options["mode"])))
     elif kind == "battery":
         faults.add_event(FaultEvent(at, "battery", fraction=float(options["pct"]) / 100.0))
+    elif kind == "airspeed":
+        faults.add_event(FaultEvent(at, "airspeed"))
+        if "for" in options:
+            faults.add_event(FaultEvent(at + float(options["for"]), "airspeed_ok"))
 
 
 def fault_spec(vehicles: int | str, kind: str, options: Mapping[str, float | str] = {}) -> str:

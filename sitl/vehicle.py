@@ -35,6 +35,7 @@ from sitl.faults import FaultEvent
 from sitl.mission_protocol import MissionEvents, MissionServer
 from sitl.mission_store import MAX_MISSION_ITEMS, MissionItem, MissionStore
 from sitl.params import ParamStore, default_param_specs
+from sitl.sim_airspeed import AirspeedSensor
 from sitl.sim_wind import FlownWind, WindEstimate, wind_param_values
 from sitl.statustext import StatusTextFactory
 from sitl.telemetry import StreamScheduler
@@ -98,6 +99,7 @@ class SimVehicle:
         for name, value in {**wind_param_values(config.wind), **config.params}.items():
             self.params.set(name, value)
         self.wind = FlownWind(config.wind, config.wind_seed)  # the air does not reboot
+        self.airspeed_sensor = AirspeedSensor()  # a faulty pitot stays faulty at a reboot
         self.text = StatusTextFactory()
         hx, hy, _ = config.origin.to_local(config.home_lat_deg, config.home_lon_deg)
         self.home_xy_m = (hx, hy)
@@ -147,6 +149,7 @@ class SimVehicle:
         y0 = c.launch_y_m if c.launch_y_m is not None else self.home_xy_m[1]
         self.airframe = Airframe(x0, y0, c.launch_heading_rad, 0.0, 0.0, c.min_turn_radius_m)
         self.wind_estimate = WindEstimate()  # the EKF starts again at zero
+        self.airspeed_sensor.booted()
         self.ready_flags = {"init": False, "gps": False, "ekf": False}
         self.home_set = False
         self.battery_low_sent = False
@@ -218,7 +221,8 @@ class SimVehicle:
         af.x_m, af.y_m, af.heading_rad = where.x_m, where.y_m, where.heading_rad
 
     def apply_fault(self, event: FaultEvent, t_s: float) -> list[Any]:
-        """Apply a scheduled fault: kill, reboot, operator mode switch or low battery."""
+        """Apply a scheduled fault: kill, reboot, operator mode switch, low battery, or the
+        airspeed sensor's fault starting or ending (:mod:`sitl.sim_airspeed`)."""
         out = self.step(t_s)
         if not self.alive:
             return out
@@ -231,6 +235,8 @@ class SimVehicle:
             return out + self.autopilot.set_mode(event.mode, self.airframe)
         if event.kind == "battery":
             return out + self.set_battery_remaining(event.fraction)
+        if event.kind in ("airspeed", "airspeed_ok"):  # the health check notices it
+            self.airspeed_sensor.faulty = event.kind == "airspeed"
         return out
 
     def _drain(self) -> list[Any]:
@@ -326,9 +332,12 @@ class SimVehicle:
         was_on_ground = af.on_ground
         wind = self.wind.at(self.t_s - dt_s, self.params)
         af.step(guidance, alt_cmd, ap.speed_cmd_m_s, dt_s, wind)
-        self.wind_estimate.update(wind, dt_s, flying=not af.on_ground)
+        sensor = self.airspeed_sensor
+        self.wind_estimate.update(sensor.estimate_target(wind), dt_s, flying=not af.on_ground)
         self.battery_used_mah += self.battery_current_a * dt_s / 3.6
         out = ap.update(self.t_s, af)
+        for severity, text in sensor.step(dt_s, flying=not af.on_ground):
+            out += self.text.make(text, severity)
         if af.on_ground and not was_on_ground and af.touchdown_sink_m_s is not None:
             # ArduPilot SITL prints this on its console; the built-in one sends it too
             out += self.text.make(

@@ -78,9 +78,12 @@ def _sys_status(v: VehicleView) -> Any:
         health |= M.MAV_SYS_STATUS_AHRS
     if v.prearm_ok:
         health |= PREARM_BIT
+    enabled = _SENSORS
+    if not v.airspeed_sensor.in_use:  # disabled by the health check: present, healthy
+        enabled &= ~M.MAV_SYS_STATUS_SENSOR_DIFFERENTIAL_PRESSURE
     return M.MAVLink_sys_status_message(
         _SENSORS,
-        _SENSORS,
+        enabled,
         health,
         200,
         int(v.battery_voltage_v * 1000),

@@ -17,6 +17,7 @@ from sitl.airframe import Airframe
 from sitl.autopilot import Autopilot
 from sitl.mission_store import MissionStore
 from sitl.params import ParamStore
+from sitl.sim_airspeed import AirspeedSensor
 from sitl.sim_wind import WindEstimate
 from sitl.statustext import StatusTextFactory
 from sitl.telemetry import StreamScheduler
@@ -72,6 +73,7 @@ class VehicleView(Protocol):
     battery_used_mah: float
     t_s: float
     wind_estimate: WindEstimate
+    airspeed_sensor: AirspeedSensor
 
     @property
     def system_id(self) -> int: ...

@@ -7,6 +7,7 @@ importing the simulator. See ``sitl/faults.py`` for what each kind does.
     1:loss:p=0.2,dir=up       all:delay:s=0.3,jitter=0.1       2:dup:p=0.05
     3:reorder:p=0.1           1:drop:at=60,for=20              2:reboot:at=120
     1:mode:at=90,mode=FBWA    3:battery:at=200,pct=10
+    1:airspeed:at=120         1:airspeed:at=120,for=60
 """
 
 from __future__ import annotations
@@ -26,7 +27,9 @@ __all__ = [
     "parse_scenario_faults",
 ]
 
-FAULT_KINDS = ("loss", "dup", "reorder", "delay", "drop", "kill", "reboot", "mode", "battery")
+FAULT_KINDS = (
+    "loss", "dup", "reorder", "delay", "drop", "kill", "reboot", "mode", "battery", "airspeed",
+)
 SIM_MODES = {m.name: int(m) for m in ArduPlaneMode if m <= 16 and m != 14}
 """Name -> number of the modes the built-in vehicle flies (ArduPlane's up to INITIALISING,
 no AVOID_ADSB, no QuadPlane): the simulator's mode table and what ``mode=`` may name."""
@@ -95,6 +98,7 @@ _ALLOWED = {
     "reboot": {"at"},
     "mode": {"at", "mode"},
     "battery": {"at", "pct"},
+    "airspeed": {"at", "for"},
 }
 _REQUIRED = {
     "loss": {"p"},
@@ -106,6 +110,7 @@ _REQUIRED = {
     "reboot": {"at"},
     "mode": {"at", "mode"},
     "battery": {"at", "pct"},
+    "airspeed": {"at"},
 }
 
 

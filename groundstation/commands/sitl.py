@@ -111,7 +111,8 @@ def _parser() -> argparse.ArgumentParser:
         metavar="SPEC",
         help="VEHICLES:KIND[:key=value,...], e.g. 1:loss:p=0.2,dir=up, "
         "all:delay:s=0.2,jitter=0.1, 2:drop:at=60,for=20, 2:kill:at=60,for=30, 1:reboot:at=90, "
-        "3:mode:at=120,mode=FBWA, 2:battery:at=100,pct=10 (repeatable)",
+        "3:mode:at=120,mode=FBWA, 2:battery:at=100,pct=10, 1:airspeed:at=120,for=60 "
+        "(repeatable)",
     )
     p.add_argument("--loss", type=float, default=None, help="packet loss, all links (0-1)")
     p.add_argument("--dup", type=float, default=None, help="duplication, all links (0-1)")

@@ -59,6 +59,7 @@ from groundstation.core.events import (
     Tick,
     VehicleJoined,
     WindReport,
+    WindWithdrawn,
 )
 from groundstation.core.fleet import ACTIVE, VehicleRecord, free_vehicles, status_change
 from groundstation.core.intercept import intercept, travel_time_s
@@ -133,6 +134,8 @@ class DecisionCore:
         elif isinstance(event, WindReport):
             self.wind.report(event)
             out += self._update_wind(event.t_s)
+        elif isinstance(event, WindWithdrawn):
+            out += self.wind.withdraw(event, {v.id for v in self.active_vehicles()})
         else:
             out += self._on_fleet_or_target_event(event)
         if isinstance(event, Tick):

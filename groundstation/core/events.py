@@ -31,6 +31,7 @@ __all__ = [
     "VehicleRebooted",
     "VehicleReturned",
     "WindReport",
+    "WindWithdrawn",
 ]
 
 
@@ -220,6 +221,17 @@ class WindReport:
     wy_m_s: float
 
 
+@dataclass(frozen=True)
+class WindWithdrawn:
+    """A vehicle's wind estimate is not to be believed any more (its autopilot disabled a
+    failed airspeed sensor, ``reason``): its reports so far are forgotten at once, so the
+    fleet's estimate no longer counts them; its next ``WindReport`` counts again."""
+
+    t_s: float
+    vehicle: str
+    reason: str
+
+
 Event = (
     Tick
     | Telemetry
@@ -238,4 +250,5 @@ Event = (
     | BoatPosition
     | PlanSolved
     | WindReport
+    | WindWithdrawn
 )

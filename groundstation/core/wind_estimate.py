@@ -39,6 +39,15 @@ estimate (with at least one other vehicle reporting) for ``outlier_after_s`` (10
 s) is flagged once, as a ``wind_outlier`` note; it is flagged again only after it agreed
 in between.
 
+**Withdrawn.** A :class:`~groundstation.core.events.WindWithdrawn` input (the vehicle's
+autopilot disabled its failed airspeed sensor, and its WIND estimate without airspeed
+reads 40-60 % of the true wind) forgets that vehicle's reports at once and recomputes the
+estimate: with others reporting, their combination stands (with three or more the median
+had already outvoted it, with one or two it had not); with none, the fallback replaces it
+at once rather than ``max_age_s`` later, and a ``wind_fallback`` note (a warning) says
+so. The vehicle counts again from its next ``WindReport`` (its controller sends none until
+the sensor is back and the estimate has settled again).
+
 **Journal.** A :class:`~groundstation.core.commands.WindEstimate` (a ``wind`` line) when the
 estimate changed meaningfully from the last one journalled: its speed by more than
 ``change_speed_m_s`` (1 m/s), its direction by more than ``change_deg`` (10 deg, while
@@ -56,7 +65,7 @@ from dataclasses import dataclass
 
 from domain.wind_triangle import wind_from_vector
 from groundstation.core.commands import Command, Note, WindEstimate
-from groundstation.core.events import WindReport
+from groundstation.core.events import WindReport, WindWithdrawn
 from world.wind import MAX_WIND_M_S
 
 __all__ = ["FALLBACK", "VEHICLES", "WindEstimator", "WindState", "describe_wind"]
@@ -150,6 +159,18 @@ class WindEstimator:
         kept.append(_Report(event.t_s, wx, wy))
         while event.t_s - kept[0].t_s > self.average_s:
             kept.popleft()
+
+    def withdraw(self, event: WindWithdrawn, active: set[str]) -> list[Command]:
+        """Forget ``event.vehicle``'s reports and recompute at once (module docstring)."""
+        used = event.vehicle in self.current.vehicles
+        self.reports.pop(event.vehicle, None)
+        out = self.update(event.t_s, active)
+        if used and self.current.source == FALLBACK:
+            detail = (f"vehicle {event.vehicle}'s wind estimate is withdrawn ({event.reason}) "
+                      f"and no other vehicle reports one: planning falls back to the "
+                      f"configured wind, {describe_wind(*self.fallback.xy_m_s)}")
+            out.append(Note(event.t_s, "wind_fallback", event.vehicle, None, detail))
+        return out
 
     def fresh(self, t_s: float, active: set[str]) -> dict[str, tuple[float, float]]:
         """The value of each vehicle that counts at ``t_s`` (module docstring)."""

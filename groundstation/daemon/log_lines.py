@@ -19,8 +19,9 @@ period)``, ``t=61.0 wind 12.0 m/s from 270 deg (vehicles 1, 2)``; other events a
 (``problem``, ``result``, ``hint``) or nested mappings (the journal keeps every value at
 full precision).
 
-A ``wind`` line (the core's estimate changed meaningfully) is an operator event, and so is
-a ``wind_outlier`` (a problem); the vehicles' periodic ``WindReport`` inputs are not.
+A ``wind`` line (the core's estimate changed meaningfully) is an operator event, and so are
+a ``wind_outlier``, a ``wind_fallback`` and an ``airspeed_failed`` (problems) and an
+``airspeed_recovered``; the vehicles' periodic ``WindReport`` inputs are not.
 
 The tracker's notes: ``track_confirmed`` is an operator event, and so is a
 ``track_deleted`` of a track that was confirmed or a prior entry (its line says
@@ -76,6 +77,8 @@ PROBLEM_EVENTS = frozenset(
         "unknown_target",
         "wind_outlier",
         "wind_refused",
+        "wind_fallback",
+        "airspeed_failed",
     }
 )
 """Operator events that report something wrong: logged at WARNING."""
@@ -104,6 +107,7 @@ OPERATOR_EVENTS = PROBLEM_EVENTS | frozenset(
         "send_home",
         "autopilot_mode",
         "wind",
+        "airspeed_recovered",
         "start",
         "stop",
         "track_confirmed",

@@ -12,7 +12,8 @@
   [-pi, pi). The latest valid source wins.
 * mode (HEARTBEAT ``custom_mode``, ArduPlane numbering), armed (``base_mode`` bit 128), mission
   progress (MISSION_CURRENT, MISSION_ITEM_REACHED), battery (SYS_STATUS, BATTERY_STATUS),
-  pre-arm state (SYS_STATUS health bit 0x10000000, the best single "ready" signal).
+  pre-arm state (SYS_STATUS health bit 0x10000000, the best single "ready" signal), and
+  SYS_STATUS's three sensor bitmasks as they came (``sensors``).
 
 Values that are NaN or out of range are never stored: they are dropped and reported as
 :class:`InvalidTelemetry`. Messages from another system id, and HEARTBEATs of components
@@ -320,8 +321,11 @@ class VehicleTelemetry:
     def _on_sys_status(self, msg: MAVLinkMessage, now_s: float) -> list[TelemetryEvent]:
         events: list[TelemetryEvent] = []
         present = int(msg.onboard_control_sensors_present)
+        enabled = int(msg.onboard_control_sensors_enabled)
+        health = int(msg.onboard_control_sensors_health)
+        self._snap = replace(self._snap, sensors=(present, enabled, health))
         if present & PREARM_CHECK_BIT:
-            ok = bool(int(msg.onboard_control_sensors_health) & PREARM_CHECK_BIT)
+            ok = bool(health & PREARM_CHECK_BIT)
             if ok != self._snap.prearm_ok:
                 events.append(PrearmChanged(now_s, ok))
             self._snap = replace(self._snap, prearm_ok=ok)

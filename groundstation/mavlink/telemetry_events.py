@@ -175,6 +175,8 @@ class VehicleSnapshot:
     wind_xy_m_s: tuple[float, float] | None = None
     """The vehicle's own wind estimate (ENU, towards), once accepted on evidence."""
     last_wind_s: float | None = None
+    sensors: tuple[int, int, int] | None = None
+    """SYS_STATUS ``onboard_control_sensors_present``, ``_enabled``, ``_health`` (the last)."""
 
     @property
     def course_rad(self) -> float | None:

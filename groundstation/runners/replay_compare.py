@@ -41,7 +41,7 @@ __all__ = [
 
 NOTE_KINDS = frozenset(
     {"target_discovered", "duplicate_target", "unknown_target", "wind_outlier",
-     "wind_refused", "track_born", "track_confirmed", "track_deleted"}
+     "wind_refused", "wind_fallback", "track_born", "track_confirmed", "track_deleted"}
 )
 """Notes the decision core emits (journalled as their own event by ``gcs simulate``)."""
 

@@ -107,6 +107,8 @@ class VehicleController(ControllerState):
         for event in frame.events:
             self._on_event(event)
         kind = frame.kind
+        if kind == "SYS_STATUS" and s.sensors is not None:
+            self._airspeed(self.airspeed.sys_status(*s.sensors, t))
         grounded = False
         if kind in ("HEARTBEAT", "GLOBAL_POSITION_INT", "EXTENDED_SYS_STATE"):
             grounded = self.watch.flight(s, t)
@@ -169,6 +171,7 @@ class VehicleController(ControllerState):
         elif isinstance(event, StatusText):
             self.watch.texts.append((t, event.text))
             self.journal("statustext", severity=event.severity, text=event.text)
+            self._airspeed(self.airspeed.text(event.text, t))
         elif isinstance(event, Rebooted):
             self._on_reboot(event)
         elif isinstance(event, Armed | Disarmed):
@@ -234,6 +237,7 @@ class VehicleController(ControllerState):
             time_boot_ms=event.time_boot_ms,
         )  # fmt: skip
         self._out.append(io.NotifyRebooted())
+        self._airspeed_rebooted()
         self._abort_job()
         self._loiter = None
         self.wp_loiter_rad_m = None

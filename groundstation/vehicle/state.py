@@ -14,6 +14,7 @@ from typing import Any
 
 from domain.modes import ArduPlaneMode
 from groundstation.core import events as ev
+from groundstation.mavlink.airspeed_health import AirspeedChange, AirspeedHealth
 from groundstation.mavlink.evidence import LoiterEndEvidence
 from groundstation.mavlink.telemetry_events import VehicleSnapshot, WindReported
 from groundstation.vehicle import io
@@ -104,6 +105,7 @@ class ControllerState:
         self._restore: list[float] | None = None  # [since_s, heartbeats] after a link restore
         self._wind_sent_s = -math.inf
         self._wind_since_s: float | None = None  # active and reporting since
+        self.airspeed = AirspeedHealth(settings.evidence_frames, settings.evidence_span_s)
 
     # ------------------------------------------------------------------ reading
     @property
@@ -180,8 +182,9 @@ class ControllerState:
         """The vehicle's accepted wind estimate goes to the core (``WindReport``) while it
         is active in the plan (on the ground, or taken over, it says nothing about the air
         floe flies in) and has been for ``wind_settle_s`` (the autopilot's estimate
-        converges in flight), at most once per ``wind_report_min_s``."""
-        if self.state is not S.ACTIVE or self._restore is not None:
+        converges in flight), at most once per ``wind_report_min_s``; never while its
+        airspeed sensor is failed (:meth:`_airspeed`)."""
+        if self.state is not S.ACTIVE or self._restore is not None or self.airspeed.failed:
             self._wind_since_s = None
             return
         if self._wind_since_s is None:
@@ -192,6 +195,34 @@ class ControllerState:
             return
         self._wind_sent_s = event.t_s
         self._core(ev.WindReport(event.t_s, self.vehicle, event.wx_m_s, event.wy_m_s))
+
+    def _airspeed(self, change: AirspeedChange | None) -> None:
+        """The airspeed sensor's verdict changed (:mod:`groundstation.mavlink.airspeed_health`).
+        Failed: ArduPlane's wind estimate without airspeed is wrong (40-60 % of the wind),
+        so the core forgets this vehicle's reports at once (``WindWithdrawn``, when any were
+        sent) and none is sent until the sensor is back; then the estimate settles again
+        for ``wind_settle_s`` first."""
+        if change is None:
+            return
+        self._wind_since_s = None
+        if not change.failed:
+            self.journal("airspeed_recovered", how=change.how, detail=change.detail)
+            return
+        self.journal("airspeed_failed", how=change.how, detail=change.detail, logged=True)
+        self._out.append(io.Warn(
+            f"vehicle {self.vehicle}: airspeed sensor failed (ArduPlane: {change.detail}): "
+            "its wind estimate is ignored until the sensor recovers"
+        ))  # fmt: skip
+        if self._wind_sent_s > -math.inf:
+            self._core(ev.WindWithdrawn(change.t_s, self.vehicle, "airspeed sensor failed"))
+
+    def _airspeed_rebooted(self) -> None:
+        """A reboot: ArduPlane uses its sensor again (the health check's ARSPD_USE 0 is not
+        saved), and the evidence starts again."""
+        if self.airspeed.failed:
+            self.journal("airspeed_recovered", how="reboot",
+                         detail="the autopilot rebooted and uses its sensor again")
+        self.airspeed.reset()
 
     def _loiter_ended(self, t: float, loiter: LoiterEndEvidence) -> None:
         self._loiter = None
