@@ -16,6 +16,7 @@ from __future__ import annotations
 import asyncio
 import math
 from collections.abc import Callable
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -93,6 +94,10 @@ def phase(daemon: Daemon, v: SimVehicle) -> str | None:
     return "flying to a target" if far else None
 
 
+def _store(reply: dict[str, Any], done: asyncio.Task[dict[str, Any]]) -> None:
+    reply.update(done.result())
+
+
 class Pilots:
     """Switch vehicle ``sysid`` to ``mode`` when it reaches ``when``; give each back through
     the API ``resume_after_s`` later."""
@@ -113,10 +118,11 @@ class Pilots:
             at = self.switched.get(sysid)
             if at is not None and sysid not in self.resumed and t_s >= at + self.resume_after_s:
                 control = DaemonController(daemon)
+                reply: dict[str, Any] = {}
+                self.resumed[sysid] = (t_s, reply)
                 task = asyncio.ensure_future(control.vehicle_action(str(sysid), "resume"))
                 self.tasks.append(task)
-                self.resumed[sysid] = (t_s, {})
-                task.add_done_callback(lambda f, s=sysid: self.resumed[s][1].update(f.result()))
+                task.add_done_callback(partial(_store, reply))
 
 
 CASES = {
@@ -205,7 +211,9 @@ def test_plane_that_came_down_while_the_pilot_had_it_is_never_relaunched(
         if t_s >= 200.0 and not launch:
             launch["t"] = t_s
             task = asyncio.ensure_future(DaemonController(daemon).vehicle_action("1", "launch"))
-            task.add_done_callback(lambda f: launch.update(reply=f.result()))
+            reply: dict[str, Any] = {}
+            launch["reply"] = reply
+            task.add_done_callback(partial(_store, reply))
 
     _, server, journal = run_watching(
         tmp_path,
