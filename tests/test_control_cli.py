@@ -69,10 +69,15 @@ def test_vehicle_actions_and_list(server: ServerThread,
     assert vehicle.run(["resume", "2"]) == 0
     assert vehicle.run(["launch", "uav1"]) == 0
     capsys.readouterr()
+    held = "came down in FBWA while the operator had it"
+    server.call(lambda: server.control.vehicles[2].update(status="on_ground", launch_held=held))
     assert vehicle.run(["list"]) == 0
     out = capsys.readouterr().out.splitlines()
     assert out[0].split()[:4] == ["id", "name", "sysid", "mode"]
-    assert [line.split()[0] for line in out[1:]] == ["uav1", "uav2", "uav3"]
+    assert [line.split()[0] for line in out[1:4]] == ["uav1", "uav2", "uav3"]
+    # why floe holds a launch, and what launches it
+    assert out[-1] == (f"vehicle uav3: {held}; floe will not launch it on its own "
+                       "('gcs vehicle launch uav3' launches it)")
     calls = server.call(lambda: list(server.control.calls))
     assert calls[-3:] == [("vehicle", "uav2", "release"), ("vehicle", "uav2", "resume"),
                           ("vehicle", "uav1", "launch")]

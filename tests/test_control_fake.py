@@ -50,7 +50,7 @@ class FakeControl:
                 "id": f"uav{i + 1}", "name": f"X8-{i + 1}", "system_id": i + 1,
                 "x_m": 0.0, "y_m": 0.0, "alt_m": 100.0 + 10 * i, "heading_rad": heading,
                 "speed_m_s": SPEED_M_S, "mode": "AUTO", "armed": True, "status": "active",
-                "link": "ok", "battery_pct": 95.0 - 5 * i,
+                "launch_held": None, "link": "ok", "battery_pct": 95.0 - 5 * i,
                 "target": names[i % len(names)], "route": names[i % len(names):][:2],
                 "aim": None, "track": [[0.0, 0.0]]})
 

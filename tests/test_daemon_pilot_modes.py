@@ -210,7 +210,9 @@ def test_plane_that_came_down_while_the_pilot_had_it_is_never_relaunched(
     def operator(daemon: Daemon, server: SitlServer, t_s: float) -> None:
         if t_s >= 200.0 and not launch:
             launch["t"] = t_s
-            task = asyncio.ensure_future(DaemonController(daemon).vehicle_action("1", "launch"))
+            control = DaemonController(daemon)
+            launch["state"] = next(v for v in control.state()["vehicles"] if v["id"] == "1")
+            task = asyncio.ensure_future(control.vehicle_action("1", "launch"))
             reply: dict[str, Any] = {}
             launch["reply"] = reply
             task.add_done_callback(partial(_store, reply))
@@ -231,11 +233,17 @@ def test_plane_that_came_down_while_the_pilot_had_it_is_never_relaunched(
     (held,) = events(journal, "launch_held", vehicle="1")
     assert "while the operator had it" in held["reason"] and held["t"] >= 140.0
     # nothing armed, uploaded or launched between the override and the operator's launch
-    t_launch = launch["t"]
-    before = [c for c in from_gcs(server, 1, override["t"]) if c.t_s < t_launch]
+    (request,) = events(journal, "launch_request", vehicle="1")
+    assert request["by"] == "operator" and request["t"] >= launch["t"] - 0.01  # (rounded)
+    t_launch = request["t"]
+    # (the simulator's clock and the daemon's differ by a fraction of a second)
+    before = [c for c in from_gcs(server, 1, override["t"]) if c.t_s < t_launch - 1.0]
     assert not [c for c in before if changes_vehicle(c)], before
     assert not [e for e in events(journal, "launch", vehicle="1") if e["t"] > override["t"]
                 and e["t"] < t_launch]  # fmt: skip
+    # the API (gcs vehicle list) says why it is held
+    assert launch["state"]["launch_held"] == held["reason"]
+    assert launch["state"]["status"] == "on_ground"
     # the operator's launch: accepted, and floe launches it (takeoff mission, armed, AUTO)
     assert launch.get("reply") == {"ok": True, "error": None, "vehicle": "1"}
     relaunch = [e for e in events(journal, "launch", vehicle="1") if e["t"] >= t_launch]

@@ -226,7 +226,28 @@ def test_fly_waypoint_loiter_time_then_mission_complete_rtl() -> None:
     assert reached(lb) == [1, 2, 3]  # each exactly once
     assert "Mission complete, changing mode to RTL" in lb.texts()
     assert lb.take("HEARTBEAT")[-1].custom_mode == 11
-    assert [m.seq for m in lb.take("MISSION_CURRENT")][-1] == 3
+    last = lb.take("MISSION_CURRENT")[-1]
+    # ArduPilot: total excludes home, so on (and after) the last item seq == total
+    assert (last.seq, last.total, last.mission_state) == (3, 3, M.MISSION_STATE_COMPLETE)
+
+
+def test_pilots_rtl_mid_mission_is_no_mission_end() -> None:
+    """floe's target mission [home, timed loiter, unlimited loiter]: total 2 (home
+    excluded); an RTL switched on the timed loiter leaves the mission unfinished (no
+    "Mission complete", mission_state not COMPLETE), as ArduPlane's AUTO exit does."""
+    lb = make()
+    upload(lb, [HOME, item(1, M.MAV_CMD_NAV_LOITER_TIME, 1500, 0, p1=30),
+                item(2, M.MAV_CMD_NAV_LOITER_UNLIM, 1500, 0)])  # fmt: skip
+    lb.send(M.MAVLink_mission_set_current_message(1, 1, 1))
+    lb.advance(10.0)
+    current = lb.take("MISSION_CURRENT")[-1]
+    assert (current.seq, current.total, current.mission_state) == (1, 2, M.MISSION_STATE_ACTIVE)
+    lb.send(M.MAVLink_set_mode_message(1, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 11))
+    lb.advance(5.0)
+    assert lb.take("HEARTBEAT")[-1].custom_mode == 11
+    current = lb.take("MISSION_CURRENT")[-1]
+    assert current.total == 2 and current.mission_state != M.MISSION_STATE_COMPLETE
+    assert not [t for t in lb.texts() if "Mission complete" in t]
 
 
 def test_loiter_time_flies_wp_loiter_rad_enlarged_and_unlim_honours_param3() -> None:

@@ -94,6 +94,11 @@ def _list(client: ApiClient, as_json: bool) -> int:
     )
     if not rows:
         print("(no vehicles)")
+    for v in vehicles:
+        if v.get("launch_held"):
+            vid = v.get("id")
+            print(f"vehicle {vid}: {v['launch_held']}; floe will not launch it on its own "
+                  f"('gcs vehicle launch {vid}' launches it)")
     return 0
 
 

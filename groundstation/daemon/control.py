@@ -55,6 +55,7 @@ class DaemonController:
                     "mode": snap.mode_name,
                     "armed": snap.armed,
                     "status": s.status,
+                    "launch_held": s.launch_held,
                     "link": s.link,
                     "battery_pct": snap.battery_remaining_pct,
                     "target": s.fly.target if s.fly else None,

@@ -15,7 +15,9 @@ State snapshot (``state()``), JSON-able, the same document the live page draws::
       "operating_center_m": [x_m, y_m] (home or the boat),
       "vehicles": [{"id", "name", "system_id", "x_m", "y_m", "alt_m", "heading_rad",
                     "speed_m_s", "mode", "armed", "status" (active|overridden|lost|home|
-                    on_ground|joining), "link" (ok|degraded|lost), "battery_pct",
+                    on_ground|joining), "launch_held" (why floe will not launch it on
+                    its own: it came down after it flew; None), "link" (ok|degraded|lost),
+                    "battery_pct",
                     "target", "route": [ids], "aim": [x_m, y_m] | None,
                     "track": [[x_m, y_m], ...] (recent positions),
                     "wind": {"wx_m_s", "wy_m_s", "speed_m_s", "from_deg"} | None (its own

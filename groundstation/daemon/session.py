@@ -110,6 +110,11 @@ class VehicleSession:
         return self.controller.fly
 
     @property
+    def launch_held(self) -> str | None:
+        """Why floe will not launch it on its own (it came down after it flew), or None."""
+        return self.controller.launch_held
+
+    @property
     def uploads_ok(self) -> int:
         return self.controller.uploads_ok
 

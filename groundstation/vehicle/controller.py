@@ -405,6 +405,7 @@ class VehicleController(ControllerState):
             self.state = S.ON_GROUND
             self._pending_home = False
         self._operator_launch = True
+        self.launch_held = None
         self.journal("launch_request", by="operator", came_down=self.came_down)
         self._launch_request()
         return True, ""
@@ -413,7 +414,7 @@ class VehicleController(ControllerState):
         """A launch floe would start on its own (``--launch``) of a vehicle that came down
         after it flew: never. Said once per landing; the operator's launch lifts it."""
         self.launch_requested = False
-        why = self.came_down or "came down after it flew"
+        why = self.launch_held = self.came_down or "came down after it flew"
         self.journal("launch_held", reason=why, logged=True)
         self._out.append(
             io.Warn(

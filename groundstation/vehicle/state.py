@@ -70,6 +70,8 @@ class ControllerState:
         self.came_down: str | None = None
         """How it came down after it flew (None while it flies, or before it ever did)."""
         self._operator_launch = False  # an operator's launch request, until it flies
+        self.launch_held: str | None = None
+        """Why a launch floe would have started on its own is held (until the operator's)."""
         self.stopping = False
         self.snap = VehicleSnapshot(system_id=system_id)
         self.t_s = 0.0
