@@ -23,7 +23,7 @@ from groundstation.mavlink.airspeed_health import AirspeedHealth, airspeed_text
 from groundstation.mavlink.codec import MavlinkDecoder, MavlinkEncoder, mavlink2
 from groundstation.mavlink.telemetry import Rebooted, StatusText, VehicleTelemetry, WindReported
 from groundstation.runners.replay_compare import NOTE_KINDS
-from groundstation.vehicle import io
+from groundstation.vehicle import controller_io as vio
 
 M = mavlink2
 DP = M.MAV_SYS_STATUS_SENSOR_DIFFERENTIAL_PRESSURE
@@ -138,12 +138,12 @@ def test_the_reducer_keeps_the_sys_status_bitmasks() -> None:
 
 
 # ------------------------------------------------------------------ the controller
-def _wind(rig: Rig) -> list[io.Output]:
+def _wind(rig: Rig) -> list[vio.Output]:
     return rig.frame("WIND", WindReported(rig.t, *TRUE_WIND, 0.0), wind_xy_m_s=TRUE_WIND)
 
 
-def _reports(out: list[io.Output]) -> list[ev.Event]:
-    return [o.event for o in out if isinstance(o, io.CoreEvent)
+def _reports(out: list[vio.Output]) -> list[ev.Event]:
+    return [o.event for o in out if isinstance(o, vio.CoreEvent)
             and isinstance(o.event, ev.WindReport | ev.WindWithdrawn)]
 
 
@@ -162,7 +162,7 @@ def test_a_failure_text_withdraws_the_wind_at_once_until_the_recovery_text() -> 
     rig.t += 0.5
     out = rig.frame("STATUSTEXT", StatusText(rig.t, M.MAV_SEVERITY_ERROR, FAILURE))
     assert _reports(out) == [ev.WindWithdrawn(rig.t, "v1", "airspeed sensor failed")]
-    warnings = [o.text for o in out if isinstance(o, io.Warn)]
+    warnings = [o.text for o in out if isinstance(o, vio.Warn)]
     assert warnings == [f"vehicle v1: airspeed sensor failed (ArduPlane: {FAILURE}): its "
                         "wind estimate is ignored until the sensor recovers"]
     line = rig.journal("airspeed_failed")[0]

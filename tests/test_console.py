@@ -196,7 +196,7 @@ def test_a_problem_that_warned_itself_reaches_the_console_once(tmp_path: Path) -
     from groundstation.daemon.daemon import Daemon
     from groundstation.daemon.journal import Journal, read_journal
     from groundstation.daemon.session import VehicleSession
-    from groundstation.vehicle import io as vio
+    from groundstation.vehicle import controller_io as vio
 
     records: list[logging.LogRecord] = []
 

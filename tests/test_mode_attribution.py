@@ -28,7 +28,7 @@ from groundstation.mavlink.codec import MavlinkDecoder, MavlinkEncoder, MAVLinkM
 from groundstation.mavlink.mission_items import MissionItem
 from groundstation.mavlink.mission_transfer import TransferCode, TransferResult
 from groundstation.mavlink.telemetry import VehicleTelemetry
-from groundstation.vehicle import io
+from groundstation.vehicle import controller_io as vio
 from groundstation.vehicle.controller import VehicleController, VehicleState
 from groundstation.vehicle.settings import ControllerSettings
 
@@ -37,7 +37,7 @@ S = VehicleState
 AUTO, RTL = int(ArduPlaneMode.AUTO), int(ArduPlaneMode.RTL)
 ORIGIN = GeoOrigin(78.9, 11.9, 0.0)
 ARMED_CUSTOM = M.MAV_MODE_FLAG_SAFETY_ARMED | M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
-COMMANDS = (io.UploadMission, io.SetMode, io.SetCurrent, io.Arm, io.ParamSet)
+COMMANDS = (vio.UploadMission, vio.SetMode, vio.SetCurrent, vio.Arm, vio.ParamSet)
 
 
 @dataclass
@@ -94,70 +94,70 @@ class Harness:
         self.tel = VehicleTelemetry(1, ORIGIN)
         self.c = VehicleController("1", 1, ControllerSettings())
         self.t = 0.0
-        self.out: list[io.Output] = []
-        self.commands: list[tuple[float, io.Exchange]] = []
+        self.out: list[vio.Output] = []
+        self.commands: list[tuple[float, vio.Exchange]] = []
         self.defer = False  # leave exchanges unanswered (in flight) until answer_pending()
-        self.pending: list[io.Exchange] = []
+        self.pending: list[vio.Exchange] = []
 
     def receive(self, msg: MAVLinkMessage) -> None:
         events = self.tel.receive(msg, self.t)
-        self._feed(io.Frame(self.t, msg.get_type(), self.tel.snapshot(), tuple(events)))
+        self._feed(vio.Frame(self.t, msg.get_type(), self.tel.snapshot(), tuple(events)))
 
-    def _feed(self, inp: io.Input) -> None:
+    def _feed(self, inp: vio.Input) -> None:
         out = self.c.handle(inp)
         self.out += out
         for o in out:
-            if isinstance(o, io.UploadMission | io.Download | io.SetCurrent | io.SetMode
-                          | io.Arm | io.ParamSet):  # fmt: skip
+            if isinstance(o, vio.UploadMission | vio.Download | vio.SetCurrent | vio.SetMode
+                          | vio.Arm | vio.ParamSet):  # fmt: skip
                 if isinstance(o, COMMANDS):
                     self.commands.append((self.t, o))
                 if self.defer:
                     self.pending.append(o)
                 else:
-                    self._feed(io.ExchangeDone(self.t, o, self._answer(o)))
+                    self._feed(vio.ExchangeDone(self.t, o, self._answer(o)))
 
     def answer_pending(self) -> None:
         self.defer = False
         while self.pending:
             o = self.pending.pop(0)
-            self._feed(io.ExchangeDone(self.t, o, self._answer(o)))
+            self._feed(vio.ExchangeDone(self.t, o, self._answer(o)))
 
-    def _answer(self, o: io.Exchange) -> Any:
+    def _answer(self, o: vio.Exchange) -> Any:
         p = self.plane
-        if isinstance(o, io.UploadMission):
+        if isinstance(o, vio.UploadMission):
             p.total, p.state = len(o.steps), M.MISSION_STATE_ACTIVE
-            return io.UploadOutcome(True, 0, None, len(o.steps) + 1)
-        if isinstance(o, io.Download):  # floe's target mission, on its unlimited loiter
+            return vio.UploadOutcome(True, 0, None, len(o.steps) + 1)
+        if isinstance(o, vio.Download):  # floe's target mission, on its unlimited loiter
             items = tuple(MissionItem(i, c) for i, c in enumerate(
                 (M.MAV_CMD_NAV_WAYPOINT, M.MAV_CMD_NAV_LOITER_TIME, M.MAV_CMD_NAV_LOITER_UNLIM)))
             return TransferResult(True, TransferCode.SUCCESS, "ok", items=items)
-        if isinstance(o, io.SetCurrent):
+        if isinstance(o, vio.SetCurrent):
             p.seq = o.seq
             return TransferResult(True, TransferCode.SUCCESS, "ok")
-        if isinstance(o, io.SetMode):
+        if isinstance(o, vio.SetMode):
             p.mode = o.mode
             return M.MAV_RESULT_ACCEPTED
-        return M.MAV_RESULT_ACCEPTED if isinstance(o, io.Arm) else True
+        return M.MAV_RESULT_ACCEPTED if isinstance(o, vio.Arm) else True
 
     def seconds(self, n: int) -> None:
         for _ in range(n):
             self.t = round(self.t + 1.0, 6)
             for msg in self.plane.second():
                 self.receive(msg)
-            self._feed(io.Tick(self.t))
+            self._feed(vio.Tick(self.t))
 
     def fly(self, target: str = "A") -> None:
         cmd = FlyToTarget(self.t, "1", target, 1500.0, 0.0, 0.0, 30.0, (target,))
-        self._feed(io.Fly(self.t, cmd, 1500.0, 0.0))
+        self._feed(vio.Fly(self.t, cmd, 1500.0, 0.0))
 
-    def journal(self, name: str) -> list[io.JournalLine]:
-        return [o for o in self.out if isinstance(o, io.JournalLine) and o.event == name]
+    def journal(self, name: str) -> list[vio.JournalLine]:
+        return [o for o in self.out if isinstance(o, vio.JournalLine) and o.event == name]
 
     def core(self, kind: type) -> list[Any]:
         return [o.event for o in self.out
-                if isinstance(o, io.CoreEvent) and isinstance(o.event, kind)]  # fmt: skip
+                if isinstance(o, vio.CoreEvent) and isinstance(o.event, kind)]  # fmt: skip
 
-    def commands_after(self, t_s: float) -> list[io.Exchange]:
+    def commands_after(self, t_s: float) -> list[vio.Exchange]:
         return [c for t, c in self.commands if t > t_s]
 
 
@@ -276,7 +276,7 @@ def test_pilots_rtl_during_floes_upload_is_not_undone_by_its_switch_to_auto() ->
     h.defer = True
     h.fly("B")  # the upload goes out
     (upload,) = h.pending
-    assert isinstance(upload, io.UploadMission)
+    assert isinstance(upload, vio.UploadMission)
     t_switch = h.t
     h.plane.mode = RTL
     h.plane.state = M.MISSION_STATE_PAUSED
@@ -284,7 +284,7 @@ def test_pilots_rtl_during_floes_upload_is_not_undone_by_its_switch_to_auto() ->
     h.answer_pending()
     h.seconds(10)
     after = h.commands_after(t_switch)
-    assert not [c for c in after if isinstance(c, io.SetMode | io.SetCurrent)], after
+    assert not [c for c in after if isinstance(c, vio.SetMode | vio.SetCurrent)], after
     assert h.plane.mode == RTL
     assert [j.fields["reason"] for j in h.journal("override")] == ["mode RTL"]
 

@@ -258,7 +258,7 @@ def test_upload_retries_are_counted_by_the_controller() -> None:
     retries), not the journal subscription that may drop lines."""
     from test_vehicle_controller import active_rig
 
-    from groundstation.vehicle import io as vio
+    from groundstation.vehicle import controller_io as vio
 
     rig = active_rig()
     before = rig.c.upload_retries

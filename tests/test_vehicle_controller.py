@@ -26,7 +26,7 @@ from groundstation.mavlink.telemetry_events import (
     Rebooted,
     VehicleSnapshot,
 )
-from groundstation.vehicle import io
+from groundstation.vehicle import controller_io as vio
 from groundstation.vehicle.controller import VehicleController, VehicleState
 from groundstation.vehicle.settings import ControllerSettings
 
@@ -52,56 +52,56 @@ class Rig:
         self.c = VehicleController("v1", 1, ControllerSettings(**settings))
         self.snap = VehicleSnapshot(1, **FLYING)
         self.t = 0.0
-        self.out: list[io.Output] = []
-        self.pending: io.Exchange | None = None
-        self.asked: list[io.Exchange] = []
+        self.out: list[vio.Output] = []
+        self.pending: vio.Exchange | None = None
+        self.asked: list[vio.Exchange] = []
         self.auto_answer = auto_answer
         self.holding_mission = False
 
     # -- the vehicle's side
-    def frame(self, kind: str, *events: Any, **changes: Any) -> list[io.Output]:
+    def frame(self, kind: str, *events: Any, **changes: Any) -> list[vio.Output]:
         self.snap = replace(self.snap, last_heard_s=self.t, **changes)
         if kind == "HEARTBEAT":
             self.snap = replace(self.snap, last_heartbeat_s=self.t)
-        return self.feed(io.Frame(self.t, kind, self.snap, tuple(events)))
+        return self.feed(vio.Frame(self.t, kind, self.snap, tuple(events)))
 
-    def feed(self, inp: io.Input) -> list[io.Output]:
+    def feed(self, inp: vio.Input) -> list[vio.Output]:
         out = self.c.handle(inp)
         self._collect(out)
         return out
 
-    def _collect(self, out: list[io.Output]) -> None:
+    def _collect(self, out: list[vio.Output]) -> None:
         self.out += out
         for o in out:
-            if isinstance(o, io.UploadMission | io.Download | io.SetCurrent | io.SetMode
-                          | io.Arm | io.ParamSet):
+            if isinstance(o, vio.UploadMission | vio.Download | vio.SetCurrent | vio.SetMode
+                          | vio.Arm | vio.ParamSet):
                 assert self.pending is None, "two exchanges at once"
                 self.pending = o
                 self.asked.append(o)
 
-    def answer(self, result: Any) -> list[io.Output]:
+    def answer(self, result: Any) -> list[vio.Output]:
         request = self.pending
         assert request is not None
         self.pending = None
-        return self.feed(io.ExchangeDone(self.t, request, result))
+        return self.feed(vio.ExchangeDone(self.t, request, result))
 
     def auto(self) -> None:
         """Answer as a cooperative vehicle would."""
         while self.auto_answer and self.pending is not None:
             r = self.pending
-            if isinstance(r, io.UploadMission):
-                self.answer(io.UploadOutcome(True, 0, None, len(r.steps) + 1))
-            elif isinstance(r, io.Download):
+            if isinstance(r, vio.UploadMission):
+                self.answer(vio.UploadOutcome(True, 0, None, len(r.steps) + 1))
+            elif isinstance(r, vio.Download):
                 items = (_item(), _item(), _item(M.MAV_CMD_NAV_LOITER_UNLIM))
                 self.answer(ok_transfer(items if self.holding_mission else (_item(), _item())))
-            elif isinstance(r, io.SetCurrent):
+            elif isinstance(r, vio.SetCurrent):
                 self.snap = replace(self.snap, mission_current_seq=r.seq)
                 self.answer(ok_transfer())
-            elif isinstance(r, io.SetMode):
+            elif isinstance(r, vio.SetMode):
                 name = ArduPlaneMode(r.mode).name
                 self.snap = replace(self.snap, mode=int(r.mode), mode_name=name)
                 self.answer(ACCEPTED)
-            elif isinstance(r, io.Arm):
+            elif isinstance(r, vio.Arm):
                 self.snap = replace(self.snap, armed=True)
                 self.answer(ACCEPTED)
             else:
@@ -119,15 +119,15 @@ class Rig:
                 self.frame("SYS_STATUS")
                 self.frame("MISSION_CURRENT")
             self.frame("GLOBAL_POSITION_INT")
-            self.feed(io.Tick(self.t))
+            self.feed(vio.Tick(self.t))
             self.auto()
 
     # -- reading the outputs
-    def journal(self, name: str) -> list[io.JournalLine]:
-        return [o for o in self.out if isinstance(o, io.JournalLine) and o.event == name]
+    def journal(self, name: str) -> list[vio.JournalLine]:
+        return [o for o in self.out if isinstance(o, vio.JournalLine) and o.event == name]
 
     def core(self, kind: type) -> list[Any]:
-        return [o.event for o in self.out if isinstance(o, io.CoreEvent)
+        return [o.event for o in self.out if isinstance(o, vio.CoreEvent)
                 and isinstance(o.event, kind)]  # fmt: skip
 
     def requests(self, kind: type) -> list[Any]:
@@ -135,7 +135,7 @@ class Rig:
 
     def fly(self, target: str = "A", x_m: float = 2000.0, y_m: float = 0.0) -> None:
         cmd = FlyToTarget(self.t, "v1", target, x_m, y_m, 0.0, 120.0, (target,))
-        self.feed(io.Fly(self.t, cmd, x_m, y_m))
+        self.feed(vio.Fly(self.t, cmd, x_m, y_m))
         self.auto()
 
 
@@ -154,7 +154,7 @@ def active_rig(**settings: Any) -> Rig:
 def test_flying_in_auto_is_parked_then_joins() -> None:
     rig = Rig()
     rig.run(4.0)
-    assert [type(r) for r in rig.asked] == [io.Download, io.UploadMission, io.SetCurrent]
+    assert [type(r) for r in rig.asked] == [vio.Download, vio.UploadMission, vio.SetCurrent]
     assert rig.asked[1].purpose == "park"  # type: ignore[union-attr]
     assert rig.journal("vehicle_joined")[0].fields["how"] == "parked"
     assert len(rig.core(ev.VehicleJoined)) == 1
@@ -165,7 +165,7 @@ def test_holding_an_unlimited_loiter_joins_without_upload() -> None:
     rig.holding_mission = True
     rig.snap = replace(rig.snap, mission_current_seq=2)
     rig.run(4.0, mission_current_seq=2)
-    assert rig.requests(io.UploadMission) == []
+    assert rig.requests(vio.UploadMission) == []
     assert rig.journal("vehicle_joined")[0].fields["how"] == "holding"
 
 
@@ -214,7 +214,7 @@ def test_launch_only_when_asked_and_the_guard_lets_it_through() -> None:
     assert ok
     rig.run(2.0)
     kinds = [type(r) for r in rig.asked]
-    assert kinds == [io.UploadMission, io.Arm, io.SetCurrent, io.SetMode]
+    assert kinds == [vio.UploadMission, vio.Arm, vio.SetCurrent, vio.SetMode]
     assert rig.c.state is S.LAUNCHING
     rig.run(10.0, **{**FLYING, "landed_state": None})
     assert rig.journal("vehicle_joined")[0].fields["how"] == "launched"
@@ -227,7 +227,7 @@ def _launching_in_manual(**settings: Any) -> Rig:
     rig.run(5.0, mode=ArduPlaneMode.MANUAL, mode_name="MANUAL")
     ok, _ = rig.c.launch()
     rig._collect(rig.c.take_outputs())
-    assert ok and rig.c.state is S.LAUNCHING and isinstance(rig.pending, io.UploadMission)
+    assert ok and rig.c.state is S.LAUNCHING and isinstance(rig.pending, vio.UploadMission)
     return rig
 
 
@@ -271,10 +271,10 @@ def test_an_operators_round_trip_through_another_mode_ends_the_launch() -> None:
     rig.run(4.0, **MANUAL)  # the takeoff upload is still running
     assert [o.fields["reason"] for o in rig.journal("override")] == ["mode MANUAL"]
     assert rig.c.state is S.OVERRIDDEN
-    rig.answer(io.UploadOutcome(True, 0, None, 3))  # the upload ends after all
+    rig.answer(vio.UploadOutcome(True, 0, None, 3))  # the upload ends after all
     rig.auto_answer = True
     rig.run(20.0, **MANUAL)
-    assert rig.requests(io.Arm) == [] and rig.requests(io.SetMode) == []
+    assert rig.requests(vio.Arm) == [] and rig.requests(vio.SetMode) == []
 
 
 def test_manual_after_auto_was_accepted_is_an_override_not_a_relaunch() -> None:
@@ -282,20 +282,20 @@ def test_manual_after_auto_was_accepted_is_an_override_not_a_relaunch() -> None:
     # before any heartbeat showed AUTO. That MANUAL is not floe's: an override, and the
     # launch that never flew is not started again when launch_timeout_s runs out.
     rig = _launching_in_manual(launch_timeout_s=30.0)
-    rig.answer(io.UploadOutcome(True, 0, None, 3))
-    assert isinstance(rig.pending, io.Arm)
+    rig.answer(vio.UploadOutcome(True, 0, None, 3))
+    assert isinstance(rig.pending, vio.Arm)
     rig.snap = replace(rig.snap, armed=True)
     rig.answer(ACCEPTED)
-    assert isinstance(rig.pending, io.SetCurrent)
+    assert isinstance(rig.pending, vio.SetCurrent)
     rig.answer(ok_transfer())
-    assert isinstance(rig.pending, io.SetMode) and rig.pending.mode == ArduPlaneMode.AUTO
+    assert isinstance(rig.pending, vio.SetMode) and rig.pending.mode == ArduPlaneMode.AUTO
     rig.answer(ACCEPTED)  # no heartbeat ever shows AUTO: the vehicle stays in MANUAL
     rig.run(5.0, **MANUAL, armed=True)
     assert [o.fields["reason"] for o in rig.journal("override")] == ["mode MANUAL"]
     assert rig.c.state is S.OVERRIDDEN
     rig.auto_answer = True
     rig.run(60.0, **MANUAL, armed=True)
-    assert len(rig.requests(io.UploadMission)) == 1 and len(rig.requests(io.Arm)) == 1
+    assert len(rig.requests(vio.UploadMission)) == 1 and len(rig.requests(vio.Arm)) == 1
     assert not rig.journal("launch_timeout") and rig.c.state is S.OVERRIDDEN
 
 
@@ -304,7 +304,7 @@ def test_fly_uploads_sets_current_and_counts() -> None:
     rig = active_rig()
     rig.asked.clear()
     rig.fly()
-    assert [type(r) for r in rig.asked] == [io.UploadMission, io.SetCurrent]
+    assert [type(r) for r in rig.asked] == [vio.UploadMission, vio.SetCurrent]
     assert rig.c.uploads_ok == 1 and rig.c.fly is not None and rig.c.fly.target == "A"
     upload = rig.journal("upload")[-1].fields
     assert upload["ok"] and upload["purpose"] == "target" and upload["target"] == "A"
@@ -318,7 +318,7 @@ def test_a_newer_command_overtakes_a_pending_one() -> None:
     rig.fly("C")
     rig.auto_answer = True
     rig.auto()
-    targets = [r.target for r in rig.requests(io.UploadMission) if r.purpose == "target"]
+    targets = [r.target for r in rig.requests(vio.UploadMission) if r.purpose == "target"]
     assert targets == ["A", "C"]
 
 
@@ -326,12 +326,12 @@ def test_a_newer_command_during_a_retry_pause_is_flown_not_the_old_one() -> None
     rig = active_rig()
     rig.auto_answer = False
     rig.fly("A")
-    rig.answer(io.UploadOutcome(False, 5, "upload timeout", 3))  # A failed: its job pauses
+    rig.answer(vio.UploadOutcome(False, 5, "upload timeout", 3))  # A failed: its job pauses
     assert rig.pending is None
     rig.fly("B")  # the core moves on while A waits to be retried
     rig.auto_answer = True
     rig.run(5.0)
-    targets = [r.target for r in rig.requests(io.UploadMission) if r.purpose == "target"]
+    targets = [r.target for r in rig.requests(vio.UploadMission) if r.purpose == "target"]
     assert targets == ["A", "B"]  # A is not uploaded again before B
     assert rig.c.fly is not None and rig.c.fly.target == "B"
 
@@ -354,7 +354,7 @@ def test_set_current_decided_on_result_codes(
     rig = active_rig()
     rig.auto_answer = False
     rig.fly()
-    rig.answer(io.UploadOutcome(True, 0, None, 3))
+    rig.answer(vio.UploadOutcome(True, 0, None, 3))
     rig.snap = replace(rig.snap, mission_current_seq=seq_after)
     rig.frame("MISSION_CURRENT")
     message = "COMMAND_ACK ACCEPTED but MISSION_CURRENT never showed 1"  # never grepped
@@ -369,7 +369,7 @@ def test_guard_refuses_a_target_upload_to_a_disarmed_vehicle() -> None:
     rig.frame("HEARTBEAT", armed=False)
     rig.asked.clear()
     rig.fly()
-    assert rig.requests(io.UploadMission) == [] and rig.journal("command_refused")
+    assert rig.requests(vio.UploadMission) == [] and rig.journal("command_refused")
 
 
 def test_guard_refuses_auto_after_an_upload_when_the_vehicle_disarmed_meanwhile() -> None:
@@ -377,32 +377,32 @@ def test_guard_refuses_auto_after_an_upload_when_the_vehicle_disarmed_meanwhile(
     rig.snap = replace(rig.snap, mode=ArduPlaneMode.GUIDED, mode_name="GUIDED")
     rig.auto_answer = False
     rig.fly()
-    rig.answer(io.UploadOutcome(True, 0, None, 3))
+    rig.answer(vio.UploadOutcome(True, 0, None, 3))
     rig.frame("HEARTBEAT", armed=False)
     rig.snap = replace(rig.snap, mission_current_seq=1)
     rig.answer(ok_transfer())
-    assert rig.requests(io.SetMode) == [] and rig.journal("command_refused")
+    assert rig.requests(vio.SetMode) == [] and rig.journal("command_refused")
 
 
 def test_guard_refuses_the_park_upload_when_the_vehicle_disarmed_meanwhile() -> None:
     rig = Rig(auto_answer=False)
     rig.run(4.0)
-    assert [type(r) for r in rig.asked] == [io.Download]
+    assert [type(r) for r in rig.asked] == [vio.Download]
     rig.frame("HEARTBEAT", armed=False)
     rig.answer(ok_transfer((_item(), _item())))
-    assert rig.requests(io.UploadMission) == [] and rig.journal("command_refused")
+    assert rig.requests(vio.UploadMission) == [] and rig.journal("command_refused")
     assert rig.c.state is S.CONNECTING
 
 
 def test_guard_refuses_rtl_for_a_disarmed_vehicle() -> None:
     rig = active_rig()
     rig.frame("HEARTBEAT", armed=False)
-    rig.feed(io.Release(rig.t, "battery low", home=True))
-    assert rig.requests(io.SetMode) == [] and rig.journal("command_refused")
+    rig.feed(vio.Release(rig.t, "battery low", home=True))
+    assert rig.requests(vio.SetMode) == [] and rig.journal("command_refused")
     armed = active_rig()
-    armed.feed(io.Release(armed.t, "battery low", home=True))
+    armed.feed(vio.Release(armed.t, "battery low", home=True))
     armed.auto()
-    assert [r.mode for r in armed.requests(io.SetMode)] == [ArduPlaneMode.RTL]
+    assert [r.mode for r in armed.requests(vio.SetMode)] == [ArduPlaneMode.RTL]
     assert armed.journal("rtl")[0].fields["ok"] is True
 
 
@@ -490,7 +490,7 @@ def test_reboot_cancels_the_transfer_and_leaves_the_plan() -> None:
     rig.t += 0.1
     rig.frame("SYSTEM_TIME", Rebooted(rig.t, 100_000, 800), time_boot_ms=800, armed=None,
               mode=None, mission_current_seq=None)  # fmt: skip
-    assert any(isinstance(o, io.NotifyRebooted) for o in rig.out)
+    assert any(isinstance(o, vio.NotifyRebooted) for o in rig.out)
     assert rig.c.state is S.CONNECTING and len(rig.core(ev.VehicleLost)) == 1
     rig.answer(TransferResult(False, TransferCode.VEHICLE_REBOOTED, "rebooted"))
     # the aborted job says nothing more
@@ -508,9 +508,9 @@ def test_a_stray_small_boot_time_holds_the_upload_it_does_not_drop_it() -> None:
     assert not rig.journal("command_refused")
     rig.t += 0.2
     rig.frame("ATTITUDE", reboot_suspected=False)  # back on the vehicle's own timeline
-    rig.feed(io.Tick(rig.t))
+    rig.feed(vio.Tick(rig.t))
     rig.auto()
-    uploads = rig.requests(io.UploadMission)
+    uploads = rig.requests(vio.UploadMission)
     assert [u.target for u in uploads] == ["B"] and rig.c.fly is not None
     assert rig.c.fly.verified_t_s is not None and not rig.journal("command_refused")
 
@@ -522,9 +522,9 @@ def test_link_restore_watches_before_any_command_and_a_rebooted_vehicle_is_not_c
     rig.auto_answer = False
     rig.fly("B")  # owed when the link goes
     rig.t += 10.0
-    rig.feed(io.Tick(rig.t))
+    rig.feed(vio.Tick(rig.t))
     assert rig.c.link == "lost" and len(rig.core(ev.VehicleLost)) == 1
-    assert any(isinstance(o, io.CancelExchange) for o in rig.out)
+    assert any(isinstance(o, vio.CancelExchange) for o in rig.out)
     rig.answer(None)  # the cancelled exchange
     rig.auto_answer = True
     rig.asked.clear()
@@ -545,7 +545,7 @@ def test_link_restore_of_a_flying_vehicle_sends_the_owed_mission_after_settling(
     rig.auto_answer = False
     rig.fly("B")
     rig.t += 10.0
-    rig.feed(io.Tick(rig.t))
+    rig.feed(vio.Tick(rig.t))
     rig.answer(None)
     rig.auto_answer = True
     rig.asked.clear()
@@ -556,7 +556,7 @@ def test_link_restore_of_a_flying_vehicle_sends_the_owed_mission_after_settling(
     rig.run(5.0)
     returned = rig.core(ev.VehicleReturned)
     assert returned and returned[0].t_s >= t_back + 2.0
-    assert [r.target for r in rig.requests(io.UploadMission)] == ["B"]
+    assert [r.target for r in rig.requests(vio.UploadMission)] == ["B"]
 
 
 # ------------------------------------------------------------------ progress and landing
@@ -566,7 +566,7 @@ def test_no_progress_takes_the_vehicle_out_of_the_plan() -> None:
     rig.run(50.0)  # circling far away: no nearer
     assert rig.c.state is S.ACTIVE
     rig.run(15.0)
-    assert rig.journal("no_progress") and any(isinstance(o, io.Warn) for o in rig.out)
+    assert rig.journal("no_progress") and any(isinstance(o, vio.Warn) for o in rig.out)
     assert len(rig.core(ev.VehicleLost)) == 1 and rig.c.state is S.CONNECTING
 
 
@@ -625,13 +625,13 @@ def test_foreign_frames_are_counted_and_change_nothing() -> None:
     rig.fly()
     before = list(rig.out)
     for _ in range(50):
-        rig.feed(io.ForeignFrame(rig.t, "MISSION_ITEM_REACHED", 2))
+        rig.feed(vio.ForeignFrame(rig.t, "MISSION_ITEM_REACHED", 2))
     assert rig.c.foreign_frames == 50 and rig.out == before
 
 
 def test_commands_wait_while_stopping() -> None:
     rig = active_rig()
-    rig.feed(io.Stop(rig.t))
+    rig.feed(vio.Stop(rig.t))
     rig.asked.clear()
     rig.fly()
     rig.run(3.0)

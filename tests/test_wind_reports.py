@@ -27,7 +27,7 @@ from groundstation.mavlink.telemetry import (
     VehicleTelemetry,
     WindReported,
 )
-from groundstation.vehicle import io
+from groundstation.vehicle import controller_io as vio
 from planner import solve_plan
 
 M = mavlink2
@@ -124,7 +124,7 @@ def test_wind_evidence_starts_again_after_a_silence_and_a_reboot() -> None:
 
 
 # ------------------------------------------------------------------ the controller
-def _wind_frame(rig: Rig, wx: float, wy: float) -> list[io.Output]:
+def _wind_frame(rig: Rig, wx: float, wy: float) -> list[vio.Output]:
     return rig.frame("WIND", WindReported(rig.t, wx, wy, 0.0), wind_xy_m_s=(wx, wy))
 
 
@@ -134,7 +134,7 @@ def test_an_active_vehicle_reports_its_wind_after_settling_at_most_1_hz() -> Non
     sent = []
     for _ in range(20):  # 4 Hz of accepted winds over 5 s
         rig.t = round(rig.t + 0.25, 6)
-        sent += [o.event for o in _wind_frame(rig, 7.0, -1.0) if isinstance(o, io.CoreEvent)]
+        sent += [o.event for o in _wind_frame(rig, 7.0, -1.0) if isinstance(o, vio.CoreEvent)]
     assert all(isinstance(e, ev.WindReport) and e.vehicle == "v1" for e in sent)
     assert sent[0].t_s == start + 0.25 + 3.0  # reporting (and active) for 3 s first
     assert len(sent) == 2 and sent[1].t_s - sent[0].t_s >= 0.8
@@ -144,7 +144,7 @@ def test_an_active_vehicle_reports_its_wind_after_settling_at_most_1_hz() -> Non
 def test_a_vehicle_not_in_the_plan_reports_no_wind() -> None:
     rig = Rig()  # still connecting: never assessed
     rig.t = 1.0
-    assert not [o for o in _wind_frame(rig, 7.0, 0.0) if isinstance(o, io.CoreEvent)]
+    assert not [o for o in _wind_frame(rig, 7.0, 0.0) if isinstance(o, vio.CoreEvent)]
 
 
 # ------------------------------------------------------------------ the core

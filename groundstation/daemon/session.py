@@ -31,7 +31,7 @@ from groundstation.mavlink.codec import MAVLinkMessage, mavlink2
 from groundstation.mavlink.mission_items import build_mission_items
 from groundstation.mavlink.mission_verify import compare_missions
 from groundstation.mavlink.telemetry import VehicleSnapshot, VehicleTelemetry
-from groundstation.vehicle import io
+from groundstation.vehicle import controller_io
 from groundstation.vehicle.controller import FlyRecord, VehicleController
 
 __all__ = ["FlyRecord", "SessionHost", "VehicleSession"]
@@ -89,7 +89,7 @@ class VehicleSession:
         self.track: collections.deque[tuple[float, float]] = collections.deque(maxlen=60)
         self._last_track_s = -math.inf
         self._wake = asyncio.Event()
-        self._exchanges: collections.deque[io.Exchange] = collections.deque()
+        self._exchanges: collections.deque[controller_io.Exchange] = collections.deque()
         self._exchange_task: asyncio.Task[Any] | None = None
 
     # ------------------------------------------------------------------ reading
@@ -141,7 +141,7 @@ class VehicleSession:
     @stopping.setter
     def stopping(self, value: bool) -> None:
         if value and not self.controller.stopping:
-            self._feed(io.Stop(self.clock.now_s()))
+            self._feed(controller_io.Stop(self.clock.now_s()))
 
     def flying(self) -> bool:
         """Sustained evidence that the vehicle flies (the controller's rule)."""
@@ -161,11 +161,11 @@ class VehicleSession:
         if self.telemetry.foreign_messages != foreign_before:
             # another component of the system: counted; it never reaches the transfers
             # (a flood of them would push the autopilot's answers out of the port's queue)
-            self._feed(io.ForeignFrame(t_s, kind, int(msg.get_srcComponent())))
+            self._feed(controller_io.ForeignFrame(t_s, kind, int(msg.get_srcComponent())))
             return
         self.port.deliver(msg)
         if self.telemetry.messages != before:
-            self._feed(io.Frame(t_s, kind, self.telemetry.snapshot(), tuple(events)))
+            self._feed(controller_io.Frame(t_s, kind, self.telemetry.snapshot(), tuple(events)))
         if kind == "GLOBAL_POSITION_INT":
             s = self.snapshot
             due = t_s - self._last_track_s >= TRACK_EVERY_S
@@ -176,11 +176,11 @@ class VehicleSession:
     def command_fly(self, command: FlyToTarget) -> None:
         """Core said: fly to a target (clipped into the operating area here)."""
         x_m, y_m, clipped = self.host.clip(command.x_m, command.y_m)
-        self._feed(io.Fly(self.clock.now_s(), command, x_m, y_m, clipped))
+        self._feed(controller_io.Fly(self.clock.now_s(), command, x_m, y_m, clipped))
 
     def release(self, reason: str, home: bool = False) -> None:
         """Core said: stop commanding (ReleaseVehicle) or go home (SendHome)."""
-        self._feed(io.Release(self.clock.now_s(), reason, home))
+        self._feed(controller_io.Release(self.clock.now_s(), reason, home))
 
     def request_launch(self) -> tuple[bool, str]:
         ok, error = self.controller.launch()
@@ -203,26 +203,26 @@ class VehicleSession:
             return
         events = self.telemetry.tick(t_s)
         if events:
-            self._feed(io.Frame(t_s, "", self.snapshot, tuple(events)))
-        self._feed(io.Tick(t_s))
+            self._feed(controller_io.Frame(t_s, "", self.snapshot, tuple(events)))
+        self._feed(controller_io.Tick(t_s))
 
     # ------------------------------------------------------------------ out
-    def _feed(self, inp: io.Input) -> None:
+    def _feed(self, inp: controller_io.Input) -> None:
         self._carry_out(self.controller.handle(inp))
 
-    def _carry_out(self, outputs: list[io.Output]) -> None:
+    def _carry_out(self, outputs: list[controller_io.Output]) -> None:
         for out in outputs:
-            if isinstance(out, io.JournalLine):
+            if isinstance(out, controller_io.JournalLine):
                 self.host.journal(out.event, vehicle=self.id, logged=out.logged, **out.fields)
-            elif isinstance(out, io.CoreEvent):
+            elif isinstance(out, controller_io.CoreEvent):
                 self.host.core_event(out.event)
-            elif isinstance(out, io.Warn):
+            elif isinstance(out, controller_io.Warn):
                 log.warning("%s", out.text)
-            elif isinstance(out, io.RequestRates):
+            elif isinstance(out, controller_io.RequestRates):
                 self.port.request_rates(out.position_hz)
-            elif isinstance(out, io.NotifyRebooted):
+            elif isinstance(out, controller_io.NotifyRebooted):
                 self.port.notify_rebooted()
-            elif isinstance(out, io.CancelExchange):
+            elif isinstance(out, controller_io.CancelExchange):
                 if self._exchange_task is not None:
                     self._exchange_task.cancel()
             else:
@@ -242,11 +242,11 @@ class VehicleSession:
                 return
 
     async def step(self) -> None:
-        self._feed(io.Tick(self.clock.now_s()))
+        self._feed(controller_io.Tick(self.clock.now_s()))
         while self._exchanges:
             request = self._exchanges.popleft()
             if not self.controller.wants(request):  # its job ended while it was queued
-                self._feed(io.ExchangeDone(self.clock.now_s(), request, None))
+                self._feed(controller_io.ExchangeDone(self.clock.now_s(), request, None))
                 continue
             task = asyncio.ensure_future(self._exchange(request))
             self._exchange_task = task
@@ -259,28 +259,30 @@ class VehicleSession:
                     raise  # the session itself is cancelled
             finally:
                 self._exchange_task = None
-            self._feed(io.ExchangeDone(self.clock.now_s(), request, result))
+            self._feed(controller_io.ExchangeDone(self.clock.now_s(), request, result))
 
-    async def _exchange(self, request: io.Exchange) -> Any:
+    async def _exchange(self, request: controller_io.Exchange) -> Any:
         port = self.port
-        if isinstance(request, io.UploadMission):
+        if isinstance(request, controller_io.UploadMission):
             return await self._upload_verified(request)
-        if isinstance(request, io.Download):
+        if isinstance(request, controller_io.Download):
             return await port.download()
-        if isinstance(request, io.SetCurrent):
+        if isinstance(request, controller_io.SetCurrent):
             return await port.set_current(request.seq, request.known_current_seq)
-        if isinstance(request, io.SetMode):
+        if isinstance(request, controller_io.SetMode):
             return await port.set_mode(int(request.mode))
-        if isinstance(request, io.Arm):
+        if isinstance(request, controller_io.Arm):
             return await port.arm()
         return await port.param_set(request.name, request.value)
 
-    async def _upload_verified(self, request: io.UploadMission) -> io.UploadOutcome:
+    async def _upload_verified(
+        self, request: controller_io.UploadMission
+    ) -> controller_io.UploadOutcome:
         """Upload then read back until they match (transfer mechanics, no policy)."""
         try:
             items = build_mission_items(list(request.steps), self.host.origin)
         except ValueError as exc:
-            return io.UploadOutcome(False, 0, str(exc), 0)
+            return controller_io.UploadOutcome(False, 0, str(exc), 0)
         retries = 0
         last = ""
         for attempt in range(self.config.links.transfer_retries + 1):
@@ -288,7 +290,7 @@ class VehicleSession:
                 retries += 1
                 await asyncio.sleep(self.clock.wall_s(self.controller.s.retry_pause_s))
             if not self.controller.wants(request):  # aborted (reboot, release...): stop
-                return io.UploadOutcome(False, retries, "no longer wanted", len(items))
+                return controller_io.UploadOutcome(False, retries, "no longer wanted", len(items))
             up = await self.port.upload(items)
             retries += up.retries_used
             if not up.ok and not up.maybe_stored:
@@ -297,7 +299,7 @@ class VehicleSession:
                     break
                 continue
             if not self.controller.wants(request):
-                return io.UploadOutcome(False, retries, "no longer wanted", len(items))
+                return controller_io.UploadOutcome(False, retries, "no longer wanted", len(items))
             down = await self.port.download()
             retries += down.retries_used
             if not down.ok or down.items is None:
@@ -307,5 +309,5 @@ class VehicleSession:
             if diff:
                 last = f"verify: {diff[0]}"
                 continue
-            return io.UploadOutcome(True, retries, None, len(items))
-        return io.UploadOutcome(False, retries, last, len(items))
+            return controller_io.UploadOutcome(True, retries, None, len(items))
+        return controller_io.UploadOutcome(False, retries, last, len(items))

@@ -2,7 +2,7 @@
 
 :mod:`.controller` decides (its state in :mod:`.state`); :mod:`.watch` applies the rules
 that make one frame unable to change a vehicle's fate (``groundstation.mavlink.evidence``);
-:mod:`.jobs` the multi-step exchanges; :mod:`.io` the typed inputs and outputs;
+:mod:`.jobs` the multi-step exchanges; :mod:`.controller_io` the typed inputs and outputs;
 :mod:`.settings` the controller's settings (ArduPlane's modes: ``domain.modes``). The daemon's
 session drives it.
 """

@@ -43,7 +43,7 @@ from groundstation.mavlink.telemetry_events import (
     TelemetryEvent,
     WindReported,
 )
-from groundstation.vehicle import io
+from groundstation.vehicle import controller_io
 from groundstation.vehicle.jobs import (
     Job,
     home_job,
@@ -69,35 +69,35 @@ class VehicleController(ControllerState):
     """See the module docstring. ``handle(input) -> outputs``; never raises on telemetry."""
 
     # ------------------------------------------------------------------ the entry point
-    def handle(self, inp: io.Input) -> list[io.Output]:
-        if isinstance(inp, io.ForeignFrame):  # changes nothing: no work per frame
+    def handle(self, inp: controller_io.Input) -> list[controller_io.Output]:
+        if isinstance(inp, controller_io.ForeignFrame):  # changes nothing: no work per frame
             self.foreign_frames += 1
             return []
         self.t_s = max(self.t_s, inp.t_s)
-        if isinstance(inp, io.Frame):
+        if isinstance(inp, controller_io.Frame):
             self._on_frame(inp)
-        elif isinstance(inp, io.Tick):
+        elif isinstance(inp, controller_io.Tick):
             self._on_tick(inp.t_s)
-        elif isinstance(inp, io.ExchangeDone):
+        elif isinstance(inp, controller_io.ExchangeDone):
             self._on_done(inp)
-        elif isinstance(inp, io.Fly):
+        elif isinstance(inp, controller_io.Fly):
             self._pending_fly = self._wanted = inp
-        elif isinstance(inp, io.Release):
+        elif isinstance(inp, controller_io.Release):
             self._release(inp.reason, inp.home)
-        elif isinstance(inp, io.Stop):
+        elif isinstance(inp, controller_io.Stop):
             self.stopping = True
         self._advance()
         out, self._out = self._out, []
         return out
 
-    def take_outputs(self) -> list[io.Output]:
+    def take_outputs(self) -> list[controller_io.Output]:
         """Outputs of direct calls (:meth:`resume`, :meth:`override`, :meth:`launch`)."""
         self._advance()
         out, self._out = self._out, []
         return out
 
     # ------------------------------------------------------------------ telemetry
-    def _on_frame(self, frame: io.Frame) -> None:
+    def _on_frame(self, frame: controller_io.Frame) -> None:
         self.snap = s = frame.snapshot
         t = frame.t_s
         if self.link == "lost":
@@ -236,7 +236,7 @@ class VehicleController(ControllerState):
             "reboot", previous_time_boot_ms=event.previous_time_boot_ms,
             time_boot_ms=event.time_boot_ms,
         )  # fmt: skip
-        self._out.append(io.NotifyRebooted())
+        self._out.append(controller_io.NotifyRebooted())
         self._airspeed_rebooted()
         self._abort_job()
         self._loiter = None
@@ -283,7 +283,7 @@ class VehicleController(ControllerState):
             )  # fmt: skip
             self._hold_until_s = t + self.s.progress_timeout_s
             self._out.append(
-                io.Warn(
+                controller_io.Warn(
                     f"vehicle {self.vehicle}: no progress towards its aim point for "
                     f"{self.s.progress_timeout_s:g} s: taken out of the plan"
                 )
@@ -303,10 +303,10 @@ class VehicleController(ControllerState):
             return
         ratio, ok = checked
         self.journal("clock_check", vehicle_s_per_mission_s=round(ratio, 3), ok=ok,
-                     logged=not ok)  # a failed check: the io.Warn below tells it
+                     logged=not ok)  # a failed check: the controller_io.Warn below tells it
         if not ok:
             self._out.append(
-                io.Warn(
+                controller_io.Warn(
                     f"vehicle {self.vehicle}: its clock runs {ratio:.2f} x the mission clock: "
                     "is --speedup right?"
                 )
@@ -417,7 +417,7 @@ class VehicleController(ControllerState):
         why = self.launch_held = self.came_down or "came down after it flew"
         self.journal("launch_held", reason=why, logged=True)
         self._out.append(
-            io.Warn(
+            controller_io.Warn(
                 f"vehicle {self.vehicle}: {why}; floe will not launch it again on its own "
                 f"('gcs vehicle launch {self.vehicle}' launches it)"
             )
@@ -481,7 +481,7 @@ class VehicleController(ControllerState):
             return False
         if not self.s.advisory and t - self._rates_at_s >= self.s.rates_every_s:
             self._rates_at_s = t
-            self._out.append(io.RequestRates(self.s.telemetry_rate_hz))
+            self._out.append(controller_io.RequestRates(self.s.telemetry_rate_hz))
         if self.state in ASSESSED and t >= max(self._retry_at_s, self._hold_until_s):
             self._assess()
             if self._jobs.job is not None:
@@ -503,18 +503,18 @@ class VehicleController(ControllerState):
     def _start(self, job: Job) -> None:
         self._jobs.start(job)
 
-    def _send(self, request: io.Exchange | None) -> None:
+    def _send(self, request: controller_io.Exchange | None) -> None:
         if request is not None:
             self._out.append(request)
 
-    def wants(self, request: io.Exchange) -> bool:
+    def wants(self, request: controller_io.Exchange) -> bool:
         """Whether the driver should still run (or retry) ``request``: False once its job
         was aborted (a reboot, a release, an override, the link lost, leaving the plan)."""
         return self._jobs.wants(request)
 
-    def _on_done(self, done: io.ExchangeDone) -> None:
+    def _on_done(self, done: controller_io.ExchangeDone) -> None:
         self._send(self._jobs.done(done.request, done.result, self.stopping))
 
     def _abort_job(self, cancel: bool = False) -> None:
         if self._jobs.abort() and cancel:
-            self._out.append(io.CancelExchange())
+            self._out.append(controller_io.CancelExchange())

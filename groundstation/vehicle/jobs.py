@@ -1,6 +1,6 @@
 """The controller's multi-step exchanges, written as generators.
 
-A job yields exchange requests (:data:`~groundstation.vehicle.io.Exchange`) or a
+A job yields exchange requests (:data:`~groundstation.vehicle.controller_io.Exchange`) or a
 :class:`Pause` and is sent each request's result; it returns when done. Jobs hold no I/O and
 read no clock: the controller steps them as results and ticks come in. Every job here
 works on a :class:`JobHost` (the controller) for the state it reads and changes.
@@ -22,7 +22,7 @@ from groundstation.mavlink.mission_items import (
     Takeoff,
     Waypoint,
 )
-from groundstation.vehicle.io import (
+from groundstation.vehicle.controller_io import (
     Arm,
     Download,
     Exchange,

@@ -17,7 +17,7 @@ from groundstation.core import events as ev
 from groundstation.mavlink.airspeed_health import AirspeedChange, AirspeedHealth
 from groundstation.mavlink.evidence import LoiterEndEvidence
 from groundstation.mavlink.telemetry_events import VehicleSnapshot, WindReported
-from groundstation.vehicle import io
+from groundstation.vehicle import controller_io
 from groundstation.vehicle.jobs import JobRunner
 from groundstation.vehicle.settings import ControllerSettings
 from groundstation.vehicle.watch import Watch
@@ -86,11 +86,11 @@ class ControllerState:
         self.upload_delays_s: list[float] = []
         self.last_loiter_end_s: float | None = None
         self.foreign_frames = 0
-        self._out: list[io.Output] = []
+        self._out: list[controller_io.Output] = []
         self.watch = Watch(settings)
         self._jobs = JobRunner(self.may_command_request, self._refused, self.must_wait)
-        self._pending_fly: io.Fly | None = None
-        self._wanted: io.Fly | None = None
+        self._pending_fly: controller_io.Fly | None = None
+        self._wanted: controller_io.Fly | None = None
         self._pending_home = False
         self._loiter: LoiterEndEvidence | None = None
         self._loiter_end_pending_s: float | None = None
@@ -132,10 +132,11 @@ class ControllerState:
             return True
         return self.snap.armed is True and not self.snap.reboot_suspected
 
-    def may_command_request(self, request: io.Exchange) -> bool:
-        return not isinstance(request, io.SetMode | io.UploadMission) or self.may_command()
+    def may_command_request(self, request: controller_io.Exchange) -> bool:
+        return (not isinstance(request, controller_io.SetMode | controller_io.UploadMission)
+                or self.may_command())
 
-    def must_wait(self, request: io.Exchange) -> bool:
+    def must_wait(self, request: controller_io.Exchange) -> bool:
         """A command waits while a reboot is suspected (a ``time_boot_ms`` that went back,
         not yet confirmed or cleared by the next frames): one stray frame must not cost
         the vehicle its mission, nor may a command reach a vehicle that may have
@@ -145,18 +146,19 @@ class ControllerState:
         (``override_grace_s``): a pilot's RTL seen just before floe's next upload or its
         switch to AUTO must not be undone by them. An override aborts the job; a battery
         failsafe or a mission end of the autopilot's own lets it go on."""
-        commanding = io.SetMode | io.UploadMission | io.SetCurrent | io.Arm
+        commanding = (controller_io.SetMode | controller_io.UploadMission | controller_io.SetCurrent
+                      | controller_io.Arm)
         if not isinstance(request, commanding):
             return False
         return self.snap.reboot_suspected or self.watch.mode_change_pending
 
     # ------------------------------------------------------------------ outputs
     def journal(self, event: str, *, logged: bool = False, **fields: Any) -> None:
-        """``logged``: an ``io.Warn`` of this step says it to the operator."""
-        self._out.append(io.JournalLine(event, fields, logged))
+        """``logged``: an ``controller_io.Warn`` of this step says it to the operator."""
+        self._out.append(controller_io.JournalLine(event, fields, logged))
 
     def _core(self, event: ev.Event) -> None:
-        self._out.append(io.CoreEvent(event))
+        self._out.append(controller_io.CoreEvent(event))
 
     def _pose(self, joined: bool = False) -> ev.Event | None:
         s = self.snap
@@ -211,7 +213,7 @@ class ControllerState:
             self.journal("airspeed_recovered", how=change.how, detail=change.detail)
             return
         self.journal("airspeed_failed", how=change.how, detail=change.detail, logged=True)
-        self._out.append(io.Warn(
+        self._out.append(controller_io.Warn(
             f"vehicle {self.vehicle}: airspeed sensor failed (ArduPlane: {change.detail}): "
             "its wind estimate is ignored until the sensor recovers"
         ))  # fmt: skip
@@ -234,7 +236,7 @@ class ControllerState:
         self.journal("loiter_end", target=target, how=loiter.ended_by)
         if self.state is S.ACTIVE:
             self._core(ev.LoiterEnded(t, self.vehicle))
-    def _refused(self, request: io.Exchange) -> None:
+    def _refused(self, request: controller_io.Exchange) -> None:
         """The guard stopped ``request``: the job ended; assess again later."""
         self.journal(
             "command_refused", request=type(request).__name__, state=self.status,
@@ -297,7 +299,7 @@ class ControllerState:
         if self._own_mode != ArduPlaneMode.AUTO:
             self._own_mode = None
 
-    def target_verified(self, fly: io.Fly) -> bool:
+    def target_verified(self, fly: controller_io.Fly) -> bool:
         if self.fly is not None:
             self.fly.verified_t_s = self.t_s
         self.uploads_ok += 1
@@ -314,7 +316,7 @@ class ControllerState:
     def count_retries(self, retries: int) -> None:
         self.upload_retries += retries
 
-    def target_failed(self, fly: io.Fly) -> bool:
+    def target_failed(self, fly: controller_io.Fly) -> bool:
         """Whether to try again: not when overtaken, out of the plan or link lost."""
         self.uploads_failed += 1
         return self.target_wanted()
