@@ -29,6 +29,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+from domain.fault_spec import SIM_MODES
 from domain.geodesy import GeoOrigin, wrap_pi
 from domain.modes import ArduPlaneMode
 from groundstation.mavlink.codec import mavlink2
@@ -36,13 +37,12 @@ from sitl.airframe import Airframe, Guidance
 from sitl.mission_store import MissionItem, MissionStore
 from sitl.params import ParamStore
 from sitl.statustext import StatusTextFactory
-from world.fault_spec import SIM_MODES
 
 __all__ = ["GLIDE_MODES", "MODE_NAMES", "RADIUS_FACTOR", "Autopilot", "NavTarget"]
 
 M = mavlink2
 RADIUS_FACTOR = 1.15
-# the modes the built-in vehicle flies (world.fault_spec.SIM_MODES), number -> name
+# the modes the built-in vehicle flies (domain.fault_spec.SIM_MODES), number -> name
 MODE_NAMES: dict[int, str] = {number: name for name, number in SIM_MODES.items()}
 _M = ArduPlaneMode
 MANUAL, STABILIZE, FBWA, AUTO, RTL = _M.MANUAL, _M.STABILIZE, _M.FBWA, _M.AUTO, _M.RTL

@@ -45,7 +45,7 @@ from dataclasses import dataclass, field
 from itertools import count
 from typing import Any
 
-from world.fault_spec import FaultError, fault_mode, parse_fault_spec
+from domain.fault_spec import FaultError, fault_mode, parse_fault_spec
 
 __all__ = [
     "FaultError",

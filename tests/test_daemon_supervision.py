@@ -45,6 +45,8 @@ def make(policy: RestartPolicy | None = None) -> tuple[Supervisor, list[Any], li
 
 
 def test_every_error_floe_raises_has_one_root() -> None:
+    from domain.fault_spec import FaultError
+    from domain.yaml_fields import FieldError
     from groundstation.commands.sitl_args import UsageError as SitlUsage
     from groundstation.core.records import RecordError
     from groundstation.daemon.config import ConfigError as DaemonConfigError
@@ -58,9 +60,7 @@ def test_every_error_floe_raises_has_one_root() -> None:
     from groundstation.runners.replay_tlog import TlogError
     from groundstation.runners.report_data import ReportError
     from planner.problem import ProblemError
-    from world.fault_spec import FaultError
     from world.scenario import ScenarioError
-    from world.yaml_fields import FieldError
 
     expected = {
         SitlUsage: UsageError, RequestError: UsageError, StartError: UsageError,

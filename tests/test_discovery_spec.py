@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from domain.yaml_fields import FieldError
 from world.discovery_spec import (
     AreaSpec,
     CameraSpec,
@@ -24,7 +25,6 @@ from world.scenario import (
     parse_scenario,
     resolve_targets,
 )
-from world.yaml_fields import FieldError
 
 BASE: dict[str, Any] = {
     "name": "t",

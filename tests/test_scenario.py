@@ -8,8 +8,8 @@ from pathlib import Path
 import pytest
 import yaml
 
+from domain.yaml_fields import FieldError
 from world.scenario import ScenarioError, bundled_scenarios, load_scenario, parse_scenario
-from world.yaml_fields import FieldError
 
 
 def test_bundled_scenarios_load_with_the_papers_parameters() -> None:

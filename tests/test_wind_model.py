@@ -14,9 +14,9 @@ from domain.wind_triangle import (
     wind_from_vector,
     wind_vector_m_s,
 )
+from domain.yaml_fields import FieldError
 from world.scenario import load_scenario, parse_scenario
 from world.wind import GRID_S, WindField, WindSpec, parse_wind_text
-from world.yaml_fields import FieldError
 
 
 @pytest.mark.parametrize(("from_deg", "expected"), [

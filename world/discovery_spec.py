@@ -12,7 +12,7 @@ except that the camera is unlabelled unless ``camera.labelled`` is true)::
     tracker: {association: gnn, confirm_hits: 3, confirm_window: 5, existence_delete: 0.05}
     search:  {cell_m: 300, growth_m2_per_s: 50, max_cells: 4, prior_weight: 1.0}
 
-Bad values and unknown keys raise :class:`~world.yaml_fields.FieldError` naming the dotted
+Bad values and unknown keys raise :class:`~domain.yaml_fields.FieldError` naming the dotted
 field (``camera.pd: must be in (0, 1], got 0``).
 
 The generated prior (:func:`resolve_prior`) is a satellite pass before the mission: it lists
@@ -38,8 +38,8 @@ from typing import Protocol
 import numpy as np
 
 from domain.limits import MAX_COORDINATE_M, MAX_DURATION_S, MAX_SPEED_M_S, MAX_TARGETS
+from domain.yaml_fields import FieldError, Fields, check_number
 from world.model import Camera
-from world.yaml_fields import FieldError, Fields, check_number
 
 __all__ = [
     "MAX_CLUTTER_PER_FRAME",

@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from domain.errors import ConfigError
+from domain.fault_spec import parse_scenario_faults
 from domain.geodesy import GeoOrigin
 from domain.limits import (
     MAX_COORDINATE_M,
@@ -28,10 +29,9 @@ from domain.limits import (
     MAX_SPEED_M_S,
     MAX_TARGETS,
 )
+from domain.yaml_fields import FieldError, Fields, load_yaml_file, load_yaml_text
 from world.discovery_spec import AreaSpec, CameraSpec, PriorSpec, SearchSpec, parse_discovery
-from world.fault_spec import parse_scenario_faults
 from world.wind import MAX_WIND_M_S, WindSpec
-from world.yaml_fields import FieldError, Fields, load_yaml_file, load_yaml_text
 
 __all__ = [
     "BoatSpec",
@@ -358,7 +358,7 @@ def _parse_fleet(f: Fields) -> FleetSpec:
         values = f.items("headings_rad")
         if not values:
             raise FieldError(f.path_of("headings_rad"), "must not be empty")
-        from world.yaml_fields import check_number
+        from domain.yaml_fields import check_number
 
         headings = tuple(
             check_number(f"{f.path_of('headings_rad')}[{i}]", v) for i, v in enumerate(values)

@@ -28,11 +28,11 @@ from typing import Any
 
 from domain import errors
 from domain.geodesy import GeoOrigin
+from domain.yaml_fields import load_yaml_file
 from groundstation.core.config import BatteryAction
 from groundstation.vehicle.settings import ControllerSettings
 from planner import Objective
 from world.wind import WindSpec
-from world.yaml_fields import load_yaml_file
 
 __all__ = [
     "BatteryAction",

@@ -26,6 +26,7 @@ from enum import StrEnum
 from typing import Any
 
 from domain import errors
+from domain.fault_spec import FaultError, parse_fault_spec
 from domain.geodesy import GeoOrigin
 from groundstation.daemon.config import (
     BatteryConfig,
@@ -45,7 +46,6 @@ from groundstation.daemon.config import (
     parse_hostport,
     parse_latlon,
 )
-from world.fault_spec import FaultError, parse_fault_spec
 from world.wind import WindSpec, parse_wind_text
 
 __all__ = ["ALIASES", "FLAGS", "check_config", "parse_config"]

@@ -29,6 +29,7 @@ from typing import Any
 from domain.errors import ConfigError, UsageError
 from domain.geodesy import GeoOrigin
 from domain.limits import MAX_COORDINATE_M, MAX_SPEED_M_S, MAX_TARGETS
+from domain.yaml_fields import check_number, load_yaml_file
 from groundstation.core import events as ev
 from groundstation.core.config import CoreConfig, ReplanPolicy, config_to_dict
 from groundstation.core.scenario_config import core_config_for
@@ -50,7 +51,6 @@ from groundstation.daemon.world import ScenarioWorld
 from groundstation.detection_feed import DetectionFeed
 from groundstation.link import LinkError, LinkUrlError, describe_out_link, open_link
 from groundstation.storage import StorageError, atomic_write_text
-from world.yaml_fields import check_number, load_yaml_file
 
 __all__ = ["StartError", "core_config", "load_targets", "run_daemon"]
 

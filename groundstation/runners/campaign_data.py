@@ -32,7 +32,7 @@ import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
 from domain.errors import ConfigError, DataError
-from world.yaml_fields import load_yaml_file
+from domain.yaml_fields import load_yaml_file
 
 __all__ = [
     "KNOWN_GRID_KEYS",

@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any, Protocol
 
 from domain.errors import ConfigError
+from domain.yaml_fields import FieldError, load_yaml_file
 from groundstation.runners.campaign_exec import RunSink
 from groundstation.runners.campaign_grid import (
     CampaignError,
@@ -30,7 +31,6 @@ from groundstation.runners.campaign_run import RunOutcome
 from groundstation.runners.campaign_schema import plans_schema, runs_schema
 from groundstation.runners.campaign_store import COPY_NAME, RUNS_DIR, CampaignStore, StoreError
 from groundstation.storage import StorageError, atomic_write_bytes
-from world.yaml_fields import FieldError, load_yaml_file
 
 __all__ = ["CampaignPlan", "CampaignResult", "Executor", "open_campaign", "run_campaign"]
 

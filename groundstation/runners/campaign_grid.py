@@ -35,9 +35,9 @@ from typing import Any
 
 from domain.errors import ConfigError
 from domain.limits import MAX_FLEET
+from domain.yaml_fields import FieldError, Fields, check_number, load_yaml_file
 from planner.problem import OBJECTIVES
 from world.scenario import Scenario, ScenarioError, load_scenario_data, parse_scenario
-from world.yaml_fields import FieldError, Fields, check_number, load_yaml_file
 
 __all__ = [
     "BASE_KEYS",

@@ -1,8 +1,9 @@
 """The grammar of fault specs (``VEHICLES:KIND[:key=value,...]``), parsed and validated.
 
-Faults are the MAVLink simulator's (``sitl.faults`` applies them); the grammar lives here
-because scenarios carry fault specs and are validated when they are loaded, without
-importing the simulator. See ``sitl/faults.py`` for what each kind does.
+Faults are the MAVLink simulator's (``sitl.faults`` applies them); the grammar lives in
+``domain`` because scenarios (``world``) and the daemon's config both carry fault specs and
+validate them when they are loaded, without importing the simulator. See ``sitl/faults.py``
+for what each kind does.
 
     1:loss:p=0.2,dir=up       all:delay:s=0.3,jitter=0.1       2:dup:p=0.05
     3:reorder:p=0.1           1:drop:at=60,for=20              2:reboot:at=120
@@ -16,7 +17,7 @@ from typing import Any
 
 from domain.errors import ConfigError
 from domain.modes import ArduPlaneMode
-from world.yaml_fields import FieldError
+from domain.yaml_fields import FieldError
 
 __all__ = [
     "FAULT_KINDS",
