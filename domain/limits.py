@@ -15,6 +15,7 @@ __all__ = [
     "MAX_FLEET",
     "MAX_SPEED_M_S",
     "MAX_TARGETS",
+    "MAX_WIND_M_S",
     "MAX_YAML_DEPTH",
     "MAX_YAML_NODES",
 ]
@@ -25,6 +26,8 @@ MAX_TARGETS = 500
 """Targets in a scenario (listed plus random) or a ``--targets`` file."""
 MAX_SPEED_M_S = 100.0
 """|velocity| of a target or the boat, and a UAV's airspeed (icebergs drift < 3 m/s)."""
+MAX_WIND_M_S = 60.0
+"""The strongest mean wind or gust std floe accepts (m/s); above any flyable weather."""
 MAX_COORDINATE_M = 1.0e6
 """|x|, |y| of anything in the local frame (1 000 km from the origin)."""
 MAX_DURATION_S = 30 * 86400.0

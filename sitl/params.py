@@ -16,8 +16,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from domain.limits import MAX_WIND_M_S
 from groundstation.mavlink.codec import mavlink2
-from world.wind import MAX_WIND_M_S
 
 __all__ = ["ParamSpec", "ParamStore", "default_param_specs"]
 

@@ -28,10 +28,11 @@ from domain.limits import (
     MAX_FLEET,
     MAX_SPEED_M_S,
     MAX_TARGETS,
+    MAX_WIND_M_S,
 )
 from domain.yaml_fields import FieldError, Fields, load_yaml_file, load_yaml_text
 from world.discovery_spec import AreaSpec, CameraSpec, PriorSpec, SearchSpec, parse_discovery
-from world.wind import MAX_WIND_M_S, WindSpec
+from world.wind import WindSpec
 
 __all__ = [
     "BoatSpec",

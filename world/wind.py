@@ -25,14 +25,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from domain.errors import ConfigError
+from domain.limits import MAX_WIND_M_S
 from domain.wind_triangle import wind_vector_m_s
 
-__all__ = ["GRID_S", "MAX_WIND_M_S", "WindField", "WindSpec", "parse_wind_text"]
+__all__ = ["GRID_S", "WindField", "WindSpec", "parse_wind_text"]
 
 GRID_S = 0.1
 """Step of the gust process (s)."""
-MAX_WIND_M_S = 60.0
-"""The strongest mean wind or gust std floe accepts (m/s); above any flyable weather."""
 _BLOCK = 1024
 
 

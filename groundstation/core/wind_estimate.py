@@ -63,10 +63,10 @@ import statistics
 from collections import deque
 from dataclasses import dataclass
 
+from domain.limits import MAX_WIND_M_S
 from domain.wind_triangle import wind_from_vector
 from groundstation.core.commands import Command, Note, WindEstimate
 from groundstation.core.events import WindReport, WindWithdrawn
-from world.wind import MAX_WIND_M_S
 
 __all__ = ["FALLBACK", "VEHICLES", "WindEstimator", "WindState", "describe_wind"]
 

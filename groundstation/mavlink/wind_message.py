@@ -17,7 +17,7 @@ direction in [-180, 360] is valid (taken modulo 360) and the horizontal speed is
 
 and the ENU vector the air moves towards is ``domain.wind_triangle.wind_vector_m_s(s_h,
 direction)``. Refused (the reducer counts them as invalid and drops them): any field not
-finite, ``speed`` outside [0, 60] m/s (``world.wind.MAX_WIND_M_S``: above any flyable
+finite, ``speed`` outside [0, 60] m/s (``domain.limits.MAX_WIND_M_S``: above any flyable
 weather), ``|speed_z|`` above 60 m/s, ``direction`` outside [-180, 360].
 """
 
@@ -27,8 +27,8 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+from domain.limits import MAX_WIND_M_S
 from domain.wind_triangle import wind_vector_m_s
-from world.wind import MAX_WIND_M_S
 
 __all__ = ["BadWindField", "WindVector", "parse_wind_message"]
 
