@@ -1,6 +1,6 @@
 """The camera's detection feed: the world (icebergs, boat) advanced in simulated time and
 its measurements sent as JSON lines over UDP (design.md, "Detection feed";
-groundstation/detection_feed.py reads them)::
+groundstation/link/detection_feed.py reads them)::
 
     {"v": 1, "kind": "frame", "time_s": 12.5, "vehicle": 2, "target": null,
      "lat_deg": 78.93, "lon_deg": 11.95, "sigma_m": 0.0, "radius_m": 150.0}

@@ -52,8 +52,8 @@ def test_every_error_floe_raises_has_one_root() -> None:
     from groundstation.daemon.config import ConfigError as DaemonConfigError
     from groundstation.daemon.control_requests import RequestError
     from groundstation.daemon.startup import StartError
-    from groundstation.detection_feed import FeedError
     from groundstation.link.base import LinkError as LinkLinkError
+    from groundstation.link.detection_feed import FeedError
     from groundstation.link.url import LinkUrlError
     from groundstation.mavlink import errors as mav
     from groundstation.runners.replay_journal import JournalError

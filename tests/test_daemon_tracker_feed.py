@@ -19,7 +19,7 @@ from groundstation.daemon.config_parse import parse_config
 from groundstation.daemon.daemon import Daemon
 from groundstation.daemon.feed_lines import FeedLines
 from groundstation.daemon.journal import Journal, read_journal
-from groundstation.detection_feed import (
+from groundstation.link.detection_feed import (
     FeedDetection,
     FeedFilter,
     encode_detection,

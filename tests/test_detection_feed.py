@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from groundstation.detection_feed import (
+from groundstation.link.detection_feed import (
     DetectionFeed,
     FeedDetection,
     FeedError,

@@ -1,4 +1,4 @@
-"""Frames on the detection feed: the ``frame`` line (groundstation/detection_feed.py) and
+"""Frames on the detection feed: the ``frame`` line (groundstation/link/detection_feed.py) and
 ``gcs sitl --detections`` sending one datagram per frame, frame line first
 (sitl/detections.py, sitl/sitl_setup.py)."""
 
@@ -13,7 +13,7 @@ from typing import Any
 
 import pytest
 
-from groundstation.detection_feed import (
+from groundstation.link.detection_feed import (
     FeedDetection,
     FeedError,
     FeedFilter,

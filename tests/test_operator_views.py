@@ -26,7 +26,7 @@ from groundstation.daemon.console import ConsoleHandler, OperatorConsole
 from groundstation.daemon.daemon import Daemon
 from groundstation.daemon.journal import read_journal
 from groundstation.daemon.log_lines import describe_line, is_operator_event, line_level
-from groundstation.detection_feed import encode_detection
+from groundstation.link.detection_feed import encode_detection
 
 STATE_UPDATES = {"truth", "track", "detection", "input"}
 

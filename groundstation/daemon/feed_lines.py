@@ -1,4 +1,4 @@
-"""The detection feed's accepted lines (``groundstation.detection_feed``) -> the daemon.
+"""The detection feed's accepted lines (``groundstation.link.detection_feed``) -> the daemon.
 
 * ``boat``: where the boat is (``Daemon.set_boat``).
 * ``frame``: the camera of vehicle ``vehicle`` (system id) took a frame whose footprint is

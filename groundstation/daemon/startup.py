@@ -48,8 +48,8 @@ from groundstation.daemon.run_files import open_run_files
 from groundstation.daemon.signing_gate import SigningGate, load_signing_keys
 from groundstation.daemon.wind_view import fallback_wind
 from groundstation.daemon.world import ScenarioWorld
-from groundstation.detection_feed import DetectionFeed
 from groundstation.link import LinkError, LinkUrlError, describe_out_link, open_link
+from groundstation.link.detection_feed import DetectionFeed
 from groundstation.storage import StorageError, atomic_write_text
 
 __all__ = ["StartError", "core_config", "load_targets", "run_daemon"]

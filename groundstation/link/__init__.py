@@ -1,4 +1,5 @@
-"""Asyncio MAVLink transports (udpin/udpout/tcp/tcpin/serial), routing and tlogs.
+"""Asyncio MAVLink transports (udpin/udpout/tcp/tcpin/serial), routing and tlogs; the
+detection feed's JSON lines over UDP (:mod:`.detection_feed`, not imported here).
 
 Public entry points: :func:`parse_link_url`, :func:`parse_out_url` (``--out``),
 :func:`open_link`, :class:`Router`,

@@ -35,7 +35,7 @@ from groundstation.core.config import CoreConfig, ReplanPolicy
 from groundstation.core.decision import DecisionCore
 from groundstation.core.events import Detection, Event, PlanSolved, Telemetry, Tick, VehicleJoined
 from groundstation.core.records import command_to_record
-from groundstation.detection_feed import FeedError, parse_line
+from groundstation.link.detection_feed import FeedError, parse_line
 from groundstation.link.tlog import TlogReader
 from groundstation.runners.replay_tlog import TlogError, tlog_of
 from planner import solve_plan
