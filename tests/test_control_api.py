@@ -12,7 +12,7 @@ import aiohttp
 import pytest
 from test_control_fake import FakeControl
 
-from groundstation.daemon.control_server import (
+from groundstation.daemon.control.server import (
     ControlServer,
     binding_warning,
     is_loopback,
@@ -304,7 +304,7 @@ def test_page_and_static_files_are_served() -> None:
             async with http.get(f"/static/{name}") as resp:
                 assert resp.status == 200 and kind in resp.headers["Content-Type"]
                 assert len(await resp.read()) > 100
-        async with http.get("/static/..%2Fcontrol_server.py") as resp:
+        async with http.get("/static/..%2Fserver.py") as resp:
             assert resp.status == 404
         async with http.get("/static/index.html.bak") as resp:
             assert resp.status == 404

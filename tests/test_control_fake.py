@@ -11,8 +11,8 @@ import time
 from collections.abc import AsyncIterator
 from typing import Any
 
-from groundstation.daemon.control_contract import VEHICLE_ACTIONS, DaemonControl
-from groundstation.daemon.control_server import ControlServer
+from groundstation.daemon.control.contract import VEHICLE_ACTIONS, DaemonControl
+from groundstation.daemon.control.server import ControlServer
 
 SPEED_M_S = 22.0
 LOITER_RADIUS_M = 80.0

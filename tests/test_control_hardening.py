@@ -16,16 +16,16 @@ import aiohttp
 import pytest
 from test_control_fake import FakeControl
 
-from groundstation.daemon.control_guard import (
+from groundstation.daemon.control.guard import (
     ControlLimits,
     OriginPolicy,
     RejectLog,
     WriteRateLimiter,
     parse_origin,
 )
-from groundstation.daemon.control_pages import CLIENT_QUEUE, CLIENT_QUEUE_BYTES
-from groundstation.daemon.control_push import WS_CLOSE_TIMEOUT_S, WS_SEND_TIMEOUT_S
-from groundstation.daemon.control_server import ControlServer
+from groundstation.daemon.control.pages import CLIENT_QUEUE, CLIENT_QUEUE_BYTES
+from groundstation.daemon.control.push import WS_CLOSE_TIMEOUT_S, WS_SEND_TIMEOUT_S
+from groundstation.daemon.control.server import ControlServer
 
 TOKEN = "tok-456"
 AUTH = {"Authorization": f"Bearer {TOKEN}"}

@@ -16,7 +16,7 @@ from daemon_run import Journal, events, stop_when
 from groundstation.commands.embedded_sim import build_embedded_sim
 from groundstation.commands.run import build_config, run_daemon
 from groundstation.daemon.config_parse import parse_config
-from groundstation.daemon.control import DaemonController
+from groundstation.daemon.control.controller import DaemonController
 from groundstation.daemon.daemon import Daemon
 from groundstation.daemon.journal import read_journal
 from world.scenario import load_scenario

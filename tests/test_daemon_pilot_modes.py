@@ -26,7 +26,7 @@ from test_daemon_trust import _server, changes_vehicle, from_gcs, is_set_mode
 
 from domain.modes import ArduPlaneMode
 from groundstation.commands.run import build_config, run_daemon
-from groundstation.daemon.control import DaemonController
+from groundstation.daemon.control.controller import DaemonController
 from groundstation.daemon.daemon import Daemon
 from groundstation.daemon.journal import read_journal
 from sitl.faults import FaultEvent

@@ -193,7 +193,7 @@ def test_console_on_a_file_has_no_escape_codes() -> None:
 
 
 def test_event_buffer_keeps_operator_events_and_marks_problems() -> None:
-    from groundstation.daemon.control_pages import EventBuffer
+    from groundstation.daemon.control.pages import EventBuffer
 
     buffer = EventBuffer()
     for line in ({"t": 1.0, "event": "truth", "target": "A"},

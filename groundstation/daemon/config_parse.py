@@ -376,7 +376,7 @@ def _loss(value: float) -> str | None:
 
 
 def _origins(values: tuple[str, ...]) -> str | None:
-    from groundstation.daemon.control_guard import parse_origin  # pure, no aiohttp
+    from groundstation.daemon.control.guard import parse_origin  # pure, no aiohttp
 
     for text in values:
         try:

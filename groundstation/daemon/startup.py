@@ -38,8 +38,8 @@ from groundstation.daemon.clock import MissionClock
 from groundstation.daemon.config import DaemonConfig, resolve
 from groundstation.daemon.config_parse import check_config
 from groundstation.daemon.console import OperatorConsole
-from groundstation.daemon.control import DaemonController
-from groundstation.daemon.control_server import ControlLimits, ControlServer, binding_warning
+from groundstation.daemon.control.controller import DaemonController
+from groundstation.daemon.control.server import ControlLimits, ControlServer, binding_warning
 from groundstation.daemon.daemon import Daemon
 from groundstation.daemon.embedded import EmbeddedFactory, EmbeddedVehicles
 from groundstation.daemon.feed_lines import FeedLines

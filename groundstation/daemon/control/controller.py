@@ -1,4 +1,4 @@
-"""The daemon's side of the control contract (``control_contract.DaemonControl``).
+"""The daemon's side of the control contract (``contract.DaemonControl``).
 
 The HTTP control API and the live page call these methods; every write answers
 ``{"ok": bool, "error": str | None, ...}`` and never raises on bad requests.
@@ -12,7 +12,7 @@ from collections.abc import AsyncIterator
 from typing import TYPE_CHECKING, Any
 
 from groundstation.core import events as ev
-from groundstation.daemon.control_contract import VEHICLE_ACTIONS
+from groundstation.daemon.control.contract import VEHICLE_ACTIONS
 from groundstation.daemon.log_lines import is_operator_event
 from groundstation.daemon.track_views import search_dicts, track_counts, track_dicts
 from groundstation.daemon.wind_view import vehicle_wind, wind_summary
@@ -28,7 +28,7 @@ def _refuse(error: str) -> dict[str, Any]:
 
 
 class DaemonController:
-    """Implements :class:`~groundstation.daemon.control_contract.DaemonControl`."""
+    """Implements :class:`~groundstation.daemon.control.contract.DaemonControl`."""
 
     def __init__(self, daemon: Daemon) -> None:
         self.daemon = daemon

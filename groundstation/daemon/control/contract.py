@@ -1,6 +1,6 @@
 """The contract between the running daemon and its control surfaces (HTTP API, live page).
 
-The daemon implements :class:`DaemonControl`; the HTTP server (``control_server.py``) only
+The daemon implements :class:`DaemonControl`; the HTTP server (``server.py``) only
 calls it. Positions are local ENU metres around the mission origin (``x_m`` east, ``y_m``
 north) or WGS-84 degrees; the daemon converts. Every write returns a JSON-able reply
 ``{"ok": bool, "error": str | None, ...}``; a refused request (unknown id, position outside

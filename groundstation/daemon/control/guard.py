@@ -1,6 +1,6 @@
 """Who may talk to the control API, and how much: origins, limits, write rate, rejections.
 
-Pure rules (no sockets; time is an argument) used by ``control_server.py``.
+Pure rules (no sockets; time is an argument) used by ``server.py``.
 
 Origin rule (WebSocket upgrade and every state-changing request)::
 

@@ -1,7 +1,7 @@
 """Validation of the control API's request bodies and JSON-safe replies (no I/O).
 
 Each parser returns the keyword arguments of the matching
-:class:`~groundstation.daemon.control_contract.DaemonControl` method or raises
+:class:`~groundstation.daemon.control.contract.DaemonControl` method or raises
 :class:`RequestError` whose message is the one-line reason (HTTP 400), naming the field::
 
     POST /api/targets       {id?, x_m, y_m | lat_deg, lon_deg, vx_m_s?, vy_m_s?, sigma0?}

@@ -1,9 +1,9 @@
 """The daemon's control surface: a small HTTP JSON API, a WebSocket push and the live page.
 
-Everything here only calls a :class:`~groundstation.daemon.control_contract.DaemonControl`;
+Everything here only calls a :class:`~groundstation.daemon.control.contract.DaemonControl`;
 the daemon owns the state. Endpoints (all JSON; docs/control.md has curl examples)::
 
-    GET    /api/state                     the state document (control_contract.py)
+    GET    /api/state                     the state document (contract.py)
     GET    /api/targets | /api/targets/ID  targets (or one)
     POST   /api/targets                   {id?, x_m, y_m | lat_deg, lon_deg,
                                            vx_m_s?, vy_m_s?, sigma0?}     -> 201
@@ -23,11 +23,11 @@ the daemon owns the state. Endpoints (all JSON; docs/control.md has curl example
 Reads need no token. Every write needs ``Authorization: Bearer <token>`` (or ``?token=``)
 and is answered 401 without it, 400 with a one-line reason for a malformed body, 404 for an
 unknown id and 409 when the daemon refuses it (``{"ok": false, "error": ...}``). Writes and
-the WebSocket upgrade are refused 403 from a foreign ``Origin`` (``control_guard.py``);
+the WebSocket upgrade are refused 403 from a foreign ``Origin`` (``guard.py``);
 limits (``ControlLimits``) answer 409 (targets), 413 (body), 408 (slow body), 429 (write
 rate) and 503 (WebSocket pages); headers must arrive within ``header_timeout_s``.
 
-The WebSocket pages (messages, catch-up, bounds) are ``control_push.PageHub``'s.
+The WebSocket pages (messages, catch-up, bounds) are ``push.PageHub``'s.
 """
 
 from __future__ import annotations
@@ -46,16 +46,16 @@ from typing import Any
 from aiohttp import web
 from aiohttp.http_exceptions import HttpProcessingError
 
-from groundstation.daemon.control_contract import VEHICLE_ACTIONS, DaemonControl
-from groundstation.daemon.control_guard import (
+from groundstation.daemon.control.contract import VEHICLE_ACTIONS, DaemonControl
+from groundstation.daemon.control.guard import (
     ControlLimits,
     OriginPolicy,
     RejectLog,
     WriteRateLimiter,
     is_loopback,
 )
-from groundstation.daemon.control_push import PageHub
-from groundstation.daemon.control_requests import (
+from groundstation.daemon.control.push import PageHub
+from groundstation.daemon.control.requests import (
     RequestError,
     jsonable,
     parse_move_body,

@@ -16,7 +16,7 @@ reconnect); without ``since``, or when ``I`` names another run of the daemon, th
 ``CATCH_UP_EVENTS``.
 
 Bounds: at most ``max_clients`` pages at once (more: HTTP 503 before the upgrade); each page
-has a bounded queue (``control_pages.PageClient``); a page whose queue overflows, or that
+has a bounded queue (``pages.PageClient``); a page whose queue overflows, or that
 takes more than ``WS_SEND_TIMEOUT_S`` to accept one message, is closed with 1013 (try again
 later) and, if even the close does not go through within ``WS_CLOSE_TIMEOUT_S``, its
 connection is aborted: a page that never reads costs a bounded amount of memory for a
@@ -35,10 +35,10 @@ from typing import Any
 
 from aiohttp import WSCloseCode, WSMsgType, web
 
-from groundstation.daemon.control_contract import DaemonControl
-from groundstation.daemon.control_guard import RejectLog
-from groundstation.daemon.control_pages import EventBuffer, PageClient
-from groundstation.daemon.control_requests import jsonable
+from groundstation.daemon.control.contract import DaemonControl
+from groundstation.daemon.control.guard import RejectLog
+from groundstation.daemon.control.pages import EventBuffer, PageClient
+from groundstation.daemon.control.requests import jsonable
 from groundstation.daemon.log_lines import line_level
 
 __all__ = ["CATCH_UP_EVENTS", "WS_CLOSE_TIMEOUT_S", "WS_SEND_TIMEOUT_S", "PageHub"]
