@@ -92,7 +92,7 @@ def main() -> int:
     parser.add_argument("--duration", type=int, default=200, help="mission seconds per run")
     parser.add_argument("--folder", type=Path, default=None, help="default: a temporary one")
     args = parser.parse_args()
-    from groundstation.runners.campaign_report import write_campaign_report
+    from groundstation.runners.campaign.report import write_campaign_report
 
     with tempfile.TemporaryDirectory() as tmp:
         folder = args.folder or Path(tmp) / "campaign"

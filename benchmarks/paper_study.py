@@ -67,9 +67,9 @@ def parse_variant(text: str) -> tuple[str, float | None, set[str]]:
 def _one(job: Job) -> dict[str, Any]:
     from growth_weights import growth_solver, point_solver
 
-    import groundstation.runners.simulate as simulate
+    import groundstation.runners.simulate.simulator as simulate
     import planner.solve
-    from groundstation.runners.simulate import SimulationOptions, run_simulation
+    from groundstation.runners.simulate.simulator import SimulationOptions, run_simulation
     from world.scenario import load_scenario
 
     scenario_name, variant, uavs, seed, duration, still, loiter_s = job

@@ -48,7 +48,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import numpy as np
 
-from groundstation.runners.simulate import SimulationOptions, run_simulation
+from groundstation.runners.simulate.simulator import SimulationOptions, run_simulation
 from observer import Observer, ObserverConfig
 from observer.kalman_track import (
     KalmanBatch,
@@ -82,7 +82,8 @@ def _startup_cases(problem: Path, out: Path) -> dict[str, str]:
         "gcs plan 3x10, lazy CP-SAT only": "import numpy\n" + plan,
         "gcs plan 3x10, now": plan,
         "gcs simulate --no-plots, before": (
-            "import ortools.sat.python.cp_model\nimport groundstation.runners.plots\n" + sim
+            "import ortools.sat.python.cp_model\n"
+            "import groundstation.runners.simulate.plots\n" + sim
         ),
         "gcs simulate --no-plots, now": sim,
     }
@@ -279,7 +280,7 @@ def bench_loop(rounds: int) -> dict[str, dict[str, float]]:
 _LOOP_CODE = """
 import time
 from world.scenario import load_scenario
-from groundstation.runners.simulate import SimulationOptions, run_simulation
+from groundstation.runners.simulate.simulator import SimulationOptions, run_simulation
 scenario, options = load_scenario("paper-boat"), SimulationOptions(seed=0, uavs=3)
 run_simulation(scenario, options)
 c0 = time.process_time()

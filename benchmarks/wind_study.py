@@ -5,7 +5,7 @@
 runs the whole grid: scenarios ``paper-boat`` and ``svalbard-2015`` (the field test), 3
 and 5 UAVs, a mean wind of 0, 5, 10 and 15 m/s from 0, 90, 180 and 270 deg (calm: one
 direction), wind-aware and wind-blind planning (scenario ``planner.wind_aware``), seeds
-0-9. Every run goes through ``groundstation.runners.simulate.run_simulation`` in virtual
+0-9. Every run goes through ``groundstation.runners.simulate.simulator.run_simulation`` in virtual
 time, exactly as ``gcs simulate --wind SPEED,FROM`` (the vehicles report their WIND to the
 core at 1 Hz). The aware and the blind run of a (scenario, fleet, wind, seed) see the same
 icebergs, the same air and the same detection noise until their plans differ (paired
@@ -67,9 +67,9 @@ SCENARIOS = ("paper-boat", "svalbard-2015")
 
 def _one(job: Job) -> dict[str, Any]:
     """One run; the arrival errors come from the run's own ArrivalTracker."""
-    import groundstation.runners.simulate as simulate
+    import groundstation.runners.simulate.simulator as simulate
     from groundstation.core.metrics import MetricsRecorder
-    from groundstation.runners.simulate import SimulationOptions, run_simulation
+    from groundstation.runners.simulate.simulator import SimulationOptions, run_simulation
     from world.scenario import load_scenario
     from world.wind import WindSpec
 

@@ -22,7 +22,7 @@ from groundstation.daemon.log_lines import is_operator_event, line_level
 from groundstation.mavlink.airspeed_health import AirspeedHealth, airspeed_text
 from groundstation.mavlink.codec import MavlinkDecoder, MavlinkEncoder, mavlink2
 from groundstation.mavlink.telemetry import Rebooted, StatusText, VehicleTelemetry, WindReported
-from groundstation.runners.replay_compare import NOTE_KINDS
+from groundstation.runners.replay.compare import NOTE_KINDS
 from groundstation.vehicle import controller_io as vio
 
 M = mavlink2

@@ -17,11 +17,11 @@ import pyarrow.parquet as pq
 import pytest
 from environment import need
 
-from groundstation.runners.campaign_driver import open_campaign, run_campaign
-from groundstation.runners.campaign_exec import LocalPool
-from groundstation.runners.campaign_run import KILL_HOOK_ENV, execute_run
-from groundstation.runners.campaign_schema import WALL_CLOCK_COLUMNS
-from groundstation.runners.campaign_store import PLANS_DIR, RUNS_DIR, read_results
+from groundstation.runners.campaign.driver import open_campaign, run_campaign
+from groundstation.runners.campaign.pool import LocalPool
+from groundstation.runners.campaign.run import KILL_HOOK_ENV, execute_run
+from groundstation.runners.campaign.schema import WALL_CLOCK_COLUMNS
+from groundstation.runners.campaign.store import PLANS_DIR, RUNS_DIR, read_results
 
 ROOT = Path(__file__).resolve().parents[1]
 TINY = """\
@@ -51,7 +51,7 @@ def comparable(rows: list[dict[str, Any]]) -> dict[tuple[Any, ...], dict[str, An
 def test_local_pool_dask_and_in_process_runs_give_identical_rows(tmp_path: Path) -> None:
     need(importlib.util.find_spec("distributed") is not None,
          "dask[distributed] is not installed (pip install '.[test]')")
-    from groundstation.runners.campaign_dask import DaskExecutor
+    from groundstation.runners.campaign.dask import DaskExecutor
 
     path = campaign_file(tmp_path)
     serial = [execute_run(task) for task in open_campaign(path, tmp_path / "serial").spec.tasks()]

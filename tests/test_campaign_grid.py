@@ -7,10 +7,10 @@ from pathlib import Path
 import pytest
 
 from groundstation.cli import main
-from groundstation.runners.campaign_grid import load_campaign, parse_campaign, run_id
-from groundstation.runners.campaign_run import RunOutcome, flatten_metrics
-from groundstation.runners.campaign_schema import COORDINATE_METRICS, metrics_columns
-from groundstation.runners.simulate import SimulationOptions, run_simulation
+from groundstation.runners.campaign.grid import load_campaign, parse_campaign, run_id
+from groundstation.runners.campaign.run import RunOutcome, flatten_metrics
+from groundstation.runners.campaign.schema import COORDINATE_METRICS, metrics_columns
+from groundstation.runners.simulate.simulator import SimulationOptions, run_simulation
 from world.scenario import load_scenario
 
 GOOD = """\
@@ -74,8 +74,8 @@ def test_a_bad_campaign_file_is_one_line_naming_the_field(
 def test_a_changed_grid_needs_extend_and_keeps_the_runs_it_holds(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    from groundstation.runners.campaign_driver import open_campaign
-    from groundstation.runners.campaign_store import RUNS_DIR
+    from groundstation.runners.campaign.driver import open_campaign
+    from groundstation.runners.campaign.store import RUNS_DIR
 
     out = tmp_path / "out"
     first = open_campaign(write(tmp_path, GOOD), out)

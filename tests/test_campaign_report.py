@@ -21,13 +21,13 @@ import pytest
 
 from domain.errors import FloeError
 from groundstation.commands.campaign_report import run as campaign_report_command
-from groundstation.runners.campaign_data import load_campaign
-from groundstation.runners.campaign_report import (
+from groundstation.runners.campaign.data import load_campaign
+from groundstation.runners.campaign.report import (
     CampaignReportError,
     summarise_cells,
     write_campaign_report,
 )
-from groundstation.runners.campaign_stats import group_cells, series_bands
+from groundstation.runners.campaign.stats import group_cells, series_bands
 
 UAVS = (1, 3)
 OBJECTIVES = ("sequence", "latency")

@@ -21,7 +21,7 @@ from groundstation.core.events import TargetAdded, Tick
 from groundstation.core.records import command_to_record, problem_of_record
 from groundstation.core.scenario_config import core_config_for
 from groundstation.daemon.log_lines import PROBLEM_EVENTS, is_operator_event
-from groundstation.runners.replay_compare import decision_of_record
+from groundstation.runners.replay.compare import decision_of_record
 from observer import ObserverConfig
 from planner import dubins_distance_to_point
 from world.dynamics import UavState, max_turn_rate_rad_s, step_kinematics

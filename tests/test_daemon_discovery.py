@@ -24,8 +24,8 @@ from groundstation.daemon.control.requests import jsonable
 from groundstation.daemon.daemon import Daemon
 from groundstation.daemon.journal import Journal, read_journal
 from groundstation.daemon.world import ScenarioWorld
-from groundstation.runners.report_data import load_run_data
-from groundstation.runners.report_track_plots import plot_tracking
+from groundstation.runners.report.data import load_run_data
+from groundstation.runners.report.track_plots import plot_tracking
 from planner.search_cells import SearchConfig
 from world.discovery_spec import discovery_mode
 from world.scenario import load_scenario, resolve_targets

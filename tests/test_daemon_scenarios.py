@@ -14,7 +14,7 @@ import pytest
 from daemon_run import events, run_gcs
 
 from groundstation.link import TlogReader
-from groundstation.runners.simulate import SimulationOptions, run_simulation
+from groundstation.runners.simulate.simulator import SimulationOptions, run_simulation
 from world.scenario import load_scenario
 
 
@@ -174,8 +174,8 @@ def test_on_exit_rtl_sends_vehicles_home(tmp_path: Path) -> None:
 def test_replay_of_a_daemon_run_is_identical(tmp_path: Path) -> None:
     """The daemon drives the same core the same way: its journal replays decision for
     decision through a fresh core (``gcs replay``)."""
-    from groundstation.runners.replay import replay_journal
-    from groundstation.runners.replay_journal import core_config_of, load_journal
+    from groundstation.runners.replay.journal import core_config_of, load_journal
+    from groundstation.runners.replay.run import replay_journal
 
     daemon, journal = run_gcs(
         tmp_path,

@@ -56,9 +56,9 @@ def test_every_error_floe_raises_has_one_root() -> None:
     from groundstation.link.detection_feed import FeedError
     from groundstation.link.url import LinkUrlError
     from groundstation.mavlink import errors as mav
-    from groundstation.runners.replay_journal import JournalError
-    from groundstation.runners.replay_tlog import TlogError
-    from groundstation.runners.report_data import ReportError
+    from groundstation.runners.replay.journal import JournalError
+    from groundstation.runners.replay.tlog import TlogError
+    from groundstation.runners.report.data import ReportError
     from planner.problem import ProblemError
     from world.scenario import ScenarioError
 

@@ -217,7 +217,7 @@ def test_prior_lists_only_icebergs_present_at_the_start() -> None:
 def test_campaign_overrides_reach_the_new_fields() -> None:
     from pathlib import Path
 
-    from groundstation.runners.campaign_grid import parse_campaign
+    from groundstation.runners.campaign.grid import parse_campaign
 
     spec = parse_campaign({"grid": {"scenario": ["discovery"], "camera.pd": [0.7, 1.0],
                                     "camera.clutter_per_frame": [0.0, 0.5], "seed": [0]}},

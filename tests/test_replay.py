@@ -12,13 +12,13 @@ import pytest
 from simulate_run import simulate_text
 
 from groundstation.cli import main
-from groundstation.runners.replay import replay_journal
-from groundstation.runners.replay_journal import (
+from groundstation.runners.replay.journal import (
     JournalError,
     apply_overrides,
     core_config_of,
     load_journal,
 )
+from groundstation.runners.replay.run import replay_journal
 
 SCENARIO = """\
 name: replay-test

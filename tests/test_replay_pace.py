@@ -20,8 +20,8 @@ import pytest
 from groundstation.cli import main
 from groundstation.link import TlogWriter
 from groundstation.mavlink.codec import MavlinkDecoder, MavlinkEncoder, mavlink2
-from groundstation.runners.mission_timeline import MissionTimeline, mission_timeline
-from groundstation.runners.replay_serve import serving_schedule
+from groundstation.runners.replay.mission_timeline import MissionTimeline, mission_timeline
+from groundstation.runners.replay.serve import serving_schedule
 
 T0 = 1_790_000_000.0
 RECORDED_X = 50.0
@@ -145,7 +145,7 @@ def test_pace_and_speed_are_exclusive(tmp_path: Path, capsys: pytest.CaptureFixt
 
 
 def test_anchors_are_thinned_not_cut_so_a_long_recording_keeps_its_late_drift() -> None:
-    from groundstation.runners.mission_timeline import ANCHOR_SPACING_S, _add_anchor
+    from groundstation.runners.replay.mission_timeline import ANCHOR_SPACING_S, _add_anchor
 
     anchors: list[tuple[float, float]] = []
     for k in range(300_001):  # 300 s of journal lines every 1 ms; the host slows at 200 s

@@ -28,8 +28,8 @@ from groundstation.cli import main
 from groundstation.commands.replay import serve_frames, serve_spec
 from groundstation.link.url import LinkKind
 from groundstation.mavlink.codec import MavlinkDecoder
-from groundstation.runners.replay_serve import serving_schedule
-from groundstation.runners.replay_tlog import read_tlog
+from groundstation.runners.replay.serve import serving_schedule
+from groundstation.runners.replay.tlog import read_tlog
 
 LOGGER = """
 import os, subprocess, sys, time

@@ -302,7 +302,7 @@ def test_unwritable_output_is_a_one_line_error_and_leaves_no_half_page(
 
 def test_report_title_names_the_frontend_and_the_run_once() -> None:
     """The title read "run run, ..." for a gcs run folder."""
-    from groundstation.runners.report_data import RunData, _title
+    from groundstation.runners.report.data import RunData, _title
 
     run = RunData("run", Path("runs/20261121T071106Z"), start={"scenario": "paper-boat"})
     run.vehicle_tracks = {"1": [], "2": []}

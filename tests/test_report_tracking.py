@@ -12,8 +12,8 @@ from pathlib import Path
 from typing import Any
 
 from groundstation.cli import main
-from groundstation.runners.report import build_report
-from groundstation.runners.report_track_data import tracking_of
+from groundstation.runners.report.page import build_report
+from groundstation.runners.report.track_data import tracking_of
 
 
 def _write(path: Path, records: list[dict[str, Any]]) -> Path:

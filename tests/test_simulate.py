@@ -11,7 +11,7 @@ import pytest
 
 from groundstation.cli import main
 from groundstation.core.metrics import boundedness_ratio
-from groundstation.runners.simulate import SimulationOptions, run_simulation
+from groundstation.runners.simulate.simulator import SimulationOptions, run_simulation
 from world.scenario import ScriptedEvent, load_scenario
 
 METRIC_KEYS = {

@@ -12,7 +12,7 @@ from simulate_run import simulate_text
 
 from groundstation.cli import main
 from groundstation.core import tracking
-from groundstation.runners.simulate import SimulationOptions, run_simulation
+from groundstation.runners.simulate.simulator import SimulationOptions, run_simulation
 from world.discovery_spec import discovery_mode
 from world.scenario import load_scenario
 

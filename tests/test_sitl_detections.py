@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from domain.geodesy import GeoOrigin
-from groundstation.runners.simulate import resolve_targets
+from groundstation.runners.simulate.simulator import resolve_targets
 from sitl.detections import DetectionFeed, scenario_targets
 from world.scenario import load_scenario
 

@@ -16,7 +16,7 @@ from groundstation.daemon.track_views import (
     track_counts,
     track_dicts,
 )
-from groundstation.runners.replay_compare import decision_of_record
+from groundstation.runners.replay.compare import decision_of_record
 
 
 def test_track_and_search_dicts_are_plain_rounded_json() -> None:

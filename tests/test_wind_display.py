@@ -26,9 +26,9 @@ from groundstation.daemon.journal import Journal, read_journal
 from groundstation.daemon.log_lines import describe_line, is_operator_event, line_level
 from groundstation.daemon.startup import core_config
 from groundstation.daemon.wind_view import fallback_wind
-from groundstation.runners.report import render_html
-from groundstation.runners.report_data import load_run_data
-from groundstation.runners.report_plots import plot_wind
+from groundstation.runners.report.data import load_run_data
+from groundstation.runners.report.page import render_html
+from groundstation.runners.report.plots import plot_wind
 from world.scenario import parse_scenario
 from world.wind import WindSpec
 

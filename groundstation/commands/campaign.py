@@ -23,9 +23,9 @@ from typing import TYPE_CHECKING
 from domain.errors import FloeError
 
 if TYPE_CHECKING:
-    from groundstation.runners.campaign_dask import DaskExecutor
-    from groundstation.runners.campaign_driver import CampaignPlan, CampaignResult
-    from groundstation.runners.campaign_exec import LocalPool
+    from groundstation.runners.campaign.dask import DaskExecutor
+    from groundstation.runners.campaign.driver import CampaignPlan, CampaignResult
+    from groundstation.runners.campaign.pool import LocalPool
 
 __all__ = ["run"]
 
@@ -75,9 +75,9 @@ def run(argv: list[str]) -> int:
         return _error(f"--workers must be >= 1, got {args.workers}")
     if args.workers is not None and args.dask is not None:
         return _error("--workers sizes the local pool; with --dask the cluster decides")
-    from groundstation.runners.campaign_driver import open_campaign
-    from groundstation.runners.campaign_grid import CampaignError
-    from groundstation.runners.campaign_store import StoreError
+    from groundstation.runners.campaign.driver import open_campaign
+    from groundstation.runners.campaign.grid import CampaignError
+    from groundstation.runners.campaign.store import StoreError
 
     try:
         executor = _executor(args)
@@ -90,7 +90,7 @@ def run(argv: list[str]) -> int:
     except StoreError as exc:
         return _error(str(exc))
     if plan.todo == 0:  # nothing to run: no pool, no cluster
-        from groundstation.runners.campaign_driver import CampaignResult
+        from groundstation.runners.campaign.driver import CampaignResult
 
         plan.store.compact(final=True)
         _print_end(args, plan, CampaignResult())
@@ -100,10 +100,10 @@ def run(argv: list[str]) -> int:
 
 def _executor(args: argparse.Namespace) -> LocalPool | DaskExecutor:
     if args.dask is not None:
-        from groundstation.runners.campaign_dask import DaskExecutor
+        from groundstation.runners.campaign.dask import DaskExecutor
 
         return DaskExecutor(args.dask)
-    from groundstation.runners.campaign_exec import LocalPool
+    from groundstation.runners.campaign.pool import LocalPool
 
     return LocalPool(args.workers or os.cpu_count() or 1)
 
@@ -121,7 +121,7 @@ def _run_plan(
     args: argparse.Namespace, plan: CampaignPlan, executor: LocalPool | DaskExecutor
 ) -> int:
     from groundstation.commands.campaign_progress import CampaignProgress
-    from groundstation.runners.campaign_driver import run_campaign
+    from groundstation.runners.campaign.driver import run_campaign
 
     spec = plan.spec
     try:
@@ -147,8 +147,8 @@ def _run_plan(
 
 def _print_end(args: argparse.Namespace, plan: CampaignPlan, result: CampaignResult) -> None:
     from groundstation.commands.campaign_progress import print_summary
-    from groundstation.runners.campaign_store import read_results
-    from groundstation.runners.campaign_summary import SUMMARY_FIGURES, summarise
+    from groundstation.runners.campaign.store import read_results
+    from groundstation.runners.campaign.summary import SUMMARY_FIGURES, summarise
 
     for task, reason in result.failures:
         where = ", ".join(f"{k}={v}" for k, v in task.coords.items())

@@ -14,7 +14,7 @@ from collections.abc import Sequence
 from types import TracebackType
 from typing import IO, Any
 
-from groundstation.runners.campaign_summary import CellSummary
+from groundstation.runners.campaign.summary import CellSummary
 
 __all__ = ["CampaignProgress", "format_duration", "print_summary"]
 

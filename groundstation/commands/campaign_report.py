@@ -41,7 +41,7 @@ def _parser() -> argparse.ArgumentParser:
 def run(argv: list[str]) -> int:
     """Parse ``argv`` (after ``gcs campaign report``), write the report, print its path."""
     args = _parser().parse_args(argv)
-    from groundstation.runners.campaign_report import CampaignReportError, write_campaign_report
+    from groundstation.runners.campaign.report import CampaignReportError, write_campaign_report
 
     def say(text: str) -> None:
         if not args.quiet:

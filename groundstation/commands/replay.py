@@ -156,13 +156,13 @@ def run(argv: list[str]) -> int:
 
 
 def _journal_replay(args: argparse.Namespace) -> int:
-    from groundstation.runners.replay import replay_journal
-    from groundstation.runners.replay_journal import (
+    from groundstation.runners.replay.journal import (
         JournalError,
         apply_overrides,
         core_config_of,
         load_journal,
     )
+    from groundstation.runners.replay.run import replay_journal
 
     try:
         journal = load_journal(args.run)
@@ -289,9 +289,9 @@ def _serve_command(
     path: Path, url: str, speed: float, *, quiet: bool, as_json: bool, pace: float | None = None
 ) -> int:
     from groundstation.link import LinkError, LinkUrlError
-    from groundstation.runners.mission_timeline import mission_timeline
-    from groundstation.runners.replay_serve import serving_schedule
-    from groundstation.runners.replay_tlog import TlogError, read_tlog
+    from groundstation.runners.replay.mission_timeline import mission_timeline
+    from groundstation.runners.replay.serve import serving_schedule
+    from groundstation.runners.replay.tlog import TlogError, read_tlog
 
     timeline = None
     try:
@@ -368,9 +368,9 @@ def _serve_command(
 
 # ----------------------------------------------------------------------------- bare tlog
 def _tlog_core_command(tlog: Path, detections: Path, settings: list[str], *, as_json: bool) -> int:
-    from groundstation.runners.replay_journal import apply_overrides
-    from groundstation.runners.replay_tlog import TlogError
-    from groundstation.runners.replay_tlog_core import TLOG_DEFAULT_CONFIG, run_core_on_tlog
+    from groundstation.runners.replay.journal import apply_overrides
+    from groundstation.runners.replay.tlog import TlogError
+    from groundstation.runners.replay.tlog_core import TLOG_DEFAULT_CONFIG, run_core_on_tlog
 
     try:
         config = apply_overrides(TLOG_DEFAULT_CONFIG, settings)

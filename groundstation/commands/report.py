@@ -44,8 +44,8 @@ def _parser() -> argparse.ArgumentParser:
 
 def run(argv: list[str]) -> int:
     args = _parser().parse_args(argv)
-    from groundstation.runners.report import build_report
-    from groundstation.runners.report_data import ReportError
+    from groundstation.runners.report.data import ReportError
+    from groundstation.runners.report.page import build_report
     from groundstation.storage import StorageError
 
     def say(text: str) -> None:

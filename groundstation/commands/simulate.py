@@ -174,7 +174,7 @@ def _simulate_sizes(
     sizes: list[int],
     updates: dict[int, TaskUpdate],
 ) -> list[dict[str, Any]]:
-    from groundstation.runners.simulate import SimulationOptions, run_simulation
+    from groundstation.runners.simulate.simulator import SimulationOptions, run_simulation
 
     curves: dict[int, list[list[float]]] = {}
     rows: list[dict[str, Any]] = []
@@ -201,13 +201,13 @@ def _simulate_sizes(
         if result.journal:
             atomic_write_bytes(out_dir / "journal.jsonl", b"".join(journal_lines(result.journal)))
         if not args.no_plots:
-            from groundstation.runners.plots import write_plots
+            from groundstation.runners.simulate.plots import write_plots
 
             write_plots(result, out_dir)
         curves[uavs] = metrics["uncertainty_series"]
         rows.append({"uavs": uavs, "dir": str(out_dir), **metrics})
     if len(sizes) > 1 and not args.no_plots:
-        from groundstation.runners.plots import plot_comparison
+        from groundstation.runners.simulate.plots import plot_comparison
 
         plot_comparison(
             curves,

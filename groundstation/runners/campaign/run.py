@@ -4,7 +4,7 @@
 worker, or in-process for tests). It parses the task's scenario mapping, runs the offline
 simulator (deterministic: one CP-SAT worker, no wall-clock limits) and turns the metrics
 into one flat row (``runs.parquet``) and, when asked, one row per adopted plan
-(``plans.parquet``). Columns are listed in :mod:`groundstation.runners.campaign_schema`.
+(``plans.parquet``). Columns are listed in :mod:`groundstation.runners.campaign.schema`.
 
 :func:`init_worker` prepares a worker process once: one BLAS/OpenMP thread, SIGINT
 ignored (the driver decides when to stop), and the simulator's imports loaded, so that
@@ -23,9 +23,9 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from groundstation.runners.campaign_grid import RunTask
-from groundstation.runners.campaign_schema import metrics_columns
-from groundstation.runners.simulate import PlanRecord, SimulationOptions, run_simulation
+from groundstation.runners.campaign.grid import RunTask
+from groundstation.runners.campaign.schema import metrics_columns
+from groundstation.runners.simulate.simulator import PlanRecord, SimulationOptions, run_simulation
 from world.scenario import parse_scenario
 
 __all__ = [
@@ -141,7 +141,7 @@ def execute_run(task: RunTask) -> RunOutcome:
 
 
 def flatten_metrics(metrics: Mapping[str, Any]) -> dict[str, Any]:
-    """Every scalar of ``metrics.json`` as a column (campaign_schema.metrics_columns):
+    """Every scalar of ``metrics.json`` as a column (schema.metrics_columns):
     lists become counts (``visits``, ``lost_targets``), ``solve_time_s`` becomes
     ``solve_time_median_s`` / ``solve_time_max_s``, ``max_estimation_error_m`` ({target:
     m}) its maximum over the targets, other nested scalar mappings ``outer_inner``."""

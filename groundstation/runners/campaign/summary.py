@@ -36,7 +36,7 @@ def t_half_width(values: Sequence[float]) -> float | None:
     n = len(values)
     if n < 2:
         return None
-    from groundstation.runners.campaign_stats import t_quantile_975  # the report's quantile
+    from groundstation.runners.campaign.stats import t_quantile_975  # the report's quantile
 
     return float(t_quantile_975(n - 1)) * statistics.stdev(values) / math.sqrt(n)
 

@@ -16,7 +16,7 @@ start is the fallback of the ``start`` record's core configuration), each vehicl
 reports from the ``WindReport`` inputs, and the ``wind_outlier`` notes.
 
 Tracker: ``track`` lines with a ``status``, ``search`` lines and the ``track_*`` notes
-(:mod:`~groundstation.runners.report_track_data`); tentative tracks are left out of the
+(:mod:`~groundstation.runners.report.track_data`); tentative tracks are left out of the
 per-target estimates (the map and uncertainty figures) and drawn in the tracking figure.
 
 Times are mission seconds for journals; for a bare tlog, seconds since its first record.
@@ -36,14 +36,14 @@ from typing import Any
 import numpy as np
 
 from domain.errors import DataError
-from groundstation.runners.replay_journal import (
+from groundstation.runners.replay.journal import (
     JournalError,
     LoadedJournal,
     load_journal,
     skipped_summary,
 )
-from groundstation.runners.replay_tlog import TlogError, TlogSummary, read_tlog
-from groundstation.runners.report_track_data import TrackingData, tracking_of
+from groundstation.runners.replay.tlog import TlogError, TlogSummary, read_tlog
+from groundstation.runners.report.track_data import TrackingData, tracking_of
 
 __all__ = ["ReportError", "RunData", "load_run_data"]
 

@@ -63,8 +63,8 @@ from groundstation.core.events import (
 from groundstation.core.metrics import MetricsRecorder
 from groundstation.core.records import command_to_record, event_to_record
 from groundstation.core.scenario_config import core_config_for
-from groundstation.runners.sim_discovery import Discovery
-from groundstation.runners.sim_vehicle import OfflineVehicle
+from groundstation.runners.simulate.discovery import Discovery
+from groundstation.runners.simulate.vehicle import OfflineVehicle
 from planner import solve_plan
 from world.discovery_spec import discovery_mode, scenario_camera
 from world.dynamics import UavState

@@ -25,8 +25,8 @@ from typing import Any
 import numpy as np
 import pyarrow as pa
 
-from groundstation.runners.campaign_data import SEED_KEY, column_codes, float_column
-from groundstation.runners.campaign_stats import Cells, grouped_mean_ci
+from groundstation.runners.campaign.data import SEED_KEY, column_codes, float_column
+from groundstation.runners.campaign.stats import Cells, grouped_mean_ci
 
 __all__ = ["BLOCK_KEYS", "PairedRow", "paired_with_base"]
 

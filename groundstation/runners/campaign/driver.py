@@ -17,8 +17,7 @@ from typing import Any, Protocol
 
 from domain.errors import ConfigError
 from domain.yaml_fields import FieldError, load_yaml_file
-from groundstation.runners.campaign_exec import RunSink
-from groundstation.runners.campaign_grid import (
+from groundstation.runners.campaign.grid import (
     CampaignError,
     CampaignSpec,
     RunTask,
@@ -27,9 +26,10 @@ from groundstation.runners.campaign_grid import (
     load_campaign,
     parse_campaign_shape,
 )
-from groundstation.runners.campaign_run import RunOutcome
-from groundstation.runners.campaign_schema import plans_schema, runs_schema
-from groundstation.runners.campaign_store import COPY_NAME, RUNS_DIR, CampaignStore, StoreError
+from groundstation.runners.campaign.pool import RunSink
+from groundstation.runners.campaign.run import RunOutcome
+from groundstation.runners.campaign.schema import plans_schema, runs_schema
+from groundstation.runners.campaign.store import COPY_NAME, RUNS_DIR, CampaignStore, StoreError
 from groundstation.storage import StorageError, atomic_write_bytes
 
 __all__ = ["CampaignPlan", "CampaignResult", "Executor", "open_campaign", "run_campaign"]
@@ -39,7 +39,7 @@ Progress = Callable[[int, int], None]
 
 
 class Executor(Protocol):
-    """What runs tasks: :class:`campaign_exec.LocalPool`, :class:`campaign_dask.DaskExecutor`."""
+    """What runs tasks: :class:`.pool.LocalPool`, :class:`.dask.DaskExecutor`."""
 
     def describe(self) -> str: ...
 

@@ -7,7 +7,7 @@
   scheduler, e.g. one that dask-jobqueue runs on Slurm or dask-kubernetes on Kubernetes
   (docs/campaigns.md). Its workers must import floe: the same environment as the driver.
 
-Each run is one task, ``campaign_run.execute_run(task)``, keyed ``floe-run-<run_id>``;
+Each run is one task, ``run.execute_run(task)``, keyed ``floe-run-<run_id>``;
 results come back to the driver, which alone writes the results folder. At most
 ``4 x threads`` runs (at least 8) are submitted at a time, so a million-run grid does not
 flood the scheduler. A worker lost mid-run is handled by the scheduler: its tasks are
@@ -23,9 +23,9 @@ from collections.abc import Iterable
 from typing import Any
 
 from domain.errors import FloeError
-from groundstation.runners.campaign_exec import RunSink
-from groundstation.runners.campaign_grid import RunTask
-from groundstation.runners.campaign_run import execute_run
+from groundstation.runners.campaign.grid import RunTask
+from groundstation.runners.campaign.pool import RunSink
+from groundstation.runners.campaign.run import execute_run
 
 __all__ = ["DaskError", "DaskExecutor", "parse_local"]
 

@@ -1,5 +1,5 @@
 """The report's figure of the multi-target tracker (from
-:mod:`~groundstation.runners.report_track_data`): a map and a timeline.
+:mod:`~groundstation.runners.report.track_data`): a map and a timeline.
 
 Map: the newest search cells as squares shaded by their value (m^2, colour bar), the true
 icebergs' last positions (grey), and every track's path styled by its status at each
@@ -26,8 +26,8 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Rectangle
 
 from groundstation.runners.html_page import FigurePng, render_png
-from groundstation.runners.report_data import RunData
-from groundstation.runners.report_track_data import STATUSES, TrackingData, TrackSample
+from groundstation.runners.report.data import RunData
+from groundstation.runners.report.track_data import STATUSES, TrackingData, TrackSample
 
 __all__ = ["STYLE", "plot_tracking"]
 

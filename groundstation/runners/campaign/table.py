@@ -1,7 +1,7 @@
 """The per-cell summary of a campaign as a text table: for the report's page and for a
 terminal (the end-of-run table of ``gcs campaign``). No matplotlib here.
 
-    summaries = summarise_cells(runs, plans, grid_keys)    # campaign_stats
+    summaries = summarise_cells(runs, plans, grid_keys)    # stats
     header, rows = cell_table(summaries, ["uavs", "objective"])
 """
 
@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
-from groundstation.runners.campaign_stats import CellSummary, show_value
+from groundstation.runners.campaign.stats import CellSummary, show_value
 
 __all__ = ["cell_table", "format_number"]
 

@@ -1,7 +1,7 @@
 """``gcs report``: one self-contained HTML page about a flight.
 
-:func:`build_report` gathers the run's data (:mod:`~groundstation.runners.report_data`),
-draws the figures (:mod:`~groundstation.runners.report_plots`) and writes
+:func:`build_report` gathers the run's data (:mod:`~groundstation.runners.report.data`),
+draws the figures (:mod:`~groundstation.runners.report.plots`) and writes
 ``OUT/report.html`` with every PNG embedded as a ``data:image/png;base64`` URI, so the
 page can be mailed or archived alone. The map's ``<img>`` carries the plotted extent
 (``data-xlim``, ``data-ylim``, metres) and the vehicles' track bounding box
@@ -17,15 +17,15 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from groundstation.runners.html_page import FigurePng, figure_html, page_start
-from groundstation.runners.report_data import RunData, load_run_data, summary_rows
-from groundstation.runners.report_plots import (
+from groundstation.runners.report.data import RunData, load_run_data, summary_rows
+from groundstation.runners.report.plots import (
     plot_map,
     plot_solves,
     plot_timeline,
     plot_uncertainty,
     plot_wind,
 )
-from groundstation.runners.report_track_plots import plot_tracking
+from groundstation.runners.report.track_plots import plot_tracking
 from groundstation.storage import (
     StorageError,
     atomic_write_bytes,
@@ -167,7 +167,7 @@ def build_report(
 ) -> ReportResult:
     """Write ``out_dir/report.html`` (and the PNGs) for the run at ``path``.
 
-    Raises :class:`~groundstation.runners.report_data.ReportError` when there is nothing
+    Raises :class:`~groundstation.runners.report.data.ReportError` when there is nothing
     to report, :class:`~groundstation.storage.StorageError` when ``out_dir`` cannot be
     written. Every file is written atomically (temporary file, fsync, rename), the page
     last, so a failure never leaves a half page.

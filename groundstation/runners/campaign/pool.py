@@ -1,7 +1,7 @@
 """The local executor of ``gcs campaign``: a process pool on this machine.
 
 Workers are reused: each is forked from a *forkserver* that has already imported the
-simulator (``set_forkserver_preload``), then :func:`campaign_run.init_worker` sets one
+simulator (``set_forkserver_preload``), then :func:`.run.init_worker` sets one
 BLAS/OpenMP thread and ignores SIGINT, so no run pays for imports and a rebuilt pool starts
 at once. Forkserver rather than fork: the driver holds pyarrow's threads, and forking a
 threaded process can deadlock the child.
@@ -28,12 +28,12 @@ from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wai
 from concurrent.futures.process import BrokenProcessPool
 from typing import Protocol
 
-from groundstation.runners.campaign_grid import RunTask
-from groundstation.runners.campaign_run import THREAD_ENV, RunOutcome, execute_run, init_worker
+from groundstation.runners.campaign.grid import RunTask
+from groundstation.runners.campaign.run import THREAD_ENV, RunOutcome, execute_run, init_worker
 
 __all__ = ["LocalPool", "RunSink"]
 
-PRELOAD = ["groundstation.runners.campaign_run", "filterpy.kalman"]
+PRELOAD = ["groundstation.runners.campaign.run", "filterpy.kalman"]
 """Imported once by the forkserver; every worker is forked with them loaded."""
 
 

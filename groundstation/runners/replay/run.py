@@ -6,7 +6,7 @@ floats) and every decision it made. :func:`replay_journal` builds a fresh
 what-if) and feeds it the inputs in order, at their recorded mission times. The decisions
 journalled after input *i* (up to input *i + 1*) are what the recorded core answered to
 input *i*; the replayed core's answer to the same input is compared with them
-(:mod:`~groundstation.runners.replay_compare`).
+(:mod:`~groundstation.runners.replay.compare`).
 
 Planning is checked in three steps, because solving is the frontend's job:
 
@@ -41,14 +41,14 @@ from groundstation.core.records import (
     record_to_event,
     result_from_record,
 )
-from groundstation.runners.replay_compare import (
+from groundstation.runners.replay.compare import (
     Decision,
     compare_decisions,
     compare_problems,
     decision_of_record,
     describe,
 )
-from groundstation.runners.replay_journal import LoadedJournal, skipped_summary
+from groundstation.runners.replay.journal import LoadedJournal, skipped_summary
 from planner import problem_to_dict, solve_plan
 
 _WARN_LINES = 5  # per-line warnings shown for skipped lines; the rest are only counted

@@ -27,7 +27,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 from scipy.special import stdtrit
 
-from groundstation.runners.campaign_data import (
+from groundstation.runners.campaign.data import (
     SEED_KEY,
     column_codes,
     dedupe,

@@ -31,7 +31,7 @@ from domain.errors import FloeError
 if TYPE_CHECKING:
     import pyarrow as pa
 
-    from groundstation.runners.campaign_run import RunOutcome
+    from groundstation.runners.campaign.run import RunOutcome
 
 __all__ = [
     "COPY_NAME",
@@ -186,7 +186,7 @@ class CampaignStore:
 
     def write(self, outcome: RunOutcome) -> None:
         """Store one finished run: its plans' part, then its run part (module docstring)."""
-        from groundstation.runners.campaign_schema import rows_to_table
+        from groundstation.runners.campaign.schema import rows_to_table
 
         if PLANS_DIR in self.schemas and outcome.plan_rows:
             table = rows_to_table(outcome.plan_rows, self.schemas[PLANS_DIR])

@@ -15,7 +15,7 @@ from matplotlib.patches import Circle
 
 from domain.wind_triangle import wind_from_vector
 from groundstation.runners.html_page import FigurePng, render_png
-from groundstation.runners.report_data import RunData, fallback_wind_of
+from groundstation.runners.report.data import RunData, fallback_wind_of
 
 __all__ = [
     "COLOURS",

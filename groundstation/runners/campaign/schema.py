@@ -19,7 +19,7 @@ from observer.observer import COUNTER_NAMES
 if TYPE_CHECKING:
     import pyarrow as pa
 
-    from groundstation.runners.campaign_grid import CampaignSpec
+    from groundstation.runners.campaign.grid import CampaignSpec
 
 __all__ = [
     "COORDINATE_METRICS",

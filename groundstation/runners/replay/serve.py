@@ -11,7 +11,7 @@ shortened to ``max_gap_s``; timestamps that go backwards (a log merged from seve
 count as no pause.
 
 With ``pace`` K instead of ``speed``, frames are spaced by **mission time** instead:
-``t(j)`` above is the frame's mission time (:mod:`groundstation.runners.mission_timeline`:
+``t(j)`` above is the frame's mission time (:mod:`.mission_timeline`:
 from the run's journal, else the vehicles' ``time_boot_ms``) and the divisor is K, so a run
 recorded at 50x is watched at K x mission time whatever its recording speed-up (10 mission
 seconds at ``--pace 10`` take 1 s); ``max_gap_s`` is then in mission seconds.
@@ -27,8 +27,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from groundstation.link.tlog import TlogReader
-from groundstation.runners.mission_timeline import mission_timeline
-from groundstation.runners.replay_tlog import TlogSummary, read_tlog
+from groundstation.runners.replay.mission_timeline import mission_timeline
+from groundstation.runners.replay.tlog import TlogSummary, read_tlog
 
 __all__ = ["DEFAULT_MAX_GAP_S", "ServedFrame", "serving_schedule"]
 
@@ -65,7 +65,7 @@ def serving_schedule(
     ``pace`` the frames are spaced by mission time / ``pace``; ``timeline`` maps a Unix
     time to mission time (default: :func:`mission_timeline` of the tlog). ``summary``: the
     tlog's :func:`read_tlog` if the caller has it already (read once).
-    Raises :class:`~groundstation.runners.replay_tlog.TlogError` for an unusable tlog.
+    Raises :class:`~groundstation.runners.replay.tlog.TlogError` for an unusable tlog.
     """
     if not speed > 0:
         raise ValueError("speed must be > 0")

@@ -37,7 +37,7 @@ from groundstation.core.events import Detection, Event, PlanSolved, Telemetry, T
 from groundstation.core.records import command_to_record
 from groundstation.link.detection_feed import FeedError, parse_line
 from groundstation.link.tlog import TlogReader
-from groundstation.runners.replay_tlog import TlogError, tlog_of
+from groundstation.runners.replay.tlog import TlogError, tlog_of
 from planner import solve_plan
 
 __all__ = ["TLOG_DEFAULT_CONFIG", "TlogCoreRun", "run_core_on_tlog"]

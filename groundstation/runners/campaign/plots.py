@@ -17,8 +17,8 @@ import pyarrow.compute as pc
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from groundstation.runners.campaign_data import CampaignData, float_column
-from groundstation.runners.campaign_stats import (
+from groundstation.runners.campaign.data import CampaignData, float_column
+from groundstation.runners.campaign.stats import (
     Cells,
     CellSummary,
     SeriesBands,
@@ -26,7 +26,7 @@ from groundstation.runners.campaign_stats import (
     show_value,
 )
 from groundstation.runners.html_page import FigurePng, render_png
-from groundstation.runners.report_plots import COLOURS
+from groundstation.runners.report.plots import COLOURS
 
 __all__ = [
     "Panel",

@@ -1,12 +1,13 @@
 """``gcs campaign report DIR``: one self-contained HTML page about a campaign.
 
 :func:`write_campaign_report` reads the campaign folder
-(:mod:`~groundstation.runners.campaign_data`), summarises each grid cell
-(:mod:`~groundstation.runners.campaign_stats`), draws the figures
-(:mod:`~groundstation.runners.campaign_plots`) and writes ``DIR/report.html`` (or
-``out``) with every figure inline as a PNG ``data:`` URI (:mod:`html_page`, shared with
-``gcs report``): the page has no external asset. Each figure is also written next to the
-page as ``<page stem>-<figure>.png`` (``report-series.png``...), for papers and docs.
+(:mod:`~groundstation.runners.campaign.data`), summarises each grid cell
+(:mod:`~groundstation.runners.campaign.stats`), draws the figures
+(:mod:`~groundstation.runners.campaign.plots`) and writes ``DIR/report.html`` (or
+``out``) with every figure inline as a PNG ``data:`` URI
+(:mod:`~groundstation.runners.html_page`, shared with ``gcs report``): the page has no
+external asset. Each figure is also written next to the page as
+``<page stem>-<figure>.png`` (``report-series.png``...), for papers and docs.
 
 The page: the campaign (name, grid, fixed overrides, runs, floe versions, when written);
 a table per grid cell (runs, mean of ``mean_uncertainty`` with its 95 % t interval, bounded
@@ -26,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from groundstation.runners.campaign_data import (
+from groundstation.runners.campaign.data import (
     SEED_KEY,
     CampaignData,
     CampaignReportError,
@@ -34,15 +35,15 @@ from groundstation.runners.campaign_data import (
     float_column,
     load_campaign,
 )
-from groundstation.runners.campaign_paired import PairedRow, paired_with_base
-from groundstation.runners.campaign_plots import (
+from groundstation.runners.campaign.paired import PairedRow, paired_with_base
+from groundstation.runners.campaign.plots import (
     Panel,
     plot_mean_vs_fleet,
     plot_mu_ratio,
     plot_series,
     plot_solve_times,
 )
-from groundstation.runners.campaign_stats import (
+from groundstation.runners.campaign.stats import (
     Cells,
     CellSummary,
     TrendCounts,
@@ -53,7 +54,7 @@ from groundstation.runners.campaign_stats import (
     summarise_cells,
     trend_counts,
 )
-from groundstation.runners.campaign_table import cell_table
+from groundstation.runners.campaign.table import cell_table
 from groundstation.runners.html_page import figure_html, page_start
 from groundstation.storage import StorageError, atomic_write_bytes, atomic_write_text
 
@@ -163,7 +164,7 @@ def _pct(value: float | None) -> str:
 
 
 def _paired_html(paired: Sequence[PairedRow] | None) -> list[str]:
-    """The paired table (``campaign_paired``), or nothing when no variant key varies."""
+    """The paired table (``paired``), or nothing when no variant key varies."""
     if not paired:
         return []
     esc = html.escape

@@ -15,7 +15,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle
 
-from groundstation.runners.simulate import MapSnapshot, SimulationRun
+from groundstation.runners.simulate.simulator import MapSnapshot, SimulationRun
 from groundstation.storage import atomic_write_with
 
 __all__ = ["plot_comparison", "plot_map", "plot_uncertainty", "write_plots"]
