@@ -30,7 +30,13 @@ already within ``r`` of the new aim point when told: nothing to predict), ``unfi
 (still on its way when the run ended). A command without ``eta_s`` is not followed.
 
 Reported: ``arrival_error_s`` ``{median, p90}`` of ``|error|``, ``arrival_bias_s`` the
-median signed error (None when nothing was counted). Percentiles interpolate linearly
+median signed error (None when nothing was counted). The same split by leg:
+``arrival_error_first_s`` / ``arrival_error_later_s`` ``{median, p90, max, counted}``
+(None when none was counted) and ``arrival_bias_first_s`` / ``arrival_bias_later_s``. A
+vehicle's *first leg* is the first command it was given in the run (the one planned at its
+join, before its own wind estimate exists: docs/wind.md, "The first leg"); every other
+command is a later leg. A first command that was redirected is not counted (``superseded``),
+and the vehicle's next command is a later leg. Percentiles interpolate linearly
 between order statistics (numpy's default): ``p(q) = x[i] + (x[i+1] - x[i]) f``,
 ``i + f = (n - 1) q``.
 """
@@ -59,6 +65,7 @@ def percentile(values: Sequence[float], q: float) -> float:
 @dataclass
 class _Pending:
     t_s: float
+    first: bool
     target: str
     aim_xy_m: tuple[float, float]
     eta_s: float
@@ -70,23 +77,29 @@ class ArrivalTracker:
     """Follows each vehicle's current FlyToTarget until it arrives or is redirected."""
 
     errors_s: list[float] = field(default_factory=list)
+    first_errors_s: list[float] = field(default_factory=list)
+    later_errors_s: list[float] = field(default_factory=list)
+    """``errors_s`` split into the first legs and the later ones (module docstring)."""
     superseded: int = 0
     inside_at_command: int = 0
     _pending: dict[str, _Pending] = field(default_factory=dict)
     _last: dict[str, tuple[float, float, float]] = field(default_factory=dict)
+    _commanded: set[str] = field(default_factory=set)
 
     def commanded(self, t_s: float, vehicle: str, target: str, x_m: float, y_m: float,
                   eta_s: float | None, fov_radius_m: float) -> None:
         """``vehicle`` was sent to the aim point (x_m, y_m), predicted for ``eta_s``."""
         if self._pending.pop(vehicle, None) is not None:
             self.superseded += 1
+        first = vehicle not in self._commanded
+        self._commanded.add(vehicle)
         if eta_s is None or not all(math.isfinite(v) for v in (x_m, y_m, eta_s)):
             return
         last = self._last.get(vehicle)
         if last is not None and math.dist(last[1:], (x_m, y_m)) <= fov_radius_m:
             self.inside_at_command += 1
             return
-        self._pending[vehicle] = _Pending(t_s, target, (x_m, y_m), eta_s, fov_radius_m)
+        self._pending[vehicle] = _Pending(t_s, first, target, (x_m, y_m), eta_s, fov_radius_m)
 
     def abandoned(self, vehicle: str) -> None:
         """``vehicle`` was released or sent home: its command will not be flown."""
@@ -117,18 +130,26 @@ class ArrivalTracker:
         dt = t_s - t0
         t_in = t0 + dt * (d0 - r) / (d0 - d1)
         ground_m_s = math.dist((x0, y0), (x_m, y_m)) / dt
-        self.errors_s.append(t_in + r / ground_m_s - pending.eta_s)
+        error = t_in + r / ground_m_s - pending.eta_s
+        self.errors_s.append(error)
+        (self.first_errors_s if pending.first else self.later_errors_s).append(error)
 
     def to_dict(self) -> dict[str, Any]:
-        """``arrival_error_s``, ``arrival_bias_s`` and ``arrivals`` (module docstring)."""
+        """``arrival_error_s``, ``arrival_bias_s``, ``arrivals`` and the split by leg
+        (module docstring)."""
         errors = self.errors_s
         absolute = [abs(e) for e in errors]
+        first, later = self.first_errors_s, self.later_errors_s
         return {
             "arrival_error_s": {
                 "median": statistics.median(absolute),
                 "p90": percentile(absolute, 0.9),
             } if errors else None,
             "arrival_bias_s": statistics.median(errors) if errors else None,
+            "arrival_error_first_s": _summary(first),
+            "arrival_bias_first_s": statistics.median(first) if first else None,
+            "arrival_error_later_s": _summary(later),
+            "arrival_bias_later_s": statistics.median(later) if later else None,
             "arrivals": {
                 "counted": len(errors),
                 "superseded": self.superseded,
@@ -136,3 +157,12 @@ class ArrivalTracker:
                 "unfinished": len(self._pending),
             },
         }
+
+
+def _summary(errors: Sequence[float]) -> dict[str, float | int] | None:
+    """``{median, p90, max, counted}`` of ``|error|`` (None when nothing was counted)."""
+    if not errors:
+        return None
+    absolute = [abs(e) for e in errors]
+    return {"median": statistics.median(absolute), "p90": percentile(absolute, 0.9),
+            "max": max(absolute), "counted": len(absolute)}
