@@ -74,6 +74,7 @@ PROBLEM_EVENTS = frozenset(
         "unknown_target",
         "wind_outlier",
         "wind_refused",
+        "cruise_speed_refused",
     }
 )
 """Operator events that report something wrong: logged at WARNING."""
@@ -87,6 +88,8 @@ OPERATOR_EVENTS = PROBLEM_EVENTS | frozenset(
         "resume",
         "vehicle_seen",
         "vehicle_joined",
+        "cruise_speed",
+        "wind_replan",
         "origin",
         "launch",
         "waiting",
