@@ -17,7 +17,7 @@ leg" tells), at a steady wind of ``--wind`` m/s from each of ``--directions``, s
 Strategies (``--strategies``, interleaved: every strategy runs each (seed, direction) in
 turn, so a slower stretch of the shared machine hits them alike):
 
-* ``none``: no wind replan (``planner.wind_replan_m_s: null``);
+* ``none``: no wind replan (``planner.wind_replan: false``);
 * ``replan``: floe's rule (docs/wind.md, "The first leg"): when the first estimate arrives
   or the wind moves by more than ``wind_replan_m_s``, legs whose predicted arrival moves
   by more than ``wind_replan_margin_s`` are replanned even under commitment;
@@ -101,7 +101,7 @@ def run_once(seed: int, from_deg: float, speed_m_s: float, known: bool, strategy
         config_file = Path(tmp) / "config.yaml"
         lines = ["planner:"]
         if strategy != "replan":
-            lines.append("  wind_replan_m_s: null")
+            lines.append("  wind_replan: false")
         config_file.write_text("\n".join(lines) + "\n" if len(lines) > 1 else "{}\n")
         args = ["--config", str(config_file), "--vehicles", "sim:3", "--scenario", scenario,
                 "--duration", str(duration_s), "--seed", str(seed), "--run-dir", tmp,

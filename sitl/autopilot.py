@@ -25,8 +25,9 @@ Facts reproduced (design.md, "MAVLink facts"; ArduPlane's commands_logic.cpp):
   (AIRSPEED_CRUISE, 22 m/s): ArduPlane flies its take-off at the take-off throttle
   (TKOFF_THR_MAX), and ArduPilot SITL's plane (3 vehicles, floe's launch mission, measured
   in issue 25) climbed out at 27.6-28.1 m/s airspeed (VFR_HUD) before settling to 22 once
-  the take-off item completed; the figure is that measurement, not derived. A ground station that planned with the airspeed
-  it measured at the join saw the climb-out's (docs/wind.md, "The first leg").
+  the take-off item completed; the figure is that measurement, not derived. A ground
+  station that planned with the airspeed it measured at the join saw the climb-out's
+  (docs/wind.md, "The first leg").
 """
 
 from __future__ import annotations

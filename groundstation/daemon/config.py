@@ -213,6 +213,11 @@ class PlannerConfig:
     replan: ReplanTrigger | None = None
     period_s: float | None = None
     commit: bool | None = None
+    wind_replan: bool | None = None
+    """False: legs are never replanned for the wind (``CoreConfig.wind_replan_m_s`` None)."""
+    wind_replan_m_s: float | None = None
+    wind_replan_margin_s: float | None = None
+    """The core's wind-replan settings (docs/wind.md, "The first leg"); None: its defaults."""
 
 
 @dataclass(frozen=True, slots=True)
