@@ -33,10 +33,11 @@ Reported: ``arrival_error_s`` ``{median, p90}`` of ``|error|``, ``arrival_bias_s
 median signed error (None when nothing was counted). The same split by leg:
 ``arrival_error_first_s`` / ``arrival_error_later_s`` ``{median, p90, max, counted}``
 (None when none was counted) and ``arrival_bias_first_s`` / ``arrival_bias_later_s``. A
-vehicle's *first leg* is the first command it was given in the run (the one planned at its
-join, before its own wind estimate exists: docs/wind.md, "The first leg"); every other
-command is a later leg. A first command that was redirected is not counted (``superseded``),
-and the vehicle's next command is a later leg. Percentiles interpolate linearly
+vehicle's *first leg* is its first counted arrival: its flight from the join to the first
+aim point it reached (planned at the join, before its own wind estimate exists:
+docs/wind.md, "The first leg"), measured against the command in force when it arrived (a
+leg replanned on the way counts with its replanned prediction); every later counted
+arrival is a later leg. Percentiles interpolate linearly
 between order statistics (numpy's default): ``p(q) = x[i] + (x[i+1] - x[i]) f``,
 ``i + f = (n - 1) q``.
 """
@@ -65,7 +66,6 @@ def percentile(values: Sequence[float], q: float) -> float:
 @dataclass
 class _Pending:
     t_s: float
-    first: bool
     target: str
     aim_xy_m: tuple[float, float]
     eta_s: float
@@ -84,22 +84,20 @@ class ArrivalTracker:
     inside_at_command: int = 0
     _pending: dict[str, _Pending] = field(default_factory=dict)
     _last: dict[str, tuple[float, float, float]] = field(default_factory=dict)
-    _commanded: set[str] = field(default_factory=set)
+    _arrived: set[str] = field(default_factory=set)
 
     def commanded(self, t_s: float, vehicle: str, target: str, x_m: float, y_m: float,
                   eta_s: float | None, fov_radius_m: float) -> None:
         """``vehicle`` was sent to the aim point (x_m, y_m), predicted for ``eta_s``."""
         if self._pending.pop(vehicle, None) is not None:
             self.superseded += 1
-        first = vehicle not in self._commanded
-        self._commanded.add(vehicle)
         if eta_s is None or not all(math.isfinite(v) for v in (x_m, y_m, eta_s)):
             return
         last = self._last.get(vehicle)
         if last is not None and math.dist(last[1:], (x_m, y_m)) <= fov_radius_m:
             self.inside_at_command += 1
             return
-        self._pending[vehicle] = _Pending(t_s, first, target, (x_m, y_m), eta_s, fov_radius_m)
+        self._pending[vehicle] = _Pending(t_s, target, (x_m, y_m), eta_s, fov_radius_m)
 
     def abandoned(self, vehicle: str) -> None:
         """``vehicle`` was released or sent home: its command will not be flown."""
@@ -132,7 +130,9 @@ class ArrivalTracker:
         ground_m_s = math.dist((x0, y0), (x_m, y_m)) / dt
         error = t_in + r / ground_m_s - pending.eta_s
         self.errors_s.append(error)
-        (self.first_errors_s if pending.first else self.later_errors_s).append(error)
+        first = vehicle not in self._arrived
+        self._arrived.add(vehicle)
+        (self.first_errors_s if first else self.later_errors_s).append(error)
 
     def to_dict(self) -> dict[str, Any]:
         """``arrival_error_s``, ``arrival_bias_s``, ``arrivals`` and the split by leg
