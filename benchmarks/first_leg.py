@@ -25,8 +25,13 @@ turn, so a slower stretch of the shared machine hits them alike):
   the plan (its ``VehicleJoined``) only with its first ``WindReport`` (wind replan off).
   It is patched into the vehicle controller in this process only.
 
-``--policy commit`` (default: the issue's event-based replanning with commitment, the
-daemon's default) or ``scenario`` (paper-boat's own: every 5 s, no commitment).
+``before`` is not a strategy of this code: it labels (``--label before``) the runs of a
+checkout of the code before the change, whose only behaviour runs under ``replan``'s
+configuration (docs/wind.md, "The first leg", has the commands).
+
+``--policy commit`` (default: ``--replan event --commit``, the issue's setting; paper-boat's
+5 s period stays, and with commitment it plans only idle vehicles) or ``scenario``
+(paper-boat's own: every 5 s, no commitment).
 
 Per (wind knowledge, strategy) it prints, pooled over seeds and directions: the first
 legs' |arrival error| (median / p90 / max, counted / runs x 3), the later legs' (median /
