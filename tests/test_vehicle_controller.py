@@ -348,6 +348,15 @@ def test_the_cruise_airspeed_of_older_firmware_or_else_the_configured_one(
     assert [e.speed_m_s for e in rig.core(ev.VehicleJoined)] == [speed_m_s]
 
 
+def test_advisory_reads_no_parameter_and_plans_with_the_configured_speed() -> None:
+    rig = Rig(advisory=True, speed_m_s=21.0)
+    rig.run(4.0, airspeed_m_s=27.0)
+    assert rig.reads == [] and rig.asked == []
+    assert [line.fields for line in rig.journal("cruise_speed")] == [
+        {"speed_m_s": 21.0, "source": "config"}]
+    assert [e.speed_m_s for e in rig.core(ev.VehicleJoined)] == [21.0]
+
+
 def test_a_cruise_read_cut_short_by_a_lost_link_is_asked_again() -> None:
     rig = Rig(auto_answer=False)
     rig.snap = replace(rig.snap, **ON_GROUND)
