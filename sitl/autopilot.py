@@ -20,7 +20,14 @@ Facts reproduced (design.md, "MAVLink facts"; ArduPlane's commands_logic.cpp):
   closed, sticks centred) glide wings level until they hit the ground;
 * on the ground nothing flies except AUTO on a NAV_TAKEOFF item while armed (ArduPlane
   suppresses the throttle on the ground otherwise): a plane that came down stays put in
-  AUTO, RTL, LOITER or GUIDED.
+  AUTO, RTL, LOITER or GUIDED;
+* a NAV_TAKEOFF climbs out at ``CLIMB_OUT_AIRSPEED_M_S`` = 28 m/s, faster than the cruise
+  (AIRSPEED_CRUISE, 22 m/s): ArduPlane flies its take-off at the take-off throttle
+  (TKOFF_THR_MAX), and ArduPilot SITL's plane (3 vehicles, floe's launch mission, measured
+  in issue 25) climbed out at 27.6-28.1 m/s airspeed (VFR_HUD) before settling to 22 once
+  the take-off item completed; the figure is that measurement, not derived. A ground
+  station that planned with the airspeed it measured at the join saw the climb-out's
+  (docs/wind.md, "The first leg").
 """
 
 from __future__ import annotations
@@ -38,10 +45,19 @@ from sitl.mission_store import MissionItem, MissionStore
 from sitl.params import ParamStore
 from sitl.statustext import StatusTextFactory
 
-__all__ = ["GLIDE_MODES", "MODE_NAMES", "RADIUS_FACTOR", "Autopilot", "NavTarget"]
+__all__ = [
+    "CLIMB_OUT_AIRSPEED_M_S",
+    "GLIDE_MODES",
+    "MODE_NAMES",
+    "RADIUS_FACTOR",
+    "Autopilot",
+    "NavTarget",
+]
 
 M = mavlink2
 RADIUS_FACTOR = 1.15
+CLIMB_OUT_AIRSPEED_M_S = 28.0
+"""Airspeed of a NAV_TAKEOFF climb-out (module docstring; ArduPilot SITL: 27.6-28.1 m/s)."""
 # the modes the built-in vehicle flies (domain.fault_spec.SIM_MODES), number -> name
 MODE_NAMES: dict[int, str] = {number: name for name, number in SIM_MODES.items()}
 _M = ArduPlaneMode
@@ -104,6 +120,14 @@ class Autopilot:
         self.alt_hold_m = 0.0
         self.current_changed = False
         self._jump_counts: dict[int, int] = {}
+
+    def airspeed_cmd_m_s(self) -> float:
+        """The airspeed to fly: the climb-out's while a NAV_TAKEOFF flies in AUTO, else the
+        cruise (or the DO_CHANGE_SPEED) command."""
+        nav = self.nav
+        if self.mode == AUTO and nav is not None and nav.kind == "takeoff":
+            return max(CLIMB_OUT_AIRSPEED_M_S, self.speed_cmd_m_s)
+        return self.speed_cmd_m_s
 
     # ----------------------------------------------------------------- helpers
     def _texts(self, text: str, severity: int = M.MAV_SEVERITY_INFO) -> list[Any]:

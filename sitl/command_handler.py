@@ -95,11 +95,14 @@ def handle(v: VehicleView, msg: Any, t_s: float) -> list[Any]:
     if kind == "PARAM_REQUEST_LIST":
         return [v.params.param_value(name) for name in v.params.names()]
     if kind == "PARAM_REQUEST_READ":
+        # as ArduPilot (GCS_MAVLINK::param_io_timer): index -1 reads by name, any other
+        # index by index (a negative one names nothing); no answer for what does not exist;
+        # the answer echoes the request's index (by name: -1, 65535 on the wire)
         index = int(msg.param_index)
-        name = v.params.name_at(index) if index >= 0 else _param_name(msg.param_id)
+        name = _param_name(msg.param_id) if index == -1 else v.params.name_at(index)
         if name is None or v.params.index_of(name) is None:
             return []
-        return [v.params.param_value(name)]
+        return [v.params.param_value(name, by_name=index == -1)]
     if kind == "PARAM_SET":
         name = _param_name(msg.param_id)
         if v.params.index_of(name) is None:

@@ -25,6 +25,7 @@ _REAL32 = mavlink2.MAV_PARAM_TYPE_REAL32
 _INT8 = mavlink2.MAV_PARAM_TYPE_INT8
 _INT16 = mavlink2.MAV_PARAM_TYPE_INT16
 _INT32 = mavlink2.MAV_PARAM_TYPE_INT32
+_BY_NAME_INDEX = 65535  # -1 as MAVLink's uint16 param_index
 
 
 @dataclass(frozen=True)
@@ -143,13 +144,17 @@ class ParamStore:
             self._values["MAV_SYSID"] = self._values["SYSID_THISMAV"] = float(value)
         return self._values[name]
 
-    def param_value(self, name: str) -> mavlink2.MAVLink_param_value_message:
-        """The PARAM_VALUE message for ``name``."""
+    def param_value(
+        self, name: str, *, by_name: bool = False
+    ) -> mavlink2.MAVLink_param_value_message:
+        """The PARAM_VALUE message for ``name``. ``by_name``: the answer to a
+        PARAM_REQUEST_READ by name, whose ``param_index`` ArduPilot sets to the request's
+        -1 (65535 on the wire, a uint16); otherwise the parameter's index."""
         spec = self._specs[name]
         return mavlink2.MAVLink_param_value_message(
             name.encode("ascii"),
             self._values[name],
             spec.param_type,
             len(self._names),
-            self._names.index(name),
+            _BY_NAME_INDEX if by_name else self._names.index(name),
         )

@@ -331,7 +331,7 @@ class SimVehicle:
         guidance, alt_cmd = ap.guidance(af)
         was_on_ground = af.on_ground
         wind = self.wind.at(self.t_s - dt_s, self.params)
-        af.step(guidance, alt_cmd, ap.speed_cmd_m_s, dt_s, wind)
+        af.step(guidance, alt_cmd, ap.airspeed_cmd_m_s(), dt_s, wind)
         sensor = self.airspeed_sensor
         self.wind_estimate.update(sensor.estimate_target(wind), dt_s, flying=not af.on_ground)
         self.battery_used_mah += self.battery_current_a * dt_s / 3.6

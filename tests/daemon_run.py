@@ -20,10 +20,13 @@ def run_gcs(
     *args: str,
     timeout_s: float = 70.0,
     until: Callable[[Journal], bool] | None = None,
+    embedded: Any = None,
 ) -> tuple[Daemon, Journal]:
     """Run the daemon (no control API, no detection feed, quiet) until ``--duration``, or
     with ``until`` as soon as its journal satisfies it (:func:`stop_when`); return it and
-    its journal. ``timeout_s`` (wall) bounds a run that would not stop."""
+    its journal. ``timeout_s`` (wall) bounds a run that would not stop. ``embedded``:
+    another factory of the ``sim:N`` vehicles than ``gcs run``'s (``build_embedded_sim``'s
+    signature)."""
     config = build_config([*args, "--run-dir", str(tmp_path), "--http", "off",
                            "--detections", "off", "--status", "quiet"])
 
@@ -34,10 +37,15 @@ def run_gcs(
             if until is not None:
                 watchers.append(asyncio.create_task(stop_when(daemon, until)))
 
+        options: dict[str, Any] = dict(
+            print_fn=lambda _: None, install_signals=False, on_started=started
+        )
         try:
-            return await run_daemon(
-                config, print_fn=lambda _: None, install_signals=False, on_started=started
-            )
+            if embedded is not None:
+                from groundstation.daemon.startup import run_daemon as run_bare
+
+                return await run_bare(config, embedded=embedded, **options)
+            return await run_daemon(config, **options)
         finally:
             for watcher in watchers:
                 watcher.cancel()

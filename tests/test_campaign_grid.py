@@ -9,7 +9,11 @@ import pytest
 from groundstation.cli import main
 from groundstation.runners.campaign.grid import load_campaign, parse_campaign, run_id
 from groundstation.runners.campaign.run import RunOutcome, flatten_metrics
-from groundstation.runners.campaign.schema import COORDINATE_METRICS, metrics_columns
+from groundstation.runners.campaign.schema import (
+    ARRIVAL_SUMMARIES,
+    COORDINATE_METRICS,
+    metrics_columns,
+)
 from groundstation.runners.simulate.simulator import SimulationOptions, run_simulation
 from world.scenario import load_scenario
 
@@ -129,8 +133,8 @@ def test_every_scalar_of_metrics_json_has_a_column(scenario: str) -> None:
     for key, value in metrics.items():
         if key in COORDINATE_METRICS:
             continue
-        if key == "arrival_error_s":  # None when no arrival was counted
-            assert {f"{key}_median", f"{key}_p90"} <= set(columns)
+        if key in ARRIVAL_SUMMARIES:  # None when no arrival was counted
+            assert {f"{key}_{inner}" for inner in ARRIVAL_SUMMARIES[key]} <= set(columns)
         elif isinstance(value, dict) and key not in ("solve_time_s", "max_estimation_error_m"):
             assert all(f"{key}_{inner}" in columns for inner in value), key
         else:

@@ -290,3 +290,19 @@ def test_detections_default_is_resolved_by_config_resolve() -> None:
     given = build_config(["--vehicles", "sim:1", "--detections", "127.0.0.1:14600"])
     assert given.detections == Endpoint("127.0.0.1", 14600)
     assert build_config(["--vehicles", "sim:1", "--detections", "off"]).detections is None
+
+
+def test_the_wind_replan_settings_reach_the_core() -> None:
+    """docs/wind.md, "The first leg": on by default (2 m/s, 5 s), tunable, or off."""
+    from groundstation.daemon.startup import core_config
+
+    def core(planner: dict[str, object]) -> tuple[float | None, float]:
+        config = resolve(parse_config({"vehicles": ["sim:1"], "planner": planner}, {}))
+        cc = core_config(config, None, 1.0)
+        return cc.wind_replan_m_s, cc.wind_replan_margin_s
+
+    assert core({}) == (2.0, 5.0)
+    assert core({"wind_replan_m_s": 3, "wind_replan_margin_s": 8}) == (3.0, 8.0)
+    assert core({"wind_replan": False}) == (None, 5.0)
+    with pytest.raises(ConfigError, match=r"planner\.wind_replan_margin_s"):
+        parse_config({"vehicles": ["sim:1"], "planner": {"wind_replan_margin_s": 0}}, {})

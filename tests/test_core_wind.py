@@ -15,11 +15,13 @@ from test_core_decision import join, of_type, solve_all
 
 from groundstation.cli import main
 from groundstation.core.commands import FlyToTarget, Note, PlanAdopted, SolveRequest
-from groundstation.core.config import CoreConfig, config_from_dict, config_to_dict
+from groundstation.core.config import CoreConfig, ReplanPolicy, config_from_dict, config_to_dict
 from groundstation.core.decision import DecisionCore
-from groundstation.core.events import TargetAdded, Tick
+from groundstation.core.events import TargetAdded, Tick, WindReport
+from groundstation.core.fleet import VehicleRecord
 from groundstation.core.records import command_to_record, problem_of_record
 from groundstation.core.scenario_config import core_config_for
+from groundstation.core.wind_replan import WindReplan
 from groundstation.daemon.log_lines import PROBLEM_EVENTS, is_operator_event
 from groundstation.runners.replay.compare import decision_of_record
 from observer import ObserverConfig
@@ -206,3 +208,120 @@ def test_windy_run_and_a_pre_wind_journal_replay_identical(
     report = _replay(calm, capsys)
     assert report["identical"] is True and report["differences"] == []
     assert report["problems_equal"] == report["solves"] > 0
+
+
+# ------------------------------------------------------------------ the first leg's wind
+def _replan_core(fallback: tuple[float, float], **config: object) -> DecisionCore:
+    return DecisionCore(CoreConfig(observer=ObserverConfig(model="kalman"), time_limit_s=1.0,
+                                   wind_xy_m_s=fallback, **config))  # type: ignore[arg-type]
+
+
+def _first_leg(core: DecisionCore) -> FlyToTarget:
+    """Vehicle 1 at (0, 0) heading east, sent to a fixed target 2 km upwind of a west wind."""
+    (fly,) = of_type(first_flight(core, -2000.0, 0.0)[1], FlyToTarget)
+    return fly
+
+
+def _wind_report(core: DecisionCore, t_s: float, wx: float, wy: float) -> list:
+    out = core.handle(WindReport(t_s, "1", wx, wy))
+    return out + solve_all(core, core.handle(Tick(t_s + 0.1)))
+
+
+def test_the_first_estimate_replans_a_committed_leg_whose_arrival_it_moves() -> None:
+    """Planned in still air (no --wind), the leg into 12 m/s of wind arrives far later: the
+    first estimate makes the committed vehicle idle, and the next plan re-commands it."""
+    core = _replan_core((0.0, 0.0))
+    assert core.config.policy.commit and core.config.wind_replan_m_s == 2.0
+    fly = _first_leg(core)
+    assert fly.eta_s is not None
+    out = _wind_report(core, 1.0, 12.0, 0.0)
+    (note,) = [n for n in of_type(out, Note) if n.kind == "wind_replan"]
+    assert (note.vehicle, note.target) == ("1", "A")
+    (request,) = of_type(out, SolveRequest)
+    assert request.reason == "wind changed" and [u.id for u in request.problem.uavs] == ["1"]
+    (again,) = of_type(out, FlyToTarget)
+    assert again.target == "A" and again.eta_s is not None
+    record = core.vehicles["1"]
+    flown = 1.1 + core._leg_time_s(record, (again.x_m, again.y_m))
+    assert again.eta_s == pytest.approx(flown, abs=1e-6)
+    assert again.eta_s - fly.eta_s > 30.0  # 2 km against 12 m/s: ~ +40 s
+    assert f"{fly.eta_s:.1f} -> " in note.detail
+    # the wind stays: no further replans
+    out = _wind_report(core, 2.0, 12.2, 0.1)
+    assert not of_type(out, FlyToTarget) and not of_type(out, Note)
+
+
+def test_a_right_fallback_or_a_small_change_replans_nothing_a_large_one_does() -> None:
+    core = _replan_core((12.0, 0.0))  # --wind 12,270: the leg was predicted right
+    fly = _first_leg(core)
+    out = _wind_report(core, 1.0, 12.1, 0.1)  # the first estimate, close to the fallback
+    assert not of_type(out, FlyToTarget) and not [n for n in of_type(out, Note)
+                                                  if n.kind == "wind_replan"]
+    # the estimate is the mean of the vehicle's reports over 20 s: (12.1 + 13.6) / 2 is
+    # 0.75 m/s from the wind the leg was last predicted in: not re-predicted
+    out = _wind_report(core, 2.0, 13.6, 0.0)
+    assert not of_type(out, FlyToTarget)
+    out = _wind_report(core, 3.0, -10.0, 0.0)  # mean 5.2 m/s: the leg arrives much earlier
+    (again,) = of_type(out, FlyToTarget)
+    assert again.eta_s is not None and fly.eta_s is not None and again.eta_s < fly.eta_s - 5
+
+
+def test_without_the_rule_or_without_wind_awareness_nothing_is_replanned() -> None:
+    for core in (_replan_core((0.0, 0.0), wind_replan_m_s=None),
+                 _replan_core((0.0, 0.0), wind_aware=False)):
+        _first_leg(core)
+        out = _wind_report(core, 1.0, 12.0, 0.0)
+        assert not of_type(out, FlyToTarget) and not of_type(out, SolveRequest)
+
+
+def test_without_commitment_the_leg_is_re_commanded_even_to_the_same_aim_point() -> None:
+    """The target does not move, so the new aim point is the old one: only the rule makes
+    the vehicle be told (and the journal hold) the new arrival."""
+    policy = ReplanPolicy(on_events=True, period_s=None, commit=False)
+    for rule, expected in ((2.0, 1), (None, 0)):
+        core = _replan_core((0.0, 0.0), policy=policy, wind_replan_m_s=rule)
+        fly = _first_leg(core)
+        out = _wind_report(core, 1.0, 12.0, 0.0)
+        again = of_type(out, FlyToTarget)
+        assert len(again) == expected
+        if again:
+            assert (again[0].x_m, again[0].y_m) == (fly.x_m, fly.y_m)
+            assert again[0].eta_s is not None and fly.eta_s is not None
+            assert again[0].eta_s > fly.eta_s + 30.0
+
+
+def test_wind_replan_skips_a_vehicle_at_its_aim_and_re_predicts_a_leg_once() -> None:
+    rule = WindReplan(2.0, 5.0, fov_radius_m=150.0)
+    calls: list[str] = []
+
+    def flight_time_s(v: VehicleRecord, aim: tuple[float, float]) -> float:
+        calls.append(v.id)
+        return 100.0
+
+    there = VehicleRecord("1", 1000.0, 100.0, 0.0, 22.0, 0.0, busy=True, target="A",
+                          aim_xy_m=(1000.0, 0.0), eta_s=50.0, leg_wind_xy_m_s=(0.0, 0.0),
+                          leg_wind_source="fallback")
+    near = VehicleRecord("2", 0.0, 0.0, 0.0, 22.0, 0.0, busy=True, target="B",
+                         aim_xy_m=(2000.0, 0.0), eta_s=103.0, leg_wind_xy_m_s=(0.0, 0.0),
+                         leg_wind_source="fallback")
+    far = VehicleRecord("3", 0.0, 0.0, 0.0, 22.0, 0.0, busy=True, target="C",
+                        aim_xy_m=(2000.0, 0.0), eta_s=90.0, leg_wind_xy_m_s=(0.0, 0.0),
+                        leg_wind_source="fallback")
+    legs = rule.legs(1.0, (1.0, 0.0), "vehicles", [there, near, far], flight_time_s)
+    assert calls == ["2", "3"]  # "1" is within the footprint of its aim point
+    assert [(leg.vehicle.id, leg.eta_s, leg.new_eta_s) for leg in legs] == [("3", 90.0, 101.0)]
+    assert rule.legs(2.0, (2.5, 0.0), "vehicles", [near], flight_time_s) == []
+    assert calls == ["2", "3"]  # 1.5 m/s from the wind it was last predicted in: not again
+    assert len(rule.legs(3.0, (3.5, 0.0), "vehicles", [near], flight_time_s)) == 0
+    assert calls == ["2", "3", "2"]  # 2.5 m/s away: predicted again (103 vs 103: kept)
+
+
+def test_wind_replan_settings_and_old_journals() -> None:
+    assert CoreConfig().wind_replan_m_s == 2.0 and CoreConfig().wind_replan_margin_s == 5.0
+    config = CoreConfig(wind_replan_m_s=3, wind_replan_margin_s=8)
+    assert config_from_dict(json.loads(json.dumps(config_to_dict(config)))) == config
+    assert config_from_dict({}).wind_replan_m_s is None  # a journal from before the rule
+    for bad in ({"wind_replan_m_s": -1.0}, {"wind_replan_margin_s": math.inf},
+                {"wind_replan_m_s": "2"}):
+        with pytest.raises(ValueError, match="wind_replan"):
+            CoreConfig(**bad)  # type: ignore[arg-type]

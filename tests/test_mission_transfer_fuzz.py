@@ -21,7 +21,7 @@ from groundstation.mavlink.mission_download import MissionDownload
 from groundstation.mavlink.mission_items import LoiterUnlimited, Waypoint, build_mission_items
 from groundstation.mavlink.mission_transfer import Finished, Send, TransferBase
 from groundstation.mavlink.mission_upload import MissionUpload
-from groundstation.mavlink.vehicle_commands import CommandLong, ParamSet
+from groundstation.mavlink.vehicle_commands import CommandLong, ParamRead, ParamSet
 
 M = mavlink2
 ITEMS = build_mission_items(
@@ -70,7 +70,7 @@ peer_message = st.one_of(
     ),
 )
 
-KINDS = ["upload", "download", "clear", "set_current", "command", "param_set"]
+KINDS = ["upload", "download", "clear", "set_current", "command", "param_set", "param_read"]
 machines = st.sampled_from(KINDS)
 
 
@@ -85,6 +85,8 @@ def make(kind: str) -> Any:
         return CommandLong(1, 1, M.MAV_CMD_DO_SET_MODE, [1.0, 10.0], own_system=255)
     if kind == "param_set":
         return ParamSet(1, 1, "WP_LOITER_RAD", 80.0)
+    if kind == "param_read":
+        return ParamRead(1, 1, "WP_LOITER_RAD")
     return SetCurrent(1, 1, 2)
 
 

@@ -40,6 +40,8 @@ from groundstation.mavlink.mission_upload import UploadState
 from groundstation.mavlink.vehicle_commands import (
     CommandLong,
     CommandState,
+    ParamRead,
+    ParamReadState,
     ParamSet,
     ParamSetState,
 )
@@ -53,6 +55,7 @@ MACHINES: dict[str, Callable[[], TransferBase[Any]]] = {
     "set_current": lambda: SetCurrent(VEH_SYS, VEH_COMP, 2, own_system=GCS_SYS),
     "command": lambda: CommandLong(VEH_SYS, VEH_COMP, M.MAV_CMD_DO_SET_MODE, [1.0, 10.0]),
     "param_set": lambda: ParamSet(VEH_SYS, VEH_COMP, "WP_LOITER_RAD", 80.0),
+    "param_read": lambda: ParamRead(VEH_SYS, VEH_COMP, "AIRSPEED_CRUISE", own_system=GCS_SYS),
 }
 
 
@@ -230,9 +233,72 @@ def test_param_set_needs_its_value_echoed() -> None:
     assert isinstance(fin, Finished) and fin.result.ok and good.result is fin.result
 
 
+def test_param_read_by_name_takes_the_value_of_that_name_and_times_out_on_silence() -> None:
+    sm = ParamRead(VEH_SYS, VEH_COMP, "AIRSPEED_CRUISE", timeout_s=1.0, retries=2,
+                   own_system=GCS_SYS)
+    (first,) = sm.start(0.0)
+    assert sm.state is ParamReadState.WAITING_VALUE and isinstance(first, Send)
+    request = first.msg
+    assert request.get_type() == "PARAM_REQUEST_READ" and request.param_index == -1
+    assert request.param_id.rstrip("\x00") == "AIRSPEED_CRUISE"
+    assert (request.target_system, request.target_component) == (VEH_SYS, VEH_COMP)
+    other = wire(M.MAVLink_param_value_message(b"AIRSPEED_MIN", 12.0, 9, 60, 14))
+    assert sm.receive(other, 0.2) == [] and not sm.done
+    assert sm.poll(0.9) == []
+    (resend,) = sm.poll(1.0)
+    assert isinstance(resend, Send) and resend.msg.get_type() == "PARAM_REQUEST_READ"
+    # ArduPilot answers a read by name with param_index -1 (65535 on the wire)
+    answer = wire(M.MAVLink_param_value_message(b"AIRSPEED_CRUISE", 22.0, 9, 60, 65535))
+    (fin,) = sm.receive(answer, 1.2)
+    assert isinstance(fin, Finished) and fin.result.ok and sm.value == 22.0
+    assert fin.result.retries_used == 1
+    # an unknown name: ArduPilot stays silent, the retries end it
+    silent = ParamRead(VEH_SYS, VEH_COMP, "TRIM_ARSPD_CM", timeout_s=1.0, retries=2)
+    silent.start(0.0)
+    assert len(silent.poll(1.0)) == 1 and len(silent.poll(2.0)) == 1
+    (fin,) = silent.poll(3.0)
+    assert isinstance(fin, Finished) and fin.result.code is TransferCode.TIMEOUT
+    assert silent.value is None and "does not answer" in fin.result.message
+
+
+def test_param_read_against_the_built_in_vehicle_over_the_wire() -> None:
+    """The simulator answers as ArduPilot: by name with index 65535, nothing for a name
+    it lacks, by index with that index."""
+    from domain.geodesy import GeoOrigin
+    from sitl.vehicle import SimVehicle
+    from sitl.vehicle_state import VehicleConfig
+
+    vehicle = SimVehicle(VehicleConfig(VEH_SYS, GeoOrigin(78.0, 15.0), 78.0, 15.0,
+                                       cruise_speed_m_s=21.0))
+    encoder = MavlinkEncoder(GCS_SYS, GCS_COMP)
+
+    def ask(msg: MAVLinkMessage) -> list[MAVLinkMessage]:
+        sent = MavlinkDecoder().feed(encoder.encode(msg))
+        return [via_wire(m, VEH_SYS, VEH_COMP) for m in vehicle.receive(sent[0], 0.0)
+                if m.get_type() == "PARAM_VALUE"]
+
+    sm = ParamRead(VEH_SYS, VEH_COMP, "AIRSPEED_CRUISE", own_system=GCS_SYS)
+    (request,) = sm.start(0.0)
+    assert isinstance(request, Send)
+    (reply,) = ask(request.msg)
+    assert reply.param_index == 65535 and reply.param_count == len(vehicle.params)
+    (fin,) = sm.receive(reply, 0.1)
+    assert isinstance(fin, Finished) and sm.value == 21.0
+    unknown = ParamRead(VEH_SYS, VEH_COMP, "TRIM_ARSPD_CM")
+    (request,) = unknown.start(0.0)
+    assert isinstance(request, Send) and ask(request.msg) == []
+    index = vehicle.params.index_of("WP_RADIUS")
+    assert index is not None
+    (by_index,) = ask(M.MAVLink_param_request_read_message(VEH_SYS, VEH_COMP, b"", index))
+    assert by_index.param_index == index and by_index.param_id.rstrip("\x00") == "WP_RADIUS"
+    assert ask(M.MAVLink_param_request_read_message(VEH_SYS, VEH_COMP, b"WP_RADIUS", -2)) == []
+
+
 @pytest.mark.parametrize(
     "make",
     [
+        lambda: ParamRead(1, 1, ""),
+        lambda: ParamRead(1, 1, "A_NAME_LONGER_THAN_16"),
         lambda: ParamSet(1, 1, "", 1.0),
         lambda: ParamSet(1, 1, "A_NAME_LONGER_THAN_16", 1.0),
         lambda: ParamSet(1, 1, "RADIUS_\u00e9", 1.0),

@@ -93,6 +93,33 @@ def test_auto_on_the_ground_does_not_fly_unless_on_a_takeoff_item() -> None:
     assert last(lb, "EXTENDED_SYS_STATE").landed_state == M.MAV_LANDED_STATE_TAKEOFF
 
 
+def test_the_takeoff_climbs_out_faster_than_the_cruise_then_cruises() -> None:
+    """As ArduPilot SITL's plane: ~28 m/s airspeed during the NAV_TAKEOFF climb-out (issue
+    25 measured 27.6-28.1), the cruise (AIRSPEED_CRUISE, 22) once the take-off is done."""
+    lb = vehicle(airborne=False)
+    lb.vehicle.store.write(
+        1, MissionItem(M.MAV_CMD_NAV_TAKEOFF, M.MAV_FRAME_GLOBAL_RELATIVE_ALT, z=100.0)
+    )
+    lb.vehicle.store.write(
+        2, MissionItem(M.MAV_CMD_NAV_LOITER_UNLIM, M.MAV_FRAME_GLOBAL_RELATIVE_ALT,
+                       x=round(78.94 * 1e7), y=round(11.92 * 1e7), z=100.0)
+    )
+    lb.vehicle.autopilot.armed = True
+    lb.vehicle.autopilot.current_seq = 1
+    set_mode(lb, AUTO)
+    lb.advance(18.0)  # still climbing (at most 5 m/s)
+    climb = lb.take("VFR_HUD")
+    assert lb.vehicle.autopilot.nav is not None and lb.vehicle.autopilot.nav.kind == "takeoff"
+    assert 27.5 <= climb[-1].airspeed <= 28.0 + 1e-6 and climb[-1].climb > 1.0
+    done = lb.run_until(
+        lambda m: m.get_type() == "STATUSTEXT" and m.text.startswith("Takeoff complete"), 60.0
+    )
+    assert done is not None
+    lb.advance(10.0)
+    assert last(lb, "VFR_HUD").airspeed == pytest.approx(22.0)
+    assert lb.vehicle.params.get("AIRSPEED_CRUISE") == 22.0
+
+
 def test_system_status_while_booting_and_in_a_failsafe() -> None:
     config = VehicleConfig(1, ORIGIN, 78.93, 11.92)  # slow boot: INITIALISING for 2 s
     lb = Loopback(SimVehicle(config))

@@ -57,6 +57,9 @@ class Rig:
         self.asked: list[vio.Exchange] = []
         self.auto_answer = auto_answer
         self.holding_mission = False
+        self.params: dict[str, float] = {"AIRSPEED_CRUISE": 22.0}
+        """What the vehicle answers to a ParamRead (a name not here: silence, None)."""
+        self.reads: list[vio.ParamRead] = []
 
     # -- the vehicle's side
     def frame(self, kind: str, *events: Any, **changes: Any) -> list[vio.Output]:
@@ -74,10 +77,12 @@ class Rig:
         self.out += out
         for o in out:
             if isinstance(o, vio.UploadMission | vio.Download | vio.SetCurrent | vio.SetMode
-                          | vio.Arm | vio.ParamSet):
+                          | vio.Arm | vio.ParamSet | vio.ParamRead):
                 assert self.pending is None, "two exchanges at once"
                 self.pending = o
-                self.asked.append(o)
+                # reads (the cruise airspeed, before the first assessment) apart: ``asked``
+                # holds what commands the vehicle
+                (self.reads if isinstance(o, vio.ParamRead) else self.asked).append(o)
 
     def answer(self, result: Any) -> list[vio.Output]:
         request = self.pending
@@ -86,8 +91,11 @@ class Rig:
         return self.feed(vio.ExchangeDone(self.t, request, result))
 
     def auto(self) -> None:
-        """Answer as a cooperative vehicle would."""
-        while self.auto_answer and self.pending is not None:
+        """Answer as a cooperative vehicle would (parameter reads even without
+        ``auto_answer``: the tests that answer by hand are about commands)."""
+        while self.pending is not None and (
+            self.auto_answer or isinstance(self.pending, vio.ParamRead)
+        ):
             r = self.pending
             if isinstance(r, vio.UploadMission):
                 self.answer(vio.UploadOutcome(True, 0, None, len(r.steps) + 1))
@@ -104,6 +112,8 @@ class Rig:
             elif isinstance(r, vio.Arm):
                 self.snap = replace(self.snap, armed=True)
                 self.answer(ACCEPTED)
+            elif isinstance(r, vio.ParamRead):
+                self.answer(self.params.get(r.name))
             else:
                 self.answer(True)
 
@@ -297,6 +307,72 @@ def test_manual_after_auto_was_accepted_is_an_override_not_a_relaunch() -> None:
     rig.run(60.0, **MANUAL, armed=True)
     assert len(rig.requests(vio.UploadMission)) == 1 and len(rig.requests(vio.Arm)) == 1
     assert not rig.journal("launch_timeout") and rig.c.state is S.OVERRIDDEN
+
+
+# ------------------------------------------------------------------ the cruise airspeed
+def test_the_cruise_airspeed_is_read_before_joining_and_planned_with_not_the_climbs() -> None:
+    rig = Rig()
+    rig.run(4.0, airspeed_m_s=28.0)  # flying in AUTO at the climb-out's airspeed
+    assert [r.name for r in rig.reads] == ["AIRSPEED_CRUISE"]
+    read_at = rig.out.index(rig.reads[0])
+    assert all(rig.out.index(r) > read_at for r in rig.asked)  # before the park exchanges
+    assert [line.fields for line in rig.journal("cruise_speed")] == [
+        {"speed_m_s": 22.0, "source": "AIRSPEED_CRUISE"}]
+    joined = rig.core(ev.VehicleJoined)
+    assert len(joined) == 1 and joined[0].speed_m_s == 22.0
+    rig.run(2.0, airspeed_m_s=28.0)
+    speeds = {e.speed_m_s for e in rig.core(ev.Telemetry)}
+    assert speeds == {22.0}
+    assert len(rig.reads) == 1  # read once
+
+
+@pytest.mark.parametrize(
+    ("params", "speed_m_s", "source", "asked"),
+    [
+        ({"TRIM_ARSPD_CM": 2000.0}, 20.0, "TRIM_ARSPD_CM", ["AIRSPEED_CRUISE", "TRIM_ARSPD_CM"]),
+        ({"AIRSPEED_CRUISE": 0.0, "TRIM_ARSPD_CM": 1800.0}, 18.0, "TRIM_ARSPD_CM",
+         ["AIRSPEED_CRUISE", "TRIM_ARSPD_CM"]),  # 0 m/s is not believed
+        ({}, 19.0, "config", ["AIRSPEED_CRUISE", "TRIM_ARSPD_CM"]),  # neither answers
+    ],
+)
+def test_the_cruise_airspeed_of_older_firmware_or_else_the_configured_one(
+    params: dict[str, float], speed_m_s: float, source: str, asked: list[str]
+) -> None:
+    rig = Rig(speed_m_s=19.0)
+    rig.params = params
+    rig.run(4.0, airspeed_m_s=27.0)
+    assert [r.name for r in rig.reads] == asked
+    assert [line.fields for line in rig.journal("cruise_speed")] == [
+        {"speed_m_s": speed_m_s, "source": source}]
+    assert len(rig.journal("cruise_speed_refused")) == (1 if 0.0 in params.values() else 0)
+    assert [e.speed_m_s for e in rig.core(ev.VehicleJoined)] == [speed_m_s]
+
+
+def test_advisory_reads_no_parameter_and_plans_with_the_configured_speed() -> None:
+    rig = Rig(advisory=True, speed_m_s=21.0)
+    rig.run(4.0, airspeed_m_s=27.0)
+    assert rig.reads == [] and rig.asked == []
+    assert [line.fields for line in rig.journal("cruise_speed")] == [
+        {"speed_m_s": 21.0, "source": "config"}]
+    assert [e.speed_m_s for e in rig.core(ev.VehicleJoined)] == [21.0]
+
+
+def test_a_cruise_read_cut_short_by_a_lost_link_is_asked_again() -> None:
+    rig = Rig(auto_answer=False)
+    rig.snap = replace(rig.snap, **ON_GROUND)
+    rig.frame("HEARTBEAT")
+    rig.feed(vio.Tick(rig.t))
+    assert isinstance(rig.pending, vio.ParamRead)
+    rig.t = 20.0  # silence: the link is lost, the read aborted
+    rig.feed(vio.Tick(rig.t))
+    assert rig.c.link == "lost" and any(isinstance(o, vio.CancelExchange) for o in rig.out)
+    rig.answer(None)  # the driver's result of the cancelled read: it only frees the runner
+    assert rig.c.cruise_source is None
+    rig.params = {"AIRSPEED_CRUISE": 25.0}
+    rig.run(3.0)
+    assert [r.name for r in rig.reads] == ["AIRSPEED_CRUISE", "AIRSPEED_CRUISE"]
+    assert [line.fields["source"] for line in rig.journal("cruise_speed")] == ["AIRSPEED_CRUISE"]
+    assert rig.c.cruise_speed_m_s == 25.0
 
 
 # ------------------------------------------------------------------ flying to targets

@@ -64,6 +64,10 @@ class Port:
     def request_rates(self, position_hz: float) -> None:
         self.calls.append("rates")
 
+    async def param_read(self, name: str) -> float | None:
+        self.calls.append(f"read {name}")
+        return 22.0 if name == "AIRSPEED_CRUISE" else None
+
     async def download(self) -> TransferResult:
         self.calls.append("download")
         return TransferResult(True, TransferCode.SUCCESS, "ok", items=())
@@ -113,7 +117,8 @@ def test_link_loss_cancels_the_running_exchange() -> None:
             await asyncio.sleep(0.005)
             if "upload" in port.calls:
                 break
-        assert port.calls[:2] == ["rates", "download"] and "upload" in port.calls
+        assert port.calls[:3] == ["rates", "read AIRSPEED_CRUISE", "download"]
+        assert "upload" in port.calls
         t[0] = 20.0  # silence: the link is lost
         session.check_link(t[0])
         for _ in range(200):

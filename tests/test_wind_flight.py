@@ -157,6 +157,35 @@ def test_arrival_error_compares_the_eta_with_the_flown_arrival_at_the_aim_point(
     assert out["arrival_bias_s"] == pytest.approx(-0.5)
 
 
+def test_arrival_error_is_split_into_each_vehicles_first_leg_and_the_later_ones() -> None:
+    tracker = ArrivalTracker()
+    tracker.position(0.0, "1", 0.0, 0.0)
+    tracker.commanded(0.0, "1", "A", 1000.0, 0.0, 30.0, 150.0)  # flown 40 s: 10 s late
+    approach(tracker, "1", 0.0, 25.0, 0.0, 40.0)
+    tracker.commanded(40.0, "1", "B", 2000.0, 0.0, 81.0, 150.0)  # flown 80 s: 1 s early
+    approach(tracker, "1", 1000.0, 25.0, 40.0, 80.0)
+    tracker.commanded(80.0, "1", "C", 3000.0, 0.0, 123.0, 150.0)  # flown 120 s: 3 s early
+    approach(tracker, "1", 2000.0, 25.0, 80.0, 120.0)
+    # vehicle 2's first flight is replanned on the way (say by the first wind estimate):
+    # its first leg is measured against the replanned prediction
+    tracker.position(0.0, "2", 0.0, 0.0)
+    tracker.commanded(0.0, "2", "D", 600.0, 0.0, 40.0, 150.0)
+    tracker.commanded(1.0, "2", "D", 600.0, 0.0, 22.0, 150.0)  # flown 25 s: 3 s late
+    approach(tracker, "2", 0.0, 25.0, 1.0, 30.0)
+    out = tracker.to_dict()
+    assert sorted(tracker.first_errors_s) == pytest.approx([3.0, 10.0], abs=1e-9)
+    assert sorted(tracker.later_errors_s) == pytest.approx([-3.0, -1.0], abs=1e-9)
+    assert out["arrival_error_first_s"] == pytest.approx(
+        {"median": 6.5, "p90": 9.3, "max": 10.0, "counted": 2})
+    assert out["arrival_error_later_s"] == pytest.approx(
+        {"median": 2.0, "p90": 2.8, "max": 3.0, "counted": 2})
+    assert out["arrival_bias_first_s"] == pytest.approx(6.5)
+    assert out["arrival_bias_later_s"] == pytest.approx(-2.0)
+    assert out["arrivals"]["counted"] == 4 and out["arrivals"]["superseded"] == 1
+    empty = ArrivalTracker().to_dict()
+    assert empty["arrival_error_first_s"] is None and empty["arrival_error_later_s"] is None
+
+
 def test_redirected_inside_and_unfinished_commands_are_not_counted() -> None:
     tracker = ArrivalTracker()
     assert tracker.to_dict()["arrival_error_s"] is None

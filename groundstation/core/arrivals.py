@@ -30,7 +30,14 @@ already within ``r`` of the new aim point when told: nothing to predict), ``unfi
 (still on its way when the run ended). A command without ``eta_s`` is not followed.
 
 Reported: ``arrival_error_s`` ``{median, p90}`` of ``|error|``, ``arrival_bias_s`` the
-median signed error (None when nothing was counted). Percentiles interpolate linearly
+median signed error (None when nothing was counted). The same split by leg:
+``arrival_error_first_s`` / ``arrival_error_later_s`` ``{median, p90, max, counted}``
+(None when none was counted) and ``arrival_bias_first_s`` / ``arrival_bias_later_s``. A
+vehicle's *first leg* is its first counted arrival: its flight from the join to the first
+aim point it reached (planned at the join, before its own wind estimate exists:
+docs/wind.md, "The first leg"), measured against the command in force when it arrived (a
+leg replanned on the way counts with its replanned prediction); every later counted
+arrival is a later leg. Percentiles interpolate linearly
 between order statistics (numpy's default): ``p(q) = x[i] + (x[i+1] - x[i]) f``,
 ``i + f = (n - 1) q``.
 """
@@ -70,10 +77,14 @@ class ArrivalTracker:
     """Follows each vehicle's current FlyToTarget until it arrives or is redirected."""
 
     errors_s: list[float] = field(default_factory=list)
+    first_errors_s: list[float] = field(default_factory=list)
+    later_errors_s: list[float] = field(default_factory=list)
+    """``errors_s`` split into the first legs and the later ones (module docstring)."""
     superseded: int = 0
     inside_at_command: int = 0
     _pending: dict[str, _Pending] = field(default_factory=dict)
     _last: dict[str, tuple[float, float, float]] = field(default_factory=dict)
+    _arrived: set[str] = field(default_factory=set)
 
     def commanded(self, t_s: float, vehicle: str, target: str, x_m: float, y_m: float,
                   eta_s: float | None, fov_radius_m: float) -> None:
@@ -117,18 +128,28 @@ class ArrivalTracker:
         dt = t_s - t0
         t_in = t0 + dt * (d0 - r) / (d0 - d1)
         ground_m_s = math.dist((x0, y0), (x_m, y_m)) / dt
-        self.errors_s.append(t_in + r / ground_m_s - pending.eta_s)
+        error = t_in + r / ground_m_s - pending.eta_s
+        self.errors_s.append(error)
+        first = vehicle not in self._arrived
+        self._arrived.add(vehicle)
+        (self.first_errors_s if first else self.later_errors_s).append(error)
 
     def to_dict(self) -> dict[str, Any]:
-        """``arrival_error_s``, ``arrival_bias_s`` and ``arrivals`` (module docstring)."""
+        """``arrival_error_s``, ``arrival_bias_s``, ``arrivals`` and the split by leg
+        (module docstring)."""
         errors = self.errors_s
         absolute = [abs(e) for e in errors]
+        first, later = self.first_errors_s, self.later_errors_s
         return {
             "arrival_error_s": {
                 "median": statistics.median(absolute),
                 "p90": percentile(absolute, 0.9),
             } if errors else None,
             "arrival_bias_s": statistics.median(errors) if errors else None,
+            "arrival_error_first_s": _summary(first),
+            "arrival_bias_first_s": statistics.median(first) if first else None,
+            "arrival_error_later_s": _summary(later),
+            "arrival_bias_later_s": statistics.median(later) if later else None,
             "arrivals": {
                 "counted": len(errors),
                 "superseded": self.superseded,
@@ -136,3 +157,12 @@ class ArrivalTracker:
                 "unfinished": len(self._pending),
             },
         }
+
+
+def _summary(errors: Sequence[float]) -> dict[str, float | int] | None:
+    """``{median, p90, max, counted}`` of ``|error|`` (None when nothing was counted)."""
+    if not errors:
+        return None
+    absolute = [abs(e) for e in errors]
+    return {"median": statistics.median(absolute), "p90": percentile(absolute, 0.9),
+            "max": max(absolute), "counted": len(absolute)}

@@ -91,6 +91,14 @@ class CoreConfig:
     what the core plans with while no vehicle reports its own (``core/wind_estimate.py``)."""
     wind_aware: bool = True
     """False: plan and predict as in still air even in wind (the wind-blind baseline)."""
+    wind_replan_m_s: float | None = 2.0
+    """A committed leg predicted before the first wind estimate, or in a wind that has since
+    changed by more than this (m/s, vector difference), is predicted again, and replanned
+    if its arrival moved by more than ``wind_replan_margin_s`` (``core/wind_replan.py``;
+    docs/wind.md, "The first leg"). None: never (journals written before the rule existed
+    read as None, so they replay as they ran)."""
+    wind_replan_margin_s: float = 5.0
+    """See ``wind_replan_m_s`` (s)."""
     tracker: TrackerConfig = field(default_factory=TrackerConfig)
     """The multi-target tracker's settings (used only once unlabelled detections, camera
     frames or prior targets arrive: ``core/tracking.py``)."""
@@ -132,6 +140,15 @@ class CoreConfig:
         object.__setattr__(self, "wind_xy_m_s", (wind[0], wind[1]))
         if not isinstance(self.wind_aware, bool):
             raise ValueError(f"wind_aware must be true or false, got {self.wind_aware!r}")
+        for name, value, optional in (("wind_replan_m_s", self.wind_replan_m_s, True),
+                                      ("wind_replan_margin_s", self.wind_replan_margin_s, False)):
+            if value is None and optional:
+                continue
+            if isinstance(value, bool) or not isinstance(value, int | float) or not (
+                math.isfinite(value) and value >= 0
+            ):
+                raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
+            object.__setattr__(self, name, float(value))
         if self.area_m is not None:
             try:
                 area = tuple(float(c) for c in self.area_m)
@@ -170,6 +187,7 @@ def config_from_dict(data: Mapping[str, Any]) -> CoreConfig:
     if unknown:
         raise ValueError(f"core config: unknown key {unknown[0]!r}")
     values = dict(data)
+    values.setdefault("wind_replan_m_s", None)  # written before the rule: it was off
     try:
         if "policy" in values:
             values["policy"] = ReplanPolicy(**values["policy"])

@@ -67,6 +67,7 @@ from groundstation.core.planning_targets import build_problem, search_targets, t
 from groundstation.core.tracking import TrackBook, TrackerFactory
 from groundstation.core.views import SearchCellView, TrackView, search_cell_view
 from groundstation.core.wind_estimate import WindEstimator, WindState
+from groundstation.core.wind_replan import WindReplan
 from observer import UNCONFIRMED, MeasurementOutcome, Observer, boat_priority_q
 from planner import PlanningProblem, PlanResult, UavPose
 from planner.problem import wind_problem
@@ -96,6 +97,8 @@ class DecisionCore:
         self.boat_xy_m: tuple[float, float] | None = None
         self.wind = WindEstimator(config.wind_xy_m_s)
         """The vehicles' wind estimate, combined (``core/wind_estimate.py``)."""
+        self.wind_replan = WindReplan(config.wind_replan_m_s, config.wind_replan_margin_s,
+                                      config.observer.fov_radius_m)
         self._next_request_id = 1
         # The observer's verdict on the last Detection (None: it added a new target).
         self.last_measurement: MeasurementOutcome | None = None
@@ -170,7 +173,22 @@ class DecisionCore:
         return self.wind.current
 
     def _update_wind(self, t_s: float) -> list[Command]:
-        return self.wind.update(t_s, {v.id for v in self.active_vehicles()})
+        """The estimate at ``t_s``; legs it moved are replanned (``core/wind_replan.py``)."""
+        out = self.wind.update(t_s, {v.id for v in self.active_vehicles()})
+        if self.config.wind_aware:
+            state = self.wind.current
+            notes = self.wind_replan.replan(t_s, state.xy_m_s, state.source,
+                                            self.active_vehicles(), self._leg_time_s,
+                                            self.config.policy.commit)
+            if notes:
+                self._mark_dirty("wind changed")
+                out += notes
+        return out
+
+    def _leg_time_s(self, record: VehicleRecord, aim_xy_m: tuple[float, float]) -> float:
+        """Flight time from ``record``'s pose to the fixed point ``aim_xy_m`` now."""
+        wind = self.planning_wind_m_s()
+        return intercept(record, aim_xy_m, (0.0, 0.0), wind, self.config.turn_radius_m)[2]
 
     # ------------------------------------------------------------------ event handlers
     def _count(self, key: str) -> None:
@@ -411,7 +429,9 @@ class DecisionCore:
         record.busy = True
         if unchanged and not self.config.policy.commit:
             return None
-        record.target, record.aim_xy_m = target, aim
+        record.target, record.aim_xy_m, record.eta_s = target, aim, t_s + t_arr_s
+        record.leg_wind_xy_m_s = self.planning_wind_m_s()
+        record.leg_wind_source = self.wind.current.source
         return FlyToTarget(t_s, record.id, target, aim[0], aim[1], self.config.loiter_s,
                            self.config.loiter_radius_m, route, eta_s=t_s + t_arr_s)
 

@@ -40,6 +40,11 @@ class VehicleRecord:
     busy: bool = False
     aim_xy_m: tuple[float, float] | None = None
     route: tuple[str, ...] = field(default=())
+    eta_s: float | None = None
+    """The predicted arrival of the leg last commanded (``FlyToTarget.eta_s``)."""
+    leg_wind_xy_m_s: tuple[float, float] | None = None
+    leg_wind_source: str | None = None
+    """The wind that leg was predicted in, and its source (``core/wind_replan.py``)."""
 
     @property
     def idle(self) -> bool:

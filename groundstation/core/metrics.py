@@ -22,7 +22,10 @@
   most 1.5 times the first half's) stays for comparison: it passes growing runs and fails
   level ones whose first half was unusually good.
 * ``arrival_error_s`` {median, p90}, ``arrival_bias_s`` and ``arrivals``: the core's
-  predicted arrival at each aim point against the flown one (:mod:`.arrivals`); frontends
+  predicted arrival at each aim point against the flown one (:mod:`.arrivals`), and the
+  same split into each vehicle's first leg and the later ones (``arrival_error_first_s``,
+  ``arrival_error_later_s`` {median, p90, max, counted}, ``arrival_bias_first_s``,
+  ``arrival_bias_later_s``); frontends
   feed it with :meth:`MetricsRecorder.fly`, :meth:`~MetricsRecorder.position` and
   :meth:`~MetricsRecorder.abandoned`.
 """

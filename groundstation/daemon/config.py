@@ -213,6 +213,11 @@ class PlannerConfig:
     replan: ReplanTrigger | None = None
     period_s: float | None = None
     commit: bool | None = None
+    wind_replan: bool | None = None
+    """False: legs are never replanned for the wind (``CoreConfig.wind_replan_m_s`` None)."""
+    wind_replan_m_s: float | None = None
+    wind_replan_margin_s: float | None = None
+    """The core's wind-replan settings (docs/wind.md, "The first leg"); None: its defaults."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -386,14 +391,17 @@ def load_config_file(path: str) -> dict[str, Any]:
 
 
 def controller_settings(
-    config: DaemonConfig, vehicle: VehicleSettings, index: int
+    config: DaemonConfig, vehicle: VehicleSettings, index: int,
+    planned_speed_m_s: float | None = None,
 ) -> ControllerSettings:
-    """The mapping from the daemon's configuration (the only place that knows both)."""
+    """The mapping from the daemon's configuration (the only place that knows both).
+    ``planned_speed_m_s``: the core's airspeed (the scenario's), the configured speed of a
+    vehicle without its own ``speed_m_s`` whose cruise airspeed cannot be read."""
     fleet = config.fleet
     return ControllerSettings(
         altitude_m=vehicle.altitude_m or fleet.altitude_m + fleet.altitude_step_m * index,
         loiter_radius_m=vehicle.loiter_radius_m,
-        speed_m_s=vehicle.speed_m_s,
+        speed_m_s=vehicle.speed_m_s or planned_speed_m_s,
         launch=bool(fleet.launch),
         advisory=config.advisory,
         lost_after_s=fleet.lost_after_s,

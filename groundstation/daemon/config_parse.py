@@ -408,6 +408,8 @@ _CHECKS: dict[str, Check] = {
     "planner.time_limit_s": _positive(optional=True),
     "mission.loiter_radius_m": _positive(optional=True),
     "planner.period_s": _positive(optional=True),
+    "planner.wind_replan_m_s": _positive(optional=True),
+    "planner.wind_replan_margin_s": _positive(optional=True),
     "mission.operating_radius_m": _positive(optional=True),
     "mission.loiter_s": lambda v: None if v is None else _between(0, 65535, "0..65535 s")(v),
     "fleet.altitude_step_m": _between(0, math.inf, ">= 0"),

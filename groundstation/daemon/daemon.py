@@ -314,7 +314,8 @@ class Daemon:
         )
         index = sysid - 1 if self.config.sim_count else len(self.sessions)
         session = VehicleSession(
-            sysid, name, index, self, self.config, settings, port, self.clock, component_id
+            sysid, name, index, self, self.config, settings, port, self.clock, component_id,
+            planned_speed_m_s=self.core_config.speed_m_s,
         )
         self.sessions[sysid] = session
         self.by_name[name] = session

@@ -79,6 +79,7 @@ PROBLEM_EVENTS = frozenset(
         "wind_refused",
         "wind_fallback",
         "airspeed_failed",
+        "cruise_speed_refused",
     }
 )
 """Operator events that report something wrong: logged at WARNING."""
@@ -92,6 +93,8 @@ OPERATOR_EVENTS = PROBLEM_EVENTS | frozenset(
         "resume",
         "vehicle_seen",
         "vehicle_joined",
+        "cruise_speed",
+        "wind_replan",
         "origin",
         "launch",
         "launch_request",

@@ -68,6 +68,7 @@ class VehicleSession:
         port: VehiclePort,
         clock: MissionClock,
         component_id: int = 1,
+        planned_speed_m_s: float | None = None,
     ) -> None:
         self.system_id = system_id
         self.component_id = component_id
@@ -79,7 +80,7 @@ class VehicleSession:
         self.port = port
         self.clock = clock
         self.controller = VehicleController(
-            name, system_id, controller_settings(config, settings, index)
+            name, system_id, controller_settings(config, settings, index, planned_speed_m_s)
         )
         self.telemetry = VehicleTelemetry(
             system_id, host.origin, battery_low_pct=config.fleet.battery.low_pct,
@@ -273,6 +274,8 @@ class VehicleSession:
             return await port.set_mode(int(request.mode))
         if isinstance(request, controller_io.Arm):
             return await port.arm()
+        if isinstance(request, controller_io.ParamRead):
+            return await port.param_read(request.name)
         return await port.param_set(request.name, request.value)
 
     async def _upload_verified(

@@ -74,8 +74,9 @@ def _versions() -> dict[str, str]:
 
 def core_config(config: DaemonConfig, scenario: Any, speedup: float) -> CoreConfig:
     """The core's settings: the scenario's (or the core's defaults), overridden by the
-    config. The solver's wall budget is the time limit divided by the speed-up, so a plan
-    takes the same mission time at any speed-up (floor 0.05 s). The fallback wind is the
+    config (``planner.wind_replan: false`` turns the wind replan off). The solver's wall
+    budget is the time limit divided by the speed-up, so a plan takes the same mission time
+    at any speed-up (floor 0.05 s). The fallback wind is the
     config's, else the scenario's (``wind_view.fallback_wind``)."""
     base = core_config_for(scenario) if scenario is not None else CoreConfig()
     policy = base.policy
@@ -95,8 +96,13 @@ def core_config(config: DaemonConfig, scenario: Any, speedup: float) -> CoreConf
         except ValueError as exc:
             raise StartError(f"replan: {exc}") from None
     limit = planner.time_limit_s or base.time_limit_s
+    wind_replan_m_s = (
+        None if planner.wind_replan is False else planner.wind_replan_m_s or base.wind_replan_m_s
+    )
     return dataclasses.replace(
         base,
+        wind_replan_m_s=wind_replan_m_s,
+        wind_replan_margin_s=planner.wind_replan_margin_s or base.wind_replan_margin_s,
         policy=policy,
         loiter_s=mission.loiter_s if mission.loiter_s is not None else base.loiter_s,
         loiter_radius_m=(

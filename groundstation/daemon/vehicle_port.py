@@ -2,7 +2,7 @@
 
 A :class:`VehiclePort` sends the daemon's messages to one system id (through the router)
 and runs its exchanges: mission upload / download / set current, COMMAND_LONG with its
-COMMAND_ACK, PARAM_SET with its PARAM_VALUE, each one a
+COMMAND_ACK, PARAM_SET and PARAM_REQUEST_READ with their PARAM_VALUE, each one a
 :class:`~groundstation.mavlink.mission_transfer.TransferBase` machine. Every timeout is in
 mission seconds (``clock.wall_s`` turns a wait into wall time), so at a 50x speed-up the
 vehicle sees the same 1.5 s timeouts it would see at 1x.
@@ -16,8 +16,9 @@ Rules (docs/protocol.md, "Driving transfers in the daemon"):
   order, so nothing reaches a finished machine.
 * **A reboot is a flag.** The driver calls ``machine.notify_vehicle_rebooted``, sends what
   it returns and returns the VEHICLE_REBOOTED result (``command()`` returns None,
-  ``param_set()`` False). A reboot seen while no exchange runs is forgotten: the next
-  exchange starts against the rebooted vehicle, which is what it must talk to.
+  ``param_set()`` False, ``param_read()`` None). A reboot seen while no exchange runs is
+  forgotten: the next exchange starts against the rebooted vehicle, which is what it must
+  talk to.
 * **Exchanges are serialised** (an :class:`asyncio.Lock`, first come first served): a
   COMMAND_LONG asked for during an upload waits for the upload's end; it never sees the
   upload's messages. Messages delivered while no exchange runs are dropped.
@@ -48,7 +49,7 @@ from groundstation.mavlink.mission_transfer import (
     TransferResult,
 )
 from groundstation.mavlink.mission_upload import MissionUpload
-from groundstation.mavlink.vehicle_commands import CommandLong, ParamSet
+from groundstation.mavlink.vehicle_commands import CommandLong, ParamRead, ParamSet
 
 __all__ = ["PortClock", "VehiclePort"]
 
@@ -302,6 +303,22 @@ class VehiclePort:
             )
         )
         return result.ok
+
+    async def param_read(
+        self, name: str, timeout_s: float = 1.0, retries: int = 2
+    ) -> float | None:
+        """PARAM_REQUEST_READ by name until its PARAM_VALUE: the value, or None on silence
+        (ArduPilot does not answer a name it does not have) or reboot."""
+        machine = ParamRead(
+            self.system_id,
+            self.component_id,
+            name,
+            timeout_s=timeout_s,
+            retries=retries,
+            own_system=self._own_system,
+        )
+        await self.run(machine)
+        return machine.value
 
     def request_rates(self, position_hz: float) -> None:
         """Ask for the telemetry the daemon needs (fire and forget; repeated by the session).

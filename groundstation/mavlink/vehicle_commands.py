@@ -1,4 +1,5 @@
-"""Sans-IO COMMAND_LONG and PARAM_SET exchanges (the ones that are not about the mission).
+"""Sans-IO COMMAND_LONG, PARAM_SET and PARAM_REQUEST_READ exchanges (the ones that are not
+about the mission).
 
 :class:`CommandLong`: send ``COMMAND_LONG(command, params)`` until a ``COMMAND_ACK`` for
 that command, addressed to us, carries a final result (anything but IN_PROGRESS). Silence
@@ -12,7 +13,18 @@ name echoes the value (relative and absolute tolerance 1e-6, float32 on the wire
 ``PARAM_VALUE`` of that name with another value (the vehicle clamped or refused it) is
 noted and waited past: silence resends, and the retries end it with TIMEOUT.
 
-Both follow :class:`~groundstation.mavlink.mission_transfer.TransferBase`: peer input never
+
+
+:class:`ParamRead`: send ``PARAM_REQUEST_READ(name, param_index = -1)`` (by name) until a
+``PARAM_VALUE`` of that name arrives; its value is :attr:`ParamRead.value`. ArduPilot
+answers a read by name with the parameter's value and ``param_index`` -1 (65535 on the
+wire: it echoes the request's index), and does **not answer at all** for a name it does not
+have (``GCS_MAVLINK::param_io_timer``: ``AP_Param::find`` returns nothing, no reply), so
+an unknown name ends only by the retries, with TIMEOUT. Any PARAM_VALUE of that name counts
+(the index is not checked: a by-index answer, or the broadcast after another ground
+station's PARAM_SET, carries the same value); a non-finite value is noted and waited past.
+
+All three follow :class:`~groundstation.mavlink.mission_transfer.TransferBase`: peer input never
 raises, input after the end returns ``[]``; bad arguments raise ``LocalProtocolError``.
 """
 
@@ -36,7 +48,14 @@ from groundstation.mavlink.mission_transfer import (
     int_field,
 )
 
-__all__ = ["CommandLong", "CommandState", "ParamSet", "ParamSetState"]
+__all__ = [
+    "CommandLong",
+    "CommandState",
+    "ParamRead",
+    "ParamReadState",
+    "ParamSet",
+    "ParamSetState",
+]
 
 COMMAND_LONG_TIMEOUT_S = 1.0
 _UINT8_MAX = 255
@@ -168,8 +187,7 @@ class ParamSet(TransferBase[ParamSetState]):
             own_system=own_system,
             own_component=own_component,
         )
-        if not (name and name.isascii() and len(name) <= _PARAM_ID_LEN and "\x00" not in name):
-            raise LocalProtocolError(f"parameter name must be 1..16 ASCII characters: {name!r}")
+        _check_name(name)
         if not math.isfinite(f32(float(value))):
             raise LocalProtocolError(f"parameter {name} value must fit a float32: {value!r}")
         self.name = name
@@ -189,10 +207,7 @@ class ParamSet(TransferBase[ParamSetState]):
         return [Send(self._message())]
 
     def _on_message(self, kind: str, msg: MAVLinkMessage, now_s: float) -> list[Action]:
-        raw = getattr(msg, "param_id", None)
-        if isinstance(raw, bytes):
-            raw = raw.decode("ascii", "replace")
-        if not isinstance(raw, str) or raw.rstrip("\x00") != self.name:
+        if _param_id(msg) != self.name:
             return []
         value = float_field(msg, "param_value")
         if value is None:
@@ -210,3 +225,88 @@ class ParamSet(TransferBase[ParamSetState]):
             self.value,
             mavlink2.MAV_PARAM_TYPE_REAL32,
         )
+
+
+class ParamReadState(enum.Enum):
+    """Where a parameter read is."""
+
+    IDLE = "idle"
+    WAITING_VALUE = "waiting_value"  # PARAM_REQUEST_READ sent (silence resends it)
+    DONE = "done"
+
+
+class ParamRead(TransferBase[ParamReadState]):
+    """Read parameter ``name`` by name (PARAM_REQUEST_READ, index -1) from its PARAM_VALUE
+    (module docstring); :attr:`value` once it succeeded."""
+
+    default_timeout_s = COMMAND_LONG_TIMEOUT_S
+    _IDLE = ParamReadState.IDLE
+    _DONE = ParamReadState.DONE
+    _HANDLED = frozenset({"PARAM_VALUE"})
+    _WHAT = "parameter read"
+
+    def __init__(
+        self,
+        target_system: int,
+        target_component: int,
+        name: str,
+        *,
+        timeout_s: float = COMMAND_LONG_TIMEOUT_S,
+        retries: int = DEFAULT_RETRIES,
+        own_system: int | None = None,
+        own_component: int | None = None,
+    ) -> None:
+        super().__init__(
+            target_system,
+            target_component,
+            timeout_s=timeout_s,
+            retries=retries,
+            own_system=own_system,
+            own_component=own_component,
+        )
+        _check_name(name)
+        self.name = name
+        self.value: float | None = None
+        """The value the vehicle answered (float32 on the wire), once it did."""
+
+    def start(self, now_s: float) -> list[Action]:
+        """Begin: send PARAM_REQUEST_READ."""
+        self._begin(now_s, ParamReadState.WAITING_VALUE)
+        return [Send(self._message())]
+
+    def _on_silence(self, now_s: float, *, give_up: bool) -> list[Action]:
+        if give_up:
+            return self._finish(
+                TransferCode.TIMEOUT,
+                f"no PARAM_VALUE {self.name} after {self.retries + 1} PARAM_REQUEST_READ "
+                "(ArduPilot does not answer a name it does not have)",
+            )
+        return [Send(self._message())]
+
+    def _on_message(self, kind: str, msg: MAVLinkMessage, now_s: float) -> list[Action]:
+        if _param_id(msg) != self.name:
+            return []
+        value = float_field(msg, "param_value")
+        if value is None:  # not a finite number
+            self._notes.append(f"PARAM_VALUE {self.name} at t={now_s:.3f}s: no finite value")
+            return []
+        self.value = value
+        return self._finish(TransferCode.SUCCESS, f"{self.name} = {value:g}")
+
+    def _message(self) -> MAVLinkMessage:
+        return mavlink2.MAVLink_param_request_read_message(
+            self.target_system, self.target_component, self.name.encode("ascii"), -1
+        )
+
+
+def _check_name(name: str) -> None:
+    if not (name and name.isascii() and len(name) <= _PARAM_ID_LEN and "\x00" not in name):
+        raise LocalProtocolError(f"parameter name must be 1..16 ASCII characters: {name!r}")
+
+
+def _param_id(msg: MAVLinkMessage) -> str | None:
+    """A PARAM_VALUE's name (NUL padding stripped), or None when unreadable."""
+    raw = getattr(msg, "param_id", None)
+    if isinstance(raw, bytes):
+        raw = raw.decode("ascii", "replace")
+    return raw.rstrip("\x00") if isinstance(raw, str) else None

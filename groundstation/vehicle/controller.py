@@ -11,7 +11,9 @@ Rules (each decision needs evidence over several frames, :mod:`.evidence`):
 * Join / rejoin / resume only a *flying* vehicle: armed, above ``flying_alt_m``, faster
   than ``flying_speed_m_s``, not landed (EXTENDED_SYS_STATE), sustained. Flying in GUIDED
   (or advisory) joins at once; in AUTO it is parked first (:func:`~.jobs.park_job`); on the
-  ground it is launched only when asked.
+  ground it is launched only when asked. Before it is first assessed, its cruise airspeed
+  is read (:func:`~.jobs.cruise_job`; advisory: the configured one): the speed the core
+  plans it with.
 * An active vehicle leaves the plan when it is on the ground (``landed``), when it makes no
   progress to its aim point for ``progress_timeout_s`` (``no_progress``: core VehicleLost,
   re-assessed after that long again), on a confirmed reboot, a lost link, a sustained mode
@@ -46,6 +48,7 @@ from groundstation.mavlink.telemetry_events import (
 from groundstation.vehicle import controller_io
 from groundstation.vehicle.jobs import (
     Job,
+    cruise_job,
     home_job,
     launch_job,
     park_job,
@@ -482,6 +485,12 @@ class VehicleController(ControllerState):
         if not self.s.advisory and t - self._rates_at_s >= self.s.rates_every_s:
             self._rates_at_s = t
             self._out.append(controller_io.RequestRates(self.s.telemetry_rate_hz))
+        if self.cruise_source is None and self.state in ASSESSED:
+            if self.s.advisory:  # sends nothing but heartbeats: the configured speed
+                self.cruise_known(None, "config")
+            else:
+                self._start(cruise_job(self))  # before it can join (docs/daemon.md)
+                return True
         if self.state in ASSESSED and t >= max(self._retry_at_s, self._hold_until_s):
             self._assess()
             if self._jobs.job is not None:

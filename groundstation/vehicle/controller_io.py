@@ -35,6 +35,7 @@ __all__ = [
     "JournalLine",
     "NotifyRebooted",
     "Output",
+    "ParamRead",
     "ParamSet",
     "Release",
     "RequestRates",
@@ -113,7 +114,7 @@ class UploadOutcome:
 class ExchangeDone:
     """The answer to ``request``: an :class:`UploadOutcome` (UploadMission), a
     ``TransferResult`` (Download, SetCurrent), a MAV_RESULT or None on silence (SetMode,
-    Arm) or a bool (ParamSet)."""
+    Arm), a bool (ParamSet) or the value read, None on silence (ParamRead)."""
 
     t_s: float
     request: Exchange
@@ -165,7 +166,15 @@ class ParamSet:
     value: float
 
 
-Exchange = UploadMission | Download | SetCurrent | SetMode | Arm | ParamSet
+@dataclass(frozen=True, eq=False)
+class ParamRead:
+    """Read parameter ``name`` (PARAM_REQUEST_READ by name; the driver retries a silence a
+    bounded number of times): the value, or None when the vehicle does not answer."""
+
+    name: str
+
+
+Exchange = UploadMission | Download | SetCurrent | SetMode | Arm | ParamSet | ParamRead
 
 
 @dataclass(frozen=True)

@@ -27,6 +27,7 @@ from groundstation.vehicle.controller_io import (
     Download,
     Exchange,
     Fly,
+    ParamRead,
     ParamSet,
     SetCurrent,
     SetMode,
@@ -35,10 +36,14 @@ from groundstation.vehicle.controller_io import (
 )
 
 __all__ = [
+    "CRUISE_MAX_M_S",
+    "CRUISE_MIN_M_S",
+    "CRUISE_PARAMS",
     "Job",
     "JobHost",
     "JobRunner",
     "Pause",
+    "cruise_job",
     "home_job",
     "launch_job",
     "park_job",
@@ -47,6 +52,16 @@ __all__ = [
 
 M = mavlink2
 LAUNCH_AHEAD_M = 400.0
+CRUISE_PARAMS: tuple[tuple[str, float], ...] = (
+    ("AIRSPEED_CRUISE", 1.0),  # ArduPlane 4.5 and later: m/s
+    ("TRIM_ARSPD_CM", 0.01),  # before 4.5: cm/s
+)
+"""The parameters that hold ArduPlane's cruise airspeed, in the order asked, and the factor
+to m/s."""
+CRUISE_MIN_M_S = 5.0
+CRUISE_MAX_M_S = 100.0
+"""A cruise airspeed read outside [min, max] m/s is not believed (``domain.limits``'
+MAX_SPEED_M_S; no fixed-wing UAV cruises below 5 m/s)."""
 
 
 @dataclass(frozen=True)
@@ -84,6 +99,7 @@ class JobHost(Protocol):
     def target_failed(self, fly: Fly) -> bool: ...
     def target_wanted(self) -> bool: ...
     def home_done(self, ok: bool) -> None: ...
+    def cruise_known(self, speed_m_s: float | None, source: str) -> None: ...
 
 
 def mission_job(
@@ -199,6 +215,26 @@ def target_job(host: JobHost, fly: Fly) -> Job:
         yield Pause(host.t_s + host.retry_pause_s)
         if not host.target_wanted():  # overtaken while it paused: the newer one goes next
             return
+
+
+def cruise_job(host: JobHost) -> Job:
+    """Read the vehicle's cruise airspeed: ``AIRSPEED_CRUISE`` (m/s), else ``TRIM_ARSPD_CM``
+    (cm/s, firmware before 4.5), each by name (the driver retries a silence a bounded number
+    of times; ArduPilot does not answer a name it lacks). The first believable answer is
+    the speed floe plans the vehicle with (``host.cruise_known(speed, name)``); with none,
+    ``host.cruise_known(None, "config")``: the configured speed. A value outside
+    [CRUISE_MIN_M_S, CRUISE_MAX_M_S] is journalled (``cruise_speed_refused``) and the next
+    parameter asked."""
+    for name, to_m_s in CRUISE_PARAMS:
+        value = yield ParamRead(name)
+        if value is None:
+            continue
+        speed_m_s = value * to_m_s
+        if CRUISE_MIN_M_S <= speed_m_s <= CRUISE_MAX_M_S:
+            host.cruise_known(speed_m_s, name)
+            return
+        host.journal("cruise_speed_refused", name=name, value=value)
+    host.cruise_known(None, "config")
 
 
 def home_job(host: JobHost) -> Job:

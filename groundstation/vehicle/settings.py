@@ -26,6 +26,8 @@ class ControllerSettings:
     passes whole; a faster stream is thinned to ~1 Hz), and only after it has been active
     and reporting for ``wind_settle_s`` (an autopilot's wind estimate starts from zero and
     converges in flight: a vehicle just launched or taken over under-reports at first).
+    ``speed_m_s``: the configured airspeed (the vehicle's own setting, else the core's),
+    planned with only when the vehicle's cruise airspeed parameter cannot be read.
     """
 
     altitude_m: float = 100.0

@@ -78,6 +78,10 @@ class ControllerState:
         self.alt_m = settings.altitude_m
         self.retry_pause_s = settings.retry_pause_s
         self.wp_loiter_rad_m: float | None = None
+        self.cruise_speed_m_s: float | None = None
+        """The airspeed floe plans this vehicle with (:meth:`cruise_known`; None until read)."""
+        self.cruise_source: str | None = None
+        """Where it came from: ``AIRSPEED_CRUISE``, ``TRIM_ARSPD_CM`` or ``config``."""
         self.fly: FlyRecord | None = None
         self.uploads_ok = 0
         self.uploads_failed = 0
@@ -161,11 +165,15 @@ class ControllerState:
         self._out.append(controller_io.CoreEvent(event))
 
     def _pose(self, joined: bool = False) -> ev.Event | None:
+        """The core's pose event. Its speed is the cruise airspeed the vehicle will fly
+        (read at join, :func:`~.jobs.cruise_job`, else the configured one), never the one
+        measured now: ArduPlane climbs out at ~28 m/s and then cruises at AIRSPEED_CRUISE
+        (docs/wind.md, "The first leg")."""
         s = self.snap
         if s.x_m is None or s.y_m is None:
             return None
         heading = s.heading_rad if s.heading_rad is not None else 0.0
-        speed = s.airspeed_m_s or s.speed_m_s or self.s.speed_m_s or 22.0
+        speed = self.cruise_speed_m_s or self.s.speed_m_s or 22.0
         cls = ev.VehicleJoined if joined else ev.Telemetry
         return cls(self.t_s, self.vehicle, s.x_m, s.y_m, heading, speed)
 
@@ -325,6 +333,14 @@ class ControllerState:
         """Whether the job's target still stands: commanded, not overtaken by a newer
         FlyToTarget, link up."""
         return self.commanded and self._pending_fly is None and self.link != "lost"
+
+    def cruise_known(self, speed_m_s: float | None, source: str) -> None:
+        """The cruise airspeed was read (``source`` the parameter), or not (``config``:
+        the configured speed); journalled as ``cruise_speed``."""
+        configured = self.s.speed_m_s or 22.0
+        self.cruise_speed_m_s = configured if speed_m_s is None else speed_m_s
+        self.cruise_source = source
+        self.journal("cruise_speed", speed_m_s=self.cruise_speed_m_s, source=source)
 
     def home_done(self, ok: bool) -> None:
         self.journal("rtl", ok=ok)

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from groundstation.runners.campaign.grid import RunTask
-from groundstation.runners.campaign.schema import metrics_columns
+from groundstation.runners.campaign.schema import ARRIVAL_SUMMARIES, metrics_columns
 from groundstation.runners.simulate.simulator import PlanRecord, SimulationOptions, run_simulation
 from world.scenario import parse_scenario
 
@@ -156,8 +156,8 @@ def flatten_metrics(metrics: Mapping[str, Any]) -> dict[str, Any]:
             flat[key] = len(value)
         elif isinstance(value, Mapping):
             flat.update({f"{key}_{inner}": v for inner, v in value.items()})
-        elif value is None and key == "arrival_error_s":  # no arrival was counted
-            flat.update({f"{key}_median": None, f"{key}_p90": None})
+        elif value is None and key in ARRIVAL_SUMMARIES:  # no arrival was counted
+            flat.update({f"{key}_{inner}": None for inner in ARRIVAL_SUMMARIES[key]})
         elif not isinstance(value, list):
             flat[key] = value
     columns = metrics_columns()

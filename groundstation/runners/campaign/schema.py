@@ -22,6 +22,7 @@ if TYPE_CHECKING:
     from groundstation.runners.campaign.grid import CampaignSpec
 
 __all__ = [
+    "ARRIVAL_SUMMARIES",
     "COORDINATE_METRICS",
     "WALL_CLOCK_COLUMNS",
     "metrics_columns",
@@ -51,6 +52,12 @@ _METRICS: dict[str, str] = {
     "arrival_error_s_median": "float64",
     "arrival_error_s_p90": "float64",
     "arrival_bias_s": "float64",
+    **{f"arrival_error_{leg}_s_{inner}": kind
+       for leg in ("first", "later")
+       for inner, kind in (("median", "float64"), ("p90", "float64"), ("max", "float64"),
+                           ("counted", "int64"))},
+    "arrival_bias_first_s": "float64",
+    "arrival_bias_later_s": "float64",
     "arrivals_counted": "int64",
     "arrivals_superseded": "int64",
     "arrivals_inside_at_command": "int64",
@@ -67,6 +74,14 @@ _METRICS: dict[str, str] = {
     "false_tracks_per_hour": "float64",
     "id_switches": "int64",
 }
+
+ARRIVAL_SUMMARIES: dict[str, tuple[str, ...]] = {
+    "arrival_error_s": ("median", "p90"),
+    "arrival_error_first_s": ("median", "p90", "max", "counted"),
+    "arrival_error_later_s": ("median", "p90", "max", "counted"),
+}
+"""metrics.json's arrival summaries (None when no arrival was counted) and their keys:
+one column ``{key}_{inner}`` each, null for a None summary."""
 
 COORDINATE_METRICS = ("scenario", "uavs", "seed", "objective", "uncertainty_series")
 """metrics.json keys that are not metric columns: the grid columns hold the first four
