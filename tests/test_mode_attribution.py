@@ -108,7 +108,7 @@ class Harness:
         self.out += out
         for o in out:
             if isinstance(o, vio.UploadMission | vio.Download | vio.SetCurrent | vio.SetMode
-                          | vio.Arm | vio.ParamSet):  # fmt: skip
+                          | vio.Arm | vio.ParamSet | vio.ParamRead):  # fmt: skip
                 if isinstance(o, COMMANDS):
                     self.commands.append((self.t, o))
                 if self.defer:
@@ -137,6 +137,8 @@ class Harness:
         if isinstance(o, vio.SetMode):
             p.mode = o.mode
             return M.MAV_RESULT_ACCEPTED
+        if isinstance(o, vio.ParamRead):  # ArduPlane 4.5+: AIRSPEED_CRUISE, m/s
+            return 22.0 if o.name == "AIRSPEED_CRUISE" else None
         return M.MAV_RESULT_ACCEPTED if isinstance(o, vio.Arm) else True
 
     def seconds(self, n: int) -> None:
