@@ -50,7 +50,7 @@ def test_every_error_floe_raises_has_one_root() -> None:
     from groundstation.commands.sitl_args import UsageError as SitlUsage
     from groundstation.core.records import RecordError
     from groundstation.daemon.config import ConfigError as DaemonConfigError
-    from groundstation.daemon.control.requests import RequestError
+    from groundstation.daemon.control.bodies import RequestError
     from groundstation.daemon.startup import StartError
     from groundstation.link.base import LinkError as LinkLinkError
     from groundstation.link.detection_feed import FeedError

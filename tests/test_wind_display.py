@@ -19,8 +19,8 @@ from groundstation.core.config import CoreConfig, ReplanPolicy
 from groundstation.daemon.clock import MissionClock
 from groundstation.daemon.config import ConfigError
 from groundstation.daemon.config_parse import parse_config
+from groundstation.daemon.control.bodies import jsonable
 from groundstation.daemon.control.controller import DaemonController
-from groundstation.daemon.control.requests import jsonable
 from groundstation.daemon.daemon import Daemon
 from groundstation.daemon.journal import Journal, read_journal
 from groundstation.daemon.log_lines import describe_line, is_operator_event, line_level

@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING
 from domain.errors import FloeError
 
 if TYPE_CHECKING:
-    from groundstation.runners.campaign.dask import DaskExecutor
+    from groundstation.runners.campaign.dask_executor import DaskExecutor
     from groundstation.runners.campaign.driver import CampaignPlan, CampaignResult
     from groundstation.runners.campaign.pool import LocalPool
 
@@ -100,7 +100,7 @@ def run(argv: list[str]) -> int:
 
 def _executor(args: argparse.Namespace) -> LocalPool | DaskExecutor:
     if args.dask is not None:
-        from groundstation.runners.campaign.dask import DaskExecutor
+        from groundstation.runners.campaign.dask_executor import DaskExecutor
 
         return DaskExecutor(args.dask)
     from groundstation.runners.campaign.pool import LocalPool

@@ -13,7 +13,7 @@ import logging
 from collections import deque
 from typing import Any
 
-from groundstation.daemon.control.requests import jsonable
+from groundstation.daemon.control.bodies import jsonable
 from groundstation.daemon.log_lines import line_level
 
 __all__ = ["CLIENT_QUEUE", "CLIENT_QUEUE_BYTES", "EventBuffer", "PageClient"]

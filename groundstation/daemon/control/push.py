@@ -35,10 +35,10 @@ from typing import Any
 
 from aiohttp import WSCloseCode, WSMsgType, web
 
+from groundstation.daemon.control.bodies import jsonable
 from groundstation.daemon.control.contract import DaemonControl
 from groundstation.daemon.control.guard import RejectLog
 from groundstation.daemon.control.pages import EventBuffer, PageClient
-from groundstation.daemon.control.requests import jsonable
 from groundstation.daemon.log_lines import line_level
 
 __all__ = ["CATCH_UP_EVENTS", "WS_CLOSE_TIMEOUT_S", "WS_SEND_TIMEOUT_S", "PageHub"]

@@ -46,6 +46,12 @@ from typing import Any
 from aiohttp import web
 from aiohttp.http_exceptions import HttpProcessingError
 
+from groundstation.daemon.control.bodies import (
+    RequestError,
+    jsonable,
+    parse_move_body,
+    parse_target_body,
+)
 from groundstation.daemon.control.contract import VEHICLE_ACTIONS, DaemonControl
 from groundstation.daemon.control.guard import (
     ControlLimits,
@@ -55,12 +61,6 @@ from groundstation.daemon.control.guard import (
     is_loopback,
 )
 from groundstation.daemon.control.push import PageHub
-from groundstation.daemon.control.requests import (
-    RequestError,
-    jsonable,
-    parse_move_body,
-    parse_target_body,
-)
 
 __all__ = [
     "ControlLimits",
