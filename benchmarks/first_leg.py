@@ -56,6 +56,8 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
+from groundstation.core.arrivals import percentile
+
 STRATEGIES = ("before", "none", "replan", "join-after-wind")
 
 
@@ -157,20 +159,11 @@ def _nothing() -> Iterator[None]:
     yield
 
 
-def _pct(values: Sequence[float], q: float) -> float:
-    ordered = sorted(values)
-    pos = (len(ordered) - 1) * q
-    i = math.floor(pos)
-    if i >= len(ordered) - 1:
-        return ordered[-1]
-    return ordered[i] + (ordered[i + 1] - ordered[i]) * (pos - i)
-
-
 def _errors(values: Sequence[float]) -> str:
     if not values:
         return "-"
     a = [abs(v) for v in values]
-    return f"{statistics.median(a):.1f} / {_pct(a, 0.9):.1f} / {max(a):.1f}"
+    return f"{statistics.median(a):.1f} / {percentile(a, 0.9):.1f} / {max(a):.1f}"
 
 
 def ratio_interval(ratios: Sequence[float]) -> str:
