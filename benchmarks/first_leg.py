@@ -240,8 +240,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--report", nargs="+", metavar="FILE", help="print from JSON files")
     args = parser.parse_args(argv)
     if args.report:
-        runs = [r for path in args.report for r in json.loads(Path(path).read_text())]
-        report(runs)
+        report([r for path in args.report for r in json.loads(Path(path).read_text())])
         return 0
     strategies = [s.strip() for s in args.strategies.split(",")]
     if unknown := set(strategies) - set(STRATEGIES) - {"before"}:
