@@ -33,6 +33,7 @@ from groundstation.mavlink.mission_verify import compare_missions
 from groundstation.mavlink.telemetry import VehicleSnapshot, VehicleTelemetry
 from groundstation.vehicle import controller_io
 from groundstation.vehicle.controller import FlyRecord, VehicleController
+from groundstation.vehicle.state import LinkState, VehicleState
 
 __all__ = ["FlyRecord", "SessionHost", "VehicleSession"]
 
@@ -99,11 +100,16 @@ class VehicleSession:
         return self.telemetry.snapshot()
 
     @property
+    def state(self) -> VehicleState:
+        return self.controller.state
+
+    @property
     def status(self) -> str:
+        """The state as the journal and the status table spell it."""
         return self.controller.status
 
     @property
-    def link(self) -> str:
+    def link(self) -> LinkState:
         return self.controller.link
 
     @property

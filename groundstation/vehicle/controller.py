@@ -4,7 +4,8 @@ States (:class:`VehicleState`, spelt as in the journal and the status table):
 ``connecting`` (not assessed yet), ``on_ground`` (not flying; launched only when asked),
 ``launching``, ``joining`` (being parked), ``manual`` (flying in a mode floe does not
 take: waits for AUTO/GUIDED), ``active`` (in the plan, commanded), ``overridden`` (someone
-else has it), ``home`` (sent home). The link (``ok``/``degraded``/``lost``) is apart.
+else has it), ``home`` (sent home). The link (:class:`LinkState`: ``ok``, ``degraded``,
+``lost``) is apart.
 
 Rules (each decision needs evidence over several frames, :mod:`.evidence`):
 
@@ -64,11 +65,12 @@ from groundstation.vehicle.state import (
     IN_HAND,
     LAUNCHED_MARGIN_M,
     FlyRecord,
+    LinkState,
     VehicleState,
 )
 from groundstation.vehicle.watch import Watch
 
-__all__ = ["FlyRecord", "VehicleController", "VehicleState"]
+__all__ = ["FlyRecord", "LinkState", "VehicleController", "VehicleState"]
 
 S = VehicleState
 
@@ -84,7 +86,7 @@ class VehicleController:
         self.system_id = system_id
         self.s = settings
         self.state = S.CONNECTING
-        self.link = "ok"
+        self.link: LinkState = LinkState.OK
         self.launch_requested = settings.launch
         self.has_flown = False
         """Seen flying in this session: once it comes down, floe never launches it again on
@@ -210,8 +212,8 @@ class VehicleController:
     def _on_frame(self, frame: controller_io.Frame) -> None:
         self.snap = s = frame.snapshot
         t = frame.t_s
-        if self.link == "lost":
-            self.link = "ok"
+        if self.link is LinkState.LOST:
+            self.link = LinkState.OK
             self.journal("link_restored")
             self._restore = [t, 0.0]
         for event in frame.events:
@@ -367,8 +369,8 @@ class VehicleController:
         self._check_clock(t)
         silent_s = t - last
         if silent_s > self.s.lost_after_s:
-            if self.link != "lost":
-                self.link = "lost"
+            if self.link is not LinkState.LOST:
+                self.link = LinkState.LOST
                 self.journal("link_lost", silent_s=round(silent_s, 2))
                 self._pending_fly = None
                 self._restore = None
@@ -378,14 +380,15 @@ class VehicleController:
                 elif self.state in (S.JOINING, S.LAUNCHING):
                     self.state = S.CONNECTING
         else:
-            self.link = "degraded" if silent_s > min(2.5, self.s.lost_after_s / 2.0) else "ok"
+            degraded = silent_s > min(2.5, self.s.lost_after_s / 2.0)
+            self.link = LinkState.DEGRADED if degraded else LinkState.OK
         self._resolve_mode_change(t)
         progress = self.watch.stalled(t)
         if (
             self.state is S.ACTIVE
             and progress is not None
             and self._restore is None
-            and self.link != "lost"
+            and self.link is not LinkState.LOST
         ):
             self._leave(
                 "no_progress", t, S.CONNECTING, target=self.fly.target if self.fly else None,
@@ -587,7 +590,8 @@ class VehicleController:
 
     def _pick(self) -> bool:
         t = self.t_s
-        if self.link == "lost" or self.snap.last_heartbeat_s is None or self._restore is not None:
+        silent = self.link is LinkState.LOST or self.snap.last_heartbeat_s is None
+        if silent or self._restore is not None:
             return False
         if not self.s.advisory and t - self._rates_at_s >= self.s.rates_every_s:
             self._rates_at_s = t
@@ -813,7 +817,7 @@ class VehicleController:
     def target_wanted(self) -> bool:
         """Whether the job's target still stands: commanded, not overtaken by a newer
         FlyToTarget, link up."""
-        return self.commanded and self._pending_fly is None and self.link != "lost"
+        return self.commanded and self._pending_fly is None and self.link is not LinkState.LOST
 
     def cruise_known(self, speed_m_s: float | None, source: str) -> None:
         """The cruise airspeed was read (``source`` the parameter), or not (``config``:

@@ -9,7 +9,7 @@ from __future__ import annotations
 import enum
 from dataclasses import dataclass, field
 
-__all__ = ["ASSESSED", "IN_HAND", "LAUNCHED_MARGIN_M", "FlyRecord", "VehicleState"]
+__all__ = ["ASSESSED", "IN_HAND", "LAUNCHED_MARGIN_M", "FlyRecord", "LinkState", "VehicleState"]
 
 LAUNCHED_MARGIN_M = 15.0
 
@@ -23,6 +23,15 @@ class VehicleState(enum.Enum):
     ACTIVE = "active"
     OVERRIDDEN = "overridden"
     HOME = "home"
+
+
+class LinkState(enum.StrEnum):
+    """The vehicle's link as the controller judges it from silence, spelt as the status
+    table and the API spell it (a ``str``, so it prints and serialises as before)."""
+
+    OK = "ok"
+    DEGRADED = "degraded"
+    LOST = "lost"
 
 
 S = VehicleState
