@@ -30,7 +30,7 @@ from domain.geodesy import compass_deg_from_enu_rad
 from groundstation.mavlink.codec import mavlink2
 from sitl import command_handler
 from sitl.airframe import Airframe
-from sitl.autopilot import AUTO, INITIALISING, MANUAL, MODE_NAMES, Autopilot
+from sitl.autopilot import AUTO, GUIDED, INITIALISING, LOITER, MANUAL, MODE_NAMES, RTL, Autopilot
 from sitl.faults import FaultEvent
 from sitl.mission_protocol import MissionEvents, MissionServer
 from sitl.mission_store import MAX_MISSION_ITEMS, MissionItem, MissionStore
@@ -356,7 +356,7 @@ class SimVehicle:
         )
         action = int(self.params.get("BATT_FS_LOW_ACT"))
         if action in (1, 2) and self.autopilot.armed and not self.airframe.on_ground:
-            out += self.autopilot.set_mode(11, self.airframe)
+            out += self.autopilot.set_mode(RTL, self.airframe)
         return out
 
     def set_battery_remaining(self, fraction: float) -> list[Any]:
@@ -465,7 +465,7 @@ class SimVehicle:
         """(base_mode, custom_mode) for HEARTBEAT."""
         ap = self.autopilot
         base = M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | M.MAV_MODE_FLAG_STABILIZE_ENABLED
-        if ap.mode in (AUTO, 11, 12, 15):
+        if ap.mode in (AUTO, RTL, LOITER, GUIDED):
             base |= M.MAV_MODE_FLAG_GUIDED_ENABLED
         if ap.mode == AUTO:
             base |= M.MAV_MODE_FLAG_AUTO_ENABLED

@@ -46,6 +46,7 @@ from dataclasses import replace
 from typing import Literal
 
 from domain.geodesy import GeoOrigin, enu_rad_from_compass_deg, wrap_pi
+from domain.modes import ArduPlaneMode
 from groundstation.mavlink.codec import MAVLinkMessage, mavlink2
 from groundstation.mavlink.evidence import MAV_STATE_BOOT, RebootEvidence, WindEvidence
 from groundstation.mavlink.telemetry_events import (
@@ -92,7 +93,6 @@ _ARMED_FLAG = 128  # MAV_MODE_FLAG_SAFETY_ARMED
 _CUSTOM_MODE_FLAG = 1  # MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
 _UINT16_UNKNOWN = 65535
 _MISSION_STATE_MAX = 5  # MISSION_STATE_COMPLETE, the last MISSION_STATE value
-_INITIALISING = 16  # ArduPlane mode INITIALISING
 _STATUSTEXT_CHUNK = 50
 _MAX_SPEED_M_S = 150.0
 _MAX_ALT_M = 20_000.0
@@ -237,8 +237,9 @@ class VehicleTelemetry:
     def _on_heartbeat(self, msg: MAVLinkMessage, now_s: float) -> list[TelemetryEvent]:
         events: list[TelemetryEvent] = []
         status = int(msg.system_status)
+        initialising = int(msg.custom_mode) == ArduPlaneMode.INITIALISING
         booting = status == MAV_STATE_BOOT or (
-            int(msg.base_mode) & _CUSTOM_MODE_FLAG and int(msg.custom_mode) == _INITIALISING
+            int(msg.base_mode) & _CUSTOM_MODE_FLAG and initialising
         )
         if booting and self.reboot.suspected:
             latest = self.reboot.latest_ms()
