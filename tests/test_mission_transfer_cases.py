@@ -27,8 +27,8 @@ from test_mission_transfer_fake import (
     via_wire,
 )
 
+from domain.errors import LocalProtocolError, RemoteProtocolError
 from groundstation.mavlink.codec import MAVLinkMessage, mavlink2
-from groundstation.mavlink.errors import LocalProtocolError, RemoteProtocolError
 from groundstation.mavlink.mission_commands import MissionClear, SetCurrent
 from groundstation.mavlink.mission_download import MissionDownload
 from groundstation.mavlink.mission_transfer import TransferCode

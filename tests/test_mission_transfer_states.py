@@ -26,8 +26,8 @@ from test_mission_transfer_fake import (
     via_wire,
 )
 
+from domain.errors import LocalProtocolError
 from groundstation.mavlink.codec import MavlinkDecoder, MavlinkEncoder, MAVLinkMessage, mavlink2
-from groundstation.mavlink.errors import LocalProtocolError
 from groundstation.mavlink.mission_commands import (
     ClearState,
     MissionClear,

@@ -203,8 +203,8 @@ async def run_daemon(config: DaemonConfig, **options: Any) -> Daemon:
 
 def run(argv: list[str]) -> int:
     """Entry point of ``gcs run``; returns the exit status."""
+    from domain.errors import ConfigError
     from groundstation.daemon.alerts import never_heard
-    from groundstation.daemon.config import ConfigError
     from groundstation.daemon.startup import StartError
     from groundstation.daemon.status import link_lines
 

@@ -40,8 +40,8 @@ from __future__ import annotations
 
 import enum
 
+from domain.errors import LocalProtocolError
 from groundstation.mavlink.codec import MAVLinkMessage, mavlink2
-from groundstation.mavlink.errors import LocalProtocolError
 from groundstation.mavlink.mission_transfer import (
     COMMAND_TIMEOUT_S,
     DEFAULT_RETRIES,
