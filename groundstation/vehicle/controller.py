@@ -186,9 +186,9 @@ class VehicleController:
             self.foreign_frames += 1
             return []
         self.t_s = max(self.t_s, inp.t_s)
-        if isinstance(inp, controller_io.Frame):
+        if isinstance(inp, controller_io.AutopilotFrame):
             self._on_frame(inp)
-        elif isinstance(inp, controller_io.Tick):
+        elif isinstance(inp, controller_io.TimePassed):
             self._on_tick(inp.t_s)
         elif isinstance(inp, controller_io.ExchangeDone):
             self._on_done(inp)
@@ -209,7 +209,7 @@ class VehicleController:
         return out
 
     # ------------------------------------------------------------------ telemetry
-    def _on_frame(self, frame: controller_io.Frame) -> None:
+    def _on_frame(self, frame: controller_io.AutopilotFrame) -> None:
         self.snap = s = frame.snapshot
         t = frame.t_s
         if self.link is LinkState.LOST:
