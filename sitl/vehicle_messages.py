@@ -5,7 +5,7 @@ In wind, as ArduPlane: VFR_HUD ``airspeed`` is the airspeed and ``groundspeed`` 
 speed, ``heading`` the yaw; GLOBAL_POSITION_INT ``vx``/``vy`` are the ground velocity and
 ``hdg`` the yaw; GPS_RAW_INT ``vel`` is the ground speed and ``cog`` the course over
 ground; ATTITUDE ``yaw`` the heading; WIND the vehicle's wind estimate
-(:class:`sitl.sim_wind.WindEstimate`).
+(:class:`sitl.sim_wind.EkfWindModel`).
 """
 
 from __future__ import annotations

@@ -32,9 +32,9 @@ from typing import Any, TypeAlias
 
 from groundstation.link.binding import (
     BindingRules,
+    BindingVerdict,
     Peer,
     PeerTable,
-    Verdict,
 )
 from groundstation.link.inbox import Inbox, RawChunk, peek_frames
 from groundstation.link.url import LinkSpec
@@ -508,10 +508,10 @@ class Link(ABC):
         verdict = peers.heard(
             rx.system_id, rx.peer, is_autopilot_heartbeat(rx.message), self.now_s()
         )
-        if verdict is Verdict.FOREIGN:
+        if verdict is BindingVerdict.FOREIGN:
             self.counters.foreign += 1
             return dataclasses.replace(rx, foreign=True)
-        if verdict is Verdict.REBOUND:
+        if verdict is BindingVerdict.REBOUND:
             self._notice(
                 "peer_rebound", system_id=rx.system_id, peer=str(rx.peer), previous=str(previous)
             )

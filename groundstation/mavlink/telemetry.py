@@ -52,7 +52,7 @@ from groundstation.mavlink.evidence import MAV_STATE_BOOT, RebootEvidence, WindE
 from groundstation.mavlink.telemetry_events import (
     ARDUPLANE_MODES,
     Armed,
-    BatteryLow,
+    BatteryBelowThreshold,
     Disarmed,
     InvalidTelemetry,
     MissionCurrentChanged,
@@ -71,7 +71,7 @@ from groundstation.mavlink.wind_message import BadWindField, parse_wind_message
 __all__ = [
     "ARDUPLANE_MODES",
     "Armed",
-    "BatteryLow",
+    "BatteryBelowThreshold",
     "Disarmed",
     "InvalidTelemetry",
     "LoiterEndDetector",
@@ -104,8 +104,9 @@ _MAX_ALT_M = 20_000.0
 class VehicleTelemetry:
     """Reduce one vehicle's messages to a :class:`VehicleSnapshot` and events.
 
-    ``battery_low_pct`` (and optionally ``battery_low_v``) trigger :class:`BatteryLow` once
-    per crossing; it re-arms when the level recovers ``battery_hysteresis_pct`` above.
+    ``battery_low_pct`` (and optionally ``battery_low_v``) trigger
+    :class:`BatteryBelowThreshold` once per crossing; it re-arms when the level recovers
+    ``battery_hysteresis_pct`` above.
     Incomplete chunked STATUSTEXTs are flushed after ``statustext_timeout_s``. Only the
     autopilot component ``component_id`` (1, MAV_COMP_ID_AUTOPILOT1; None: any) is listened
     to: a camera or companion computer on the same system id has its own ``time_boot_ms``
@@ -367,7 +368,7 @@ class VehicleTelemetry:
         )
         if low and not self._battery_low_reported:
             self._battery_low_reported = True
-            events.append(BatteryLow(now_s, pct, volts, self.battery_low_pct))
+            events.append(BatteryBelowThreshold(now_s, pct, volts, self.battery_low_pct))
         elif (
             not low
             and self._battery_low_reported
