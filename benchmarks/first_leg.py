@@ -67,9 +67,9 @@ def join_after_wind() -> Iterator[None]:
     send both, in that order, so the core's estimate counts it before the next plan)."""
     from groundstation.core import events as ev
     from groundstation.vehicle import controller_io
-    from groundstation.vehicle.state import ControllerState
+    from groundstation.vehicle.controller import VehicleController
 
-    joined, core = ControllerState.joined, ControllerState._core
+    joined, core = VehicleController.joined, VehicleController._core
 
     def held_joined(self: Any, how: str) -> None:
         self._held_join = True
@@ -86,13 +86,13 @@ def join_after_wind() -> Iterator[None]:
                     self._out.append(controller_io.CoreEvent(pose))
         core(self, event)
 
-    ControllerState.joined = held_joined  # type: ignore[method-assign]
-    ControllerState._core = held_core  # type: ignore[method-assign]
+    VehicleController.joined = held_joined  # type: ignore[method-assign]
+    VehicleController._core = held_core  # type: ignore[method-assign]
     try:
         yield
     finally:
-        ControllerState.joined = joined  # type: ignore[method-assign]
-        ControllerState._core = core  # type: ignore[method-assign]
+        VehicleController.joined = joined  # type: ignore[method-assign]
+        VehicleController._core = core  # type: ignore[method-assign]
 
 
 def run_once(seed: int, from_deg: float, speed_m_s: float, known: bool, strategy: str,

@@ -27,10 +27,10 @@ from groundstation.vehicle.controller_io import (
     Download,
     Exchange,
     Fly,
-    ParamRead,
-    ParamSet,
+    ReadParam,
     SetCurrent,
     SetMode,
+    SetParam,
     UploadMission,
     UploadOutcome,
 )
@@ -198,7 +198,7 @@ def target_job(host: JobHost, fly: Fly) -> Job:
     if command.loiter_s >= 1.0:
         first = LoiterTime(fly.x_m, fly.y_m, host.alt_m, round(command.loiter_s))
         if host.wp_loiter_rad_m != radius:
-            if (yield ParamSet("WP_LOITER_RAD", radius)):
+            if (yield SetParam("WP_LOITER_RAD", radius)):
                 host.wp_loiter_rad_m = radius
             else:
                 host.journal("param_set", ok=False, name="WP_LOITER_RAD", value=radius)
@@ -226,7 +226,7 @@ def cruise_job(host: JobHost) -> Job:
     [CRUISE_MIN_M_S, CRUISE_MAX_M_S] is journalled (``cruise_speed_refused``) and the next
     parameter asked."""
     for name, to_m_s in CRUISE_PARAMS:
-        value = yield ParamRead(name)
+        value = yield ReadParam(name)
         if value is None:
             continue
         speed_m_s = value * to_m_s
