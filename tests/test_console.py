@@ -274,8 +274,8 @@ def test_a_start_that_fails_leaves_no_console_handler(tmp_path: Path,
     import logging
 
     from groundstation.commands.run import build_config, run_daemon
-    from groundstation.daemon.console import FLOE_LOGGERS, ConsoleHandler
     from groundstation.daemon import startup
+    from groundstation.daemon.console import FLOE_LOGGERS, ConsoleHandler
 
     def boom(*args: object) -> None:
         raise RuntimeError("signing gate failed")
