@@ -65,6 +65,8 @@ class Supervisor:
         self.policy = policy or RestartPolicy()
         self.stopped = False
         self.given_up: list[str] = []
+        self.bugs: list[str] = []
+        """Where bugs happened, each once (a callback's bug may repeat until the stop)."""
 
     async def supervise(
         self,
@@ -110,7 +112,11 @@ class Supervisor:
         """A bug (an unexpected exception) in ``where``, a task or a callback the daemon
         runs outside a task (the decision core, a vehicle's controller): the traceback is
         journalled (``task_error``, ``bug: true``), it is logged as critical and ``on_bug``
-        stops the daemon cleanly. Every bug takes this one path."""
+        stops the daemon cleanly. Every bug takes this one path; the same bug repeated
+        before the stop (the next frame into a broken controller) is not told again."""
+        if where in self.bugs:
+            return
+        self.bugs.append(where)
         log.critical(
             "internal error in task %s: %s; stopping (vehicles keep their last mission)",
             where, _one_line(exc), exc_info=exc,
