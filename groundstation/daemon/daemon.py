@@ -175,8 +175,7 @@ class Daemon:
         """The control API's address, once its server listens (the status display)."""
         self.wind_fallback_source = wind_fallback_source
         """Where the core's fallback wind came from: config, scenario or none (start-up)."""
-        self.feed = WorldFeed(self.core, self.core_event, self.journal, self.metrics,
-                              lambda: self.world, self.inside_area)
+        self.feed = WorldFeed(self)
         self.area = OperatingArea(
             config.mission.operating_radius_m,
             config.mission.operating_center == OperatingCenter.BOAT,
