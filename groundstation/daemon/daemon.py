@@ -20,7 +20,7 @@ import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, TypedDict
 
 from domain.geodesy import GeoOrigin
 from groundstation.core import events as ev
@@ -80,10 +80,15 @@ class _Due:
     """When the ticker's periodic duties are next due (mission s)."""
 
     tick_s: float = 0.0
+    """The next core ``Tick`` (every ``TICK_S``)."""
     sample_s: float = 0.0
+    """The next metrics sample (every mission second)."""
     track_s: float = 0.0
+    """The next ``track`` lines (every ``track_period_s``)."""
     signing_report_s: float = 0.0
+    """The next ``signing_rejected`` lines (every ``SIGNING_REPORT_S``)."""
     link_report_s: float = 0.0
+    """The next ``link_drops`` check (every ``LINK_REPORT_PERIOD_S``)."""
     link_reporter: LinkReporter = field(default_factory=LinkReporter)
     kick: asyncio.Event = field(default_factory=asyncio.Event)
     """Set by a fleet event: the ticker wakes at once."""
@@ -100,6 +105,15 @@ class _RunState:
     stop: asyncio.Event = field(default_factory=asyncio.Event)
     wall_start: float = field(default_factory=time.perf_counter)
     cpu_start: float = field(default_factory=time.process_time)
+
+
+class LastPlan(TypedDict):
+    """The plan the core adopted last (the status display and the control API)."""
+
+    t: float
+    routes: dict[str, list[str]]
+    status: str
+    solve_time_s: float
 
 
 @dataclass
@@ -181,7 +195,7 @@ class Daemon:
             config.mission.operating_center == OperatingCenter.BOAT,
         )
         self.stopping = False
-        self.last_plan: dict[str, Any] | None = None
+        self.last_plan: LastPlan | None = None
         self._due = _Due()
         self._state = _RunState()
         supervisor = Supervisor(clock.now_s, self.journal, self._on_bug)
@@ -227,7 +241,7 @@ class Daemon:
         assert self.origin_or_none is not None
         return self.origin_or_none
 
-    def journal(self, event: str, *, logged: bool = False, **fields: Any) -> None:
+    def journal(self, event: str, *, logged: bool = False, **fields: object) -> None:
         """Write a journal line; an operator event also reaches the console, once.
 
         The rule that keeps every problem to one console line: the journal line of an
