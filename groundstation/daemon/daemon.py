@@ -20,7 +20,7 @@ import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, TypedDict
+from typing import TypedDict
 
 from domain.geodesy import GeoOrigin
 from groundstation.core import events as ev
@@ -324,11 +324,11 @@ class Daemon:
             if session is not None:
                 session.release(command.reason, home=isinstance(command, SendHome))
 
-    def _journal_command(self, command: Command, **extra: Any) -> None:
+    def _journal_command(self, command: Command, **extra: object) -> None:
         record = command_to_record(command)
         event = record.pop("event")
         record.pop("t")
-        self.journal(event, **record, **extra)
+        self.journal(event, logged=False, **record, **extra)
 
     def _on_solved(self, request: SolveRequest, result: PlanResult) -> None:
         self.core_event(ev.PlanSolved(self.clock.now_s(), request.request_id, result))
@@ -498,7 +498,7 @@ class Daemon:
                 for _ in range(3):
                     session.port.fire_mode(11)
                 self.journal("rtl", vehicle=session.id, ok=None, reason="on exit")
-        self.journal("stop", reason=self._state.stop_reason, **self.summary())
+        self.journal("stop", logged=False, reason=self._state.stop_reason, **self.summary())
 
     # ------------------------------------------------------------------ loops
     async def _heartbeat_loop(self) -> None:
@@ -577,12 +577,12 @@ class Daemon:
             self.drops.detections_dropped += 1
 
     # ------------------------------------------------------------------ reports
-    def summary(self) -> dict[str, Any]:
+    def summary(self) -> dict[str, object]:
         """The run in figures (printed at the end, in ``metrics.json`` and the stop line)."""
         return run_summary(self, time.perf_counter() - self._state.wall_start,
                            time.process_time() - self._state.cpu_start)
 
-    def metrics_dict(self) -> dict[str, Any]:
+    def metrics_dict(self) -> dict[str, object]:
         wall = time.perf_counter() - self._state.wall_start
         out = self.metrics.to_dict(wall)
         out["summary"] = self.summary()
