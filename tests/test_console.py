@@ -268,19 +268,19 @@ def test_log_mode_says_nothing_of_the_links_as_the_run_shuts_down(tmp_path: Path
 
 def test_a_start_that_fails_leaves_no_console_handler(tmp_path: Path,
                                                       monkeypatch: pytest.MonkeyPatch) -> None:
-    """A failure once the Daemon exists (here: turning signing on) detaches the console, so
-    a later run in the same process prints each line once."""
+    """A failure once the console is installed (here: building the signing gate) detaches
+    it, so a later run in the same process prints each line once."""
     import asyncio
     import logging
 
     from groundstation.commands.run import build_config, run_daemon
+    from groundstation.daemon import startup
     from groundstation.daemon.console import FLOE_LOGGERS, ConsoleHandler
-    from groundstation.daemon.daemon import Daemon
 
-    def boom(self: Daemon, gate: object) -> None:
+    def boom(*args: object) -> None:
         raise RuntimeError("signing gate failed")
 
-    monkeypatch.setattr(Daemon, "use_signing", boom)
+    monkeypatch.setattr(startup, "SigningGate", boom)
     phrase = tmp_path / "phrase.txt"
     phrase.write_text("correct horse battery staple\n")
     config = build_config(["--vehicles", f"tcp:127.0.0.1:{closed_port()}", "--http", "off",

@@ -184,18 +184,22 @@ def test_run_folder_files_are_whole_and_control_json_is_private(tmp_path: Path) 
          "--duration", "20", "--run-dir", str(tmp_path), "--http", "127.0.0.1:0",
          "--detections", "off", "--status", "quiet"]
     )  # fmt: skip
+    printed: list[str] = []
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(storage.os, "open", spy)
         daemon = asyncio.run(
             asyncio.wait_for(
-                run_daemon(config, print_fn=lambda _: None, install_signals=False), 60.0
+                run_daemon(config, print_fn=printed.append, install_signals=False), 60.0
             )
         )
     run_dir = daemon.run_dir
     assert created and all(mode == 0o600 for _, mode in created)
     assert stat.S_IMODE((run_dir / "control.json").stat().st_mode) == 0o600
     control = json.loads((run_dir / "control.json").read_text())
-    assert control["token"] == daemon.control_token and control["url"] == daemon.control_url
+    told = [line for line in printed if line.startswith("gcs run: control API ")]
+    assert len(told) == 1  # "gcs run: control API URL token TOKEN (...)": what the operator got
+    assert told[0].split()[4:7] == [daemon.control_url, "token", control["token"]], told
+    assert control["url"] == daemon.control_url
     assert yaml.safe_load((run_dir / "config.yaml").read_text())["mission"]["duration_s"] == 20
     assert json.loads((run_dir / "metrics.json").read_text())["summary"]["mission_s"] >= 20
     assert sorted(p.name for p in run_dir.iterdir()) == [

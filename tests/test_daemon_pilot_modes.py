@@ -22,13 +22,14 @@ from typing import Any
 
 import pytest
 from daemon_run import Journal, events
-from test_daemon_trust import _server, changes_vehicle, from_gcs, is_set_mode
+from test_daemon_trust import KeptSim, changes_vehicle, from_gcs, is_set_mode
 
 from domain.modes import ArduPlaneMode
-from groundstation.commands.run import build_config, run_daemon
+from groundstation.commands.run import build_config
 from groundstation.daemon.control.controller import DaemonController
 from groundstation.daemon.daemon import Daemon
 from groundstation.daemon.journal import read_journal
+from groundstation.daemon.startup import run_daemon
 from sitl.faults import FaultEvent
 from sitl.server import SitlServer
 from sitl.vehicle import SimVehicle
@@ -47,12 +48,13 @@ def run_watching(tmp_path: Path, args: list[str], watch: Watch, timeout_s: float
     async def main() -> tuple[Daemon, SitlServer]:
         loop = asyncio.get_running_loop()
         started: asyncio.Future[Daemon] = loop.create_future()
+        kept = KeptSim()
         task = asyncio.create_task(run_daemon(
             config, print_fn=lambda _: None, install_signals=False,
-            on_started=started.set_result,
+            on_started=started.set_result, embedded=kept,
         ))  # fmt: skip
         daemon = await started
-        server = _server(daemon)
+        server = kept.server
         while not task.done():
             watch(daemon, server, daemon.clock.now_s())
             await asyncio.sleep(0.002)
@@ -183,11 +185,12 @@ def test_sim_fault_rtl_on_the_first_target_is_the_operators(tmp_path: Path) -> N
         "--duration", "120", "--run-dir", str(tmp_path), "--http", "off",
         "--detections", "off", "--status", "quiet",
     ])  # fmt: skip
+    kept = KeptSim()
     daemon = asyncio.run(asyncio.wait_for(
-        run_daemon(config, print_fn=lambda _: None, install_signals=False), 90.0
+        run_daemon(config, print_fn=lambda _: None, install_signals=False, embedded=kept), 90.0
     ))  # fmt: skip
     journal = read_journal(daemon.run_dir / "journal.jsonl")
-    server = _server(daemon)
+    server = kept.server
     # at t=60 it flew its first target item (launched, joined, sent to its target)
     fly = [e for e in events(journal, "upload", vehicle="1", purpose="target") if e["t"] < 60]
     assert fly and fly[0]["ok"] is True

@@ -17,7 +17,10 @@ from domain.errors import (
     PlanningError,
     UsageError,
 )
+from groundstation.core import events as ev
+from groundstation.core.decision import DecisionCore
 from groundstation.daemon.daemon import Daemon
+from groundstation.daemon.session import VehicleSession
 from groundstation.daemon.supervision import RestartPolicy, Supervisor
 from tests.daemon_run import events, run_gcs
 
@@ -143,27 +146,48 @@ def test_cancellation_is_not_an_error() -> None:
     assert not lines and not bugs
 
 
+def _raise_from(cls: type, name: str, message: str, when: Any) -> Any:
+    """``cls.name`` that raises ZeroDivisionError(message) once ``when(self, *args)``."""
+    original = getattr(cls, name)
+
+    def patched(self: Any, *args: Any) -> Any:
+        if when(self, *args):
+            raise ZeroDivisionError(message)
+        return original(self, *args)
+
+    return patched
+
+
+BUGS = {  # where the bug is -> (class, method, when, the task_error's task)
+    "ticker": (Daemon, "tick", lambda self, now: now >= 60.0, "ticker"),
+    # the decision core and the vehicle controller run in callbacks, not tasks: their bugs
+    # take the same path (Supervisor.bug), named after where they happened
+    "core": (DecisionCore, "handle", lambda self, event: event.t_s >= 60.0
+             and isinstance(event, ev.Tick), "core (Tick)"),
+    "controller": (VehicleSession, "on_message", lambda self, msg: self.clock.now_s() >= 60.0
+                   and self.system_id == 1, "vehicle 1 controller"),
+}  # fmt: skip
+
+
 @pytest.mark.timeout(90)
+@pytest.mark.parametrize("where", list(BUGS))
 def test_a_bug_in_the_daemon_stops_it_cleanly_and_the_vehicles_keep_their_missions(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, where: str
 ) -> None:
-    original = Daemon.tick
-
-    def tick(self: Daemon, now: float) -> None:
-        if now >= 60.0:
-            raise ZeroDivisionError("a bug in the ticker")
-        original(self, now)
-
-    monkeypatch.setattr(Daemon, "tick", tick)
+    cls, name, when, task = BUGS[where]
+    monkeypatch.setattr(cls, name, _raise_from(cls, name, f"a bug in the {where}", when))
     daemon, journal = run_gcs(
         tmp_path, "--vehicles", "sim:2", "--scenario", "paper-boat", "--duration", "300",
         "--on-exit", "rtl",
     )  # fmt: skip
     assert daemon.internal_error is not None and "ZeroDivisionError" in daemon.internal_error
-    bug = events(journal, "task_error", task="ticker")
-    assert len(bug) == 1 and bug[0]["bug"] is True
+    bug = events(journal, "task_error", task=task)
+    assert len(bug) == 1 and bug[0]["bug"] is True, events(journal, "task_error")
+    assert any("ZeroDivisionError" in line for line in bug[0]["traceback"])
     stop = events(journal, "stop")
     assert stop and stop[0]["reason"] == "internal error" and stop[0]["t"] < 120.0
-    # a bug is no reason to send the vehicles home: no on-exit RTL
+    # a bug is no reason to send the vehicles home: no on-exit RTL, nothing more commanded
     assert not events(journal, "rtl")
+    assert not [e for e in journal if e["event"] in ("fly", "upload", "release")
+                and e["t"] > bug[0]["t"]]
     assert events(journal, "upload", ok=True, purpose="target")  # they had missions to keep

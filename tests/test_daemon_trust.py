@@ -25,8 +25,9 @@ from typing import Any
 import pytest
 from daemon_run import Journal, events
 
-from groundstation.commands.embedded_sim import EmbeddedSim
+from groundstation.commands.embedded_sim import EmbeddedSim, build_embedded_sim
 from groundstation.commands.run import build_config, run_daemon
+from groundstation.daemon import startup
 from groundstation.daemon.daemon import Daemon
 from groundstation.daemon.journal import read_journal
 from groundstation.link.tlog import TlogReader
@@ -42,13 +43,22 @@ Action = Callable[[Daemon, SitlServer], None]
 FALSE_STATE_EVENTS = ("reboot", "battery_low", "override", "link_lost")
 
 
-def _server(daemon: Daemon) -> SitlServer:
-    """The embedded simulator of a ``--vehicles sim:N`` daemon."""
-    for fn in daemon.on_finish:
-        owner = getattr(fn, "__self__", None)
-        if isinstance(owner, EmbeddedSim):
-            return owner.server
-    raise AssertionError("no embedded simulator")
+class KeptSim:
+    """``gcs run``'s embedded factory that keeps what it builds: the test's handle on the
+    simulator of a ``--vehicles sim:N`` daemon."""
+
+    def __init__(self) -> None:
+        self.built: list[EmbeddedSim] = []
+
+    def __call__(self, *args: Any) -> EmbeddedSim:
+        sim = build_embedded_sim(*args)
+        self.built.append(sim)
+        return sim
+
+    @property
+    def server(self) -> SitlServer:
+        assert len(self.built) == 1, "no embedded simulator"
+        return self.built[0].server
 
 
 def run_with_actions(
@@ -70,14 +80,15 @@ def run_with_actions(
             await before()
         loop = asyncio.get_running_loop()
         started: asyncio.Future[Daemon] = loop.create_future()
+        kept = KeptSim()
         task = asyncio.create_task(
-            run_daemon(
+            startup.run_daemon(
                 config, print_fn=lambda _: None, install_signals=False,
-                on_started=started.set_result,
+                on_started=started.set_result, embedded=kept,
             )
         )  # fmt: skip
         daemon = await started
-        server = _server(daemon)
+        server = kept.server
         for t_s, action in sorted(actions, key=lambda a: a[0]):
             while daemon.clock.now_s() < t_s and not task.done():
                 await asyncio.sleep(0.005)
@@ -344,22 +355,19 @@ def _start(cmd: list[str], pattern: str, count: int, timeout_s: float) -> tuple[
     return proc, lines
 
 
-def _record_arrivals(
-    daemon: Daemon, into: list[tuple[float, int, int]], cpu: list[tuple[float, float]]
-) -> None:
+async def _sample_cpu(cpu: list[tuple[float, float]]) -> None:
+    """Every few ms of the event loop: (wall time, CPU time of the loop's thread)."""
+    while True:
+        cpu.append((time.time(), time.thread_time()))
+        await asyncio.sleep(0.002)
+
+
+def _record_arrivals(daemon: Daemon, into: list[tuple[float, int, int]]) -> None:
     """Wrap the router's hand-over to the daemon: (wall time, system id, time_boot_ms) of
     every autopilot frame that carries the vehicle's clock, as the daemon gets it (after
-    its link's drain, so queueing inside the daemon counts). And sample, every few ms of
-    the event loop, (wall time, CPU time of the loop's thread) into ``cpu``."""
+    its link's drain, so queueing inside the daemon counts)."""
     deliver = daemon.router.on_vehicle_frame
     assert deliver is not None
-
-    async def sample() -> None:
-        while True:
-            cpu.append((time.time(), time.thread_time()))
-            await asyncio.sleep(0.002)
-
-    daemon.extra_tasks.append(sample)
 
     def recording(rx: Any) -> None:
         boot_ms = getattr(rx.message, "time_boot_ms", None)
@@ -440,15 +448,18 @@ def test_flood_on_one_link_does_not_starve_the_others(tmp_path: Path) -> None:
         )  # fmt: skip
         arrivals: list[tuple[float, int, int]] = []
         cpu: list[tuple[float, float]] = []
-        daemon = asyncio.run(
-            asyncio.wait_for(
-                run_daemon(
+
+        async def main() -> Daemon:
+            sampler = asyncio.create_task(_sample_cpu(cpu))  # alongside the daemon
+            try:
+                return await run_daemon(
                     config, print_fn=lambda _: None, install_signals=False,
-                    on_started=lambda d: _record_arrivals(d, arrivals, cpu),
-                ),
-                100.0,
-            )
-        )  # fmt: skip
+                    on_started=lambda d: _record_arrivals(d, arrivals),
+                )
+            finally:
+                sampler.cancel()
+
+        daemon = asyncio.run(asyncio.wait_for(main(), 100.0))
     finally:
         out, _ = proxy.communicate(input="", timeout=20)
         sim.communicate(input="", timeout=1) if sim.poll() is not None else sim.kill()

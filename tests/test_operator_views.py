@@ -232,7 +232,7 @@ def test_silent_link_advice_and_drops_come_from_the_link_and_the_daemon(tmp_path
     for i, url in enumerate(("TCP:127.0.0.1:5760", "tcpin:127.0.0.1:5761",
                              "udpout:127.0.0.1:14550")):
         daemon.router.add_vehicle_link(open_link(url, link_id=f"vehicles{i}"))
-    daemon.detections_no_origin, daemon.detections_dropped = 3, 2
+    daemon.drops.detections_no_origin, daemon.drops.detections_dropped = 3, 2
     alerts = OperatorAlerts(daemon)
     keep = Keep(logging.WARNING)
     logging.getLogger("groundstation").addHandler(keep)

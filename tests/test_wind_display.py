@@ -33,14 +33,14 @@ from world.scenario import parse_scenario
 from world.wind import WindSpec
 
 
-def _daemon(tmp_path: Path, t: list[float], fallback: tuple[float, float]) -> Daemon:
+def _daemon(tmp_path: Path, t: list[float], fallback: tuple[float, float],
+            source: str = "config", wind_aware: bool = True) -> Daemon:
     config = parse_config({"vehicles": ["udpin:127.0.0.1:0"], "wind": "3,180"}, {})
     journal = Journal(tmp_path / "journal.jsonl", lambda: t[0], lambda: 1.7e9)
     clock = MissionClock(1.0, source=lambda: t[0])
-    daemon = Daemon(config, CoreConfig(wind_xy_m_s=fallback), clock, tmp_path,
-                    GeoOrigin(78.9, 11.9, 0.0), journal, None)
-    daemon.wind_fallback_source = "config"
-    return daemon
+    return Daemon(config, CoreConfig(wind_xy_m_s=fallback, wind_aware=wind_aware), clock,
+                  tmp_path, GeoOrigin(78.9, 11.9, 0.0), journal, None,
+                  wind_fallback_source=source)
 
 
 def test_status_state_and_journal_show_the_vehicles_wind(tmp_path: Path) -> None:
@@ -82,9 +82,7 @@ def test_status_state_and_journal_show_the_vehicles_wind(tmp_path: Path) -> None
 
 def test_wind_blind_is_said_in_the_header(tmp_path: Path) -> None:
     t = [0.0]
-    daemon = _daemon(tmp_path, t, (0.0, 0.0))
-    daemon.core_config = CoreConfig(wind_aware=False)
-    daemon.wind_fallback_source = "none"
+    daemon = _daemon(tmp_path, t, (0.0, 0.0), source="none", wind_aware=False)
     assert "wind calm (none), not used by the planner" in status_text(daemon)
     daemon.journal_file.close()
 

@@ -236,7 +236,8 @@ def run(argv: list[str]) -> int:
         f"{summary['uploads_failed']} failed, mean uncertainty "
         f"{mean_text}; run folder {daemon.run_dir}"
     )
-    for line in link_lines(summary.get("links", {}), only_trouble=True):
+    links = summary.get("links")
+    for line in link_lines(links if isinstance(links, dict) else {}, only_trouble=True):
         print(f"gcs run: {line}")
     silent = never_heard(daemon)
     if silent is not None:

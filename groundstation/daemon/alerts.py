@@ -21,18 +21,20 @@ from __future__ import annotations
 import asyncio
 import logging
 from collections.abc import Callable, Mapping
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, Protocol
 
 from groundstation.link.url import LinkKind
 
 if TYPE_CHECKING:
-    from groundstation.daemon.daemon import Daemon
+    from groundstation.daemon.clock import MissionClock
     from groundstation.link.base import Link
+    from groundstation.link.router import Router
 
 __all__ = [
     "DROPS_REPORT_S",
     "SILENT_AFTER_S",
     "SILENT_REPEAT_S",
+    "AlertsHost",
     "OperatorAlerts",
     "never_heard",
 ]
@@ -45,13 +47,34 @@ DROPS_REPORT_S = 10.0
 _FEED_REASONS = ("malformed", "out_of_order", "late")
 
 
+class AlertsHost(Protocol):
+    """What the alerts read of the daemon (and its journal)."""
+
+    @property
+    def clock(self) -> MissionClock: ...
+    @property
+    def router(self) -> Router: ...
+    @property
+    def sessions(self) -> Mapping[int, Any]: ...
+    @property
+    def stopping(self) -> bool: ...
+    @property
+    def detections_dropped(self) -> int: ...
+    @property
+    def detections_no_origin(self) -> int: ...
+
+    def journal(self, event: str, *, logged: bool = False, **fields: Any) -> None: ...
+
+
 class OperatorAlerts:
     """See the module docstring."""
 
-    def __init__(self, daemon: Daemon) -> None:
+    def __init__(
+        self, daemon: AlertsHost, feed_counters: Callable[[], Mapping[str, int]] | None = None
+    ) -> None:
         self.daemon = daemon
-        self.feed_counters: Callable[[], Mapping[str, int]] | None = None
-        """The detection feed's counters (set when the feed starts; None without one)."""
+        self.feed_counters = feed_counters
+        """The detection feed's counters (None without a feed)."""
         self.heard: set[str] = set()
         """Vehicle links a vehicle was ever bound to."""
         self.silent: set[str] = set()
@@ -150,7 +173,7 @@ def _unheard_state(link: Link) -> str:
     return "no client connected" if kind is LinkKind.TCP_SERVER else "never connected"
 
 
-def never_heard(daemon: Daemon) -> str | None:
+def never_heard(daemon: AlertsHost) -> str | None:
     """The end-of-run message when no vehicle was ever heard (None if one was):
     ``no vehicle was heard in 25.2 mission s (tcp:127.0.0.1:5999: never connected)``."""
     if daemon.sessions:

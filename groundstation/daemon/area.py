@@ -5,28 +5,22 @@ centre, ``p' = c + (p - c) r / |p - c|``; targets outside it are refused."""
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 
 __all__ = ["OperatingArea"]
 
 
 class OperatingArea:
-    """``radius_m`` None: no area (everything is inside). ``boat_xy_m`` tells where the
+    """``radius_m`` None: no area (everything is inside). :attr:`boat_xy_m` is where the
     boat is (None while unknown: the centre is home)."""
 
-    def __init__(
-        self,
-        radius_m: float | None,
-        around_boat: bool,
-        boat_xy_m: Callable[[], tuple[float, float] | None],
-    ) -> None:
+    def __init__(self, radius_m: float | None, around_boat: bool) -> None:
         self.radius_m = radius_m
         self.around_boat = around_boat
-        self._boat_xy_m = boat_xy_m
+        self.boat_xy_m: tuple[float, float] | None = None
 
     def center(self) -> tuple[float, float]:
         """The centre (local ENU metres)."""
-        boat = self._boat_xy_m() if self.around_boat else None
+        boat = self.boat_xy_m if self.around_boat else None
         return boat if boat is not None else (0.0, 0.0)
 
     def contains(self, x_m: float, y_m: float) -> bool:

@@ -17,9 +17,10 @@ import contextlib
 import functools
 import logging
 import time
-from collections.abc import Awaitable, Callable
+from collections.abc import Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TypedDict
 
 from domain.geodesy import GeoOrigin
 from domain.modes import ArduPlaneMode
@@ -45,6 +46,7 @@ from groundstation.daemon.journal import Journal
 from groundstation.daemon.log_lines import describe_line, line_level
 from groundstation.daemon.planning import SolverRunner
 from groundstation.daemon.reports import LinkReporter, run_summary
+from groundstation.daemon.services import FnService, Service, TaskSet
 from groundstation.daemon.session import VehicleSession
 from groundstation.daemon.signing_gate import SigningGate
 from groundstation.daemon.supervision import Supervisor
@@ -75,8 +77,62 @@ MISSION_MESSAGES_FROM_GCS = frozenset(
 )
 
 
+@dataclass
+class _Due:
+    """When the ticker's periodic duties are next due (mission s)."""
+
+    tick_s: float = 0.0
+    """The next core ``Tick`` (every ``TICK_S``)."""
+    sample_s: float = 0.0
+    """The next metrics sample (every mission second)."""
+    track_s: float = 0.0
+    """The next ``track`` lines (every ``track_period_s``)."""
+    signing_report_s: float = 0.0
+    """The next ``signing_rejected`` lines (every ``SIGNING_REPORT_S``)."""
+    link_report_s: float = 0.0
+    """The next ``link_drops`` check (every ``LINK_REPORT_PERIOD_S``)."""
+    link_reporter: LinkReporter = field(default_factory=LinkReporter)
+    kick: asyncio.Event = field(default_factory=asyncio.Event)
+    """Set by a fleet event: the ticker wakes at once."""
+
+
+@dataclass
+class _RunState:
+    """Whether and why the run stops, and what it cost (wall and CPU time)."""
+
+    stop_reason: str = ""
+    internal_error: str | None = None
+    finished: bool = False
+    """The stop line is written: the core takes nothing more."""
+    stop: asyncio.Event = field(default_factory=asyncio.Event)
+    wall_start: float = field(default_factory=time.perf_counter)
+    cpu_start: float = field(default_factory=time.process_time)
+
+
+class LastPlan(TypedDict):
+    """The plan the core adopted last (the status display and the control API)."""
+
+    t: float
+    routes: dict[str, list[str]]
+    status: str
+    solve_time_s: float
+
+
+@dataclass
+class DropCounts:
+    """What the daemon dropped and counted."""
+
+    unknown_frames: int = 0
+    """Frames of system ids without a session (dropped; candidates' included)."""
+    detections_dropped: int = 0
+    """Detections outside the operating area (camera or feed), dropped."""
+    detections_no_origin: int = 0
+    """Feed detections dropped because no mission origin was known yet."""
+
+
 class Daemon:
-    """See the module docstring. Built by :mod:`groundstation.daemon.startup`."""
+    """See the module docstring. Built by :mod:`groundstation.daemon.startup`, with every
+    collaborator given to the constructor (links, signing, scenario world, services)."""
 
     def __init__(
         self,
@@ -87,9 +143,14 @@ class Daemon:
         origin: GeoOrigin | None,
         journal: Journal,
         tlog: TlogWriter | None,
+        *,
+        links: Sequence[Link] = (),
+        out_links: Sequence[Link] = (),
+        signing: SigningGate | None = None,
+        world: ScenarioWorld | None = None,
+        wind_fallback_source: str = "none",
     ) -> None:
         self.config = config
-        self.core_config = core_config
         self.clock = clock
         self.run_dir = run_dir
         self.origin_or_none = origin
@@ -98,6 +159,7 @@ class Daemon:
         # every input the core sees is journalled exactly (replay feeds them again)
         self.core.on_input = lambda event: journal.write_record(event_to_record(event))
         self.encoder = MavlinkEncoder(config.links.gcs_system_id, M.MAV_COMP_ID_MISSIONPLANNER)
+        self.signing = signing
         self.router = Router(
             self._on_vehicle_frame,
             self._on_out_frame,
@@ -105,15 +167,17 @@ class Daemon:
             rules=BindingRules(rebind_after_s=config.links.rebind_after_s),
             now_s=clock.now_s,
             on_notice=lambda event, fields: self.journal(event, **fields),
+            admit=signing.admit if signing is not None else None,
+            sign=signing.sign if signing is not None else None,
         )
-        self._link_reporter = LinkReporter()
-        self._next_link_report_s = 0.0
-        self.tlog = tlog
+        for link in links:
+            self.router.add_vehicle_link(link)
+        for link in out_links:
+            self.router.add_out_link(link)
         self.sessions: dict[int, VehicleSession] = {}
         self.newcomers = NewSystemEvidence()
         """Evidence before a system id gets a session (``vehicle_seen``)."""
-        self.unknown_frames = 0
-        """Frames of system ids without a session (dropped; candidates' included)."""
+        self.drops = DropCounts()
         self.by_name: dict[str, VehicleSession] = {}
         self.solver = SolverRunner(
             self._on_solved,
@@ -122,50 +186,56 @@ class Daemon:
             on_error=self._on_solve_error,
         )
         self.metrics = MetricsRecorder()
-        self.world: ScenarioWorld | None = None
-        self.sim: Any = None
-        self.extra_tasks: list[Callable[[], Awaitable[None]]] = []
-        self.extra_stops: list[Callable[[], Awaitable[None]]] = []
-        self.on_finish: list[Callable[[], None]] = []
+        self.world = world
         self.control_url: str | None = None
-        self.control_token: str | None = None
-        self.boat_xy_m: tuple[float, float] | None = None
-        self.wind_fallback_source = "none"
+        """The control API's address, once its server listens (the status display)."""
+        self.wind_fallback_source = wind_fallback_source
         """Where the core's fallback wind came from: config, scenario or none (start-up)."""
-        self.feed = WorldFeed(self.core, self.core_event, self.journal, self.metrics,
-                              lambda: self.world, self.inside_area)
+        self.feed = WorldFeed(self)
         self.area = OperatingArea(
             config.mission.operating_radius_m,
             config.mission.operating_center == OperatingCenter.BOAT,
-            lambda: self.boat_xy_m,
         )
         self.stopping = False
-        self.stop_reason = ""
-        self.last_plan: dict[str, Any] | None = None
-        self._stop = asyncio.Event()
-        self._kick = asyncio.Event()
-        self._finished = False
-        self._tg: asyncio.TaskGroup | None = None
-        self._tasks: list[asyncio.Task[None]] = []
-        self._next_tick_s = 0.0
-        self._next_sample_s = 0.0
-        self._next_track_s = 0.0
-        self._wall_start = time.perf_counter()
-        self._cpu_start = time.process_time()
-        self.detections_dropped = 0
-        """Detections outside the operating area (camera or feed), dropped."""
-        self.detections_no_origin = 0
-        """Feed detections dropped because no mission origin was known yet."""
-        self.internal_error: str | None = None
-        self.supervisor = Supervisor(clock.now_s, self.journal, self._on_bug)
-        self.signing: SigningGate | None = None
-        self._next_signing_report_s = 0.0
+        self.last_plan: LastPlan | None = None
+        self._due = _Due()
+        self._state = _RunState()
+        supervisor = Supervisor(clock.now_s, self.journal, self._on_bug)
+        self.tasks = TaskSet(supervisor)
 
-    def use_signing(self, gate: SigningGate) -> None:
-        """Sign frames to and check frames from the vehicles ``gate`` has keys for."""
-        self.signing = gate
-        self.router.admit = gate.admit
-        self.router.sign = gate.sign
+    # ------------------------------------------------------------------ read-outs
+    @property
+    def core_config(self) -> CoreConfig:
+        return self.core.config
+
+    @property
+    def supervisor(self) -> Supervisor:
+        return self.tasks.supervisor
+
+    @property
+    def boat_xy_m(self) -> tuple[float, float] | None:
+        return self.area.boat_xy_m
+
+    @property
+    def stop_reason(self) -> str:
+        return self._state.stop_reason
+
+    @property
+    def internal_error(self) -> str | None:
+        """Why a bug stopped the run (None if none did)."""
+        return self._state.internal_error
+
+    @property
+    def unknown_frames(self) -> int:
+        return self.drops.unknown_frames
+
+    @property
+    def detections_dropped(self) -> int:
+        return self.drops.detections_dropped
+
+    @property
+    def detections_no_origin(self) -> int:
+        return self.drops.detections_no_origin
 
     # ------------------------------------------------------------------ SessionHost
     @property
@@ -173,7 +243,7 @@ class Daemon:
         assert self.origin_or_none is not None
         return self.origin_or_none
 
-    def journal(self, event: str, *, logged: bool = False, **fields: Any) -> None:
+    def journal(self, event: str, *, logged: bool = False, **fields: object) -> None:
         """Write a journal line; an operator event also reaches the console, once.
 
         The rule that keeps every problem to one console line: the journal line of an
@@ -192,21 +262,20 @@ class Daemon:
         A fleet event (loiter end, vehicle joined/lost...) also wakes the ticker at once, so
         the plan it triggers is asked for on the next 0.1 s tick without waiting for the
         ticker's sleep."""
-        if self._finished:  # the run is over (its stop line is written): nothing more
-            return
+        if self._state.finished or self._state.internal_error is not None:
+            return  # the run is over, or a bug stops it: nothing more is commanded
         if not isinstance(
             event,
             ev.Tick | ev.Telemetry | ev.Detection | ev.PlanSolved | ev.BoatPosition
             | ev.WindReport,
         ):
-            self._kick.set()
+            self._due.kick.set()
         elif isinstance(event, ev.Telemetry):  # the arrival-error metric follows telemetry
             self.metrics.position(event.t_s, event.vehicle, event.x_m, event.y_m)
         try:
             pending = self.core.handle(event)
-        except Exception:
-            log.exception("decision core failed on %s", type(event).__name__)
-            self.journal("core_error", input=type(event).__name__, logged=True)
+        except Exception as exc:  # a bug: the one bug path (Supervisor.bug), a clean stop
+            self.supervisor.bug(f"core ({type(event).__name__})", exc)
             return
         for command in pending:
             self._execute(command)
@@ -257,11 +326,11 @@ class Daemon:
             if session is not None:
                 session.release(command.reason, home=isinstance(command, SendHome))
 
-    def _journal_command(self, command: Command, **extra: Any) -> None:
+    def _journal_command(self, command: Command, **extra: object) -> None:
         record = command_to_record(command)
         event = record.pop("event")
         record.pop("t")
-        self.journal(event, **record, **extra)
+        self.journal(event, logged=False, **record, **extra)
 
     def _on_solved(self, request: SolveRequest, result: PlanResult) -> None:
         self.core_event(ev.PlanSolved(self.clock.now_s(), request.request_id, result))
@@ -286,7 +355,7 @@ class Daemon:
                 self.journal(
                     "origin", lat_deg=msg.lat / 1e7, lon_deg=msg.lon / 1e7, source=f"system {sysid}"
                 )
-            self.unknown_frames += 1
+            self.drops.unknown_frames += 1
             if not is_autopilot_heartbeat(msg) or self.stopping:
                 return
             signature = (int(msg.type), int(msg.autopilot))
@@ -300,8 +369,8 @@ class Daemon:
             session = self._new_session(sysid, rx.component_id)
         try:
             session.on_message(msg)
-        except Exception:
-            log.exception("vehicle %s: message handling failed", session.id)
+        except Exception as exc:  # a bug in the controller: the one bug path, a clean stop
+            self.supervisor.bug(f"vehicle {session.id} controller", exc)
 
     def _new_session(self, sysid: int, component_id: int = 1) -> VehicleSession:
         settings = self.config.settings_for(sysid)
@@ -322,8 +391,8 @@ class Daemon:
         self.sessions[sysid] = session
         self.by_name[name] = session
         self.journal("vehicle_seen", vehicle=name, system_id=sysid, altitude_m=session.alt_m)
-        if self._tg is not None:
-            self._spawn(f"vehicle {name}", session.run, lambda: self._gave_up(session))
+        if self.tasks.group is not None:
+            self.tasks.spawn(f"vehicle {name}", session.run, lambda: self._gave_up(session))
         return session
 
     def _on_out_frame(self, rx: Received) -> None:
@@ -342,16 +411,6 @@ class Daemon:
                 )
 
     # ------------------------------------------------------------------ tasks
-    def _spawn(
-        self,
-        name: str,
-        factory: Callable[[], Awaitable[None]],
-        on_give_up: Callable[[], None] | None = None,
-    ) -> None:
-        assert self._tg is not None
-        coro = self.supervisor.supervise(name, factory, on_give_up)
-        self._tasks.append(self._tg.create_task(coro, name=name))
-
     def _gave_up(self, session: VehicleSession) -> None:
         """A vehicle's task failed past its restart limit: it leaves the plan (its targets go
         to the others) and floe stops commanding it."""
@@ -360,66 +419,64 @@ class Daemon:
         session.stopping = True
 
     def _on_bug(self, task: str, exc: BaseException) -> None:
-        """A bug stopped a task: stop the daemon cleanly; the vehicles keep their missions."""
-        self.internal_error = f"internal error in task {task}: {type(exc).__name__}: {exc}"
+        """A bug (in a task, the core or a vehicle's controller): stop the daemon cleanly;
+        nothing more is commanded, so the vehicles keep their missions."""
+        if self._state.internal_error is None:
+            self._state.internal_error = (
+                f"internal error in task {task}: {type(exc).__name__}: {exc}")
         self.request_stop("internal error")
 
     def request_stop(self, reason: str) -> None:
-        if not self._stop.is_set():
-            self.stop_reason = reason
-            self._stop.set()
+        if not self._state.stop.is_set():
+            self._state.stop_reason = reason
+            self._state.stop.set()
 
-    async def run(self, links: list[Link], out_links: list[Link]) -> None:
+    async def run(self, services: Sequence[Service] = ()) -> None:
         """Run until stopped (signal, ``--duration``, :meth:`request_stop`).
 
-        Every task runs in the root task group: the links first (their own tasks in a
-        child group; a link that cannot start, e.g. a port in use, ends the run with its
-        LinkError), then the ticker, heartbeat, solver, extra services and vehicle sessions."""
-        for link in links:
-            self.router.add_vehicle_link(link)
-        for link in out_links:
-            self.router.add_out_link(link)
+        Every task runs in the one root task group, supervised: the links first (their own
+        tasks in a child group; a link that cannot start, e.g. a port in use, ends the run
+        with its LinkError), then the daemon's own services (ticker, heartbeat, solver),
+        the ``services`` given (built by the composition root) and the vehicle sessions.
+        Stopping cancels them all."""
         start_error: BaseException | None = None
         try:
             async with asyncio.TaskGroup() as tg:
-                self._tg = tg
+                self.tasks.group = tg
                 ready: asyncio.Future[None] = asyncio.get_running_loop().create_future()
-                self._spawn("links", functools.partial(self.router.serve, ready))
+                self.tasks.spawn("links", functools.partial(self.router.serve, ready))
                 try:
                     await ready
                 except Exception as exc:
                     start_error = exc
                     self._cancel_tasks()
                 else:
-                    await self._run_tasks()
+                    await self._run_tasks(services)
         finally:
+            self.tasks.group = None
             self.solver.close()
             await self.router.stop()
         if start_error is not None:
             raise start_error
 
-    async def _run_tasks(self) -> None:
-        self._spawn("ticker", self._tick_loop)
-        self._spawn("heartbeat", self._heartbeat_loop)
-        self._spawn("solver", self.solver.run)
-        for factory in self.extra_tasks:
-            self._spawn(getattr(factory, "__name__", "task"), factory)
+    async def _run_tasks(self, services: Sequence[Service]) -> None:
+        self.tasks.start([
+            FnService("ticker", self._tick_loop),
+            FnService("heartbeat", self._heartbeat_loop),
+            FnService("solver", self.solver.run),
+            *services,
+        ])
         for session in self.sessions.values():
             gave_up = functools.partial(self._gave_up, session)
-            self._spawn(f"vehicle {session.id}", session.run, gave_up)
-        await self._stop.wait()
+            self.tasks.spawn(f"vehicle {session.id}", session.run, gave_up)
+        await self._state.stop.wait()
         await self._shutdown()
-        self.router.begin_close()  # before on_finish stops the embedded vehicles
-        for finish in self.on_finish:
-            finish()
         self._cancel_tasks()
 
     def _cancel_tasks(self) -> None:
-        self._finished = True
-        self.router.begin_close()
-        self.supervisor.stopped = True
-        for task in self._tasks:
-            task.cancel()
+        self._state.finished = True
+        self.router.begin_close()  # peers closing from now on (embedded vehicles) are no loss
+        self.tasks.cancel()
 
     async def _shutdown(self) -> None:
         """Never mid-upload: stop taking commands, wait for running exchanges, then act."""
@@ -433,7 +490,7 @@ class Daemon:
             if session.port.busy:
                 self.journal("stop_wait_timeout", vehicle=session.id)
             if (
-                self.internal_error is None
+                self._state.internal_error is None
                 and self.config.on_exit == OnExit.RTL
                 and session.state is VehicleState.ACTIVE
                 and not self.config.advisory
@@ -443,14 +500,14 @@ class Daemon:
                 for _ in range(3):
                     session.port.fire_mode(ArduPlaneMode.RTL)
                 self.journal("rtl", vehicle=session.id, ok=None, reason="on exit")
-        self.journal("stop", reason=self.stop_reason, **self.summary())
+        self.journal("stop", logged=False, reason=self._state.stop_reason, **self.summary())
 
     # ------------------------------------------------------------------ loops
     async def _heartbeat_loop(self) -> None:
         msg = M.MAVLink_heartbeat_message(
             M.MAV_TYPE_GCS, M.MAV_AUTOPILOT_INVALID, 0, 0, M.MAV_STATE_ACTIVE, 3
         )
-        while not self._finished:
+        while not self._state.finished:
             frame = self.encoder.encode(msg)
             self.router.broadcast(frame)
             if self.signing is not None:  # vehicles with their own key: one by one
@@ -467,63 +524,68 @@ class Daemon:
             if duration_s is not None and now >= duration_s:
                 self.request_stop("duration")
                 return
-            self._kick.clear()
+            self._due.kick.clear()
             with contextlib.suppress(TimeoutError):
                 async with asyncio.timeout(max(MIN_WAKE_WALL_S, self.clock.wall_s(TICK_S))):
-                    await self._kick.wait()
+                    await self._due.kick.wait()
 
     def tick(self, now: float) -> None:
         """Everything due by ``now`` (mission s): world, ticks, metrics, housekeeping."""
-        if self._next_tick_s < now - MAX_TICKS_PER_WAKE * TICK_S:
-            self._next_tick_s = now - MAX_TICKS_PER_WAKE * TICK_S
-        while self._next_tick_s <= now + 1e-9:
-            t = self._next_tick_s
+        due = self._due
+        if due.tick_s < now - MAX_TICKS_PER_WAKE * TICK_S:
+            due.tick_s = now - MAX_TICKS_PER_WAKE * TICK_S
+        while due.tick_s <= now + 1e-9:
+            t = due.tick_s
             if self.world is not None:
                 for event in self.world.step_to(t):
                     self.feed.scenario_event(event)
                 if self.world.boat_xy_m is not None:
                     self.set_boat(*self.world.boat_xy_m)
             self.core_event(ev.Tick(t))
-            if t >= self._next_sample_s - 1e-9:
+            if t >= due.sample_s - 1e-9:
                 self.feed.sample(t)
-                self._next_sample_s += 1.0
-            self._next_tick_s = round(self._next_tick_s + TICK_S, 6)
+                due.sample_s += 1.0
+            due.tick_s = round(due.tick_s + TICK_S, 6)
         for session in self.sessions.values():
             session.check_link(now)
-        if self.signing is not None and now >= self._next_signing_report_s:
-            self._next_signing_report_s = now + SIGNING_REPORT_S
+        if self.signing is not None and now >= due.signing_report_s:
+            due.signing_report_s = now + SIGNING_REPORT_S
             for entry in self.signing.take_report():
                 self.journal("signing_rejected", **entry)
-        if now >= self._next_link_report_s:
-            self._next_link_report_s = now + LINK_REPORT_PERIOD_S
+        if now >= due.link_report_s:
+            due.link_report_s = now + LINK_REPORT_PERIOD_S
             self.report_links()
-        if now >= self._next_track_s:
-            self._next_track_s = now + self.config.mission.track_period_s
+        if now >= due.track_s:
+            due.track_s = now + self.config.mission.track_period_s
             self.feed.journal_tracks()
 
     def report_links(self) -> None:
         """Journal ``link_drops`` where a link's receive trouble grew (see LinkReporter)."""
-        for line in self._link_reporter.changes(self.router.links):
+        for line in self._due.link_reporter.changes(self.router.links):
             self.journal("link_drops", **line)
 
     def set_boat(self, x_m: float, y_m: float) -> None:
         """Where the boat is (scenario truth or the detection feed), for the core."""
-        self.boat_xy_m = (x_m, y_m)
+        self.area.boat_xy_m = (x_m, y_m)
         self.core_event(ev.BoatPosition(self.core.t_s, x_m, y_m))  # as core.set_boat stamps it
+
+    def no_origin(self) -> None:
+        """A feed line dropped: no mission origin yet (FeedHost)."""
+        self.drops.detections_no_origin += 1
 
     def add_detection(self, event: ev.Detection) -> None:
         """A camera measurement (virtual camera or detection feed) for the core."""
         if not self.feed.detection(event):
-            self.detections_dropped += 1
+            self.drops.detections_dropped += 1
 
     # ------------------------------------------------------------------ reports
-    def summary(self) -> dict[str, Any]:
+    def summary(self) -> dict[str, object]:
         """The run in figures (printed at the end, in ``metrics.json`` and the stop line)."""
-        return run_summary(self, time.perf_counter() - self._wall_start,
-                           time.process_time() - self._cpu_start)
+        return run_summary(self, time.perf_counter() - self._state.wall_start,
+                           time.process_time() - self._state.cpu_start)
 
-    def metrics_dict(self) -> dict[str, Any]:
-        wall = time.perf_counter() - self._wall_start
+    def metrics_dict(self) -> dict[str, object]:
+        wall = time.perf_counter() - self._state.wall_start
         out = self.metrics.to_dict(wall)
         out["summary"] = self.summary()
         return out

@@ -18,7 +18,7 @@ if TYPE_CHECKING:
     from world.scenario import Scenario
     from world.wind import WindSpec
 
-__all__ = ["EmbeddedFactory", "EmbeddedVehicles"]
+__all__ = ["EmbeddedFactory", "EmbeddedService", "EmbeddedVehicles"]
 
 
 class EmbeddedVehicles(Protocol):
@@ -60,3 +60,18 @@ EmbeddedFactory = Callable[
 """Builds the vehicles for ``config.sim_count`` with the MAVLink 2 signing key each system
 id starts with, flying in the wind given (``--wind``, else the scenario's; raises
 ConfigError on a bad setting)."""
+
+
+class EmbeddedService:
+    """The daemon's service that flies the embedded vehicles until it is cancelled."""
+
+    name = "embedded vehicles"
+
+    def __init__(self, vehicles: EmbeddedVehicles) -> None:
+        self.vehicles = vehicles
+
+    async def run(self) -> None:
+        try:
+            await self.vehicles.run()
+        finally:
+            self.vehicles.stop()

@@ -12,7 +12,7 @@
   ``sigma_m`` is 0: the core's default).
 
 Positions go from lat/lon to the mission's local ENU frame (``GeoOrigin.to_local``); with
-no mission origin yet a line is dropped and counted (``Daemon.detections_no_origin``).
+no mission origin yet a line is dropped and counted (``FeedHost.no_origin``).
 
 **One scan, one time.** ``t_s`` is the daemon's mission clock when the line is handled
 (the sender's ``time_s`` is only checked for order and delay by the feed). The core groups
@@ -25,14 +25,37 @@ mission time.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, Any, Protocol
 
 from groundstation.core import events as ev
 
 if TYPE_CHECKING:
-    from groundstation.daemon.daemon import Daemon
+    from domain.geodesy import GeoOrigin
+    from groundstation.daemon.clock import MissionClock
+    from groundstation.daemon.session import VehicleSession
+    from groundstation.daemon.world_feed import WorldFeed
 
-__all__ = ["FeedLines"]
+__all__ = ["FeedHost", "FeedLines"]
+
+
+class FeedHost(Protocol):
+    """What the feed's lines need of the daemon."""
+
+    @property
+    def origin_or_none(self) -> GeoOrigin | None: ...
+    @property
+    def clock(self) -> MissionClock: ...
+    @property
+    def sessions(self) -> Mapping[int, VehicleSession]: ...
+    @property
+    def feed(self) -> WorldFeed: ...
+
+    def no_origin(self) -> None:
+        """Count a line dropped for want of a mission origin."""
+
+    def set_boat(self, x_m: float, y_m: float) -> None: ...
+    def add_detection(self, event: ev.Detection) -> None: ...
 
 
 def _field(item: Any, name: str) -> Any:
@@ -42,7 +65,7 @@ def _field(item: Any, name: str) -> Any:
 class FeedLines:
     """Callable for ``DetectionFeed(on_detection=...)``; see the module docstring."""
 
-    def __init__(self, daemon: Daemon) -> None:
+    def __init__(self, daemon: FeedHost) -> None:
         self.daemon = daemon
         self.frames = 0
         """Frame lines handed to the core."""
@@ -55,9 +78,9 @@ class FeedLines:
         daemon = self.daemon
         lat, lon = _field(item, "lat_deg"), _field(item, "lon_deg")
         if daemon.origin_or_none is None or lat is None or lon is None:
-            daemon.detections_no_origin += 1
+            daemon.no_origin()
             return
-        x, y, _ = daemon.origin.to_local(float(lat), float(lon))
+        x, y, _ = daemon.origin_or_none.to_local(float(lat), float(lon))
         t = daemon.clock.now_s()
         kind = _field(item, "kind")
         if kind == "boat":

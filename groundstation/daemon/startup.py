@@ -20,13 +20,14 @@ import dataclasses
 import json
 import logging
 import platform
-import secrets
 import signal
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from importlib.metadata import PackageNotFoundError, version
-from typing import Any
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
-from domain.errors import ConfigError, UsageError
+from domain.errors import ConfigError
 from domain.geodesy import GeoOrigin
 from domain.limits import MAX_COORDINATE_M, MAX_SPEED_M_S, MAX_TARGETS
 from domain.yaml_fields import check_number, load_yaml_file
@@ -35,32 +36,37 @@ from groundstation.core.config import CoreConfig, ReplanPolicy, config_to_dict
 from groundstation.core.scenario_config import core_config_for
 from groundstation.daemon.alerts import OperatorAlerts
 from groundstation.daemon.clock import MissionClock
+from groundstation.daemon.composition import (
+    StartError,
+    camera_positions,
+    feed_counters,
+    start_control,
+    start_detection_feed,
+    status_service,
+)
 from groundstation.daemon.config import DaemonConfig, resolve
 from groundstation.daemon.config_parse import check_config
 from groundstation.daemon.console import OperatorConsole
-from groundstation.daemon.control.controller import DaemonController
-from groundstation.daemon.control.server import ControlLimits, ControlServer, binding_warning
 from groundstation.daemon.daemon import Daemon
-from groundstation.daemon.embedded import EmbeddedFactory, EmbeddedVehicles
-from groundstation.daemon.feed_lines import FeedLines
+from groundstation.daemon.embedded import EmbeddedFactory, EmbeddedService, EmbeddedVehicles
 from groundstation.daemon.gc_guard import frozen_heap
-from groundstation.daemon.run_files import open_run_files
-from groundstation.daemon.signing_gate import SigningGate, load_signing_keys
+from groundstation.daemon.run_files import RunFiles, open_run_files
+from groundstation.daemon.services import FnService, Service
+from groundstation.daemon.session import VehicleSession
+from groundstation.daemon.signing_gate import SigningGate, SigningKeys, load_signing_keys
 from groundstation.daemon.wind_view import fallback_wind
 from groundstation.daemon.world import ScenarioWorld
-from groundstation.link import LinkError, LinkUrlError, describe_out_link, open_link
-from groundstation.link.detection_feed import DetectionFeed
+from groundstation.link import LinkError, LinkSpec, LinkUrlError, describe_out_link, open_link
 from groundstation.storage import StorageError, atomic_write_text
-from groundstation.vehicle.state import LinkState
+
+if TYPE_CHECKING:
+    from world.scenario import Scenario
+    from world.wind import WindSpec
 
 __all__ = ["StartError", "core_config", "load_targets", "run_daemon"]
 
 log = logging.getLogger(__name__)
 MIN_SOLVER_WALL_S = 0.05
-
-
-class StartError(UsageError):
-    """The daemon cannot start (bad input, port in use); one-line message."""
 
 
 def _versions() -> dict[str, str]:
@@ -185,6 +191,23 @@ def _print(text: str) -> None:
     print(text, flush=True)
 
 
+@dataclass
+class _Setup:
+    """What the run is built from, known before any file or port is opened."""
+
+    config: DaemonConfig
+    keys: SigningKeys
+    scenario: Scenario | None
+    wind: WindSpec
+    wind_source: str
+    sim: EmbeddedVehicles | None
+    origin: GeoOrigin | None
+    targets: list[ev.TargetAdded]
+    out_specs: list[LinkSpec]
+    clock: MissionClock
+    core: CoreConfig
+
+
 async def run_daemon(
     config: DaemonConfig,
     *,
@@ -195,11 +218,47 @@ async def run_daemon(
 ) -> Daemon:
     """Run the daemon described by ``config`` until it stops; returns it (for its summary).
 
-    ``embedded`` builds the vehicles of ``--vehicles sim:N`` (the command layer passes the
-    built-in simulator; the daemon itself never imports it)."""
+    The composition root: what must be released (run files, console, embedded vehicles,
+    control server, detection feed) goes on one ``AsyncExitStack``; the daemon is built
+    with its collaborators, the services with theirs, and :meth:`Daemon.run` starts them
+    all in its one root task group. ``embedded`` builds the vehicles of ``--vehicles
+    sim:N`` (the command layer passes the built-in simulator; the daemon never imports it)."""
+    setup = _prepare(config, embedded)
+    config, sim = setup.config, setup.sim
+    async with contextlib.AsyncExitStack() as stack:
+        files = _open_files(setup, stack)
+        console = OperatorConsole(config.status)
+        stack.callback(console.install())  # detached on the way out, whatever fails
+        urls = await _start_embedded(sim, stack) if sim else list(config.links.vehicles)
+        daemon = _build_daemon(setup, files, urls)
+        _journal_start(setup, files, daemon)
+        services: list[Service] = [EmbeddedService(sim)] if sim is not None else []
+        control = await start_control(config, daemon, print_fn, stack)
+        feed = await start_detection_feed(config, daemon, print_fn, stack)
+        alerts = OperatorAlerts(daemon, feed_counters(feed))
+        services += [FnService("alerts", alerts.run), *([control] if control else [])]
+        _print_start(setup, files.run_dir, urls, print_fn)
+        if install_signals:
+            _install_signals(daemon)
+        if console.live_table or console.final_table:
+            services.append(status_service(daemon, console, alerts))
+        if on_started is not None:
+            on_started(daemon)
+        try:
+            with frozen_heap():  # collections skip what existed before the run (gc_guard)
+                await daemon.run(services)
+        except LinkError as exc:
+            raise StartError(str(exc)) from None
+        _write_metrics(daemon)
+        return daemon
+
+
+def _prepare(config: DaemonConfig, embedded: EmbeddedFactory | None) -> _Setup:
+    """Check and resolve the config, load keys, scenario and targets, build (not start) the
+    embedded vehicles, choose the origin and clock: everything before a file or port."""
     check_config(config)
     config = resolve(config)
-    signing_keys = load_signing_keys(config)
+    keys = load_signing_keys(config)
     from planner.solve import warm_up
 
     warm_up()  # the solver's libraries (~0.6 s of CPU) before any clock starts: no mission time
@@ -217,9 +276,9 @@ async def run_daemon(
         if embedded is None:
             raise StartError("vehicles: sim:N needs the built-in simulator (run it with gcs run)")
         sim_keys: dict[int, bytes] = {}
-        if not signing_keys.setup:  # with setup they start keyless and are sent the key
+        if not keys.setup:  # with setup they start keyless and are sent the key
             for sysid in range(1, (config.sim_count or 0) + 1):
-                key = signing_keys.key_for(sysid)
+                key = keys.key_for(sysid)
                 if key is not None:
                     sim_keys[sysid] = key
         sim = embedded(config, scenario, sim_keys, wind)
@@ -239,228 +298,122 @@ async def run_daemon(
         out_specs = [parse_out_url(url) for url in config.links.out]  # MAVProxy's --out
     except LinkUrlError as exc:
         raise StartError(str(exc)) from None
-    if sim is not None:
-        clock = MissionClock(config.speedup_x, source=sim.now_s)
-    else:
-        clock = MissionClock(config.speedup_x)
-    ccfg = core_config(config, scenario, clock.speedup)
+    clock = MissionClock(config.speedup_x, source=sim.now_s if sim is not None else None)
+    return _Setup(config, keys, scenario, wind, wind_source, sim, origin, targets, out_specs,
+                  clock, core_config(config, scenario, clock.speedup))
+
+
+def _open_files(setup: _Setup, stack: contextlib.AsyncExitStack) -> RunFiles:
     try:
-        files = open_run_files(config, clock)
+        files = open_run_files(setup.config, setup.clock)
     except StorageError as exc:
         raise StartError(str(exc)) from None
-    run_dir, journal, tlog, effective = files.run_dir, files.journal, files.tlog, files.effective
-    console = OperatorConsole(config.status)
-    cleanups: list[Callable[[], None]] = []
-    daemon = Daemon(config, ccfg, clock, run_dir, origin, journal, tlog)
-    daemon.wind_fallback_source = wind_source
-    server_started = False
+    stack.callback(files.close)
+    return files
+
+
+async def _start_embedded(sim: EmbeddedVehicles, stack: contextlib.AsyncExitStack) -> list[str]:
+    """Open the embedded vehicles' ports (closed on the way out); their link URLs."""
     try:
-        cleanups.append(console.install())  # detached in the finally, whatever fails
-        if signing_keys.enabled:
-            daemon.use_signing(SigningGate(signing_keys, config.links.gcs_system_id))
-        if sim is not None:
-            try:
-                await sim.start()
-            except OSError as exc:
-                raise StartError(f"simulator: cannot open a port: {exc}") from None
-            server_started = True
-            urls = sim.link_urls()
-            daemon.extra_tasks.append(sim.run)
-            daemon.on_finish.append(sim.stop)
-            vehicles = sim
-
-            def sim_positions() -> dict[str, tuple[float, float]]:
-                out: dict[str, tuple[float, float]] = {}
-                for sysid, xy in vehicles.airborne_positions().items():
-                    session = daemon.sessions.get(sysid)
-                    # a vehicle whose link is down sends no camera data either
-                    if session is not None and session.link is not LinkState.LOST:
-                        out[session.id] = xy
-                return out
-
-            positions: Callable[[], dict[str, tuple[float, float]]] = sim_positions
-        else:
-            urls = list(config.links.vehicles)
-
-            def telemetry_positions() -> dict[str, tuple[float, float]]:
-                out: dict[str, tuple[float, float]] = {}
-                for s in daemon.sessions.values():
-                    snap = s.snapshot
-                    if (
-                        snap.x_m is not None
-                        and snap.y_m is not None
-                        and s.flying()
-                        and s.link is not LinkState.LOST
-                    ):
-                        out[s.id] = (snap.x_m, snap.y_m)
-                return out
-
-            positions = telemetry_positions
-        if scenario is not None:
-            daemon.world = ScenarioWorld(scenario, config.mission.seed, positions)
-        try:
-            links = [open_link(url, link_id=f"vehicles{i}") for i, url in enumerate(urls)]
-            outs = [open_link(spec, link_id=f"out{i}") for i, spec in enumerate(out_specs)]
-        except LinkUrlError as exc:
-            raise StartError(str(exc)) from None
-        journal.write(
-            "start",
-            config=effective,
-            versions=_versions(),
-            run_dir=str(run_dir),
-            speedup=clock.speedup,
-            core=config_to_dict(ccfg),
-            origin=dataclasses.asdict(origin) if origin else None,
-            sim_faults=sim.fault_specs if sim else None,
-            scenario=scenario.name if scenario else None,
-            wind={**dataclasses.asdict(wind), "source": wind_source},
-            signing=(
-                {"keys": dict(signing_keys.sources), "setup": signing_keys.setup}
-                if signing_keys.enabled
-                else None
-            ),
-        )
-        for target in targets:
-            if not daemon.inside_area(target.x_m, target.y_m):
-                raise StartError(
-                    f"--targets: target {target.target!r} at ({target.x_m:.0f}, "
-                    f"{target.y_m:.0f}) m is outside the operating area"
-                )
-            journal.write(
-                "target_added",
-                target=target.target,
-                x_m=target.x_m,
-                y_m=target.y_m,
-                vx_m_s=target.vx_m_s,
-                vy_m_s=target.vy_m_s,
-                sigma0=target.sigma0,
-                source="file",
-            )
-            daemon.core_event(target)
-        controller = DaemonController(daemon)
-        alerts = OperatorAlerts(daemon)
-
-        async def operator_alerts() -> None:
-            await alerts.run()
-
-        daemon.extra_tasks.append(operator_alerts)
-        await _start_control(config, daemon, controller, print_fn)
-        await _start_detection_feed(config, daemon, alerts, print_fn)
-        print_fn(
-            f"gcs run: run folder {run_dir} (speed-up {clock.speedup:g}x"
-            f"{', advisory' if config.advisory else ''})"
-        )
-        for url in urls:
-            print_fn(f"gcs run: vehicles on {url}")
-        print_fn(f"gcs run: wind {wind.describe()} ({wind_source}; the "
-                 "vehicles' own estimate replaces it once they report one)")
-        for spec in out_specs:
-            print_fn(f"gcs run: out link {spec.canonical}: {describe_out_link(spec)}")
-        if signing_keys.enabled:
-            who = ", ".join(f"{k} from {v}" for k, v in signing_keys.sources.items())
-            print_fn(f"gcs run: MAVLink 2 signing on ({who})"
-                     + (", sending SETUP_SIGNING" if signing_keys.setup else ""))
-        if install_signals:
-            loop = asyncio.get_running_loop()
-            for sig in (signal.SIGINT, signal.SIGTERM):
-                with contextlib.suppress(NotImplementedError, RuntimeError):
-                    loop.add_signal_handler(sig, daemon.request_stop, sig.name)
-        if console.live_table or console.final_table:
-            from groundstation.daemon.status import status_loop
-
-            async def status() -> None:
-                await status_loop(daemon, console.out, alerts, live=console.live_table)
-
-            daemon.extra_tasks.append(status)
-        if on_started is not None:
-            on_started(daemon)
-        try:
-            with frozen_heap():  # collections skip what existed before the run (gc_guard)
-                await daemon.run(links, outs)
-        except LinkError as exc:
-            raise StartError(str(exc)) from None
-        try:
-            atomic_write_text(
-                run_dir / "metrics.json", json.dumps(daemon.metrics_dict(), indent=1) + "\n"
-            )
-        except StorageError as exc:
-            raise StartError(f"metrics.json: {exc}") from None
-        return daemon
-    finally:
-        for stop in daemon.extra_stops:
-            with contextlib.suppress(Exception):
-                await stop()
-        if sim is not None and server_started:
-            await sim.close()
-        for cleanup in cleanups:
-            cleanup()
-        files.close()
-
-
-async def _start_control(
-    config: DaemonConfig,
-    daemon: Daemon,
-    controller: DaemonController,
-    print_fn: Callable[[str], None],
-) -> None:
-    http = config.http
-    if http.bind is None:
-        return
-    host, port = http.bind.host, http.bind.port
-    token = secrets.token_urlsafe(16)
-    limits = ControlLimits(
-        max_targets=http.max_targets,
-        max_ws_clients=http.max_ws_clients,
-        max_writes_per_s=http.max_writes_per_s,
-        header_timeout_s=http.header_timeout_s,
-    )
-    server = ControlServer(
-        controller, host, port, token, allow_origins=list(http.allow_origins), limits=limits
-    )
-    try:
-        await server.start(push=False)  # the pushes run in the daemon's task tree
+        await sim.start()
     except OSError as exc:
-        raise StartError(f"http: cannot listen on {host}:{port}: {exc.strerror or exc}") from None
-    daemon.extra_tasks.append(server.run)
-    daemon.extra_stops.append(server.stop)
-    daemon.control_url = str(getattr(server, "url", f"http://{host}:{port}"))
-    daemon.control_token = token
-    try:  # it holds the write token: 0600 from its creation on
+        raise StartError(f"simulator: cannot open a port: {exc}") from None
+    stack.push_async_callback(sim.close)
+    return sim.link_urls()
+
+
+def _build_daemon(setup: _Setup, files: RunFiles, urls: list[str]) -> Daemon:
+    """The daemon with its collaborators: links, signing gate, scenario world."""
+    config = setup.config
+    try:
+        links = [open_link(url, link_id=f"vehicles{i}") for i, url in enumerate(urls)]
+        outs = [open_link(spec, link_id=f"out{i}") for i, spec in enumerate(setup.out_specs)]
+    except LinkUrlError as exc:
+        raise StartError(str(exc)) from None
+    signing = (SigningGate(setup.keys, config.links.gcs_system_id)
+               if setup.keys.enabled else None)
+    daemon: Daemon | None = None
+
+    def sessions() -> Mapping[int, VehicleSession]:
+        return daemon.sessions if daemon is not None else {}
+
+    world = (None if setup.scenario is None else ScenarioWorld(
+        setup.scenario, config.mission.seed, camera_positions(setup.sim, sessions)))
+    daemon = Daemon(config, setup.core, setup.clock, files.run_dir, setup.origin,
+                    files.journal, files.tlog, links=links, out_links=outs, signing=signing,
+                    world=world, wind_fallback_source=setup.wind_source)
+    return daemon
+
+
+def _journal_start(setup: _Setup, files: RunFiles, daemon: Daemon) -> None:
+    """The ``start`` line, then the ``--targets`` (refused outside the operating area)."""
+    clock, keys, wind = setup.clock, setup.keys, setup.wind
+    files.journal.write(
+        "start",
+        config=files.effective,
+        versions=_versions(),
+        run_dir=str(files.run_dir),
+        speedup=clock.speedup,
+        core=config_to_dict(setup.core),
+        origin=dataclasses.asdict(setup.origin) if setup.origin else None,
+        sim_faults=setup.sim.fault_specs if setup.sim else None,
+        scenario=setup.scenario.name if setup.scenario else None,
+        wind={**dataclasses.asdict(wind), "source": setup.wind_source},
+        signing=(
+            {"keys": dict(keys.sources), "setup": keys.setup}
+            if keys.enabled
+            else None
+        ),
+    )
+    for target in setup.targets:
+        if not daemon.inside_area(target.x_m, target.y_m):
+            raise StartError(
+                f"--targets: target {target.target!r} at ({target.x_m:.0f}, "
+                f"{target.y_m:.0f}) m is outside the operating area"
+            )
+        files.journal.write(
+            "target_added",
+            target=target.target,
+            x_m=target.x_m,
+            y_m=target.y_m,
+            vx_m_s=target.vx_m_s,
+            vy_m_s=target.vy_m_s,
+            sigma0=target.sigma0,
+            source="file",
+        )
+        daemon.core_event(target)
+
+
+def _print_start(setup: _Setup, run_dir: Path, urls: list[str],
+                 print_fn: Callable[[str], None]) -> None:
+    config, keys = setup.config, setup.keys
+    print_fn(
+        f"gcs run: run folder {run_dir} (speed-up {setup.clock.speedup:g}x"
+        f"{', advisory' if config.advisory else ''})"
+    )
+    for url in urls:
+        print_fn(f"gcs run: vehicles on {url}")
+    print_fn(f"gcs run: wind {setup.wind.describe()} ({setup.wind_source}; the "
+             "vehicles' own estimate replaces it once they report one)")
+    for spec in setup.out_specs:
+        print_fn(f"gcs run: out link {spec.canonical}: {describe_out_link(spec)}")
+    if keys.enabled:
+        who = ", ".join(f"{k} from {v}" for k, v in keys.sources.items())
+        print_fn(f"gcs run: MAVLink 2 signing on ({who})"
+                 + (", sending SETUP_SIGNING" if keys.setup else ""))
+
+
+def _install_signals(daemon: Daemon) -> None:
+    loop = asyncio.get_running_loop()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        with contextlib.suppress(NotImplementedError, RuntimeError):
+            loop.add_signal_handler(sig, daemon.request_stop, sig.name)
+
+
+def _write_metrics(daemon: Daemon) -> None:
+    try:
         atomic_write_text(
-            daemon.run_dir / "control.json",
-            json.dumps({"url": daemon.control_url, "token": token}),
-            mode=0o600,
+            daemon.run_dir / "metrics.json", json.dumps(daemon.metrics_dict(), indent=1) + "\n"
         )
     except StorageError as exc:
-        raise StartError(f"control.json: {exc}") from None
-    warning = binding_warning(host)
-    if warning is not None:
-        print_fn(f"gcs run: {warning}")
-    print_fn(f"gcs run: live map {daemon.control_url}/ (open it in a browser; the token "
-             f"below lets it command, also in {daemon.run_dir}/control.json)")
-    print_fn(
-        f"gcs run: control API {daemon.control_url} token {token} "
-        f"(gcs target/vehicle find it through {daemon.run_dir / 'control.json'})"
-    )
-
-
-async def _start_detection_feed(
-    config: DaemonConfig, daemon: Daemon, alerts: OperatorAlerts,
-    print_fn: Callable[[str], None]
-) -> None:
-    if config.detections is None:
-        return
-    host, port = config.detections.host, config.detections.port
-
-    feed = DetectionFeed(host, port, FeedLines(daemon))
-    alerts.feed_counters = lambda: dataclasses.asdict(feed.counters)
-    try:
-        await feed.start()
-    except OSError as exc:
-        raise StartError(
-            f"detections: cannot listen on UDP {host}:{port}: {exc.strerror or exc}"
-        ) from None
-    daemon.extra_stops.append(feed.stop)
-    bound_host, bound_port = getattr(feed, "address", (host, port))
-    chosen = " (a free port; --detections HOST:PORT to choose)" if port == 0 else ""
-    print_fn(f"gcs run: detection feed on udp:{bound_host}:{bound_port}{chosen}")
+        raise StartError(f"metrics.json: {exc}") from None

@@ -9,7 +9,9 @@ Every long-running task of the daemon runs under :meth:`Supervisor.supervise`:
   short pause that grows with each failure, at most ``max_restarts`` times within
   ``window_s`` mission seconds; past that the task is given up (``task_gave_up``, an error on
   the console) and ``on_give_up`` is called (a vehicle session leaves the plan);
-* it fails with anything else: a bug. It is journalled with its traceback (``task_error``,
+* it fails with anything else: a bug (:meth:`Supervisor.bug`, also the path of a bug in the
+  decision core or a vehicle's controller, which run in callbacks rather than tasks). It
+  is journalled with its traceback (``task_error``,
   ``bug: true``), logged as critical, and ``on_bug`` stops the daemon cleanly: no further
   command is sent, so the vehicles keep flying their last mission (an unlimited loiter).
 """
@@ -63,6 +65,8 @@ class Supervisor:
         self.policy = policy or RestartPolicy()
         self.stopped = False
         self.given_up: list[str] = []
+        self.bugs: list[str] = []
+        """Where bugs happened, each once (a callback's bug may repeat until the stop)."""
 
     async def supervise(
         self,
@@ -101,20 +105,31 @@ class Supervisor:
                 )
                 await asyncio.sleep(min(5.0, self.policy.pause_step_s * restarts))
             except Exception as exc:
-                log.critical(
-                    "internal error in task %s: %s; stopping (vehicles keep their last mission)",
-                    name, _one_line(exc), exc_info=exc,
-                )
-                self._journal(
-                    "task_error",
-                    task=name,
-                    error=repr(exc),
-                    bug=True,
-                    traceback=traceback.format_exception(exc)[-6:],
-                    logged=True,
-                )
-                self._on_bug(name, exc)
+                self.bug(name, exc)
                 return
+
+    def bug(self, where: str, exc: BaseException) -> None:
+        """A bug (an unexpected exception) in ``where``, a task or a callback the daemon
+        runs outside a task (the decision core, a vehicle's controller): the traceback is
+        journalled (``task_error``, ``bug: true``), it is logged as critical and ``on_bug``
+        stops the daemon cleanly. Every bug takes this one path; the same bug repeated
+        before the stop (the next frame into a broken controller) is not told again."""
+        if where in self.bugs:
+            return
+        self.bugs.append(where)
+        log.critical(
+            "internal error in task %s: %s; stopping (vehicles keep their last mission)",
+            where, _one_line(exc), exc_info=exc,
+        )
+        self._journal(
+            "task_error",
+            task=where,
+            error=repr(exc),
+            bug=True,
+            traceback=traceback.format_exception(exc)[-6:],
+            logged=True,
+        )
+        self._on_bug(where, exc)
 
 
 def _one_line(exc: BaseException) -> str:

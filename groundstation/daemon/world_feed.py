@@ -12,7 +12,7 @@ from groundstation.core.decision import DecisionCore
 from groundstation.core.metrics import MetricsRecorder
 from groundstation.daemon.track_views import TrackNotes
 
-__all__ = ["SEARCH_RECORD_S", "WorldFeed"]
+__all__ = ["SEARCH_RECORD_S", "WorldFeed", "WorldFeedHost"]
 
 SEARCH_RECORD_S = 10.0
 """Mission seconds between two ``search`` journal lines (as ``gcs simulate`` writes them)."""
@@ -23,24 +23,32 @@ class _Truth(Protocol):
     def truth(self) -> dict[str, tuple[float, float]]: ...
 
 
-class WorldFeed:
-    """Feeds the core through ``core_event`` and journals through ``journal``."""
+class WorldFeedHost(Protocol):
+    """What the feed needs of the daemon: the core and the way into it, the journal, the
+    metrics, the scenario's world (its truth, None without a scenario) and the area."""
 
-    def __init__(
-        self,
-        core: DecisionCore,
-        core_event: Callable[[ev.Event], None],
-        journal: Callable[..., None],
-        metrics: MetricsRecorder,
-        world: Callable[[], _Truth | None],
-        inside_area: Callable[[float, float], bool],
-    ) -> None:
-        self.core = core
-        self._core_event = core_event
-        self._journal: Callable[..., Any] = journal
-        self.metrics = metrics
-        self._world = world
-        self._inside = inside_area
+    @property
+    def core(self) -> DecisionCore: ...
+    @property
+    def metrics(self) -> MetricsRecorder: ...
+    @property
+    def world(self) -> _Truth | None: ...
+
+    def core_event(self, event: ev.Event) -> None: ...
+    def journal(self, event: str, *, logged: bool = False, **fields: Any) -> None: ...
+    def inside_area(self, x_m: float, y_m: float) -> bool: ...
+
+
+class WorldFeed:
+    """Feeds the core through ``host.core_event`` and journals through ``host.journal``."""
+
+    def __init__(self, host: WorldFeedHost) -> None:
+        self.core = host.core
+        self._core_event = host.core_event
+        self._journal: Callable[..., Any] = host.journal
+        self.metrics = host.metrics
+        self._world: Callable[[], _Truth | None] = lambda: host.world
+        self._inside = host.inside_area
         self.notes = TrackNotes()
         self._next_search_s = 0.0
 

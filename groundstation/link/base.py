@@ -225,8 +225,8 @@ class Link(ABC):
         )
         self._wake = asyncio.Event()
         self._drain_task: asyncio.Task[None] | None = None
-        self.task_group: asyncio.TaskGroup | None = None
-        """Where the link's background tasks run (set by its owner before :meth:`start`)."""
+        self._group: asyncio.TaskGroup | None = None
+        """Where the link's background tasks run (given to :meth:`start` by its owner)."""
         self._paused: set[Any] = set()
 
     # -- lifecycle -------------------------------------------------------------------
@@ -256,18 +256,19 @@ class Link(ABC):
         """True while frames can be sent somewhere (a peer or port is there)."""
 
     def _spawn(self, coro: Coroutine[Any, Any, None], name: str) -> asyncio.Task[None]:
-        """A background task of this link: in :attr:`task_group` when the owner gave one
+        """A background task of this link: in the task group its owner gave :meth:`start`
         (the daemon's links run in a child task group of its root), else a plain task."""
-        if self.task_group is not None:
-            return self.task_group.create_task(coro, name=name)
+        if self._group is not None:
+            return self._group.create_task(coro, name=name)
         return asyncio.create_task(coro, name=name)
 
-    async def start(self) -> None:
-        """Open the transport. Listeners raise :class:`~domain.errors.LinkError` if they
-        cannot bind; connecting kinds (tcp, serial) return at once and keep trying in the
-        background."""
+    async def start(self, group: asyncio.TaskGroup | None = None) -> None:
+        """Open the transport, its background tasks in ``group`` if given. Listeners raise
+        :class:`~domain.errors.LinkError` if they cannot bind; connecting kinds (tcp,
+        serial) return at once and keep trying in the background."""
         if self._running:
             return
+        self._group = group
         await self._open()
         self._running = True
         if self.options.fair:

@@ -85,6 +85,8 @@ class Router:
         rules: BindingRules | None = None,
         now_s: Callable[[], float] = time.monotonic,
         on_notice: Callable[[str, dict[str, Any]], None] | None = None,
+        admit: Callable[[Link, int, Received], bool] | None = None,
+        sign: Callable[[int | None, int, bytes], bytes] | None = None,
     ) -> None:
         self.on_vehicle_frame = on_vehicle_frame
         self.on_out_frame = on_out_frame
@@ -96,9 +98,9 @@ class Router:
         self.out_links: list[Link] = []
         self.binder: Binder[Link] = Binder(rules)
         self.counters = RouterCounters()
-        self.admit: Callable[[Link, int, Received], bool] | None = None
+        self.admit = admit
         """Signing check: (link, vehicle link index, frame) -> let it through?"""
-        self.sign: Callable[[int | None, int, bytes], bytes] | None = None
+        self.sign = sign
         """Signing: (system id or None for broadcast, vehicle link index, frame) -> frame."""
 
     @property
@@ -139,12 +141,13 @@ class Router:
         """Every link, vehicle links first."""
         return [*self.vehicle_links, *self.out_links]
 
-    async def start(self) -> None:
-        """Start every link; if one cannot start, stop those started and re-raise."""
+    async def start(self, group: asyncio.TaskGroup | None = None) -> None:
+        """Start every link (background tasks in ``group`` if given); if one cannot start,
+        stop those started and re-raise."""
         started: list[Link] = []
         try:
             for link in self.links:
-                await link.start()
+                await link.start(group)
                 started.append(link)
         except BaseException:
             for link in reversed(started):
@@ -156,26 +159,20 @@ class Router:
         """Start every link with its background tasks (drain, reconnect) in a task group of
         this coroutine's own, tell ``ready`` (or hand it the start error), and run until
         cancelled; then stop the links. The daemon runs this in its root task group."""
-        try:
-            async with asyncio.TaskGroup() as group:
-                for link in self.links:
-                    link.task_group = group
-                try:
-                    await self.start()
-                except Exception as exc:
-                    if ready.done():  # a restart by the supervisor: its error is the task's
-                        raise
-                    ready.set_exception(exc)
-                    return
-                if not ready.done():
-                    ready.set_result(None)
-                try:
-                    await asyncio.Event().wait()
-                finally:
-                    await self.stop()
-        finally:
-            for link in self.links:
-                link.task_group = None
+        async with asyncio.TaskGroup() as group:
+            try:
+                await self.start(group)
+            except Exception as exc:
+                if ready.done():  # a restart by the supervisor: its error is the task's
+                    raise
+                ready.set_exception(exc)
+                return
+            if not ready.done():
+                ready.set_result(None)
+            try:
+                await asyncio.Event().wait()
+            finally:
+                await self.stop()
 
     def begin_close(self) -> None:
         """The daemon is shutting down: peers closing from now on are not lost links."""

@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import AsyncIterator
-from typing import TYPE_CHECKING, Any
+from collections.abc import AsyncIterator, Mapping
+from typing import TYPE_CHECKING, Any, Protocol
 
 from groundstation.core import events as ev
 from groundstation.daemon.control.contract import VEHICLE_ACTIONS
@@ -19,9 +19,50 @@ from groundstation.daemon.wind_view import vehicle_wind, wind_summary
 from groundstation.vehicle.state import VehicleState
 
 if TYPE_CHECKING:
-    from groundstation.daemon.daemon import Daemon
+    from domain.geodesy import GeoOrigin
+    from groundstation.core.config import CoreConfig
+    from groundstation.core.decision import DecisionCore
+    from groundstation.daemon.clock import MissionClock
+    from groundstation.daemon.config import DaemonConfig
+    from groundstation.daemon.journal import Journal
+    from groundstation.daemon.session import VehicleSession
 
-__all__ = ["DaemonController"]
+__all__ = ["ControllerHost", "DaemonController"]
+
+
+class ControllerHost(Protocol):
+    """What the control API reads of the daemon and asks it to do."""
+
+    @property
+    def config(self) -> DaemonConfig: ...
+    @property
+    def clock(self) -> MissionClock: ...
+    @property
+    def core(self) -> DecisionCore: ...
+    @property
+    def core_config(self) -> CoreConfig: ...
+    @property
+    def journal_file(self) -> Journal: ...
+    @property
+    def origin_or_none(self) -> GeoOrigin | None: ...
+    @property
+    def origin(self) -> GeoOrigin: ...
+    @property
+    def sessions(self) -> Mapping[int, VehicleSession]: ...
+    @property
+    def by_name(self) -> Mapping[str, VehicleSession]: ...
+    @property
+    def boat_xy_m(self) -> tuple[float, float] | None: ...
+    @property
+    def last_plan(self) -> Mapping[str, Any] | None: ...
+    @property
+    def wind_fallback_source(self) -> str: ...
+
+    def journal(self, event: str, *, logged: bool = False, **fields: Any) -> None: ...
+    def core_event(self, event: ev.Event) -> None: ...
+    def add_detection(self, event: ev.Detection) -> None: ...
+    def area_center(self) -> tuple[float, float]: ...
+    def inside_area(self, x_m: float, y_m: float) -> bool: ...
 
 
 def _refuse(error: str) -> dict[str, Any]:
@@ -31,7 +72,7 @@ def _refuse(error: str) -> dict[str, Any]:
 class DaemonController:
     """Implements :class:`~groundstation.daemon.control.contract.DaemonControl`."""
 
-    def __init__(self, daemon: Daemon) -> None:
+    def __init__(self, daemon: ControllerHost) -> None:
         self.daemon = daemon
         self._names = itertools.count(1)
 

@@ -71,26 +71,26 @@ class PageHub:
         self._pending_dropped = 0
         self._tasks: list[asyncio.Task[None]] = []
         self._closing: set[asyncio.Task[None]] = set()
-        self.task_group: asyncio.TaskGroup | None = None
-        """Where the hub's tasks run while :meth:`run` serves (the daemon's tree)."""
+        self._group: asyncio.TaskGroup | None = None
+        """Where the hub's tasks run while :meth:`run` serves (the group it opens)."""
 
     # ----------------------------------------------------------------- lifecycle
 
     def _spawn(self, coro: Coroutine[Any, Any, None], name: str) -> asyncio.Task[None]:
-        if self.task_group is not None:
-            return self.task_group.create_task(coro, name=name)
+        if self._group is not None:
+            return self._group.create_task(coro, name=name)
         return asyncio.create_task(coro, name=name)
 
     async def run(self) -> None:
         """Push from a task group of this coroutine's own until cancelled (the daemon runs
         it in its root group); :meth:`start` with ``push=False`` only seeds the buffer."""
         async with asyncio.TaskGroup() as group:
-            self.task_group = group
+            self._group = group
             try:
                 self._start_pushing()
                 await asyncio.Event().wait()
             finally:
-                self.task_group = None
+                self._group = None
 
     def start(self, push: bool = True) -> None:
         """Seed the buffer from the daemon's recent events and (unless ``push`` is False:
