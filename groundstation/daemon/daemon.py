@@ -17,7 +17,7 @@ import contextlib
 import functools
 import logging
 import time
-from collections.abc import Awaitable, Callable
+from collections.abc import Awaitable, Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -32,6 +32,7 @@ from groundstation.core.commands import (
     ReleaseVehicle,
     SendHome,
     SolveRequest,
+    Verdict,
 )
 from groundstation.core.config import CoreConfig
 from groundstation.core.decision import DecisionCore
@@ -184,14 +185,15 @@ class Daemon:
         if not logged and (level := line_level(line)) >= logging.INFO:
             log.log(level, "%s", describe_line(line))
 
-    def core_event(self, event: ev.Event) -> None:
-        """Feed the core and carry out what it says (as the offline runner does).
+    def core_event(self, event: ev.Event) -> Sequence[Verdict]:
+        """Feed the core and carry out what it says (as the offline runner does); returns
+        the core's verdicts on the detections this input decided.
 
         A fleet event (loiter end, vehicle joined/lost...) also wakes the ticker at once, so
         the plan it triggers is asked for on the next 0.1 s tick without waiting for the
         ticker's sleep."""
         if self._finished:  # the run is over (its stop line is written): nothing more
-            return
+            return ()
         if not isinstance(
             event,
             ev.Tick | ev.Telemetry | ev.Detection | ev.PlanSolved | ev.BoatPosition
@@ -205,9 +207,10 @@ class Daemon:
         except Exception:
             log.exception("decision core failed on %s", type(event).__name__)
             self.journal("core_error", input=type(event).__name__, logged=True)
-            return
+            return ()
         for command in pending:
             self._execute(command)
+        return pending.verdicts
 
     def clip(self, x_m: float, y_m: float) -> tuple[float, float, bool]:
         """Clip a waypoint into the operating area (SessionHost)."""

@@ -182,19 +182,17 @@ def _vehicles(daemon: Daemon) -> Table:
 def _targets(daemon: Daemon) -> list[RenderableType]:
     """The tracker's counts, then the confirmed and prior targets (tentative: counted)."""
     t = daemon.clock.now_s()
-    tracks = track_dicts(daemon.core.track_views())
-    status = {v["id"]: v["status"] for v in tracks}
+    view = daemon.core.view()
+    tracks = track_dicts(view.tracks)
     table = _table("target", "x m>", "y m>", "sigma>", "lost", "seen s>", "status")
-    for tr in daemon.core.observer.tracks():
-        if status.get(tr.id) == "tentative":
-            continue
+    for tr in view.firm_tracks():
         seen = None if tr.last_seen_s is None else t - tr.last_seen_s
-        kind = status.get(tr.id, "confirmed")
+        kind = tr.status
         table.add_row(tr.id, f"{tr.x_m:.0f}", f"{tr.y_m:.0f}", f"{tr.sigma:.2f}",
                       Text("LOST", style="bold red") if tr.lost else "", _fmt(seen, ".0f"),
                       Text(kind, style="magenta" if kind == "prior" else ""))
     counts = track_counts(tracks)
-    return [Text(count_line(counts, len(daemon.core.search_view()))), table]
+    return [Text(count_line(counts, len(view.search_cells))), table]
 
 
 def _recent(lines: Iterable[dict[str, Any]]) -> list[RenderableType]:
