@@ -164,6 +164,12 @@ class DecisionCore:
     def pending_request(self) -> SolveRequest | None:
         return self._pending
 
+    def wants_answer(self, request_id: int) -> bool:
+        """The stale-answer rule, for every frontend: only the newest request counts; an
+        answer to one that a newer request overtook (or that was already answered) is
+        dropped. A frontend may ask before it journals an answer; the core asks again."""
+        return self._pending is not None and self._pending.request_id == request_id
+
     def active_vehicles(self) -> list[VehicleRecord]:
         return [v for v in self.vehicles.values() if v.status == ACTIVE]
 
@@ -402,7 +408,7 @@ class DecisionCore:
 
     def _on_solved(self, event: PlanSolved) -> list[Command]:
         request = self._pending
-        if request is None or event.request_id != request.request_id:
+        if request is None or not self.wants_answer(event.request_id):
             self._count("stale_plans_dropped")
             return []
         self._pending = None

@@ -62,7 +62,6 @@ __all__ = ["Daemon"]
 
 log = logging.getLogger(__name__)
 M = mavlink2
-TICK_S = 0.1
 MIN_WAKE_WALL_S = 0.01
 MAX_TICKS_PER_WAKE = 100
 SIGNING_REPORT_S = 5.0
@@ -265,6 +264,10 @@ class Daemon:
         self.journal(event, **record, **extra)
 
     def _on_solved(self, request: SolveRequest, result: PlanResult) -> None:
+        """A solver's answer, for the core unless a newer request overtook it (the core's
+        rule, applied before the answer is journalled as an input)."""
+        if not self.core.wants_answer(request.request_id):
+            return
         self.core_event(ev.PlanSolved(self.clock.now_s(), request.request_id, result))
 
     def _on_solve_error(self, request: SolveRequest, error: str) -> None:
@@ -469,14 +472,16 @@ class Daemon:
                 self.request_stop("duration")
                 return
             self._kick.clear()
+            wake_s = max(MIN_WAKE_WALL_S, self.clock.wall_s(self.core.config.tick_s))
             with contextlib.suppress(TimeoutError):
-                async with asyncio.timeout(max(MIN_WAKE_WALL_S, self.clock.wall_s(TICK_S))):
+                async with asyncio.timeout(wake_s):
                     await self._kick.wait()
 
     def tick(self, now: float) -> None:
         """Everything due by ``now`` (mission s): world, ticks, metrics, housekeeping."""
-        if self._next_tick_s < now - MAX_TICKS_PER_WAKE * TICK_S:
-            self._next_tick_s = now - MAX_TICKS_PER_WAKE * TICK_S
+        tick_s = self.core.config.tick_s
+        if self._next_tick_s < now - MAX_TICKS_PER_WAKE * tick_s:
+            self._next_tick_s = now - MAX_TICKS_PER_WAKE * tick_s
         while self._next_tick_s <= now + 1e-9:
             t = self._next_tick_s
             if self.world is not None:
@@ -488,7 +493,7 @@ class Daemon:
             if t >= self._next_sample_s - 1e-9:
                 self.feed.sample(t)
                 self._next_sample_s += 1.0
-            self._next_tick_s = round(self._next_tick_s + TICK_S, 6)
+            self._next_tick_s = round(self._next_tick_s + tick_s, 6)
         for session in self.sessions.values():
             session.check_link(now)
         if self.signing is not None and now >= self._next_signing_report_s:

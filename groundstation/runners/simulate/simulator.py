@@ -1,7 +1,7 @@
 """The offline simulator behind ``gcs simulate``: the decision core against the world model.
 
-Virtual time advances in fixed steps (the scenario's ``observer.step_s``, 0.1 s in the
-paper). Each step, in order:
+Virtual time advances in fixed steps of the core's tick (``CoreConfig.tick_s``: the
+scenario's ``observer.step_s``, 0.1 s in the paper). Each step, in order:
 
 1. scripted events due by now (targets appearing, vehicles lost, overrides...) reach the
    world and the core;
@@ -149,9 +149,9 @@ class _Simulation:
         self.scenario = scenario
         self.options = options
         self.rng = np.random.default_rng(options.seed)
-        self.dt_s = scenario.observer.step_s
         self.duration_s = options.duration_s or scenario.duration_s
         self.core = DecisionCore(core_config_for(scenario, options.objective))
+        self.dt_s = self.core.config.tick_s  # the scenario's observer.step_s
         self.metrics = MetricsRecorder()
         self.fov_radius_m = self.core.config.observer.fov_radius_m
         self.wind = WindField(scenario.wind, options.seed)
