@@ -61,6 +61,7 @@ from groundstation.core.events import (
     WindReport,
 )
 from groundstation.core.metrics import MetricsRecorder
+from groundstation.core.mission import target_mission
 from groundstation.core.records import (
     command_to_record,
     event_to_record,
@@ -220,8 +221,7 @@ class _Simulation:
         elif isinstance(command, FlyToTarget):
             vehicle = self.vehicles[command.vehicle]
             if vehicle.commanded:
-                vehicle.command_fly(command.x_m, command.y_m, command.loiter_s,
-                                    command.loiter_radius_m, command.target)
+                vehicle.command_fly(target_mission(command))
                 self.metrics.fly(command.t_s, command.vehicle, command.target, command.x_m,
                                  command.y_m, command.eta_s, self.fov_radius_m)
         elif isinstance(command, SendHome):
