@@ -23,6 +23,7 @@ from typing import Any
 
 from domain.geodesy import GeoOrigin
 from groundstation.core import events as ev
+from groundstation.core.area import OperatingArea
 from groundstation.core.commands import (
     CancelSolve,
     Command,
@@ -38,7 +39,6 @@ from groundstation.core.config import CoreConfig
 from groundstation.core.decision import DecisionCore
 from groundstation.core.metrics import MetricsRecorder
 from groundstation.core.records import command_to_record, event_to_record
-from groundstation.daemon.area import OperatingArea
 from groundstation.daemon.clock import MissionClock
 from groundstation.daemon.config import DaemonConfig, OnExit, OperatingCenter
 from groundstation.daemon.journal import Journal

@@ -31,6 +31,7 @@ from typing import Any
 
 import numpy as np
 
+from groundstation.core.area import OperatingArea
 from groundstation.core.commands import (
     Command,
     FlyToTarget,
@@ -93,6 +94,10 @@ class SimulationOptions:
     snapshot_times_s: tuple[float, ...] = ()
     progress: Callable[[float, float], None] | None = None
     journal: bool = False
+    operating_radius_m: float | None = None
+    """The operating area around the launch origin (``core/area.py``): announced targets
+    outside it are refused, detections outside it dropped, aim points clipped onto it.
+    None (the default): no area."""
 
 
 @dataclass
@@ -153,6 +158,7 @@ class _Simulation:
         self.duration_s = options.duration_s or scenario.duration_s
         self.core = DecisionCore(core_config_for(scenario, options.objective))
         self.dt_s = self.core.config.tick_s  # the scenario's observer.step_s
+        self.area = OperatingArea(options.operating_radius_m, False, lambda: None)
         self.metrics = MetricsRecorder()
         self.fov_radius_m = self.core.config.observer.fov_radius_m
         self.wind = WindField(scenario.wind, options.seed)
@@ -221,7 +227,8 @@ class _Simulation:
         elif isinstance(command, FlyToTarget):
             vehicle = self.vehicles[command.vehicle]
             if vehicle.commanded:
-                vehicle.command_fly(target_mission(command))
+                x_m, y_m, _ = self.area.clip(command.x_m, command.y_m)
+                vehicle.command_fly(target_mission(command, (x_m, y_m)))
                 self.metrics.fly(command.t_s, command.vehicle, command.target, command.x_m,
                                  command.y_m, command.eta_s, self.fov_radius_m)
         elif isinstance(command, SendHome):
@@ -261,8 +268,8 @@ class _Simulation:
                                            spec.vy_m_s, self.scenario.observer.iceberg_q_per_s))
             if not self.scenario.targets_known:
                 return  # the ground station learns of it from the camera (and the prior)
-            self.feed(TargetAdded(t_s, spec.id, spec.x_m, spec.y_m, spec.vx_m_s, spec.vy_m_s,
-                                  spec.sigma0))
+            self.announce(TargetAdded(t_s, spec.id, spec.x_m, spec.y_m, spec.vx_m_s,
+                                      spec.vy_m_s, spec.sigma0))
             return
         if item.kind == "target_removed" and item.target_id is not None:
             if item.target_id in self.world.icebergs:
@@ -293,8 +300,19 @@ class _Simulation:
         elif item.kind == "battery_low":
             self.feed(BatteryLow(t_s, vehicle_id))
 
+    def announce(self, event: TargetAdded) -> None:
+        """A target (or prior entry) for the core, unless outside the operating area."""
+        if not self.area.contains(event.x_m, event.y_m):
+            self.log(event.t_s, "target_refused", target=event.target,
+                     reason="outside the operating area")
+            return
+        self.feed(event)
+
     def feed_observed(self, event: Event) -> None:
-        """A camera input to the core; a detection is journalled."""
+        """A camera input to the core (a detection outside the operating area is dropped);
+        a detection is journalled."""
+        if isinstance(event, Detection) and not self.area.contains(event.x_m, event.y_m):
+            return
         if self.options.journal and isinstance(event, Detection):
             self.run.journal.append({"event": "detection", "t": event.t_s,
                                      "vehicle": event.vehicle, "target": event.target,
@@ -323,7 +341,7 @@ class _Simulation:
             s = vehicle.state
             self.feed(VehicleJoined(0.0, vehicle.id, s.x_m, s.y_m, s.heading_rad, s.speed_m_s))
         for added in self.discovery.prior_events() if self.discovery else []:
-            self.feed(added)
+            self.announce(added)
         steps = round(self.duration_s / self.dt_s)
         next_sample_s = 0.0
         for k in range(steps + 1):
