@@ -46,6 +46,8 @@ def test_view_copies_the_tracks_floats_with_their_status() -> None:
     assert (vehicle.id, vehicle.x_m, vehicle.y_m, vehicle.heading_rad) == ("1", 5.0, 6.0, 0.5)
     assert view.wind == core.wind_state and not view.searching and view.search_cells == ()
     assert view.track("nope") is None
+    assert view.plans_adopted == core.plans_adopted == 0
+    assert view.wind_outliers == core.wind.flagged == frozenset()
 
 
 def test_handle_returns_the_verdict_on_each_detection() -> None:

@@ -520,7 +520,7 @@ class DecisionCore:
         )
         return CoreView(self.t_s, tuple(self.track_views()), tuple(self.search_view()),
                         self.search is not None, self.wind.current, vehicles,
-                        dict(self.observer.counters))
+                        dict(self.observer.counters), self.wind.flagged, self.plans_adopted)
 
     def track_views(self) -> list[TrackView]:
         """Every track with its status (``core/views.py``), sorted by id."""

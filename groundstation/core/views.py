@@ -90,7 +90,9 @@ class VehicleView:
 @dataclass(frozen=True)
 class CoreView:
     """The core at mission time ``t_s`` (module docstring). ``searching`` is whether the
-    core keeps search cells at all (``search_cells`` is then every cell, by id)."""
+    core keeps search cells at all (``search_cells`` is then every cell, by id);
+    ``wind_outliers`` the vehicles whose wind reports are flagged (``core/wind_estimate.py``);
+    ``plans_adopted`` how many plans the core has adopted."""
 
     t_s: float
     tracks: tuple[TrackView, ...]
@@ -99,6 +101,8 @@ class CoreView:
     wind: WindState
     vehicles: tuple[VehicleView, ...]
     observer_counters: Mapping[str, int] = field(default_factory=dict)
+    wind_outliers: frozenset[str] = frozenset()
+    plans_adopted: int = 0
 
     @property
     def target_ids(self) -> frozenset[str]:

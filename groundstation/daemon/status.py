@@ -131,11 +131,12 @@ def _header(daemon: Daemon, alerts: OperatorAlerts | None) -> list[RenderableTyp
 
 
 def _wind_line(daemon: Daemon) -> Text:
-    state = daemon.core.wind_state
+    view = daemon.core.view()
+    state = view.wind
     text = f"wind {wind_text(*state.xy_m_s)} ({wind_label(state, daemon.wind_fallback_source)})"
     if not daemon.core_config.wind_aware:
         text += ", not used by the planner (wind_aware false)"
-    flagged = sorted(daemon.core.wind.flagged)
+    flagged = sorted(view.wind_outliers)
     if flagged:
         return Text.assemble(text, (f"  outlier: {', '.join(flagged)}", "yellow"))
     return Text(text)
