@@ -56,6 +56,8 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
+from groundstation.core.arrivals import percentile
+
 STRATEGIES = ("before", "none", "replan", "join-after-wind")
 
 
@@ -65,9 +67,9 @@ def join_after_wind() -> Iterator[None]:
     send both, in that order, so the core's estimate counts it before the next plan)."""
     from groundstation.core import events as ev
     from groundstation.vehicle import controller_io
-    from groundstation.vehicle.state import ControllerState
+    from groundstation.vehicle.controller import VehicleController
 
-    joined, core = ControllerState.joined, ControllerState._core
+    joined, core = VehicleController.joined, VehicleController._core
 
     def held_joined(self: Any, how: str) -> None:
         self._held_join = True
@@ -84,13 +86,13 @@ def join_after_wind() -> Iterator[None]:
                     self._out.append(controller_io.CoreEvent(pose))
         core(self, event)
 
-    ControllerState.joined = held_joined  # type: ignore[method-assign]
-    ControllerState._core = held_core  # type: ignore[method-assign]
+    VehicleController.joined = held_joined  # type: ignore[method-assign]
+    VehicleController._core = held_core  # type: ignore[method-assign]
     try:
         yield
     finally:
-        ControllerState.joined = joined  # type: ignore[method-assign]
-        ControllerState._core = core  # type: ignore[method-assign]
+        VehicleController.joined = joined  # type: ignore[method-assign]
+        VehicleController._core = core  # type: ignore[method-assign]
 
 
 def run_once(seed: int, from_deg: float, speed_m_s: float, known: bool, strategy: str,
@@ -157,20 +159,11 @@ def _nothing() -> Iterator[None]:
     yield
 
 
-def _pct(values: Sequence[float], q: float) -> float:
-    ordered = sorted(values)
-    pos = (len(ordered) - 1) * q
-    i = math.floor(pos)
-    if i >= len(ordered) - 1:
-        return ordered[-1]
-    return ordered[i] + (ordered[i + 1] - ordered[i]) * (pos - i)
-
-
 def _errors(values: Sequence[float]) -> str:
     if not values:
         return "-"
     a = [abs(v) for v in values]
-    return f"{statistics.median(a):.1f} / {_pct(a, 0.9):.1f} / {max(a):.1f}"
+    return f"{statistics.median(a):.1f} / {percentile(a, 0.9):.1f} / {max(a):.1f}"
 
 
 def ratio_interval(ratios: Sequence[float]) -> str:
@@ -247,8 +240,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--report", nargs="+", metavar="FILE", help="print from JSON files")
     args = parser.parse_args(argv)
     if args.report:
-        runs = [r for path in args.report for r in json.loads(Path(path).read_text())]
-        report(runs)
+        report([r for path in args.report for r in json.loads(Path(path).read_text())])
         return 0
     strategies = [s.strip() for s in args.strategies.split(",")]
     if unknown := set(strategies) - set(STRATEGIES) - {"before"}:

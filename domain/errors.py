@@ -63,11 +63,20 @@ class ProtocolError(FloeError):
 
 
 class RemoteProtocolError(ProtocolError):
-    """The peer broke the protocol (never a reason to stop: the peer is not ours)."""
+    """The peer broke the protocol or refused (never a reason to stop: the peer is not
+    ours); ``result`` is the transfer result that says how, when there is one. The sans-IO
+    machines never raise it: they finish with a result that says so, as data
+    (``TransferResult.raise_for_status`` turns a failed one into this at the edge)."""
+
+    def __init__(self, message: str, result: object = None) -> None:
+        super().__init__(message)
+        self.result = result
 
 
 class LocalProtocolError(ProtocolError, ValueError):
-    """floe misused a protocol machine: a bug."""
+    """floe misused a protocol machine (``receive`` before ``start``, an invalid mission
+    item, target or parameter): a bug, or bad input handed in; raised at once. Input after a
+    machine's end is not misuse: it returns no actions."""
 
 
 EXPECTED_TASK_ERRORS: tuple[type[BaseException], ...] = (

@@ -41,7 +41,7 @@ from domain.geodesy import GeoOrigin, wrap_pi
 from domain.modes import ArduPlaneMode
 from groundstation.mavlink.codec import mavlink2
 from sitl.airframe import Airframe, Guidance
-from sitl.mission_store import MissionItem, MissionStore
+from sitl.mission_store import MissionStore, StoredItem
 from sitl.params import ParamStore
 from sitl.statustext import StatusTextFactory
 
@@ -142,7 +142,7 @@ class Autopilot:
             return RADIUS_FACTOR * abs(default), not ccw
         return RADIUS_FACTOR * abs(commanded_m), commanded_m >= 0.0
 
-    def _item_xy_alt(self, item: MissionItem, af: Airframe) -> tuple[float, float, float]:
+    def _item_xy_alt(self, item: StoredItem, af: Airframe) -> tuple[float, float, float]:
         if item.x == 0 and item.y == 0:
             x_m, y_m = af.x_m, af.y_m
         else:
@@ -227,7 +227,7 @@ class Autopilot:
             seq = self._run_do_command(seq, item)
         return out + self._mission_end(af)
 
-    def _run_do_command(self, seq: int, item: MissionItem) -> int:
+    def _run_do_command(self, seq: int, item: StoredItem) -> int:
         if item.command == M.MAV_CMD_DO_CHANGE_SPEED and item.param2 > 0:
             lo, hi = self.params.get("AIRSPEED_MIN"), self.params.get("AIRSPEED_MAX")
             self.speed_cmd_m_s = max(lo, min(hi, item.param2))
@@ -239,7 +239,7 @@ class Autopilot:
                 return target
         return seq + 1
 
-    def _start_nav(self, seq: int, item: MissionItem, af: Airframe) -> list[Any]:
+    def _start_nav(self, seq: int, item: StoredItem, af: Airframe) -> list[Any]:
         out: list[Any] = []
         if item.command == M.MAV_CMD_NAV_RETURN_TO_LAUNCH:
             self.mode = RTL

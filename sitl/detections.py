@@ -39,7 +39,7 @@ import numpy as np
 from domain.geodesy import GeoOrigin
 from world.model import Boat, Iceberg, World
 
-__all__ = ["DetectionFeed", "scenario_targets", "world_from_scenario"]
+__all__ = ["DetectionSource", "scenario_targets", "world_from_scenario"]
 
 WORLD_STEP_S = 0.1
 BOAT_PERIOD_S = 1.0
@@ -76,7 +76,7 @@ def world_from_scenario(scenario: Any, rng: np.random.Generator) -> tuple[World,
     return World([], boat, camera, rng), script
 
 
-class DetectionFeed:
+class DetectionSource:
     """Sans-IO: ``step(t_s, positions)`` returns the datagrams (one JSON line each, or with
     ``frames`` a frame's lines per datagram; see the module docstring)."""
 
@@ -104,7 +104,7 @@ class DetectionFeed:
     def for_scenario(
         cls, scenario: Any, seed: int, origin: GeoOrigin, anonymous: bool = False,
         *, frames: bool = False,
-    ) -> DetectionFeed:
+    ) -> DetectionSource:
         """The feed of a scenario's world, seeded as ``gcs simulate`` seeds it."""
         world, script = world_from_scenario(scenario, np.random.default_rng(seed))
         q = float(scenario.observer.iceberg_q_per_s)

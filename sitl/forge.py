@@ -25,6 +25,7 @@ from typing import Any
 
 from pymavlink.generator.mavcrc import x25crc
 
+from domain.modes import ArduPlaneMode
 from groundstation.mavlink.codec import MavlinkEncoder, mavlink2
 
 __all__ = [
@@ -37,7 +38,8 @@ __all__ = [
 ]
 
 M = mavlink2
-FBWA = 5
+_P = ArduPlaneMode
+_FORGED_MODES = (_P.FBWA, _P.RTL, _P.MANUAL, _P.LOITER)  # a forged mode switch: never floe's
 FORGED_KINDS = ("battery", "boot_time", "mode", "item_reached", "current", "landed")
 
 
@@ -66,7 +68,7 @@ def _mode(rng: random.Random) -> list[Any]:
         | M.MAV_MODE_FLAG_STABILIZE_ENABLED
         | M.MAV_MODE_FLAG_SAFETY_ARMED
     )
-    mode = rng.choice((FBWA, 11, 0, 12))
+    mode = rng.choice(_FORGED_MODES)
     return [
         M.MAVLink_heartbeat_message(
             M.MAV_TYPE_FIXED_WING, M.MAV_AUTOPILOT_ARDUPILOTMEGA, base, mode, 4, 3

@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from groundstation.mavlink.codec import mavlink2
-from sitl.mission_store import GEO_COMMANDS, MissionItem, item_from_message, item_to_message
+from sitl.mission_store import GEO_COMMANDS, StoredItem, item_from_message, item_to_message
 
 __all__ = ["GEO_CAPACITY", "GeoItemsServer"]
 
@@ -44,7 +44,7 @@ items, RALLY_TOTAL up to 100 rally points)."""
 class _Upload:
     peer: tuple[int, int]
     count: int
-    items: list[MissionItem] = field(default_factory=list)
+    items: list[StoredItem] = field(default_factory=list)
     last_request_t: float = 0.0
     last_receive_t: float = 0.0
 
@@ -55,7 +55,7 @@ class GeoItemsServer:
     def __init__(self, *, rerequest_s: float, upload_timeout_s: float) -> None:
         self.rerequest_s = rerequest_s
         self.upload_timeout_s = upload_timeout_s
-        self.stores: dict[int, list[MissionItem]] = {t: [] for t in GEO_COMMANDS}
+        self.stores: dict[int, list[StoredItem]] = {t: [] for t in GEO_COMMANDS}
         self._uploads: dict[int, _Upload] = {}
 
     @staticmethod

@@ -29,8 +29,8 @@ __all__ = [
     "GEO_COMMANDS",
     "LOCATION_COMMANDS",
     "MAX_MISSION_ITEMS",
-    "MissionItem",
     "MissionStore",
+    "StoredItem",
     "item_from_message",
     "item_to_message",
 ]
@@ -114,7 +114,7 @@ _GLOBAL_FRAMES = frozenset(
 
 
 @dataclass(frozen=True)
-class MissionItem:
+class StoredItem:
     """One stored mission command (MISSION_ITEM_INT semantics)."""
 
     command: int
@@ -170,7 +170,7 @@ def _uint(value: float, high: int) -> float:
     return float(min(int(value), high))
 
 
-def stored_form(item: MissionItem) -> MissionItem:
+def stored_form(item: StoredItem) -> StoredItem:
     """What AP_Mission keeps of an item (``mavlink_int_to_mission_cmd``), i.e. what a
     download returns and what the plane flies (``mission_cmd_to_mavlink_int``):
 
@@ -261,7 +261,7 @@ def _latlon_e7(msg: Any, is_int: bool) -> tuple[int, int] | int:
 
 def item_from_message(
     msg: Any, mission_type: int = M.MAV_MISSION_TYPE_MISSION
-) -> tuple[MissionItem | None, int]:
+) -> tuple[StoredItem | None, int]:
     """Convert a MISSION_ITEM or MISSION_ITEM_INT of ``mission_type`` to its stored form;
     returns (item, MAV_MISSION_RESULT). NaN parameters are accepted (QGroundControl sends
     NaN for "unchanged" yaw), as ArduPilot does; they are dropped or zeroed by
@@ -277,7 +277,7 @@ def item_from_message(
         if isinstance(latlon, int):
             return None, latlon
         x, y = latlon
-        return MissionItem(
+        return StoredItem(
             command, int(msg.frame), *params, x=x, y=y, z=z if _finite(z) else 0.0
         ), M.MAV_MISSION_ACCEPTED
     if command not in COMMAND_NAMES:
@@ -295,12 +295,12 @@ def item_from_message(
         fx, fy = float(msg.x), float(msg.y)
         x = int(fx) if _finite(fx) and abs(fx) < 2**31 else 0
         y = int(fy) if _finite(fy) and abs(fy) < 2**31 else 0
-    item = MissionItem(command, int(msg.frame), *params, x=x, y=y, z=z if _finite(z) else 0.0)
+    item = StoredItem(command, int(msg.frame), *params, x=x, y=y, z=z if _finite(z) else 0.0)
     return stored_form(item), M.MAV_MISSION_ACCEPTED
 
 
 def item_to_message(
-    item: MissionItem,
+    item: StoredItem,
     seq: int,
     target: tuple[int, int],
     as_int: bool,
@@ -338,14 +338,14 @@ class MissionStore:
     refused with NO_SPACE, "Only 0 items are supported"), MAX_MISSION_ITEMS afterwards.
     """
 
-    def __init__(self, home: MissionItem) -> None:
-        self.items: list[MissionItem] = [home]
+    def __init__(self, home: StoredItem) -> None:
+        self.items: list[StoredItem] = [home]
         self.capacity = 0
 
     def __len__(self) -> int:
         return len(self.items)
 
-    def set_home(self, home: MissionItem) -> None:
+    def set_home(self, home: StoredItem) -> None:
         """Replace item 0."""
         self.items[0] = home
 
@@ -357,7 +357,7 @@ class MissionStore:
         """Remove everything but home."""
         self.truncate(1)
 
-    def write(self, seq: int, item: MissionItem) -> None:
+    def write(self, seq: int, item: StoredItem) -> None:
         """Store ``item`` at ``seq`` (append when ``seq == len``). Item 0 always reads back
         as the vehicle's home, whatever was uploaded there (AP_Mission)."""
         if seq == 0:

@@ -17,6 +17,7 @@ import math
 from dataclasses import dataclass
 
 from domain.limits import MAX_WIND_M_S
+from domain.modes import ArduPlaneMode
 from groundstation.mavlink.codec import mavlink2
 
 __all__ = ["ParamSpec", "ParamStore", "default_param_specs"]
@@ -47,7 +48,7 @@ def default_param_specs(system_id: int, cruise_speed_m_s: float) -> list[ParamSp
         ParamSpec("SYSID_THISMAV", system_id, _INT16, 1, 255),
         ParamSpec("MAV_GCS_SYSID", 255, _INT16, 1, 255),
         ParamSpec("SYSID_MYGCS", 255, _INT16, 1, 255),
-        ParamSpec("INITIAL_MODE", 0, _INT8, 0, 25),
+        ParamSpec("INITIAL_MODE", ArduPlaneMode.MANUAL, _INT8, 0, 25),
         ParamSpec("WP_LOITER_RAD", 60, _INT16, -32767, 32767),
         ParamSpec("WP_RADIUS", 90, _INT16, 1, 32767),
         ParamSpec("WP_MAX_RADIUS", 0, _INT16, 0, 32767),
@@ -84,12 +85,12 @@ def default_param_specs(system_id: int, cruise_speed_m_s: float) -> list[ParamSp
         ParamSpec("SIM_WIND_TURB", 0, _REAL32, 0, MAX_WIND_M_S),
         ParamSpec("Q_ENABLE", 0, _INT8, 0, 2),
         ParamSpec("FLTMODE_CH", 8, _INT8, 1, 16),
-        ParamSpec("FLTMODE1", 10, _INT8, 0, 25),
-        ParamSpec("FLTMODE2", 11, _INT8, 0, 25),
-        ParamSpec("FLTMODE3", 12, _INT8, 0, 25),
-        ParamSpec("FLTMODE4", 5, _INT8, 0, 25),
-        ParamSpec("FLTMODE5", 2, _INT8, 0, 25),
-        ParamSpec("FLTMODE6", 0, _INT8, 0, 25),
+        ParamSpec("FLTMODE1", ArduPlaneMode.AUTO, _INT8, 0, 25),
+        ParamSpec("FLTMODE2", ArduPlaneMode.RTL, _INT8, 0, 25),
+        ParamSpec("FLTMODE3", ArduPlaneMode.LOITER, _INT8, 0, 25),
+        ParamSpec("FLTMODE4", ArduPlaneMode.FBWA, _INT8, 0, 25),
+        ParamSpec("FLTMODE5", ArduPlaneMode.STABILIZE, _INT8, 0, 25),
+        ParamSpec("FLTMODE6", ArduPlaneMode.MANUAL, _INT8, 0, 25),
         ParamSpec("TRIM_THROTTLE", 45, _INT8, 0, 100),
         ParamSpec("THR_MAX", 100, _INT8, 0, 100),
         ParamSpec("STALL_PREVENTION", 1, _INT8, 0, 1),

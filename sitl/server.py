@@ -24,7 +24,7 @@
 * Signing (:mod:`sitl.signing_endpoint`): ``signing_keys`` gives vehicles a key at start;
   SETUP_SIGNING installs one. A vehicle with a key drops (and counts) what fails the
   MAVLink 2 signature check before its faults and autopilot see it, and signs all it sends.
-* An optional feed (:class:`sitl.detections.DetectionFeed`-like: ``step(t_s, positions)``
+* An optional feed (:class:`sitl.detections.DetectionSource`-like: ``step(t_s, positions)``
   returning datagrams) is given each vehicle's local position and its datagrams are sent
   to ``feed_address``.
 """

@@ -21,7 +21,7 @@ cleared only for a used sensor the AHRS does not use), and is *enabled* only whi
 **WIND without airspeed.** ArduPlane's EKF cannot observe the wind well without airspeed
 in straight flight; against real SITL, 15 m/s of true wind was reported as 5.5-8.8 m/s
 after the sensor was disabled. Modelled deterministically: while the sensor is not in use
-the estimate (:class:`sitl.sim_wind.WindEstimate`, the same first-order lag) follows
+the estimate (:class:`sitl.sim_wind.EkfWindModel`, the same first-order lag) follows
 
     w' = k R(theta) w,    k = DEGRADED_GAIN = 0.45,  theta = DEGRADED_TURN_DEG = 20 deg
 

@@ -47,8 +47,8 @@ from world.wind import WindField, WindSpec
 __all__ = [
     "ESTIMATE_TAU_S",
     "WIND_PARAMS",
+    "EkfWindModel",
     "FlownWind",
-    "WindEstimate",
     "wind_param_values",
 ]
 
@@ -93,7 +93,7 @@ class FlownWind:
         return self._field.at(t_s)
 
 
-class WindEstimate:
+class EkfWindModel:
     """The modelled EKF wind estimate (module docstring); zero at boot."""
 
     def __init__(self, tau_s: float = ESTIMATE_TAU_S) -> None:

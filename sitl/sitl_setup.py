@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from domain.geodesy import GeoOrigin
-from sitl.detections import DetectionFeed
+from sitl.detections import DetectionSource
 from sitl.faults import fault_spec
 from sitl.vehicle import VehicleConfig
 from world.wind import WindSpec
@@ -40,11 +40,11 @@ class SitlSetup:
     turn_radius_m: float = 105.0
     launch: list[tuple[float, float, float]] = field(default_factory=list)
     fault_specs: list[str] = field(default_factory=list)
-    feed_factory: Callable[[int, bool], DetectionFeed | None] | None = None
+    feed_factory: Callable[[int, bool], DetectionSource | None] | None = None
     skipped_events: list[str] = field(default_factory=list)
     wind: WindSpec = field(default_factory=WindSpec)
 
-    def make_feed(self, seed: int, anonymous: bool) -> DetectionFeed | None:
+    def make_feed(self, seed: int, anonymous: bool) -> DetectionSource | None:
         """The detection feed (None without a scenario)."""
         return self.feed_factory(seed, anonymous) if self.feed_factory else None
 
@@ -128,8 +128,8 @@ def scenario_setup(
 
     frames = not scenario.camera.classic  # the paper's camera: no frame lines, as before
 
-    def factory(seed: int, anonymous: bool) -> DetectionFeed:
-        return DetectionFeed.for_scenario(scenario, seed, origin, anonymous, frames=frames)
+    def factory(seed: int, anonymous: bool) -> DetectionSource:
+        return DetectionSource.for_scenario(scenario, seed, origin, anonymous, frames=frames)
 
     return SitlSetup(
         origin,

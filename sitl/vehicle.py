@@ -30,13 +30,13 @@ from domain.geodesy import compass_deg_from_enu_rad
 from groundstation.mavlink.codec import mavlink2
 from sitl import command_handler
 from sitl.airframe import Airframe
-from sitl.autopilot import AUTO, INITIALISING, MANUAL, MODE_NAMES, Autopilot
+from sitl.autopilot import AUTO, GUIDED, INITIALISING, LOITER, MANUAL, MODE_NAMES, RTL, Autopilot
 from sitl.faults import FaultEvent
 from sitl.mission_protocol import MissionEvents, MissionServer
-from sitl.mission_store import MAX_MISSION_ITEMS, MissionItem, MissionStore
+from sitl.mission_store import MAX_MISSION_ITEMS, MissionStore, StoredItem
 from sitl.params import ParamStore, default_param_specs
 from sitl.sim_airspeed import AirspeedSensor
-from sitl.sim_wind import FlownWind, WindEstimate, wind_param_values
+from sitl.sim_wind import EkfWindModel, FlownWind, wind_param_values
 from sitl.statustext import StatusTextFactory
 from sitl.telemetry import StreamScheduler
 from sitl.vehicle_messages import build_message
@@ -118,9 +118,9 @@ class SimVehicle:
         self._boot(t_s)
 
     # ------------------------------------------------------------------ boot
-    def _home_item(self) -> MissionItem:
+    def _home_item(self) -> StoredItem:
         c = self.config
-        return MissionItem(
+        return StoredItem(
             M.MAV_CMD_NAV_WAYPOINT,
             M.MAV_FRAME_GLOBAL,
             x=round(c.home_lat_deg * 1e7),
@@ -148,7 +148,7 @@ class SimVehicle:
         x0 = c.launch_x_m if c.launch_x_m is not None else self.home_xy_m[0]
         y0 = c.launch_y_m if c.launch_y_m is not None else self.home_xy_m[1]
         self.airframe = Airframe(x0, y0, c.launch_heading_rad, 0.0, 0.0, c.min_turn_radius_m)
-        self.wind_estimate = WindEstimate()  # the EKF starts again at zero
+        self.wind_estimate = EkfWindModel()  # the EKF starts again at zero
         self.airspeed_sensor.booted()
         self.ready_flags = {"init": False, "gps": False, "ekf": False}
         self.home_set = False
@@ -166,7 +166,7 @@ class SimVehicle:
         if len(self.store) <= 1:
             self.store.write(
                 1,
-                MissionItem(
+                StoredItem(
                     M.MAV_CMD_NAV_LOITER_UNLIM,
                     M.MAV_FRAME_GLOBAL_RELATIVE_ALT,
                     x=round(c.home_lat_deg * 1e7),
@@ -356,7 +356,7 @@ class SimVehicle:
         )
         action = int(self.params.get("BATT_FS_LOW_ACT"))
         if action in (1, 2) and self.autopilot.armed and not self.airframe.on_ground:
-            out += self.autopilot.set_mode(11, self.airframe)
+            out += self.autopilot.set_mode(RTL, self.airframe)
         return out
 
     def set_battery_remaining(self, fraction: float) -> list[Any]:
@@ -465,7 +465,7 @@ class SimVehicle:
         """(base_mode, custom_mode) for HEARTBEAT."""
         ap = self.autopilot
         base = M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | M.MAV_MODE_FLAG_STABILIZE_ENABLED
-        if ap.mode in (AUTO, 11, 12, 15):
+        if ap.mode in (AUTO, RTL, LOITER, GUIDED):
             base |= M.MAV_MODE_FLAG_GUIDED_ENABLED
         if ap.mode == AUTO:
             base |= M.MAV_MODE_FLAG_AUTO_ENABLED

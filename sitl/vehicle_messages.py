@@ -5,7 +5,7 @@ In wind, as ArduPlane: VFR_HUD ``airspeed`` is the airspeed and ``groundspeed`` 
 speed, ``heading`` the yaw; GLOBAL_POSITION_INT ``vx``/``vy`` are the ground velocity and
 ``hdg`` the yaw; GPS_RAW_INT ``vel`` is the ground speed and ``cog`` the course over
 ground; ATTITUDE ``yaw`` the heading; WIND the vehicle's wind estimate
-(:class:`sitl.sim_wind.WindEstimate`).
+(:class:`sitl.sim_wind.EkfWindModel`).
 """
 
 from __future__ import annotations
@@ -14,6 +14,7 @@ import math
 from typing import Any
 
 from domain.geodesy import compass_deg_from_enu_rad
+from domain.modes import ArduPlaneMode
 from groundstation.mavlink.codec import mavlink2
 from sitl.vehicle_state import VehicleView
 
@@ -203,15 +204,16 @@ def _home(v: VehicleView) -> Any:
 def _mission_current(v: VehicleView) -> Any:
     ap = v.autopilot
     total = max(0, len(v.store) - 1)
+    auto = ap.mode == ArduPlaneMode.AUTO
     if total == 0:
         state = M.MISSION_STATE_NO_MISSION
     elif ap.mission_complete:
         state = M.MISSION_STATE_COMPLETE
-    elif ap.mode == 10:
+    elif auto:
         state = M.MISSION_STATE_ACTIVE
     else:
         state = M.MISSION_STATE_PAUSED if ap.current_seq > 1 else M.MISSION_STATE_NOT_STARTED
-    return M.MAVLink_mission_current_message(ap.current_seq, total, state, int(ap.mode == 10))
+    return M.MAVLink_mission_current_message(ap.current_seq, total, state, int(auto))
 
 
 def _nav_controller(v: VehicleView) -> Any:
@@ -252,10 +254,10 @@ def landed_state(v: VehicleView) -> int:
     else IN_AIR."""
     if v.airframe.on_ground:
         return int(M.MAV_LANDED_STATE_ON_GROUND)
-    nav = v.autopilot.nav
-    if nav is not None and v.autopilot.mode == 10 and nav.kind == "takeoff":
+    nav = v.autopilot.nav if v.autopilot.mode == ArduPlaneMode.AUTO else None
+    if nav is not None and nav.kind == "takeoff":
         return int(M.MAV_LANDED_STATE_TAKEOFF)
-    if nav is not None and v.autopilot.mode == 10 and nav.kind in ("land", "landing"):
+    if nav is not None and nav.kind in ("land", "landing"):
         return int(M.MAV_LANDED_STATE_LANDING)
     return int(M.MAV_LANDED_STATE_IN_AIR)
 

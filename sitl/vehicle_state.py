@@ -18,7 +18,7 @@ from sitl.autopilot import Autopilot
 from sitl.mission_store import MissionStore
 from sitl.params import ParamStore
 from sitl.sim_airspeed import AirspeedSensor
-from sitl.sim_wind import WindEstimate
+from sitl.sim_wind import EkfWindModel
 from sitl.statustext import StatusTextFactory
 from sitl.telemetry import StreamScheduler
 from world.wind import WindSpec
@@ -72,7 +72,7 @@ class VehicleView(Protocol):
     battery_low_sent: bool
     battery_used_mah: float
     t_s: float
-    wind_estimate: WindEstimate
+    wind_estimate: EkfWindModel
     airspeed_sensor: AirspeedSensor
 
     @property

@@ -11,10 +11,10 @@ from pathlib import Path
 import pytest
 import yaml
 
+from domain.errors import UsageError
 from domain.geodesy import GeoOrigin
 from groundstation.commands import sitl as sitl_command
 from groundstation.commands.run import _parser, build_config
-from groundstation.commands.sitl_args import UsageError
 from groundstation.daemon.clock import MissionClock
 from groundstation.daemon.config import (
     BatteryAction,

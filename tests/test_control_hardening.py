@@ -386,8 +386,8 @@ def test_websocket_page_that_never_reads_is_bounded_and_dropped() -> None:
 
 
 def test_gcs_run_flags_and_config_keys(tmp_path: Any) -> None:
+    from domain.errors import ConfigError
     from groundstation.commands.run import build_config
-    from groundstation.daemon.config import ConfigError
 
     path = tmp_path / "run.yaml"
     path.write_text("vehicles: [sim:1]\nhttp_allow_origins: [https://ops.example]\n"

@@ -18,11 +18,12 @@ from typing import Any
 
 import pytest
 
+from domain.errors import ConfigError
 from domain.geodesy import GeoOrigin
 from groundstation.commands.run import build_config
 from groundstation.core.config import CoreConfig
 from groundstation.daemon.clock import MissionClock
-from groundstation.daemon.config import ConfigError, OnExit
+from groundstation.daemon.config import OnExit
 from groundstation.daemon.config_parse import parse_config
 from groundstation.daemon.journal import Journal, read_journal
 from groundstation.daemon.startup import StartError, core_config, load_targets

@@ -126,7 +126,7 @@ def test_encode_round_trips_and_refuses_bad_values() -> None:
 
 def test_simulator_lines_are_accepted() -> None:
     from domain.geodesy import GeoOrigin
-    from sitl.detections import DetectionFeed as SimFeed
+    from sitl.detections import DetectionSource as SimFeed
     from world.model import Boat, Camera, Iceberg, World
 
     world = World([Iceberg("A", 10.0, 0.0, 0.0, 0.0, 0.0)], Boat(0.0, 0.0, 0.0, 5.0),

@@ -22,19 +22,19 @@ from link_fixtures import (
 )
 
 from groundstation.link import LinkOptions, Received, Router, TlogReader, TlogWriter, open_link
-from groundstation.link.binding import Binder, BindingRules, Verdict
+from groundstation.link.binding import Binder, BindingRules, BindingVerdict
 from groundstation.link.udp import UdpInLink
 from groundstation.mavlink.codec import mavlink2
 
 
 def test_binder_binds_on_the_first_autopilot_heartbeat_only() -> None:
     b: Binder[str] = Binder()
-    assert b.observe(1, "A", False, 0.0) is Verdict.UNBOUND  # telemetry never binds
-    assert b.observe(1, "B", True, 0.1) is Verdict.BOUND
-    assert b.observe(1, "A", True, 0.2) is Verdict.FOREIGN
-    assert b.observe(1, "A", False, 0.3) is Verdict.FOREIGN
-    assert b.observe(1, "B", False, 0.4) is Verdict.OWN
-    assert b.observe(0, "A", True, 0.5) is Verdict.UNBOUND  # broadcast id never binds
+    assert b.observe(1, "A", False, 0.0) is BindingVerdict.UNBOUND  # telemetry never binds
+    assert b.observe(1, "B", True, 0.1) is BindingVerdict.BOUND
+    assert b.observe(1, "A", True, 0.2) is BindingVerdict.FOREIGN
+    assert b.observe(1, "A", False, 0.3) is BindingVerdict.FOREIGN
+    assert b.observe(1, "B", False, 0.4) is BindingVerdict.OWN
+    assert b.observe(0, "A", True, 0.5) is BindingVerdict.UNBOUND  # broadcast id never binds
     assert b.bound() == {1: "B"} and b.place_of(2) is None
     assert b.forget("B") == [1] and b.place_of(1) is None
 
@@ -42,28 +42,28 @@ def test_binder_binds_on_the_first_autopilot_heartbeat_only() -> None:
 def test_binder_rebinds_only_after_silence_and_consistent_heartbeats() -> None:
     rules = BindingRules(rebind_after_s=10.0, evidence_heartbeats=3, evidence_span_s=2.0)
     b: Binder[str] = Binder(rules)
-    assert b.observe(1, "A", True, 0.0) is Verdict.BOUND
+    assert b.observe(1, "A", True, 0.0) is BindingVerdict.BOUND
     # Heartbeats on B while A is alive: foreign, and A's frames clear the evidence.
     for t in (1.0, 2.0, 3.0):
-        assert b.observe(1, "B", True, t) is Verdict.FOREIGN
-    assert b.observe(1, "A", False, 3.5) is Verdict.OWN
+        assert b.observe(1, "B", True, t) is BindingVerdict.FOREIGN
+    assert b.observe(1, "A", False, 3.5) is BindingVerdict.OWN
     # A silent since 3.5. Three heartbeats spanning 2 s, but A not silent for 10 s yet.
     for t in (10.0, 11.0, 12.0):
-        assert b.observe(1, "B", True, t) is Verdict.FOREIGN
+        assert b.observe(1, "B", True, t) is BindingVerdict.FOREIGN
     # Silent long enough, but a 6 s gap in B's heartbeats restarts the evidence.
-    assert b.observe(1, "B", True, 18.0) is Verdict.FOREIGN
-    assert b.observe(1, "B", True, 19.0) is Verdict.FOREIGN
+    assert b.observe(1, "B", True, 18.0) is BindingVerdict.FOREIGN
+    assert b.observe(1, "B", True, 19.0) is BindingVerdict.FOREIGN
     # Two heartbeats spanning 1 s are not enough; the third, 2 s after the first, is.
-    assert b.observe(1, "B", True, 20.0) is Verdict.REBOUND
+    assert b.observe(1, "B", True, 20.0) is BindingVerdict.REBOUND
     assert b.place_of(1) == "B"
-    assert b.observe(1, "A", True, 20.5) is Verdict.FOREIGN  # now A is the foreign one
+    assert b.observe(1, "A", True, 20.5) is BindingVerdict.FOREIGN  # now A is the foreign one
 
 
 def test_binder_needs_heartbeats_not_any_frames_as_evidence() -> None:
     b: Binder[str] = Binder(BindingRules(rebind_after_s=1.0))
     b.observe(7, "A", True, 0.0)
     for k in range(50):  # a flood of telemetry on B after A went silent
-        assert b.observe(7, "B", False, 5.0 + k * 0.1) is Verdict.FOREIGN
+        assert b.observe(7, "B", False, 5.0 + k * 0.1) is BindingVerdict.FOREIGN
     assert b.place_of(7) == "A"
 
 

@@ -27,9 +27,9 @@ from test_mission_transfer_fake import (
     via_wire,
 )
 
+from domain.errors import LocalProtocolError, RemoteProtocolError
 from groundstation.mavlink.codec import MAVLinkMessage, mavlink2
-from groundstation.mavlink.errors import LocalProtocolError, RemoteProtocolError
-from groundstation.mavlink.mission_commands import MissionClear, SetCurrent
+from groundstation.mavlink.mission_commands import MissionClear, MissionSetCurrent
 from groundstation.mavlink.mission_download import MissionDownload
 from groundstation.mavlink.mission_transfer import TransferCode
 from groundstation.mavlink.mission_upload import MissionUpload, UploadState
@@ -392,7 +392,7 @@ def test_clear_lost_ack_resends() -> None:
 
 def test_set_current_confirmed_by_ack_and_mission_current() -> None:
     h = Harness(plane=FakePlane(mission=mission(), current_seq=4))
-    result = h.run(SetCurrent(VEH_SYS, VEH_COMP, 2, known_current_seq=4))
+    result = h.run(MissionSetCurrent(VEH_SYS, VEH_COMP, 2, known_current_seq=4))
     assert result.ok and "ACK and MISSION_CURRENT" in result.message
     assert h.plane.current_seq == 2
 
@@ -402,7 +402,7 @@ def test_set_current_ack_lost_confirmed_by_mission_current() -> None:
         plane=FakePlane(mission=mission(), current_seq=4),
         drop=lambda d, m, n: d == "down" and m.get_type() == "COMMAND_ACK",
     )
-    result = h.run(SetCurrent(VEH_SYS, VEH_COMP, 2))
+    result = h.run(MissionSetCurrent(VEH_SYS, VEH_COMP, 2))
     assert result.ok and "no ACK" in result.message
 
 
@@ -412,7 +412,7 @@ def test_set_current_stale_mission_current_is_not_confirmation() -> None:
     plane = FakePlane(mission=mission(), current_seq=2)
     plane.receive = lambda msg, now: []  # type: ignore[method-assign]
     h = Harness(plane=plane)
-    result = h.run(SetCurrent(VEH_SYS, VEH_COMP, 2, timeout_s=1.0, retries=2))
+    result = h.run(MissionSetCurrent(VEH_SYS, VEH_COMP, 2, timeout_s=1.0, retries=2))
     assert result.code is TransferCode.TIMEOUT
     assert len(h.sent("COMMAND_LONG")) == 3
     assert [m.confirmation for m in h.sent("COMMAND_LONG")] == [0, 1, 2]
@@ -420,7 +420,7 @@ def test_set_current_stale_mission_current_is_not_confirmation() -> None:
 
 def test_set_current_command_failed() -> None:
     h = Harness(plane=FakePlane(mission=mission(), command_result=M.MAV_RESULT_FAILED))
-    result = h.run(SetCurrent(VEH_SYS, VEH_COMP, 9))
+    result = h.run(MissionSetCurrent(VEH_SYS, VEH_COMP, 9))
     assert result.code is TransferCode.COMMAND_FAILED and result.remote_code == "MAV_RESULT_FAILED"
 
 
@@ -461,7 +461,7 @@ def test_upload_verify_set_current_over_a_20_percent_lossy_link(seed: int) -> No
     h3 = Harness(plane=plane, drop=lossy)
     h3.now = 1000.0
     plane.next_current_report_s = h3.now
-    result = h3.run(SetCurrent(VEH_SYS, VEH_COMP, 2, known_current_seq=5), until_s=2000)
+    result = h3.run(MissionSetCurrent(VEH_SYS, VEH_COMP, 2, known_current_seq=5), until_s=2000)
     assert result is not None
     assert result.ok or result.code is TransferCode.TIMEOUT
     if result.ok:

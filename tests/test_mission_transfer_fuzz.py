@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 
 from domain.geodesy import GeoOrigin
 from groundstation.mavlink.codec import MavlinkDecoder, MavlinkEncoder, MAVLinkMessage, mavlink2
-from groundstation.mavlink.mission_commands import MissionClear, SetCurrent
+from groundstation.mavlink.mission_commands import MissionClear, MissionSetCurrent
 from groundstation.mavlink.mission_download import MissionDownload
 from groundstation.mavlink.mission_items import LoiterUnlimited, Waypoint, build_mission_items
 from groundstation.mavlink.mission_transfer import Finished, Send, TransferBase
@@ -87,7 +87,7 @@ def make(kind: str) -> Any:
         return ParamSet(1, 1, "WP_LOITER_RAD", 80.0)
     if kind == "param_read":
         return ParamRead(1, 1, "WP_LOITER_RAD")
-    return SetCurrent(1, 1, 2)
+    return MissionSetCurrent(1, 1, 2)
 
 
 @settings(max_examples=300, deadline=None)

@@ -11,9 +11,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from domain.errors import LocalProtocolError
 from domain.geodesy import GeoOrigin
 from groundstation.mavlink.codec import MavlinkDecoder, MavlinkEncoder, mavlink2
-from groundstation.mavlink.errors import LocalProtocolError
 from groundstation.mavlink.mission_items import (
     ChangeSpeed,
     HomePosition,

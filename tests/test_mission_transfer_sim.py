@@ -12,7 +12,7 @@ from typing import Any
 import pytest
 
 from domain.geodesy import GeoOrigin
-from groundstation.mavlink.mission_commands import SetCurrent
+from groundstation.mavlink.mission_commands import MissionSetCurrent
 from groundstation.mavlink.mission_download import MissionDownload
 from groundstation.mavlink.mission_items import (
     LoiterTime,
@@ -113,7 +113,7 @@ def test_upload_verify_set_current_and_loiter_end_on_the_simulator() -> None:
     assert down.ok and down.items is not None
     assert compare_missions(items, list(down.items)) == []
     current = tel.snapshot().mission_current_seq
-    sc = drive(lb, SetCurrent(1, 1, 1, known_current_seq=current), tel)
+    sc = drive(lb, MissionSetCurrent(1, 1, 1, known_current_seq=current), tel)
     assert sc.ok, sc
     detector = LoiterEndDetector(2, current_seq=tel.snapshot().mission_current_seq)
     texts: list[str] = []
@@ -186,7 +186,7 @@ def test_set_current_on_a_waypoint_passed_at_once_is_confirmed_at_once() -> None
         )
 
     assert drive(lb, MissionUpload(1, 1, to(0.0, 1500.0)), tel).ok
-    assert drive(lb, SetCurrent(1, 1, 1), tel).ok
+    assert drive(lb, MissionSetCurrent(1, 1, 1), tel).ok
     texts: list[str] = []
     while (tel.snapshot().y_m or 0.0) < 300.0:
         for msg in lb.advance(0.5, 0.1):
@@ -203,7 +203,7 @@ def test_set_current_on_a_waypoint_passed_at_once_is_confirmed_at_once() -> None
         return events
 
     tel.receive = keep_texts  # type: ignore[method-assign]
-    sc = drive(lb, SetCurrent(1, 1, 1, known_current_seq=1), tel)
+    sc = drive(lb, MissionSetCurrent(1, 1, 1, known_current_seq=1), tel)
     assert any(t.startswith("Passed waypoint #1") for t in texts), texts
     assert sc.ok and sc.retries_used == 0, sc
     assert lb.t_s - t0_s < 0.5

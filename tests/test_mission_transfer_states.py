@@ -26,12 +26,12 @@ from test_mission_transfer_fake import (
     via_wire,
 )
 
+from domain.errors import LocalProtocolError
 from groundstation.mavlink.codec import MavlinkDecoder, MavlinkEncoder, MAVLinkMessage, mavlink2
-from groundstation.mavlink.errors import LocalProtocolError
 from groundstation.mavlink.mission_commands import (
     ClearState,
     MissionClear,
-    SetCurrent,
+    MissionSetCurrent,
     SetCurrentState,
 )
 from groundstation.mavlink.mission_download import DownloadState, MissionDownload
@@ -52,7 +52,7 @@ MACHINES: dict[str, Callable[[], TransferBase[Any]]] = {
     "upload": lambda: upload(),
     "download": lambda: MissionDownload(VEH_SYS, VEH_COMP, own_system=GCS_SYS),
     "clear": lambda: MissionClear(VEH_SYS, VEH_COMP, own_system=GCS_SYS),
-    "set_current": lambda: SetCurrent(VEH_SYS, VEH_COMP, 2, own_system=GCS_SYS),
+    "set_current": lambda: MissionSetCurrent(VEH_SYS, VEH_COMP, 2, own_system=GCS_SYS),
     "command": lambda: CommandLong(VEH_SYS, VEH_COMP, M.MAV_CMD_DO_SET_MODE, [1.0, 10.0]),
     "param_set": lambda: ParamSet(VEH_SYS, VEH_COMP, "WP_LOITER_RAD", 80.0),
     "param_read": lambda: ParamRead(VEH_SYS, VEH_COMP, "AIRSPEED_CRUISE", own_system=GCS_SYS),
@@ -133,7 +133,7 @@ def test_every_input_after_the_end_returns_nothing(kind: str, end: str) -> None:
 def test_every_input_after_success_returns_nothing(kind: str) -> None:
     plane = FakePlane(mission=mission(), current_seq=4)
     sm = (
-        SetCurrent(VEH_SYS, VEH_COMP, 2, known_current_seq=4)
+        MissionSetCurrent(VEH_SYS, VEH_COMP, 2, known_current_seq=4)
         if kind == "set_current"
         else MACHINES[kind]()
     )
@@ -178,7 +178,7 @@ def test_clear_and_set_current_states() -> None:
     clear = MissionClear(VEH_SYS, VEH_COMP)
     clear.start(0.0)
     assert clear.state is ClearState.WAITING_ACK
-    sc = SetCurrent(VEH_SYS, VEH_COMP, 2, known_current_seq=4)
+    sc = MissionSetCurrent(VEH_SYS, VEH_COMP, 2, known_current_seq=4)
     sc.start(0.0)
     assert sc.state is SetCurrentState.SENDING_COMMAND
     ack = M.MAVLink_command_ack_message(M.MAV_CMD_DO_SET_MISSION_CURRENT, 0, 0, 0, 255, 190)

@@ -37,7 +37,7 @@ S = VehicleState
 AUTO, RTL = int(ArduPlaneMode.AUTO), int(ArduPlaneMode.RTL)
 ORIGIN = GeoOrigin(78.9, 11.9, 0.0)
 ARMED_CUSTOM = M.MAV_MODE_FLAG_SAFETY_ARMED | M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
-COMMANDS = (vio.UploadMission, vio.SetMode, vio.SetCurrent, vio.Arm, vio.ParamSet)
+COMMANDS = (vio.UploadMission, vio.SetMode, vio.SetCurrent, vio.Arm, vio.SetParam)
 
 
 @dataclass
@@ -101,14 +101,14 @@ class Harness:
 
     def receive(self, msg: MAVLinkMessage) -> None:
         events = self.tel.receive(msg, self.t)
-        self._feed(vio.Frame(self.t, msg.get_type(), self.tel.snapshot(), tuple(events)))
+        self._feed(vio.AutopilotFrame(self.t, msg.get_type(), self.tel.snapshot(), tuple(events)))
 
     def _feed(self, inp: vio.Input) -> None:
         out = self.c.handle(inp)
         self.out += out
         for o in out:
             if isinstance(o, vio.UploadMission | vio.Download | vio.SetCurrent | vio.SetMode
-                          | vio.Arm | vio.ParamSet | vio.ParamRead):  # fmt: skip
+                          | vio.Arm | vio.SetParam | vio.ReadParam):  # fmt: skip
                 if isinstance(o, COMMANDS):
                     self.commands.append((self.t, o))
                 if self.defer:
@@ -137,7 +137,7 @@ class Harness:
         if isinstance(o, vio.SetMode):
             p.mode = o.mode
             return M.MAV_RESULT_ACCEPTED
-        if isinstance(o, vio.ParamRead):  # ArduPlane 4.5+: AIRSPEED_CRUISE, m/s
+        if isinstance(o, vio.ReadParam):  # ArduPlane 4.5+: AIRSPEED_CRUISE, m/s
             return 22.0 if o.name == "AIRSPEED_CRUISE" else None
         return M.MAV_RESULT_ACCEPTED if isinstance(o, vio.Arm) else True
 
@@ -146,7 +146,7 @@ class Harness:
             self.t = round(self.t + 1.0, 6)
             for msg in self.plane.second():
                 self.receive(msg)
-            self._feed(vio.Tick(self.t))
+            self._feed(vio.TimePassed(self.t))
 
     def fly(self, target: str = "A") -> None:
         cmd = FlyToTarget(self.t, "1", target, 1500.0, 0.0, 0.0, 30.0, (target,))

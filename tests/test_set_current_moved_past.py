@@ -22,7 +22,7 @@ import pytest
 from test_mission_transfer_fake import GCS_COMP, GCS_SYS, VEH_COMP, VEH_SYS, via_wire
 
 from groundstation.mavlink.codec import MAVLinkMessage, mavlink2
-from groundstation.mavlink.mission_commands import SetCurrent, SetCurrentState
+from groundstation.mavlink.mission_commands import MissionSetCurrent, SetCurrentState
 from groundstation.mavlink.mission_transfer import Finished, TransferCode, TransferResult
 
 M = mavlink2
@@ -60,7 +60,7 @@ def passed_at_once() -> list[tuple[float, MAVLinkMessage]]:
 
 
 def run(
-    sc: SetCurrent, script: list[tuple[float, MAVLinkMessage]], until_s: float = 20.0
+    sc: MissionSetCurrent, script: list[tuple[float, MAVLinkMessage]], until_s: float = 20.0
 ) -> tuple[TransferResult, float]:
     """Feed ``script`` (mission time, message) and poll on deadlines; result and end time."""
     actions = sc.start(0.0)
@@ -81,7 +81,7 @@ def run(
 
 
 def test_a_waypoint_passed_at_once_is_confirmed_at_once() -> None:
-    sc = SetCurrent(VEH_SYS, VEH_COMP, 1, known_current_seq=1)
+    sc = MissionSetCurrent(VEH_SYS, VEH_COMP, 1, known_current_seq=1)
     result, end_s = run(sc, passed_at_once())
     assert result.ok and result.code is TransferCode.SUCCESS
     assert result.retries_used == 0
@@ -93,7 +93,7 @@ def test_without_the_item_reached_it_waits_out_the_window() -> None:
     # MISSION_ITEM_REACHED lost: the later MISSION_CURRENT alone is no confirmation; this is
     # what the journal showed as "retries=5" (6 mission s, nothing resent)
     script = [(t, m) for t, m in passed_at_once() if m.get_type() != "MISSION_ITEM_REACHED"]
-    sc = SetCurrent(VEH_SYS, VEH_COMP, 1, known_current_seq=1, timeout_s=1.0, retries=5)
+    sc = MissionSetCurrent(VEH_SYS, VEH_COMP, 1, known_current_seq=1, timeout_s=1.0, retries=5)
     result, end_s = run(sc, script)
     assert result.code is TransferCode.TIMEOUT and result.remote_code == "MAV_RESULT_ACCEPTED"
     assert result.retries_used == 5
@@ -106,13 +106,13 @@ def test_a_stale_later_mission_current_after_the_ack_does_not_confirm() -> None:
     # command but delivered after the ACK (a reordering link) satisfies 1 < 2 < 3; it must
     # not confirm (the loiter end of item 1 would be read from it at once). The real
     # MISSION_CURRENT 1 that follows does.
-    sc = SetCurrent(VEH_SYS, VEH_COMP, 1, known_current_seq=2)
+    sc = MissionSetCurrent(VEH_SYS, VEH_COMP, 1, known_current_seq=2)
     script = [(0.05, ack()), (0.08, current(2, 3)), (0.9, current(1, 3))]
     result, end_s = run(sc, script)
     assert result.ok and "COMMAND_ACK and MISSION_CURRENT" in result.message
     assert end_s == pytest.approx(0.9)
 
-    sc = SetCurrent(VEH_SYS, VEH_COMP, 1, known_current_seq=2, retries=2)
+    sc = MissionSetCurrent(VEH_SYS, VEH_COMP, 1, known_current_seq=2, retries=2)
     result, _ = run(sc, [(0.05, ack()), (0.08, current(2, 3)), (1.0, current(2, 3))])
     assert result.code is TransferCode.TIMEOUT
 
@@ -121,11 +121,11 @@ def test_item_reached_counts_only_after_the_ack_and_only_for_seq() -> None:
     # before the ACK it may be the previous mission's item 1 ending; after it, another
     # item's MISSION_ITEM_REACHED says nothing about ours
     reached = wire(M.MAVLink_mission_item_reached_message(1))
-    sc = SetCurrent(VEH_SYS, VEH_COMP, 1, known_current_seq=1, retries=1)
+    sc = MissionSetCurrent(VEH_SYS, VEH_COMP, 1, known_current_seq=1, retries=1)
     result, _ = run(sc, [(0.05, reached), (0.1, ack())])
     assert result.code is TransferCode.TIMEOUT
     other = wire(M.MAVLink_mission_item_reached_message(2))
-    sc = SetCurrent(VEH_SYS, VEH_COMP, 1, known_current_seq=1, retries=1)
+    sc = MissionSetCurrent(VEH_SYS, VEH_COMP, 1, known_current_seq=1, retries=1)
     result, _ = run(sc, [(0.05, ack()), (0.1, other), (0.2, current(2))])
     assert result.code is TransferCode.TIMEOUT
 
@@ -133,7 +133,7 @@ def test_item_reached_counts_only_after_the_ack_and_only_for_seq() -> None:
 def test_a_later_item_before_the_ack_is_no_confirmation() -> None:
     # before the ACK a MISSION_CURRENT may predate our command: the vehicle could have been
     # on item 2 already. Then the command is resent, as for silence.
-    sc = SetCurrent(VEH_SYS, VEH_COMP, 1, known_current_seq=1, retries=1)
+    sc = MissionSetCurrent(VEH_SYS, VEH_COMP, 1, known_current_seq=1, retries=1)
     result, _ = run(sc, [(0.05, current(2)), (0.5, current(2))])
     assert result.code is TransferCode.TIMEOUT and result.remote_code is None
 
@@ -142,14 +142,14 @@ def test_a_later_item_before_the_ack_is_no_confirmation() -> None:
 def test_after_the_ack_no_other_mission_current_confirms(shown: int) -> None:
     # 0: before our item; 2: a later item (stale or not, it cannot tell); 3 and 7: beyond
     # the 3 items we uploaded (an overwritten item still flown shows seq > total, design.md)
-    sc = SetCurrent(VEH_SYS, VEH_COMP, 1, known_current_seq=2, retries=2)
+    sc = MissionSetCurrent(VEH_SYS, VEH_COMP, 1, known_current_seq=2, retries=2)
     result, _ = run(sc, [(0.05, ack()), (0.1, current(shown)), (1.0, current(shown))])
     assert result.code is TransferCode.TIMEOUT
     assert sc.state is SetCurrentState.DONE
 
 
 def test_the_equal_item_after_the_ack_still_confirms() -> None:
-    sc = SetCurrent(VEH_SYS, VEH_COMP, 1, known_current_seq=1)
+    sc = MissionSetCurrent(VEH_SYS, VEH_COMP, 1, known_current_seq=1)
     result, end_s = run(sc, [(0.05, ack()), (0.3, current(1))])
     assert result.ok and "COMMAND_ACK and MISSION_CURRENT" in result.message
     assert end_s == pytest.approx(0.3)

@@ -9,8 +9,8 @@ from typing import Any
 
 import pytest
 
+from domain.errors import ConfigError
 from groundstation.commands.run import build_config
-from groundstation.daemon.config import ConfigError
 from groundstation.daemon.config_parse import parse_config
 from groundstation.daemon.signing_gate import SigningGate, SigningKeys, load_signing_keys
 from groundstation.link.base import Received

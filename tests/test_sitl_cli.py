@@ -10,8 +10,9 @@ from pathlib import Path
 
 import pytest
 
+from domain.errors import UsageError
 from groundstation.commands import sitl as cmd
-from groundstation.commands.sitl_args import SitlOptions, UsageError
+from groundstation.commands.sitl_args import SitlOptions
 from sitl.ardupilot import ardupilot_commands, default_defaults_file
 
 

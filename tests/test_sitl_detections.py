@@ -10,7 +10,7 @@ import pytest
 
 from domain.geodesy import GeoOrigin
 from groundstation.runners.simulate.simulator import resolve_targets
-from sitl.detections import DetectionFeed, scenario_targets
+from sitl.detections import DetectionSource, scenario_targets
 from world.scenario import load_scenario
 
 
@@ -27,7 +27,7 @@ def test_same_seed_same_icebergs_as_gcs_simulate(seed: int) -> None:
 
 def test_feed_emits_detections_of_scenario_targets_and_the_boat() -> None:
     scenario = load_scenario("paper-boat")
-    feed = DetectionFeed.for_scenario(scenario, 3, scenario.origin)
+    feed = DetectionSource.for_scenario(scenario, 3, scenario.origin)
     first = sorted(scenario_targets(scenario, np.random.default_rng(3)), key=lambda t: t.id)[0]
     lines = [json.loads(d) for d in feed.step(5.0, {2: (first.x_m, first.y_m)})]
     kinds = {line["kind"] for line in lines}
@@ -50,7 +50,7 @@ def test_scripted_target_appears_at_its_time(tmp_path: object) -> None:
         encoding="utf-8",
     )
     scenario = load_scenario(str(path))
-    feed = DetectionFeed.for_scenario(scenario, 0, GeoOrigin(78.9, 11.9), anonymous=True)
+    feed = DetectionSource.for_scenario(scenario, 0, GeoOrigin(78.9, 11.9), anonymous=True)
     early = [json.loads(d) for d in feed.step(9.0, {1: (0.0, 0.0)})]
     assert early and all(line["target"] is None for line in early)  # anonymous
     assert set(feed.world.icebergs) == {"A"}

@@ -18,7 +18,7 @@ from groundstation.mavlink.codec import mavlink2 as M
 from sitl.autopilot import AUTO, FBWA, MANUAL, RTL
 from sitl.faults import FaultError, FaultEvent, VehicleFaults, apply_fault, parse_fault_spec
 from sitl.loopback import Loopback
-from sitl.mission_store import MissionItem
+from sitl.mission_store import StoredItem
 from sitl.server import ServerOptions, SitlServer
 from sitl.vehicle import SimVehicle, VehicleConfig
 
@@ -83,7 +83,7 @@ def test_auto_on_the_ground_does_not_fly_unless_on_a_takeoff_item() -> None:
         assert last(lb, "EXTENDED_SYS_STATE").landed_state == M.MAV_LANDED_STATE_ON_GROUND
     # a takeoff item as current item: AUTO flies (TAKEOFF state while climbing)
     lb.vehicle.store.write(
-        1, MissionItem(M.MAV_CMD_NAV_TAKEOFF, M.MAV_FRAME_GLOBAL_RELATIVE_ALT, z=50.0)
+        1, StoredItem(M.MAV_CMD_NAV_TAKEOFF, M.MAV_FRAME_GLOBAL_RELATIVE_ALT, z=50.0)
     )
     set_mode(lb, FBWA)
     lb.vehicle.autopilot.current_seq = 1
@@ -98,10 +98,10 @@ def test_the_takeoff_climbs_out_faster_than_the_cruise_then_cruises() -> None:
     25 measured 27.6-28.1), the cruise (AIRSPEED_CRUISE, 22) once the take-off is done."""
     lb = vehicle(airborne=False)
     lb.vehicle.store.write(
-        1, MissionItem(M.MAV_CMD_NAV_TAKEOFF, M.MAV_FRAME_GLOBAL_RELATIVE_ALT, z=100.0)
+        1, StoredItem(M.MAV_CMD_NAV_TAKEOFF, M.MAV_FRAME_GLOBAL_RELATIVE_ALT, z=100.0)
     )
     lb.vehicle.store.write(
-        2, MissionItem(M.MAV_CMD_NAV_LOITER_UNLIM, M.MAV_FRAME_GLOBAL_RELATIVE_ALT,
+        2, StoredItem(M.MAV_CMD_NAV_LOITER_UNLIM, M.MAV_FRAME_GLOBAL_RELATIVE_ALT,
                        x=round(78.94 * 1e7), y=round(11.92 * 1e7), z=100.0)
     )
     lb.vehicle.autopilot.armed = True

@@ -15,7 +15,7 @@ import pytest
 from pymavlink import mavutil
 
 from domain.geodesy import GeoOrigin
-from sitl.detections import DetectionFeed
+from sitl.detections import DetectionSource
 from sitl.server import ServerOptions, SitlServer
 from sitl.vehicle import VehicleConfig
 from world.model import Boat, Camera, Iceberg, World
@@ -229,7 +229,7 @@ def test_detection_feed_over_udp() -> None:
         Camera(150.0, 2.0, 4.0),
         __import__("numpy").random.default_rng(1),
     )
-    feed = DetectionFeed(world, ORIGIN)
+    feed = DetectionSource(world, ORIGIN)
     cfg = configs(1, airborne=True, launch_x_m=0.0, launch_y_m=0.0)
     server = SitlServer(
         cfg, ServerOptions(speedup=20.0, base_port=0, feed_address=rx.getsockname()), feed=feed

@@ -10,7 +10,7 @@ from domain.geodesy import GeoOrigin
 from groundstation.mavlink.codec import MavlinkDecoder, MavlinkEncoder, MAVLinkMessage, mavlink2
 from groundstation.mavlink.telemetry import (
     Armed,
-    BatteryLow,
+    BatteryBelowThreshold,
     Disarmed,
     InvalidTelemetry,
     LoiterEndDetector,
@@ -311,11 +311,11 @@ def test_prearm_and_battery_low_once_with_hysteresis() -> None:
     assert tel.receive(status(80, False), 1.0) == [PrearmChanged(1.0, False)]
     assert tel.receive(status(80, True), 2.0) == [PrearmChanged(2.0, True)]
     assert tel.snapshot().prearm_ok is True
-    assert tel.receive(status(29, True), 3.0) == [BatteryLow(3.0, 29.0, 12.6, 30.0)]
+    assert tel.receive(status(29, True), 3.0) == [BatteryBelowThreshold(3.0, 29.0, 12.6, 30.0)]
     assert tel.receive(status(28, True), 4.0) == []
     assert tel.receive(status(31, True), 5.0) == []  # within hysteresis: stays reported
     assert tel.receive(status(36, True), 6.0) == []  # recovered: re-armed
-    assert tel.receive(status(20, True), 7.0) == [BatteryLow(7.0, 20.0, 12.6, 30.0)]
+    assert tel.receive(status(20, True), 7.0) == [BatteryBelowThreshold(7.0, 20.0, 12.6, 30.0)]
 
 
 def test_link_status() -> None:

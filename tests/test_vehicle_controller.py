@@ -59,14 +59,14 @@ class Rig:
         self.holding_mission = False
         self.params: dict[str, float] = {"AIRSPEED_CRUISE": 22.0}
         """What the vehicle answers to a ParamRead (a name not here: silence, None)."""
-        self.reads: list[vio.ParamRead] = []
+        self.reads: list[vio.ReadParam] = []
 
     # -- the vehicle's side
     def frame(self, kind: str, *events: Any, **changes: Any) -> list[vio.Output]:
         self.snap = replace(self.snap, last_heard_s=self.t, **changes)
         if kind == "HEARTBEAT":
             self.snap = replace(self.snap, last_heartbeat_s=self.t)
-        return self.feed(vio.Frame(self.t, kind, self.snap, tuple(events)))
+        return self.feed(vio.AutopilotFrame(self.t, kind, self.snap, tuple(events)))
 
     def feed(self, inp: vio.Input) -> list[vio.Output]:
         out = self.c.handle(inp)
@@ -77,12 +77,12 @@ class Rig:
         self.out += out
         for o in out:
             if isinstance(o, vio.UploadMission | vio.Download | vio.SetCurrent | vio.SetMode
-                          | vio.Arm | vio.ParamSet | vio.ParamRead):
+                          | vio.Arm | vio.SetParam | vio.ReadParam):
                 assert self.pending is None, "two exchanges at once"
                 self.pending = o
                 # reads (the cruise airspeed, before the first assessment) apart: ``asked``
                 # holds what commands the vehicle
-                (self.reads if isinstance(o, vio.ParamRead) else self.asked).append(o)
+                (self.reads if isinstance(o, vio.ReadParam) else self.asked).append(o)
 
     def answer(self, result: Any) -> list[vio.Output]:
         request = self.pending
@@ -94,7 +94,7 @@ class Rig:
         """Answer as a cooperative vehicle would (parameter reads even without
         ``auto_answer``: the tests that answer by hand are about commands)."""
         while self.pending is not None and (
-            self.auto_answer or isinstance(self.pending, vio.ParamRead)
+            self.auto_answer or isinstance(self.pending, vio.ReadParam)
         ):
             r = self.pending
             if isinstance(r, vio.UploadMission):
@@ -112,7 +112,7 @@ class Rig:
             elif isinstance(r, vio.Arm):
                 self.snap = replace(self.snap, armed=True)
                 self.answer(ACCEPTED)
-            elif isinstance(r, vio.ParamRead):
+            elif isinstance(r, vio.ReadParam):
                 self.answer(self.params.get(r.name))
             else:
                 self.answer(True)
@@ -129,7 +129,7 @@ class Rig:
                 self.frame("SYS_STATUS")
                 self.frame("MISSION_CURRENT")
             self.frame("GLOBAL_POSITION_INT")
-            self.feed(vio.Tick(self.t))
+            self.feed(vio.TimePassed(self.t))
             self.auto()
 
     # -- reading the outputs
@@ -361,10 +361,10 @@ def test_a_cruise_read_cut_short_by_a_lost_link_is_asked_again() -> None:
     rig = Rig(auto_answer=False)
     rig.snap = replace(rig.snap, **ON_GROUND)
     rig.frame("HEARTBEAT")
-    rig.feed(vio.Tick(rig.t))
-    assert isinstance(rig.pending, vio.ParamRead)
+    rig.feed(vio.TimePassed(rig.t))
+    assert isinstance(rig.pending, vio.ReadParam)
     rig.t = 20.0  # silence: the link is lost, the read aborted
-    rig.feed(vio.Tick(rig.t))
+    rig.feed(vio.TimePassed(rig.t))
     assert rig.c.link == "lost" and any(isinstance(o, vio.CancelExchange) for o in rig.out)
     rig.answer(None)  # the driver's result of the cancelled read: it only frees the runner
     assert rig.c.cruise_source is None
@@ -584,7 +584,7 @@ def test_a_stray_small_boot_time_holds_the_upload_it_does_not_drop_it() -> None:
     assert not rig.journal("command_refused")
     rig.t += 0.2
     rig.frame("ATTITUDE", reboot_suspected=False)  # back on the vehicle's own timeline
-    rig.feed(vio.Tick(rig.t))
+    rig.feed(vio.TimePassed(rig.t))
     rig.auto()
     uploads = rig.requests(vio.UploadMission)
     assert [u.target for u in uploads] == ["B"] and rig.c.fly is not None
@@ -598,7 +598,7 @@ def test_link_restore_watches_before_any_command_and_a_rebooted_vehicle_is_not_c
     rig.auto_answer = False
     rig.fly("B")  # owed when the link goes
     rig.t += 10.0
-    rig.feed(vio.Tick(rig.t))
+    rig.feed(vio.TimePassed(rig.t))
     assert rig.c.link == "lost" and len(rig.core(ev.VehicleLost)) == 1
     assert any(isinstance(o, vio.CancelExchange) for o in rig.out)
     rig.answer(None)  # the cancelled exchange
@@ -621,7 +621,7 @@ def test_link_restore_of_a_flying_vehicle_sends_the_owed_mission_after_settling(
     rig.auto_answer = False
     rig.fly("B")
     rig.t += 10.0
-    rig.feed(vio.Tick(rig.t))
+    rig.feed(vio.TimePassed(rig.t))
     rig.answer(None)
     rig.auto_answer = True
     rig.asked.clear()

@@ -11,13 +11,13 @@ import pytest
 from daemon_run import status_text
 from test_wind_reports import _record_run, wind_msg
 
+from domain.errors import ConfigError
 from domain.geodesy import GeoOrigin
 from groundstation.commands.embedded_sim import build_embedded_sim
 from groundstation.commands.run import build_config, run
 from groundstation.core import events as ev
 from groundstation.core.config import CoreConfig, ReplanPolicy
 from groundstation.daemon.clock import MissionClock
-from groundstation.daemon.config import ConfigError
 from groundstation.daemon.config_parse import parse_config
 from groundstation.daemon.control.bodies import jsonable
 from groundstation.daemon.control.controller import DaemonController

@@ -14,7 +14,7 @@ from collections.abc import Sequence
 from types import TracebackType
 from typing import IO, Any
 
-from groundstation.runners.campaign.summary import CellSummary
+from groundstation.runners.campaign.summary import CellMeans
 
 __all__ = ["CampaignProgress", "format_duration", "print_summary"]
 
@@ -100,7 +100,7 @@ class CampaignProgress:
               f"{rate:.1f} runs/s, ETA {format_duration(eta)}", file=self.stream, flush=True)
 
 
-def _figure(summary: CellSummary, name: str, digits: int) -> str:
+def _figure(summary: CellMeans, name: str, digits: int) -> str:
     if name not in summary.figures:
         return "-"
     mean, half = summary.figures[name]
@@ -109,7 +109,7 @@ def _figure(summary: CellSummary, name: str, digits: int) -> str:
     return f"{mean:,.{digits}f} ± {half:,.{digits}f}"
 
 
-def print_summary(keys: Sequence[str], cells: Sequence[CellSummary],
+def print_summary(keys: Sequence[str], cells: Sequence[CellMeans],
                   stream: IO[str] | None = None) -> None:
     """The per-cell table (module docstring) on ``stream`` (stdout)."""
     from rich.console import Console

@@ -23,9 +23,10 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 
+from domain.errors import ConfigError
 from domain.geodesy import GeoOrigin
 from groundstation.commands.sitl_args import DEFAULT_HOME
-from groundstation.daemon.config import ConfigError, DaemonConfig, controller_settings
+from groundstation.daemon.config import DaemonConfig, controller_settings
 from sitl.faults import FaultError, build_faults, fault_specs
 from sitl.server import ServerOptions, SitlServer
 from sitl.sitl_setup import scenario_setup

@@ -24,13 +24,13 @@ class _UsageError(UsageError):
         super().__init__(f"{field}: {message}")
 
 
-class _Parser(argparse.ArgumentParser):
+class _PlanParser(argparse.ArgumentParser):
     def error(self, message: str) -> NoReturn:
         raise _UsageError("arguments", message)
 
 
 def _parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="gcs plan", description="Solve one target-visitation problem.")
+    parser = _PlanParser(prog="gcs plan", description="Solve one target-visitation problem.")
     parser.add_argument("problem", help="problem JSON file, or - for standard input")
     parser.add_argument("--workers", type=int, default=1, help="CP-SAT workers (default 1)")
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")

@@ -28,7 +28,7 @@ EXIT_NO_VEHICLE = 1
 """``gcs run``'s exit status when the run ended without ever hearing a vehicle."""
 
 
-class _Parser(argparse.ArgumentParser):
+class _RunParser(argparse.ArgumentParser):
     def error(self, message: str) -> Any:  # one line, exit 2 (argparse prints usage too)
         self.exit(2, f"gcs run: error: {message}\n")
 
@@ -36,7 +36,7 @@ class _Parser(argparse.ArgumentParser):
 def _parser() -> argparse.ArgumentParser:
     from groundstation.daemon.config import Objective, OnExit, ReplanTrigger, StatusMode
 
-    p = _Parser(
+    p = _RunParser(
         prog="gcs run",
         description="The floe ground-station daemon: keeps a fleet of "
         "fixed-wing UAVs tracking drifting targets over MAVLink.",
@@ -203,8 +203,8 @@ async def run_daemon(config: DaemonConfig, **options: Any) -> Daemon:
 
 def run(argv: list[str]) -> int:
     """Entry point of ``gcs run``; returns the exit status."""
+    from domain.errors import ConfigError
     from groundstation.daemon.alerts import never_heard
-    from groundstation.daemon.config import ConfigError
     from groundstation.daemon.startup import StartError
     from groundstation.daemon.status import link_lines
 

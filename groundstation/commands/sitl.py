@@ -18,11 +18,11 @@ import sys
 import time
 from typing import Any
 
+from domain.errors import UsageError
 from groundstation.commands.async_main import run_async
 from groundstation.commands.sitl_args import (
     DEFAULT_HOME,
     SitlOptions,
-    UsageError,
     sitl_options,
 )
 

@@ -9,7 +9,8 @@ from __future__ import annotations
 import asyncio
 from pathlib import Path
 
-from groundstation.commands.sitl_args import DEFAULT_HOME, SitlOptions, UsageError
+from domain.errors import UsageError
+from groundstation.commands.sitl_args import DEFAULT_HOME, SitlOptions
 from sitl.ardupilot import (
     ArduPilotLaunch,
     CameraLink,

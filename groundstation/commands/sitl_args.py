@@ -9,7 +9,7 @@ import argparse
 import math
 from dataclasses import dataclass
 
-from domain import errors
+from domain.errors import UsageError
 from groundstation.link.url import LinkKind, LinkUrlError, parse_out_url
 from world.wind import WindSpec, parse_wind_text
 
@@ -17,7 +17,6 @@ __all__ = [
     "DEFAULT_DETECTIONS",
     "DEFAULT_HOME",
     "SitlOptions",
-    "UsageError",
     "parse_latlon",
     "parse_udp_url",
     "sitl_options",
@@ -25,10 +24,6 @@ __all__ = [
 
 DEFAULT_HOME = (78.93, 11.92)  # near Ny-Alesund, Svalbard
 DEFAULT_DETECTIONS = ("127.0.0.1", 14600)
-
-
-class UsageError(errors.UsageError):
-    """Bad command-line value (the message names the option)."""
 
 
 _SCHEMES = frozenset({"udp", "udpout", "udpin", "tcp", "tcpin", "serial"})
@@ -113,10 +108,7 @@ class SitlOptions:
 def _wind(text: str | None) -> WindSpec | None:
     if text is None:
         return None
-    try:
-        return parse_wind_text(text, "--wind")
-    except errors.ConfigError as exc:
-        raise UsageError(str(exc)) from None
+    return parse_wind_text(text, "--wind")  # a ConfigError: a UsageError too
 
 
 def _camera_of(text: str) -> tuple[tuple[str, int], ...]:

@@ -63,7 +63,7 @@ from groundstation.core.events import (
     WindReport,
     WindWithdrawn,
 )
-from groundstation.core.fleet import ACTIVE, VehicleRecord, free_vehicles, status_change
+from groundstation.core.fleet import FleetStatus, VehicleRecord, free_vehicles, status_change
 from groundstation.core.intercept import intercept, travel_time_s
 from groundstation.core.planning_targets import build_problem, search_targets, track_targets
 from groundstation.core.tracking import TrackBook, TrackerFactory
@@ -171,7 +171,7 @@ class DecisionCore:
         return self._pending is not None and self._pending.request_id == request_id
 
     def active_vehicles(self) -> list[VehicleRecord]:
-        return [v for v in self.vehicles.values() if v.status == ACTIVE]
+        return [v for v in self.vehicles.values() if v.status is FleetStatus.ACTIVE]
 
     def planning_wind_m_s(self) -> tuple[float, float]:
         """The wind (ENU m/s, towards) the planner and the intercept use: the vehicles'
@@ -279,7 +279,7 @@ class DecisionCore:
                 record = VehicleRecord(event.vehicle, event.x_m, event.y_m, event.heading_rad,
                                        event.speed_m_s, event.t_s)
                 self.vehicles[event.vehicle] = record
-            record.status, record.busy, record.target = ACTIVE, False, None
+            record.status, record.busy, record.target = FleetStatus.ACTIVE, False, None
             self._on_pose(event.vehicle, event.t_s, event.x_m, event.y_m, event.heading_rad,
                           event.speed_m_s)
             self._mark_dirty("vehicle joined")
@@ -294,7 +294,7 @@ class DecisionCore:
         (the paper's UAVs pass over one target and head for the next, not waiting for the
         next sample); with commitment it becomes idle and the next tick replans it."""
         record = self.vehicles.get(event.vehicle)
-        if record is None or record.status != ACTIVE or not record.busy:
+        if record is None or record.status is not FleetStatus.ACTIVE or not record.busy:
             return []
         record.busy = False
         self._mark_dirty("loiter ended")
@@ -361,7 +361,7 @@ class DecisionCore:
         self.observer.predict_to(t_s)
         covered = {
             v.target for v in self.vehicles.values()
-            if v.status == ACTIVE and v.busy and v.target is not None
+            if v.status is FleetStatus.ACTIVE and v.busy and v.target is not None
         } if self.config.policy.commit else set()
         targets = track_targets(self.observer.tracks(), self.tracks.status, covered,
                                 self.config.tentative_weight, self.tracks.existence)
@@ -424,7 +424,9 @@ class DecisionCore:
             target = route[0] if route else result.idle.get(uav.id)
             if record is None or target is None or target not in known:
                 continue
-            if record.status != ACTIVE or (self.config.policy.commit and record.busy):
+            if record.status is not FleetStatus.ACTIVE or (
+                self.config.policy.commit and record.busy
+            ):
                 continue
             assignments[uav.id] = target
             command = self._fly(event.t_s, record, target, tuple(route))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import enum
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 
@@ -16,13 +17,22 @@ from groundstation.core.events import (
     VehicleReturned,
 )
 
-__all__ = ["ACTIVE", "HOME", "LOST", "OVERRIDDEN", "VehicleRecord", "free_vehicles",
-           "status_change"]
+__all__ = ["FleetStatus", "VehicleRecord", "free_vehicles", "status_change"]
 
-ACTIVE = "active"
-OVERRIDDEN = "overridden"
-LOST = "lost"
-HOME = "home"
+
+class FleetStatus(enum.StrEnum):
+    """A vehicle's status as the core sees it, spelt as its views and journal lines spell it.
+
+    Not the vehicle controller's :class:`~groundstation.vehicle.state.VehicleState`: the core
+    knows only whether a vehicle is in the plan (``active``), taken over, sent home, or lost
+    (the controller's link, a reboot, no progress, a landing: all ``VehicleLost``); the
+    controller's states before a vehicle joins never reach it."""
+
+    ACTIVE = "active"
+    OVERRIDDEN = "overridden"
+    LOST = "lost"
+    HOME = "home"
+
 
 
 @dataclass
@@ -35,7 +45,7 @@ class VehicleRecord:
     heading_rad: float
     speed_m_s: float
     pose_t_s: float
-    status: str = ACTIVE
+    status: FleetStatus = FleetStatus.ACTIVE
     target: str | None = None
     busy: bool = False
     aim_xy_m: tuple[float, float] | None = None
@@ -48,7 +58,7 @@ class VehicleRecord:
 
     @property
     def idle(self) -> bool:
-        return self.status == ACTIVE and not self.busy
+        return self.status is FleetStatus.ACTIVE and not self.busy
 
 
 def status_change(record: VehicleRecord, event: Event,
@@ -59,28 +69,28 @@ def status_change(record: VehicleRecord, event: Event,
     reason: str | None = None
     t_s = event.t_s
     if isinstance(event, VehicleLost):
-        if record.status == ACTIVE:
-            record.status, record.busy = LOST, False
+        if record.status is FleetStatus.ACTIVE:
+            record.status, record.busy = FleetStatus.LOST, False
             reason = "vehicle lost"
     elif isinstance(event, VehicleReturned):
-        if record.status == LOST:
-            record.status, record.busy = ACTIVE, False
+        if record.status is FleetStatus.LOST:
+            record.status, record.busy = FleetStatus.ACTIVE, False
             reason = "vehicle returned"
     elif isinstance(event, VehicleRebooted):
-        if record.status in (ACTIVE, LOST):
-            record.status, record.busy, record.target = ACTIVE, False, None
+        if record.status in (FleetStatus.ACTIVE, FleetStatus.LOST):
+            record.status, record.busy, record.target = FleetStatus.ACTIVE, False, None
             reason = "vehicle rebooted"
     elif isinstance(event, OperatorOverride):
-        if record.status != OVERRIDDEN:
-            record.status, record.busy = OVERRIDDEN, False
+        if record.status is not FleetStatus.OVERRIDDEN:
+            record.status, record.busy = FleetStatus.OVERRIDDEN, False
             out.append(ReleaseVehicle(t_s, record.id, "operator override"))
             reason = "operator override"
     elif isinstance(event, OperatorResume):
-        if record.status in (OVERRIDDEN, HOME):
-            record.status, record.busy, record.target = ACTIVE, False, None
+        if record.status in (FleetStatus.OVERRIDDEN, FleetStatus.HOME):
+            record.status, record.busy, record.target = FleetStatus.ACTIVE, False, None
             reason = "operator resume"
-    elif isinstance(event, BatteryLow) and record.status == ACTIVE:
-        record.status, record.busy, record.target = HOME, False, None
+    elif isinstance(event, BatteryLow) and record.status is FleetStatus.ACTIVE:
+        record.status, record.busy, record.target = FleetStatus.HOME, False, None
         if battery_low_action == "rtl":
             out.append(SendHome(t_s, record.id, "battery low"))
         else:

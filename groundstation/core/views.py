@@ -14,6 +14,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
+from groundstation.core.fleet import FleetStatus
 from groundstation.core.wind_estimate import WindState
 from planner.search_cells import SearchCell
 
@@ -78,7 +79,7 @@ class VehicleView:
     was last sent to and its planned sequence, busy (flying a leg or loitering)."""
 
     id: str
-    status: str
+    status: FleetStatus
     x_m: float
     y_m: float
     heading_rad: float

@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 from enum import StrEnum
 from typing import Any
 
-from domain import errors
+from domain.errors import ConfigError
 from domain.geodesy import GeoOrigin
 from domain.yaml_fields import load_yaml_file
 from groundstation.core.config import BatteryAction
@@ -37,7 +37,6 @@ from world.wind import WindSpec
 __all__ = [
     "BatteryAction",
     "BatteryConfig",
-    "ConfigError",
     "DaemonConfig",
     "Endpoint",
     "FleetConfig",
@@ -63,10 +62,6 @@ __all__ = [
 
 SIM_SPEEDUP = 50.0
 """Default speed-up with ``sim:N`` (real vehicles: 1)."""
-
-
-class ConfigError(errors.ConfigError):
-    """Bad configuration; the message names the key (``--flag`` or ``dotted.path``)."""
 
 
 class OnExit(StrEnum):
@@ -379,10 +374,7 @@ def parse_latlon(text: str, key: str) -> tuple[float, float]:
 
 def load_config_file(path: str) -> dict[str, Any]:
     """Read a YAML mapping; errors name the file."""
-    try:
-        data = load_yaml_file(path, f"--config {path}")
-    except errors.ConfigError as exc:
-        raise ConfigError(str(exc)) from None
+    data = load_yaml_file(path, f"--config {path}")
     if data is None:
         return {}
     if not isinstance(data, dict):

@@ -9,7 +9,7 @@ A group key given a scalar is its main field's alias (``http: 127.0.0.1:8080`` i
 ``http: {bind: 127.0.0.1:8080}``).
 
 Rules: an unknown key, a value of the wrong type, a value out of range, or an inconsistent
-pair is a :class:`~groundstation.daemon.config.ConfigError` whose message starts with the
+pair is a :class:`~domain.errors.ConfigError` whose message starts with the
 key as the user spelt it (``--lost-after``, ``lost_after_s``, ``fleet.lost_after_s``,
 ``vehicle_settings.1.colour``). Nothing is resolved here (:func:`config.resolve` does that)
 and nothing is read: the function only looks at its arguments.
@@ -25,12 +25,11 @@ from collections.abc import Callable, Mapping
 from enum import StrEnum
 from typing import Any
 
-from domain import errors
+from domain.errors import ConfigError
 from domain.fault_spec import FaultError, parse_fault_spec
 from domain.geodesy import GeoOrigin
 from groundstation.daemon.config import (
     BatteryConfig,
-    ConfigError,
     DaemonConfig,
     Endpoint,
     FleetConfig,
@@ -271,10 +270,7 @@ def _wind(value: Any, name: str) -> WindSpec:
     """``SPEED_M_S,FROM_DEG[,GUST_M_S]`` (the flag) or ``{speed_m_s, from_deg, gust_m_s,
     gust_tau_s}`` (the file; speed and direction required)."""
     if isinstance(value, str):
-        try:
-            return parse_wind_text(value, name)
-        except errors.ConfigError as exc:
-            raise ConfigError(str(exc)) from None
+        return parse_wind_text(value, name)
     if not isinstance(value, Mapping):
         raise ConfigError(f"{name}: expected SPEED_M_S,FROM_DEG[,GUST_M_S] or a mapping "
                           f"{{{', '.join(_WIND_KEYS[:3])}}}, got {value!r}")

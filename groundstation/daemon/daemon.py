@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from domain.geodesy import GeoOrigin
+from domain.modes import ArduPlaneMode
 from groundstation.core import events as ev
 from groundstation.core.area import OperatingArea
 from groundstation.core.commands import (
@@ -56,6 +57,7 @@ from groundstation.link.base import Link
 from groundstation.link.binding import BindingRules
 from groundstation.mavlink.codec import MavlinkEncoder, mavlink2
 from groundstation.mavlink.evidence import NewSystemEvidence, is_autopilot_heartbeat
+from groundstation.vehicle.state import LinkState, VehicleState
 from planner import PlanResult
 
 __all__ = ["Daemon"]
@@ -340,7 +342,7 @@ class Daemon:
             if getattr(msg, "mission_type", 0) != M.MAV_MISSION_TYPE_MISSION:
                 return
             session = self.sessions.get(int(getattr(msg, "target_system", 0)))
-            if session is not None and session.status == "active":
+            if session is not None and session.state is VehicleState.ACTIVE:
                 session.override(
                     self.clock.now_s(), f"mission {msg.get_type()} from GCS system {rx.system_id}"
                 )
@@ -359,7 +361,7 @@ class Daemon:
     def _gave_up(self, session: VehicleSession) -> None:
         """A vehicle's task failed past its restart limit: it leaves the plan (its targets go
         to the others) and floe stops commanding it."""
-        if session.status == "active":
+        if session.state is VehicleState.ACTIVE:
             self.core_event(ev.VehicleLost(self.clock.now_s(), session.id))
         session.stopping = True
 
@@ -439,13 +441,13 @@ class Daemon:
             if (
                 self.internal_error is None
                 and self.config.on_exit == OnExit.RTL
-                and session.status == "active"
+                and session.state is VehicleState.ACTIVE
                 and not self.config.advisory
-                and session.link != "lost"
+                and session.link is not LinkState.LOST
                 and session.controller.may_command()  # the guard: never a disarmed one
             ):
                 for _ in range(3):
-                    session.port.fire_mode(11)
+                    session.port.fire_mode(ArduPlaneMode.RTL)
                 self.journal("rtl", vehicle=session.id, ok=None, reason="on exit")
         self.journal("stop", reason=self.stop_reason, **self.summary())
 

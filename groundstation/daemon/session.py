@@ -33,6 +33,7 @@ from groundstation.mavlink.mission_verify import compare_missions
 from groundstation.mavlink.telemetry import VehicleSnapshot, VehicleTelemetry
 from groundstation.vehicle import controller_io
 from groundstation.vehicle.controller import FlyRecord, VehicleController
+from groundstation.vehicle.state import LinkState, VehicleState
 
 __all__ = ["FlyRecord", "SessionHost", "VehicleSession"]
 
@@ -99,11 +100,16 @@ class VehicleSession:
         return self.telemetry.snapshot()
 
     @property
+    def state(self) -> VehicleState:
+        return self.controller.state
+
+    @property
     def status(self) -> str:
+        """The state as the journal and the status table spell it."""
         return self.controller.status
 
     @property
-    def link(self) -> str:
+    def link(self) -> LinkState:
         return self.controller.link
 
     @property
@@ -166,7 +172,8 @@ class VehicleSession:
             return
         self.port.deliver(msg)
         if self.telemetry.messages != before:
-            self._feed(controller_io.Frame(t_s, kind, self.telemetry.snapshot(), tuple(events)))
+            snap = self.telemetry.snapshot()
+            self._feed(controller_io.AutopilotFrame(t_s, kind, snap, tuple(events)))
         if kind == "GLOBAL_POSITION_INT":
             s = self.snapshot
             due = t_s - self._last_track_s >= TRACK_EVERY_S
@@ -204,8 +211,8 @@ class VehicleSession:
             return
         events = self.telemetry.tick(t_s)
         if events:
-            self._feed(controller_io.Frame(t_s, "", self.snapshot, tuple(events)))
-        self._feed(controller_io.Tick(t_s))
+            self._feed(controller_io.AutopilotFrame(t_s, "", self.snapshot, tuple(events)))
+        self._feed(controller_io.TimePassed(t_s))
 
     # ------------------------------------------------------------------ out
     def _feed(self, inp: controller_io.Input) -> None:
@@ -243,7 +250,7 @@ class VehicleSession:
                 return
 
     async def step(self) -> None:
-        self._feed(controller_io.Tick(self.clock.now_s()))
+        self._feed(controller_io.TimePassed(self.clock.now_s()))
         while self._exchanges:
             request = self._exchanges.popleft()
             if not self.controller.wants(request):  # its job ended while it was queued
@@ -274,7 +281,7 @@ class VehicleSession:
             return await port.set_mode(int(request.mode))
         if isinstance(request, controller_io.Arm):
             return await port.arm()
-        if isinstance(request, controller_io.ParamRead):
+        if isinstance(request, controller_io.ReadParam):
             return await port.param_read(request.name)
         return await port.param_set(request.name, request.value)
 

@@ -41,7 +41,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from groundstation.daemon.config import ConfigError, DaemonConfig
+from domain.errors import ConfigError
+from groundstation.daemon.config import DaemonConfig
 from groundstation.mavlink.codec import mavlink2
 from groundstation.mavlink.evidence import is_autopilot_heartbeat
 from groundstation.mavlink.signing import (

@@ -51,6 +51,7 @@ from groundstation.daemon.world import ScenarioWorld
 from groundstation.link import LinkError, LinkUrlError, describe_out_link, open_link
 from groundstation.link.detection_feed import DetectionFeed
 from groundstation.storage import StorageError, atomic_write_text
+from groundstation.vehicle.state import LinkState
 
 __all__ = ["StartError", "core_config", "load_targets", "run_daemon"]
 
@@ -273,7 +274,7 @@ async def run_daemon(
                 for sysid, xy in vehicles.airborne_positions().items():
                     session = daemon.sessions.get(sysid)
                     # a vehicle whose link is down sends no camera data either
-                    if session is not None and session.link != "lost":
+                    if session is not None and session.link is not LinkState.LOST:
                         out[session.id] = xy
                 return out
 
@@ -289,7 +290,7 @@ async def run_daemon(
                         snap.x_m is not None
                         and snap.y_m is not None
                         and s.flying()
-                        and s.link != "lost"
+                        and s.link is not LinkState.LOST
                     ):
                         out[s.id] = (snap.x_m, snap.y_m)
                 return out

@@ -40,6 +40,7 @@ from groundstation.daemon.log_lines import (
 from groundstation.daemon.track_views import count_line, track_counts, track_dicts
 from groundstation.daemon.wind_view import wind_label, wind_text
 from groundstation.mavlink.telemetry_events import VehicleSnapshot
+from groundstation.vehicle.state import LinkState
 
 if TYPE_CHECKING:
     from groundstation.daemon.alerts import OperatorAlerts
@@ -49,6 +50,7 @@ __all__ = ["RECENT_LINES", "EventTally", "link_lines", "render_status", "status_
 
 RECENT_LINES = 8
 REDRAW_S = 1.0
+_LINK_STYLE = {LinkState.OK: "green", LinkState.LOST: "bold red"}  # degraded: yellow
 
 
 class EventTally:
@@ -170,7 +172,7 @@ def _vehicles(daemon: Daemon) -> Table:
             s.id, str(s.system_id), s.status, _fmt(snap.mode_name), _fmt(snap.armed),
             _fmt(snap.alt_m, ".0f"), _fmt(s.fly.target if s.fly else None),
             _fmt(snap.battery_remaining_pct, ".0f"),
-            Text(s.link, style={"ok": "green", "lost": "bold red"}.get(s.link, "yellow")),
+            Text(s.link, style=_LINK_STYLE.get(s.link, "yellow")),
             Text(f"{s.uploads_ok}/{s.uploads_failed}",
                  style="red" if s.uploads_failed else ""),
             Text(str(retries), style="yellow" if retries else ""), _own_wind(snap),

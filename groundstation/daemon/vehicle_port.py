@@ -38,7 +38,7 @@ from collections.abc import AsyncIterator, Callable, Sequence
 from typing import Any, Protocol
 
 from groundstation.mavlink.codec import MavlinkEncoder, MAVLinkMessage, mavlink2
-from groundstation.mavlink.mission_commands import SetCurrent
+from groundstation.mavlink.mission_commands import MissionSetCurrent
 from groundstation.mavlink.mission_download import MissionDownload
 from groundstation.mavlink.mission_items import MissionItem
 from groundstation.mavlink.mission_transfer import (
@@ -250,7 +250,7 @@ class VehiclePort:
 
     async def set_current(self, seq: int, known_current_seq: int | None) -> TransferResult:
         return await self.run(
-            SetCurrent(
+            MissionSetCurrent(
                 self.system_id,
                 self.component_id,
                 seq,

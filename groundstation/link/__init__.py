@@ -2,14 +2,14 @@
 detection feed's JSON lines over UDP (:mod:`.detection_feed`, not imported here).
 
 Public entry points: :func:`parse_link_url`, :func:`parse_out_url` (``--out``),
-:func:`open_link`, :class:`Router`,
+:func:`open_link` (raises :class:`~domain.errors.LinkError`), :class:`Router`,
 :class:`TlogWriter`, :class:`TlogReader`. Importing this package has no side effects.
 """
 
+from domain.errors import LinkError  # the one error tree's, re-exported for the link's users
 from groundstation.link.base import (
     Link,
     LinkCounters,
-    LinkError,
     LinkOptions,
     ReceiveCallback,
     Received,

@@ -30,12 +30,11 @@ from collections.abc import AsyncIterator, Callable, Coroutine
 from dataclasses import dataclass, field
 from typing import Any, TypeAlias
 
-from domain import errors
 from groundstation.link.binding import (
     BindingRules,
+    BindingVerdict,
     Peer,
     PeerTable,
-    Verdict,
 )
 from groundstation.link.inbox import Inbox, RawChunk, peek_frames
 from groundstation.link.url import LinkSpec
@@ -46,7 +45,6 @@ __all__ = [
     "Backoff",
     "Link",
     "LinkCounters",
-    "LinkError",
     "LinkOptions",
     "PeerTable",
     "ReceiveCallback",
@@ -59,10 +57,6 @@ _WARN_INTERVAL_S = 5.0
 
 MavMessage: TypeAlias = Any
 """A pymavlink ``MAVLink_message`` (pymavlink ships no type information)."""
-
-
-class LinkError(errors.LinkError):
-    """A link could not start (e.g. its listening port is taken); one-line message."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -269,8 +263,9 @@ class Link(ABC):
         return asyncio.create_task(coro, name=name)
 
     async def start(self) -> None:
-        """Open the transport. Listeners raise :class:`LinkError` if they cannot bind;
-        connecting kinds (tcp, serial) return at once and keep trying in the background."""
+        """Open the transport. Listeners raise :class:`~domain.errors.LinkError` if they
+        cannot bind; connecting kinds (tcp, serial) return at once and keep trying in the
+        background."""
         if self._running:
             return
         await self._open()
@@ -513,10 +508,10 @@ class Link(ABC):
         verdict = peers.heard(
             rx.system_id, rx.peer, is_autopilot_heartbeat(rx.message), self.now_s()
         )
-        if verdict is Verdict.FOREIGN:
+        if verdict is BindingVerdict.FOREIGN:
             self.counters.foreign += 1
             return dataclasses.replace(rx, foreign=True)
-        if verdict is Verdict.REBOUND:
+        if verdict is BindingVerdict.REBOUND:
             self._notice(
                 "peer_rebound", system_id=rx.system_id, peer=str(rx.peer), previous=str(previous)
             )

@@ -24,7 +24,7 @@ from collections.abc import Hashable
 from dataclasses import dataclass, field
 from typing import Generic, TypeVar
 
-__all__ = ["Binder", "BindingRules", "Peer", "PeerTable", "Verdict"]
+__all__ = ["Binder", "BindingRules", "BindingVerdict", "Peer", "PeerTable"]
 
 P = TypeVar("P", bound=Hashable)
 
@@ -41,7 +41,7 @@ class BindingRules:
     evidence_max_gap_s: float = 5.0
 
 
-class Verdict(enum.Enum):
+class BindingVerdict(enum.Enum):
     """What a frame means for its system id's binding."""
 
     UNBOUND = "unbound"  # not bound, and this frame does not bind it: pass it on
@@ -53,7 +53,7 @@ class Verdict(enum.Enum):
     @property
     def delivered(self) -> bool:
         """True if the frame may be handed on as the system's own."""
-        return self is not Verdict.FOREIGN
+        return self is not BindingVerdict.FOREIGN
 
 
 @dataclass
@@ -95,20 +95,22 @@ class Binder(Generic[P]):
             b.evidence.pop(place, None)
         return gone
 
-    def observe(self, system_id: int, place: P, autopilot_heartbeat: bool, now_s: float) -> Verdict:
+    def observe(
+        self, system_id: int, place: P, autopilot_heartbeat: bool, now_s: float
+    ) -> BindingVerdict:
         """Account for one frame of ``system_id`` from ``place`` at ``now_s``."""
         binding = self._bindings.get(system_id)
         if binding is None:
             if autopilot_heartbeat and system_id != 0:
                 self._bindings[system_id] = _Binding(place, now_s)
-                return Verdict.BOUND
-            return Verdict.UNBOUND
+                return BindingVerdict.BOUND
+            return BindingVerdict.UNBOUND
         if binding.place == place:
             binding.last_heard_s = now_s
             binding.evidence.clear()
-            return Verdict.OWN
+            return BindingVerdict.OWN
         if not autopilot_heartbeat:
-            return Verdict.FOREIGN
+            return BindingVerdict.FOREIGN
         rules = self.rules
         ev = binding.evidence.get(place)
         if ev is None or now_s - ev.last_s > rules.evidence_max_gap_s:
@@ -122,8 +124,8 @@ class Binder(Generic[P]):
             and ev.last_s - ev.first_s >= rules.evidence_span_s
         ):
             self._bindings[system_id] = _Binding(place, now_s)
-            return Verdict.REBOUND
-        return Verdict.FOREIGN
+            return BindingVerdict.REBOUND
+        return BindingVerdict.FOREIGN
 
 
 class PeerTable:
@@ -150,12 +152,12 @@ class PeerTable:
 
     def heard(
         self, system_id: int, peer: Peer, autopilot_heartbeat: bool = False, now_s: float = 0.0
-    ) -> Verdict:
+    ) -> BindingVerdict:
         """Account for a frame of ``system_id`` from ``peer``; says whether it is foreign."""
         verdict = self.binder.observe(system_id, peer, autopilot_heartbeat, now_s)
-        if verdict is Verdict.UNBOUND:
+        if verdict is BindingVerdict.UNBOUND:
             self.soft[system_id] = peer
-        elif verdict is not Verdict.FOREIGN:
+        elif verdict is not BindingVerdict.FOREIGN:
             self.soft.pop(system_id, None)
         if verdict.delivered and peer in self.extra:
             self.extra.remove(peer)

@@ -40,7 +40,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from groundstation.link.base import Link, ReceiveCallback, Received
-from groundstation.link.binding import Binder, BindingRules, Verdict
+from groundstation.link.binding import Binder, BindingRules, BindingVerdict
 from groundstation.link.tlog import TlogWriter
 from groundstation.mavlink.evidence import is_autopilot_heartbeat
 
@@ -254,13 +254,13 @@ class Router:
         verdict = self.binder.observe(
             rx.system_id, link, is_autopilot_heartbeat(rx.message), self.now_s()
         )
-        if verdict is Verdict.FOREIGN:
+        if verdict is BindingVerdict.FOREIGN:
             link.counters.foreign += 1
             self.counters.foreign += 1
             return
-        if verdict is Verdict.BOUND:
+        if verdict is BindingVerdict.BOUND:
             log.info("system %d bound to link %s", rx.system_id, link.link_id)
-        elif verdict is Verdict.REBOUND:
+        elif verdict is BindingVerdict.REBOUND:
             self.counters.rebinds += 1
             old = previous.link_id if previous is not None else None
             # told by the daemon's journal line (one console line per problem)

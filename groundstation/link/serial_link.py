@@ -11,7 +11,7 @@ from __future__ import annotations
 import asyncio
 from typing import Any
 
-from groundstation.link.base import LinkError
+from domain.errors import LinkError
 from groundstation.link.stream import ReconnectingLink, StreamProtocol
 
 __all__ = ["SerialLink"]

@@ -15,7 +15,8 @@ import contextlib
 import socket
 from typing import Any
 
-from groundstation.link.base import LinkError, PeerTable, Received
+from domain.errors import LinkError
+from groundstation.link.base import PeerTable, Received
 from groundstation.link.stream import ReconnectingLink, StreamProtocol, _StreamSink
 
 __all__ = ["TcpClientLink", "TcpServerLink"]

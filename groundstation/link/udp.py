@@ -25,7 +25,8 @@ import ipaddress
 import socket
 from typing import Any
 
-from groundstation.link.base import Link, LinkError, PeerTable, Received
+from domain.errors import LinkError
+from groundstation.link.base import Link, PeerTable, Received
 
 _MAX_DATAGRAM = 65535
 

@@ -4,7 +4,7 @@
 silence resends it (default 0.5 s x 5, :data:`COMMAND_TIMEOUT_S`: ArduPlane answers within
 one loop).
 
-:class:`SetCurrent`: ``COMMAND_LONG(MAV_CMD_DO_SET_MISSION_CURRENT, param1=seq)`` (or the
+:class:`MissionSetCurrent`: ``COMMAND_LONG(MAV_CMD_DO_SET_MISSION_CURRENT, param1=seq)`` (or the
 older ``MISSION_SET_CURRENT`` message), confirmed by ``COMMAND_ACK ACCEPTED`` and then by
 ``MISSION_CURRENT.seq == seq``. ``MISSION_CURRENT`` reaching ``seq`` also confirms on its own
 when the ACK was lost, but only if it is news: the vehicle was known to be on another item
@@ -40,8 +40,8 @@ from __future__ import annotations
 
 import enum
 
+from domain.errors import LocalProtocolError
 from groundstation.mavlink.codec import MAVLinkMessage, mavlink2
-from groundstation.mavlink.errors import LocalProtocolError
 from groundstation.mavlink.mission_transfer import (
     COMMAND_TIMEOUT_S,
     DEFAULT_RETRIES,
@@ -55,7 +55,7 @@ from groundstation.mavlink.mission_transfer import (
 __all__ = [
     "ClearState",
     "MissionClear",
-    "SetCurrent",
+    "MissionSetCurrent",
     "SetCurrentState",
     "command_result_code",
     "command_result_name",
@@ -148,7 +148,7 @@ class SetCurrentState(enum.Enum):
     DONE = "done"
 
 
-class SetCurrent(TransferBase[SetCurrentState]):
+class MissionSetCurrent(TransferBase[SetCurrentState]):
     """Make item ``seq`` the vehicle's current mission item, and confirm it."""
 
     _IDLE = SetCurrentState.IDLE

@@ -27,9 +27,9 @@ import struct
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
+from domain.errors import LocalProtocolError
 from domain.geodesy import GeoOrigin
 from groundstation.mavlink.codec import MAVLinkMessage, mavlink2
-from groundstation.mavlink.errors import LocalProtocolError
 
 __all__ = [
     "ChangeSpeed",

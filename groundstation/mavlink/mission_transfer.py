@@ -22,11 +22,11 @@ Their common interface is :class:`TransferBase` (``start``, ``receive``, ``poll`
         else: await wake-up or sm.next_deadline_s()
 
 Peer input never raises: misbehaviour ends the transfer with a failed
-:class:`TransferResult` (a :class:`~groundstation.mavlink.errors.RemoteProtocolError` *as
+:class:`TransferResult` (a :class:`~domain.errors.RemoteProtocolError` *as
 data*), and unreadable messages (wrong field types, out-of-range values, other sources)
 are ignored. After the end every input (``receive``, ``poll``, ``cancel``,
 ``notify_vehicle_rebooted``) returns ``[]``, as h11 answers input after DONE with a state.
-Local misuse raises :class:`~groundstation.mavlink.errors.LocalProtocolError`: ``receive``
+Local misuse raises :class:`~domain.errors.LocalProtocolError`: ``receive``
 before ``start``, ``start`` twice, invalid constructor arguments (items, target, timeout).
 
 Timing defaults (mission seconds, i.e. on the vehicle's own clock under a speed-up):
@@ -48,8 +48,8 @@ import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Generic, TypeVar
 
+from domain.errors import LocalProtocolError, RemoteProtocolError
 from groundstation.mavlink.codec import MAVLinkMessage, mavlink2
-from groundstation.mavlink.errors import LocalProtocolError, RemoteProtocolError
 
 if TYPE_CHECKING:
     from groundstation.mavlink.mission_items import MissionItem

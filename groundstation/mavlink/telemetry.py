@@ -46,12 +46,13 @@ from dataclasses import replace
 from typing import Literal
 
 from domain.geodesy import GeoOrigin, enu_rad_from_compass_deg, wrap_pi
+from domain.modes import ArduPlaneMode
 from groundstation.mavlink.codec import MAVLinkMessage, mavlink2
 from groundstation.mavlink.evidence import MAV_STATE_BOOT, RebootEvidence, WindEvidence
 from groundstation.mavlink.telemetry_events import (
     ARDUPLANE_MODES,
     Armed,
-    BatteryLow,
+    BatteryBelowThreshold,
     Disarmed,
     InvalidTelemetry,
     MissionCurrentChanged,
@@ -70,7 +71,7 @@ from groundstation.mavlink.wind_message import BadWindField, parse_wind_message
 __all__ = [
     "ARDUPLANE_MODES",
     "Armed",
-    "BatteryLow",
+    "BatteryBelowThreshold",
     "Disarmed",
     "InvalidTelemetry",
     "LoiterEndDetector",
@@ -92,7 +93,6 @@ _ARMED_FLAG = 128  # MAV_MODE_FLAG_SAFETY_ARMED
 _CUSTOM_MODE_FLAG = 1  # MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
 _UINT16_UNKNOWN = 65535
 _MISSION_STATE_MAX = 5  # MISSION_STATE_COMPLETE, the last MISSION_STATE value
-_INITIALISING = 16  # ArduPlane mode INITIALISING
 _STATUSTEXT_CHUNK = 50
 _MAX_SPEED_M_S = 150.0
 _MAX_ALT_M = 20_000.0
@@ -104,8 +104,9 @@ _MAX_ALT_M = 20_000.0
 class VehicleTelemetry:
     """Reduce one vehicle's messages to a :class:`VehicleSnapshot` and events.
 
-    ``battery_low_pct`` (and optionally ``battery_low_v``) trigger :class:`BatteryLow` once
-    per crossing; it re-arms when the level recovers ``battery_hysteresis_pct`` above.
+    ``battery_low_pct`` (and optionally ``battery_low_v``) trigger
+    :class:`BatteryBelowThreshold` once per crossing; it re-arms when the level recovers
+    ``battery_hysteresis_pct`` above.
     Incomplete chunked STATUSTEXTs are flushed after ``statustext_timeout_s``. Only the
     autopilot component ``component_id`` (1, MAV_COMP_ID_AUTOPILOT1; None: any) is listened
     to: a camera or companion computer on the same system id has its own ``time_boot_ms``
@@ -237,8 +238,9 @@ class VehicleTelemetry:
     def _on_heartbeat(self, msg: MAVLinkMessage, now_s: float) -> list[TelemetryEvent]:
         events: list[TelemetryEvent] = []
         status = int(msg.system_status)
+        initialising = int(msg.custom_mode) == ArduPlaneMode.INITIALISING
         booting = status == MAV_STATE_BOOT or (
-            int(msg.base_mode) & _CUSTOM_MODE_FLAG and int(msg.custom_mode) == _INITIALISING
+            int(msg.base_mode) & _CUSTOM_MODE_FLAG and initialising
         )
         if booting and self.reboot.suspected:
             latest = self.reboot.latest_ms()
@@ -366,7 +368,7 @@ class VehicleTelemetry:
         )
         if low and not self._battery_low_reported:
             self._battery_low_reported = True
-            events.append(BatteryLow(now_s, pct, volts, self.battery_low_pct))
+            events.append(BatteryBelowThreshold(now_s, pct, volts, self.battery_low_pct))
         elif (
             not low
             and self._battery_low_reported

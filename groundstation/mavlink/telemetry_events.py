@@ -14,7 +14,7 @@ from domain.modes import ARDUPLANE_MODES, mode_name
 __all__ = [
     "ARDUPLANE_MODES",
     "Armed",
-    "BatteryLow",
+    "BatteryBelowThreshold",
     "Disarmed",
     "InvalidTelemetry",
     "MissionCurrentChanged",
@@ -83,7 +83,7 @@ class Rebooted:
 
 
 @dataclass(frozen=True)
-class BatteryLow:
+class BatteryBelowThreshold:
     t_s: float
     remaining_pct: float | None
     voltage_v: float | None
@@ -126,7 +126,7 @@ TelemetryEvent = (
     | MissionCurrentChanged
     | StatusText
     | Rebooted
-    | BatteryLow
+    | BatteryBelowThreshold
     | PrearmChanged
     | InvalidTelemetry
     | WindReported

@@ -34,8 +34,8 @@ import enum
 import math
 from collections.abc import Sequence
 
+from domain.errors import LocalProtocolError
 from groundstation.mavlink.codec import MAVLinkMessage, mavlink2
-from groundstation.mavlink.errors import LocalProtocolError
 from groundstation.mavlink.mission_commands import command_result_code, command_result_name
 from groundstation.mavlink.mission_items import f32
 from groundstation.mavlink.mission_transfer import (

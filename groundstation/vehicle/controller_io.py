@@ -1,10 +1,15 @@
 """The controller's typed inputs and outputs.
 
-In: :class:`Frame` (one message from the vehicle's autopilot, reduced), :class:`Tick`
-(time passes), :class:`ExchangeDone` (the result of the exchange the controller asked
-for), :class:`Fly` / :class:`Release` (the decision core's commands), :class:`ForeignFrame`
-(a frame of another component, counted) and :class:`Stop`. Operator requests (launch,
-resume, override) are the controller's methods of those names.
+In: :class:`AutopilotFrame` (one message from the vehicle's autopilot, reduced),
+:class:`TimePassed` (the daemon's tick: silence, progress, deadlines), :class:`ExchangeDone`
+(the result of the exchange the controller asked for), :class:`Fly` / :class:`Release`
+(the decision core's commands), :class:`ForeignFrame` (a frame of another component,
+counted) and :class:`Stop`. Operator requests (launch, resume, override) are the
+controller's methods of those names.
+
+The exchange requests are named verb first (``SetCurrent``, ``SetParam``...); the
+``groundstation.mavlink`` machines that carry them out are named after the protocol
+(``MissionSetCurrent``, ``ParamSet``...).
 
 Out: exchange requests (:data:`Exchange`: one at a time, answered by ``ExchangeDone``),
 fire-and-forget :class:`RequestRates`, :class:`CancelExchange`, :class:`NotifyRebooted`,
@@ -23,6 +28,7 @@ from groundstation.mavlink.telemetry_events import TelemetryEvent, VehicleSnapsh
 
 __all__ = [
     "Arm",
+    "AutopilotFrame",
     "CancelExchange",
     "CoreEvent",
     "Download",
@@ -30,19 +36,18 @@ __all__ = [
     "ExchangeDone",
     "Fly",
     "ForeignFrame",
-    "Frame",
     "Input",
     "JournalLine",
     "NotifyRebooted",
     "Output",
-    "ParamRead",
-    "ParamSet",
+    "ReadParam",
     "Release",
     "RequestRates",
     "SetCurrent",
     "SetMode",
+    "SetParam",
     "Stop",
-    "Tick",
+    "TimePassed",
     "UploadMission",
     "UploadOutcome",
     "Warn",
@@ -51,7 +56,7 @@ __all__ = [
 
 # ------------------------------------------------------------------ inputs
 @dataclass(frozen=True)
-class Frame:
+class AutopilotFrame:
     """One message of the vehicle's own autopilot component: its MAVLink type, the
     reducer's snapshot after it and the events it caused."""
 
@@ -71,7 +76,7 @@ class ForeignFrame:
 
 
 @dataclass(frozen=True)
-class Tick:
+class TimePassed:
     t_s: float
 
 
@@ -114,7 +119,7 @@ class UploadOutcome:
 class ExchangeDone:
     """The answer to ``request``: an :class:`UploadOutcome` (UploadMission), a
     ``TransferResult`` (Download, SetCurrent), a MAV_RESULT or None on silence (SetMode,
-    Arm), a bool (ParamSet) or the value read, None on silence (ParamRead)."""
+    Arm), a bool (SetParam) or the value read, None on silence (ReadParam)."""
 
     t_s: float
     request: Exchange
@@ -122,7 +127,7 @@ class ExchangeDone:
 
 
 Input = (
-    Frame | ForeignFrame | Tick | Fly | Release | Stop | ExchangeDone
+    AutopilotFrame | ForeignFrame | TimePassed | Fly | Release | Stop | ExchangeDone
 )
 
 
@@ -161,20 +166,20 @@ class Arm:
 
 
 @dataclass(frozen=True, eq=False)
-class ParamSet:
+class SetParam:
     name: str
     value: float
 
 
 @dataclass(frozen=True, eq=False)
-class ParamRead:
+class ReadParam:
     """Read parameter ``name`` (PARAM_REQUEST_READ by name; the driver retries a silence a
     bounded number of times): the value, or None when the vehicle does not answer."""
 
     name: str
 
 
-Exchange = UploadMission | Download | SetCurrent | SetMode | Arm | ParamSet | ParamRead
+Exchange = UploadMission | Download | SetCurrent | SetMode | Arm | SetParam | ReadParam
 
 
 @dataclass(frozen=True)

@@ -28,10 +28,10 @@ from groundstation.vehicle.controller_io import (
     Download,
     Exchange,
     Fly,
-    ParamRead,
-    ParamSet,
+    ReadParam,
     SetCurrent,
     SetMode,
+    SetParam,
     UploadMission,
     UploadOutcome,
 )
@@ -201,7 +201,7 @@ def target_job(host: JobHost, fly: Fly) -> Job:
     if not mission.pass_over:
         first = LoiterTime(fly.x_m, fly.y_m, host.alt_m, mission.loiter_s)
         if host.wp_loiter_rad_m != radius:
-            if (yield ParamSet("WP_LOITER_RAD", radius)):
+            if (yield SetParam("WP_LOITER_RAD", radius)):
                 host.wp_loiter_rad_m = radius
             else:
                 host.journal("param_set", ok=False, name="WP_LOITER_RAD", value=radius)
@@ -229,7 +229,7 @@ def cruise_job(host: JobHost) -> Job:
     [CRUISE_MIN_M_S, CRUISE_MAX_M_S] is journalled (``cruise_speed_refused``) and the next
     parameter asked."""
     for name, to_m_s in CRUISE_PARAMS:
-        value = yield ParamRead(name)
+        value = yield ReadParam(name)
         if value is None:
             continue
         speed_m_s = value * to_m_s

@@ -16,6 +16,7 @@ from groundstation.daemon.control.contract import VEHICLE_ACTIONS
 from groundstation.daemon.log_lines import is_operator_event
 from groundstation.daemon.track_views import search_dicts, track_counts, track_dicts
 from groundstation.daemon.wind_view import vehicle_wind, wind_summary
+from groundstation.vehicle.state import VehicleState
 
 if TYPE_CHECKING:
     from groundstation.daemon.daemon import Daemon
@@ -214,7 +215,7 @@ class DaemonController:
             if not session.resume(t, "api"):
                 return _refuse(f"vehicle {session.id} is {session.status}, not overridden")
             return {"ok": True, "error": None, "vehicle": session.id}
-        if session.status != "active":
+        if session.state is not VehicleState.ACTIVE:
             return _refuse(f"vehicle {session.id} is {session.status}, not active")
         session.override(t, "api release")
         return {"ok": True, "error": None, "vehicle": session.id}

@@ -14,13 +14,13 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-__all__ = ["SUMMARY_FIGURES", "CellSummary", "summarise", "t_half_width"]
+__all__ = ["SUMMARY_FIGURES", "CellMeans", "summarise", "t_half_width"]
 
 SUMMARY_FIGURES = ("mean_uncertainty", "final_uncertainty", "visits", "lost_targets")
 
 
 @dataclass(frozen=True)
-class CellSummary:
+class CellMeans:
     """One cell: its coordinates, its run count, (mean, half width) per figure, and how
     many runs were bounded (trend test) out of those with a verdict."""
 
@@ -43,7 +43,7 @@ def t_half_width(values: Sequence[float]) -> float | None:
 
 def summarise(
     rows: Sequence[Mapping[str, Any]], grid: Mapping[str, Sequence[Any]]
-) -> tuple[list[str], list[CellSummary]]:
+) -> tuple[list[str], list[CellMeans]]:
     """The varying keys (cell columns) and one summary per cell, in grid order."""
     keys = [k for k, values in grid.items() if k != "seed" and len(values) > 1]
     order = {k: {_marker(v): i for i, v in enumerate(grid[k])} for k in keys}
@@ -54,7 +54,7 @@ def summarise(
     def position(item: tuple[tuple[Any, ...], list[Mapping[str, Any]]]) -> tuple[int, ...]:
         return tuple(order[k].get(m, len(order[k])) for k, m in zip(keys, item[0], strict=True))
 
-    out: list[CellSummary] = []
+    out: list[CellMeans] = []
     for _, members in sorted(cells.items(), key=position):
         figures: dict[str, tuple[float, float | None]] = {}
         for name in SUMMARY_FIGURES:
@@ -62,7 +62,7 @@ def summarise(
             if values:
                 figures[name] = (statistics.fmean(values), t_half_width(values))
         verdicts = [r["bounded_trend"] for r in members if r.get("bounded_trend") is not None]
-        out.append(CellSummary(
+        out.append(CellMeans(
             cell={k: members[0].get(k) for k in keys}, runs=len(members), figures=figures,
             bounded=sum(bool(v) for v in verdicts), bounded_of=len(verdicts),
         ))

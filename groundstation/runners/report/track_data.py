@@ -27,7 +27,7 @@ __all__ = [
     "LIFECYCLE_KINDS",
     "STATUSES",
     "Lifecycle",
-    "SearchCell",
+    "SearchCellRecord",
     "TrackSample",
     "TrackingData",
     "tracking_of",
@@ -51,7 +51,7 @@ class TrackSample:
 
 
 @dataclass(frozen=True)
-class SearchCell:
+class SearchCellRecord:
     """One cell of a ``search`` line: centre (m), side (m) and value (m^2)."""
 
     id: str
@@ -77,7 +77,7 @@ class TrackingData:
     notes in journal order, and how many malformed entries were skipped."""
 
     tracks: dict[str, list[TrackSample]] = field(default_factory=dict)
-    search: list[tuple[float, list[SearchCell]]] = field(default_factory=list)
+    search: list[tuple[float, list[SearchCellRecord]]] = field(default_factory=list)
     lifecycle: list[Lifecycle] = field(default_factory=list)
     skipped: int = 0
 
@@ -115,7 +115,7 @@ class TrackingData:
                 out[key] = out.get(key, 0) + 1
         return out
 
-    def last_search(self) -> list[SearchCell]:
+    def last_search(self) -> list[SearchCellRecord]:
         """The cells of the newest ``search`` line (empty if none)."""
         return self.search[-1][1] if self.search else []
 
@@ -127,7 +127,7 @@ def _finite(value: Any) -> float | None:
     return number if math.isfinite(number) else None
 
 
-def _cell(raw: Any) -> SearchCell | None:
+def _cell(raw: Any) -> SearchCellRecord | None:
     if not isinstance(raw, list | tuple) or len(raw) != 5:
         return None
     numbers = [_finite(v) for v in raw[1:]]
@@ -136,7 +136,7 @@ def _cell(raw: Any) -> SearchCell | None:
     x, y, size, value = (float(v) for v in numbers if v is not None)
     if size <= 0:
         return None
-    return SearchCell(str(raw[0]), x, y, size, value)
+    return SearchCellRecord(str(raw[0]), x, y, size, value)
 
 
 def tracking_of(records: Iterable[Mapping[str, Any]]) -> TrackingData:
