@@ -135,11 +135,13 @@ def test_an_overtaken_plan_is_cancelled_and_its_answer_dropped() -> None:
     newer = core.handle(Tick(0.3))
     assert of_type(newer, CancelSolve)[0].request_id == old.request_id
     new = of_type(newer, SolveRequest)[0]
+    assert not core.wants_answer(old.request_id) and core.wants_answer(new.request_id)
     stale = core.handle(PlanSolved(0.4, old.request_id, solve_plan(old.problem)))
     assert stale == []
     assert core.counters["stale_plans_dropped"] == 1
     fresh = core.handle(PlanSolved(0.5, new.request_id, solve_plan(new.problem)))
     assert of_type(fresh, PlanAdopted) and of_type(fresh, FlyToTarget)
+    assert not core.wants_answer(new.request_id)  # answered: a second answer is stale
 
 
 def test_override_releases_and_resume_takes_back() -> None:

@@ -339,7 +339,7 @@ def _request(request_id: int, n_targets: int, time_limit_s: float) -> Any:
     return SolveRequest(0.0, request_id, problem, {}, "test")
 
 
-def test_solver_runner_stops_and_drops_overtaken_plans() -> None:
+def test_solver_runner_stops_overtaken_plans() -> None:
     from groundstation.daemon.planning import SolverRunner
 
     answers: list[tuple[int, str]] = []
@@ -350,9 +350,9 @@ def test_solver_runner_stops_and_drops_overtaken_plans() -> None:
         start = time.perf_counter()
         runner.submit(_request(1, 60, 20.0))  # no proof at 60 targets: runs to its 20 s limit
         await asyncio.sleep(0.3)
-        runner.cancel(1)  # overtaken: stopped at once, answer dropped
+        runner.cancel(1)  # overtaken: stopped at once (whether it counts: the core's rule)
         runner.submit(_request(2, 4, 1.0))  # small: solved exactly
-        while len(answers) < 1 or runner.busy:
+        while not any(rid == 2 for rid, _ in answers) or runner.busy:
             await asyncio.sleep(0.01)
         elapsed = time.perf_counter() - start
         runner.close()
@@ -360,7 +360,8 @@ def test_solver_runner_stops_and_drops_overtaken_plans() -> None:
         return elapsed
 
     elapsed = asyncio.run(asyncio.wait_for(main(), 30.0))
-    assert answers == [(2, "optimal")]
+    assert (2, "optimal") in answers
+    assert [rid for rid, _ in answers if rid != 2] in ([], [1])
     assert elapsed < 5.0
 
 

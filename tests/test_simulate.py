@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import statistics
 from pathlib import Path
 
@@ -214,3 +215,20 @@ def test_first_plan_sends_each_uav_to_its_own_iceberg(objective: str) -> None:
     for plan in plans:
         targets = list(plan["assignments"].values())
         assert len(targets) == 3 and len(set(targets)) == 3, plan["assignments"]
+
+
+def test_the_operating_area_refuses_targets_outside_it() -> None:
+    """core/area.py's rule in the offline simulator: with a 1 km area around the origin,
+    paper-boat's icebergs beyond it are refused (journalled), the others announced."""
+    scenario = load_scenario("paper-boat")
+    options = SimulationOptions(duration_s=5.0, journal=True, operating_radius_m=1000.0)
+    run = run_simulation(scenario, options)
+    refused = {r["target"] for r in run.journal if r["event"] == "target_refused"}
+    added = {r["target"]: (r["x_m"], r["y_m"]) for r in run.journal
+             if r["event"] == "input" and r["kind"] == "TargetAdded"}
+    scripted = {r["target"] for r in run.journal if r["event"] == "target_added"}
+    assert refused and added and not refused & set(added)
+    assert refused | set(added) == scripted
+    assert all(math.hypot(x, y) <= 1000.0 for x, y in added.values())
+    whole = run_simulation(scenario, dataclasses.replace(options, operating_radius_m=None))
+    assert not [r for r in whole.journal if r["event"] == "target_refused"]

@@ -10,12 +10,14 @@ from planner import PlanningProblem, PlanResult
 __all__ = [
     "CancelSolve",
     "Command",
+    "Decisions",
     "FlyToTarget",
     "Note",
     "PlanAdopted",
     "ReleaseVehicle",
     "SendHome",
     "SolveRequest",
+    "Verdict",
     "WindEstimate",
 ]
 
@@ -124,3 +126,32 @@ Command = (
     SolveRequest | CancelSolve | PlanAdopted | FlyToTarget | ReleaseVehicle | SendHome | Note
     | WindEstimate
 )
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """The observer's verdict on a camera detection, for the frontends' visit counts (not a
+    command and not journalled: replay recomputes it from the same inputs).
+
+    ``accepted`` is True when the detection was fused into track ``target``: a labelled
+    detection the observer accepted, or, at the tick that scanned its frame, an unlabelled
+    one the tracker assigned to ``target`` (``reason`` ``assigned``; ``t_s`` and
+    ``vehicle`` are then the frame's). False when it was not fused: ``reason`` is the
+    observer's (``gated``, ``late``, ``non_finite``...), ``discovered`` (it started the
+    unknown target ``target``) or ``invalid``. None while an unlabelled detection waits in
+    its frame for the next tick's scan (``buffered``, ``invalid``)."""
+
+    t_s: float
+    vehicle: str | None
+    target: str | None
+    accepted: bool | None
+    reason: str
+
+
+class Decisions(list[Command]):
+    """What :meth:`DecisionCore.handle` returns: the commands, in order, and the verdicts
+    on the detections this input decided (empty but for a ``Detection`` or a ``Tick``)."""
+
+    def __init__(self, commands: Sequence[Command] = (), verdicts: Sequence[Verdict] = ()):
+        super().__init__(commands)
+        self.verdicts: tuple[Verdict, ...] = tuple(verdicts)

@@ -168,6 +168,13 @@ class CoreConfig:
         ):
             raise ValueError(f"tentative_weight must be finite and >= 0, got {w!r}")
 
+    @property
+    def tick_s(self) -> float:
+        """Mission seconds between two ``Tick`` inputs, in every frontend (the daemon's
+        ticker, ``gcs simulate``'s step, a bare tlog's replay): the observer's prediction
+        grid, ``observer.max_step_s`` (0.1 s), so a tick never falls between grid points."""
+        return self.observer.max_step_s
+
 
 def config_to_dict(config: CoreConfig) -> dict[str, Any]:
     """The core configuration as plain JSON/YAML data (journalled at start for replay)."""

@@ -40,10 +40,12 @@ from dataclasses import dataclass
 from groundstation.core.commands import (
     CancelSolve,
     Command,
+    Decisions,
     FlyToTarget,
     Note,
     PlanAdopted,
     SolveRequest,
+    Verdict,
 )
 from groundstation.core.config import CoreConfig
 from groundstation.core.events import (
@@ -65,10 +67,16 @@ from groundstation.core.fleet import FleetStatus, VehicleRecord, free_vehicles, 
 from groundstation.core.intercept import intercept, travel_time_s
 from groundstation.core.planning_targets import build_problem, search_targets, track_targets
 from groundstation.core.tracking import TrackBook, TrackerFactory
-from groundstation.core.views import SearchCellView, TrackView, search_cell_view
+from groundstation.core.views import (
+    CoreView,
+    SearchCellView,
+    TrackView,
+    VehicleView,
+    search_cell_view,
+)
 from groundstation.core.wind_estimate import WindEstimator, WindState
 from groundstation.core.wind_replan import WindReplan
-from observer import UNCONFIRMED, MeasurementOutcome, Observer, boat_priority_q
+from observer import UNCONFIRMED, Observer, boat_priority_q
 from planner import PlanningProblem, PlanResult, UavPose
 from planner.problem import wind_problem
 from planner.search_cells import SearchGrid
@@ -88,7 +96,6 @@ class DecisionCore:
             x0, x1, y0, y1 = config.area_m
             self.search = SearchGrid(_Area(x0, x1, y0, y1), config.search)
         self._prior_points: dict[str, tuple[float, float]] = {}
-        self.scan_hits: list[tuple[float, str, str]] = []  # (t_s, vehicle, track): last tick
         self.vehicles: dict[str, VehicleRecord] = {}
         self.t_s = 0.0
         self.last_result: PlanResult | None = None
@@ -100,8 +107,7 @@ class DecisionCore:
         self.wind_replan = WindReplan(config.wind_replan_m_s, config.wind_replan_margin_s,
                                       config.observer.fov_radius_m)
         self._next_request_id = 1
-        # The observer's verdict on the last Detection (None: it added a new target).
-        self.last_measurement: MeasurementOutcome | None = None
+        self._verdicts: list[Verdict] = []  # this input's, returned with its commands
         # Called with every input before it is applied (frontends journal it for replay).
         self.on_input: Callable[[Event], None] | None = None
         self._pending: SolveRequest | None = None
@@ -111,10 +117,12 @@ class DecisionCore:
         self._next_periodic_s: float | None = 0.0 if config.policy.period_s else None
 
     # ------------------------------------------------------------------ public API
-    def handle(self, event: Event) -> list[Command]:
-        """Apply one event; return the commands it causes (possibly none)."""
+    def handle(self, event: Event) -> Decisions:
+        """Apply one event; return the commands it causes (possibly none), with the
+        verdicts on the detections it decided (:class:`~groundstation.core.commands.Decisions`)."""
         if self.on_input is not None:
             self.on_input(event)
+        self._verdicts = []
         if event.t_s > self.t_s:
             self.t_s = event.t_s
         out: list[Command] = []
@@ -146,7 +154,7 @@ class DecisionCore:
             # Events only mark the plan dirty; the next tick replans once for all of them,
             # so a burst (several targets added at once) gives one plan, not one each.
             out += self._maybe_replan(event.t_s)
-        return out
+        return Decisions(out, self._verdicts)
 
     def set_boat(self, x_m: float, y_m: float, t_s: float | None = None) -> None:
         """Shorthand for handling :class:`BoatPosition` (recorded like every input)."""
@@ -155,6 +163,12 @@ class DecisionCore:
     @property
     def pending_request(self) -> SolveRequest | None:
         return self._pending
+
+    def wants_answer(self, request_id: int) -> bool:
+        """The stale-answer rule, for every frontend: only the newest request counts; an
+        answer to one that a newer request overtook (or that was already answered) is
+        dropped. A frontend may ask before it journals an answer; the core asks again."""
+        return self._pending is not None and self._pending.request_id == request_id
 
     def active_vehicles(self) -> list[VehicleRecord]:
         return [v for v in self.vehicles.values() if v.status is FleetStatus.ACTIVE]
@@ -207,29 +221,33 @@ class DecisionCore:
         record.speed_m_s = speed_m_s if speed_m_s > 1.0 else self.config.speed_m_s
         record.pose_t_s = t_s
 
+    def _verdict(self, event: Detection, accepted: bool | None, reason: str) -> None:
+        self._verdicts.append(Verdict(event.t_s, event.vehicle, event.target, accepted, reason))
+
     def _on_detection(self, event: Detection) -> list[Command]:
         out: list[Command] = []
-        self.last_measurement = None
         if event.target is None and self._tracking():
             r_m2 = self.config.observer.r_m2 if event.r_m2 is None else event.r_m2
-            self._count("detections_buffered" if self.tracks.detection(event, r_m2)
-                        else "detections_invalid")
+            reason = "buffered" if self.tracks.detection(event, r_m2) else "invalid"
+            self._count(f"detections_{reason}")
+            self._verdict(event, None, reason)  # decided by the next tick's scan
             return out
         if event.target is not None:
             self.tracks.labelled(event)
         if event.target is not None and event.target not in self.observer.target_ids:
             if not (math.isfinite(event.x_m) and math.isfinite(event.y_m)):
                 self._count("detections_invalid")
+                self._verdict(event, False, "invalid")
                 return out
-            self.observer.add_target(event.target, event.t_s, event.x_m, event.y_m,
-                                     sigma0=event.r_m2)
-            self.tracks.adopt(event.target)
+            self.tracks.add(event.target, event.t_s, event.x_m, event.y_m, sigma0=event.r_m2)
+            self._verdict(event, False, "discovered")
             out.append(Note(event.t_s, "target_discovered", event.vehicle, event.target))
             self._mark_dirty("target discovered")
             return out
         outcome = self.observer.measure(event.t_s, event.x_m, event.y_m, event.target,
                                         r_m2=event.r_m2)
-        self.last_measurement = outcome
+        self._verdicts.append(Verdict(event.t_s, event.vehicle, outcome.target_id,
+                                      outcome.accepted, outcome.reason))
         self._count(f"detections_{outcome.reason}")
         return out
 
@@ -239,11 +257,11 @@ class DecisionCore:
             if event.target in self.observer.target_ids:
                 out.append(Note(event.t_s, "duplicate_target", target=event.target))
                 return out
-            self.observer.add_target(
+            self.tracks.add(
                 event.target, event.t_s, event.x_m, event.y_m, vx_m_s=event.vx_m_s,
                 vy_m_s=event.vy_m_s, sigma0=event.sigma0, q_per_s=event.q_per_s,
+                prior=event.prior is True,
             )
-            self.tracks.adopt(event.target, prior=event.prior is True)
             if event.prior is True and self.search is not None:
                 self._prior_points[event.target] = (event.x_m, event.y_m)
                 self.search.set_prior_points(list(self._prior_points.values()))
@@ -252,8 +270,7 @@ class DecisionCore:
             if event.target not in self.observer.target_ids:
                 out.append(Note(event.t_s, "unknown_target", target=event.target))
                 return out
-            self.observer.remove_target(event.target)
-            self.tracks.forget(event.target)
+            self.tracks.remove(event.target)
             free_vehicles(self.vehicles.values(), event.target)
             self._mark_dirty("target removed")
         elif isinstance(event, VehicleJoined):
@@ -391,7 +408,7 @@ class DecisionCore:
 
     def _on_solved(self, event: PlanSolved) -> list[Command]:
         request = self._pending
-        if request is None or event.request_id != request.request_id:
+        if request is None or not self.wants_answer(event.request_id):
             self._count("stale_plans_dropped")
             return []
         self._pending = None
@@ -474,10 +491,10 @@ class DecisionCore:
         turn a vehicle away from the track it was about to reach).
         The search cells' prior weights stay those of the prior as listed."""
         out: list[Command] = []
-        self.scan_hits = []
         for scan, events, hits in self.tracks.process(t_s):
             self._count("scans")
-            self.scan_hits += [(scan.t_s, scan.vehicle, track) for track in hits]
+            self._verdicts += [Verdict(scan.t_s, scan.vehicle, track, True, "assigned")
+                               for track in hits]
             for ev in events:
                 out.append(Note(ev.t_s, f"track_{ev.kind}", scan.vehicle or None, ev.track_id,
                                 ev.reason))
@@ -497,11 +514,22 @@ class DecisionCore:
             known.update(self.search.ids)
         return known
 
+    def view(self) -> CoreView:
+        """The core's read model now (``core/views.py``): what frontends and displays read."""
+        vehicles = tuple(
+            VehicleView(v.id, v.status, v.x_m, v.y_m, v.heading_rad, v.target, v.route, v.busy)
+            for v in self.vehicles.values()
+        )
+        return CoreView(self.t_s, tuple(self.track_views()), tuple(self.search_view()),
+                        self.search is not None, self.wind.current, vehicles,
+                        dict(self.observer.counters), self.wind.flagged, self.plans_adopted)
+
     def track_views(self) -> list[TrackView]:
         """Every track with its status (``core/views.py``), sorted by id."""
         return [
             TrackView(tr.id, self.tracks.status(tr.id), tr.x_m, tr.y_m, tr.sigma,
-                      self.tracks.existence(tr.id), tr.t_s)
+                      self.tracks.existence(tr.id), tr.t_s, tr.vx_m_s, tr.vy_m_s, tr.cov_xy,
+                      tr.lost, tr.last_seen_s)
             for tr in self.observer.tracks()
         ]
 

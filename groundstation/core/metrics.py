@@ -39,6 +39,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from groundstation.core.arrivals import ArrivalTracker
+from groundstation.core.views import TrackView
 from observer import TrackSnapshot
 
 __all__ = [
@@ -145,7 +146,7 @@ class MetricsRecorder:
     def sample_tracks(
         self,
         t_s: float,
-        tracks: Sequence[TrackSnapshot],
+        tracks: Sequence[TrackSnapshot | TrackView],
         truth: Mapping[str, tuple[float, float]],
     ) -> None:
         """The once-a-mission-second sample of a run: mean sigma over ``tracks``, lost

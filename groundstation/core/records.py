@@ -5,6 +5,14 @@ each input with :func:`event_to_record` (``{"event": "input", "kind": "Telemetry
 and each decision with :func:`command_to_record`; :func:`record_to_event` turns an input line
 back into the event. Floats are written with full precision (JSON ``repr``), so a replayed
 run sees bit-identical inputs.
+
+State lines are written from the core's read model (``core/views.py``), one function each,
+for every frontend: :func:`track_records` (every track, with its status), :func:`truth_records`
+(the simulated icebergs' true positions) and :func:`search_record` (the search cells, at most
+every :data:`SEARCH_RECORD_S`: :class:`SearchSchedule`). Full precision here too; journals of
+``gcs run`` written before these functions existed rounded positions to 0.1 m and sigmas to
+0.001 m^2 and left ``lost`` out when false, and are read alike (``gcs replay`` compares track
+samples within that rounding, ``gcs report`` reads the fields it draws).
 """
 
 from __future__ import annotations
@@ -29,16 +37,25 @@ from groundstation.core.commands import (
 from groundstation.core.events import (
     Event,
 )
+from groundstation.core.views import CoreView
 from planner import PlanResult, PlanStatus, problem_from_dict, problem_to_dict, result_to_dict
 
 __all__ = [
+    "SEARCH_RECORD_S",
     "RecordError",
+    "SearchSchedule",
     "command_to_record",
     "event_to_record",
     "record_to_event",
     "result_from_record",
     "result_to_record",
+    "search_record",
+    "track_records",
+    "truth_records",
 ]
+
+SEARCH_RECORD_S = 10.0
+"""Mission seconds between two ``search`` journal lines."""
 
 _EVENT_TYPES: dict[str, type] = {cls.__name__: cls for cls in get_args(Event)}
 
@@ -164,3 +181,42 @@ def command_to_record(command: Command) -> dict[str, Any]:
 def problem_of_record(record: Mapping[str, Any]) -> Any:
     """The planning problem recorded in a ``plan`` or ``solve_request`` line."""
     return problem_from_dict(record["problem"])
+
+
+def track_records(t_s: float, view: CoreView) -> list[dict[str, Any]]:
+    """One ``track`` line per track of ``view`` (``status``: tentative, confirmed or prior)."""
+    return [
+        {"event": "track", "t": t_s, "target": tr.id, "x_m": tr.x_m, "y_m": tr.y_m,
+         "vx_m_s": tr.vx_m_s, "vy_m_s": tr.vy_m_s, "sigma": tr.sigma_m2, "lost": tr.lost,
+         "status": tr.status}
+        for tr in view.tracks
+    ]
+
+
+def truth_records(t_s: float, truth: Mapping[str, tuple[float, float]]
+                  ) -> list[dict[str, Any]]:
+    """One ``truth`` line per simulated iceberg (its true position), in ``truth``'s order."""
+    return [{"event": "truth", "t": t_s, "target": target, "x_m": x, "y_m": y}
+            for target, (x, y) in truth.items()]
+
+
+def search_record(t_s: float, view: CoreView) -> dict[str, Any]:
+    """The ``search`` line: ``cells`` as ``[id, x_m, y_m, size_m, value_m2]`` each."""
+    cells = [[c.id, c.x_m, c.y_m, c.size_m, c.value_m2] for c in view.search_cells]
+    return {"event": "search", "t": t_s, "cells": cells}
+
+
+class SearchSchedule:
+    """When a ``search`` line is due: at the first sample, then every
+    :data:`SEARCH_RECORD_S` mission seconds (never for a core that does not search)."""
+
+    def __init__(self, period_s: float = SEARCH_RECORD_S) -> None:
+        self._period_s = period_s
+        self._next_s = 0.0
+
+    def due(self, t_s: float, view: CoreView) -> bool:
+        if not view.searching or t_s < self._next_s - 1e-9:
+            return False
+        while self._next_s <= t_s + 1e-9:
+            self._next_s += self._period_s
+        return True

@@ -22,6 +22,12 @@ under a new id. Measured on ``paper-boat-clutter`` (campaigns/clutter.yaml, 20 s
 ``keep`` such a track stayed stale forever, drew the planner, and the mean uncertainty rose
 to 512 601 +- 524 272 m^2 (6/20 bounded); without it, 4 932 +- 973 m^2 (13/20), against
 6 008 +- 1 254 m^2 (12/20) for the labelled camera.
+
+**One writer.** The observer's track set changes here only: :meth:`TrackBook.add` and
+:meth:`TrackBook.remove` for the tracks the core adds and removes, and the tracker this book
+owns for its births and deletions. The decision core reads the observer (estimates,
+measurements, predictions) but never adds or removes a track itself, so a track the tracker
+deleted cannot be removed a second time.
 """
 
 from __future__ import annotations
@@ -74,6 +80,23 @@ class TrackBook:
                 if track_id != but:
                     self.tracker.adopt(track_id, status=CONFIRMED, existence=1.0)
         return self.tracker
+
+    def add(self, track_id: str, t_s: float, x_m: float, y_m: float, *, vx_m_s: float = 0.0,
+            vy_m_s: float = 0.0, sigma0: float | None = None, q_per_s: float | None = None,
+            prior: bool = False) -> None:
+        """Start a track the core was told of (``TargetAdded``, a labelled detection of an
+        unknown target) and adopt it (:meth:`adopt`)."""
+        self._observer.add_target(track_id, t_s, x_m, y_m, vx_m_s=vx_m_s, vy_m_s=vy_m_s,
+                                  sigma0=sigma0, q_per_s=q_per_s)
+        self.adopt(track_id, prior=prior)
+
+    def remove(self, track_id: str) -> None:
+        """Stop a track the core was told to remove (``TargetRemoved``); no-op if the
+        observer no longer holds it."""
+        if track_id in self._observer.target_ids:
+            self._observer.remove_target(track_id)
+        if self.tracker is not None:
+            self.tracker.forget(track_id)
 
     def adopt(self, track_id: str, *, prior: bool = False) -> None:
         """A track the core created (TargetAdded, labelled detection)."""

@@ -1,19 +1,35 @@
-"""What the displays (live map, status, report) show of the tracks and the search cells."""
+"""The decision core's read model: what every frontend, display and report may know of it.
+
+:meth:`DecisionCore.view() <groundstation.core.decision.DecisionCore.view>` builds one
+frozen :class:`CoreView` on request: every track with its status, the search cells with
+their value now, the wind estimate and the vehicles as the core sees them. Frontends (the
+daemon, ``gcs simulate``, ``gcs replay``), the console, the control API's ``state()`` and
+the live map read this and nothing else of the core; the journal's ``track``, ``truth`` and
+``search`` lines are written from it by ``core/records.py``. A view is a copy: the floats
+are the core's own (bit for bit), and nothing a reader does changes the core.
+"""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 
+from groundstation.core.fleet import FleetStatus
+from groundstation.core.wind_estimate import WindState
 from planner.search_cells import SearchCell
 
-__all__ = ["SearchCellView", "TrackView", "search_cell_view"]
+__all__ = ["CoreView", "SearchCellView", "TrackView", "VehicleView", "search_cell_view"]
+
+TENTATIVE = "tentative"
 
 
 @dataclass(frozen=True)
 class TrackView:
     """One track: ``status`` is ``tentative``, ``confirmed`` or ``prior``; ``sigma_m2`` is
     ``trace(P_xy)``; ``existence`` the tracker's probability that it is a real iceberg
-    (1 for a track the core added while no tracker exists); ``t_s`` the estimate's time."""
+    (1 for a track the core added while no tracker exists); ``t_s`` the estimate's time;
+    velocity, ``cov_xy = (Pxx, Pxy, Pyy)``, ``lost`` (``sqrt(sigma) > fov_radius_m``) and
+    the last accepted measurement's time (None: never) as ``observer.TrackSnapshot``."""
 
     id: str
     status: str
@@ -22,6 +38,21 @@ class TrackView:
     sigma_m2: float
     existence: float
     t_s: float
+    vx_m_s: float = 0.0
+    vy_m_s: float = 0.0
+    cov_xy: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    lost: bool = False
+    last_seen_s: float | None = None
+
+    @property
+    def sigma(self) -> float:
+        """``sigma_m2`` under the observer's name (metrics read either)."""
+        return self.sigma_m2
+
+    @property
+    def firm(self) -> bool:
+        """A confirmed or prior track (tentative ones are candidates, not icebergs)."""
+        return self.status != TENTATIVE
 
 
 @dataclass(frozen=True)
@@ -40,3 +71,50 @@ class SearchCellView:
 def search_cell_view(cell: SearchCell) -> SearchCellView:
     return SearchCellView(cell.id, cell.x_m, cell.y_m, cell.size_m, cell.value_m2,
                           cell.last_covered_s)
+
+
+@dataclass(frozen=True)
+class VehicleView:
+    """One vehicle as the core sees it: pose, status (``core/fleet.py``), the target it
+    was last sent to and its planned sequence, busy (flying a leg or loitering)."""
+
+    id: str
+    status: FleetStatus
+    x_m: float
+    y_m: float
+    heading_rad: float
+    target: str | None
+    route: tuple[str, ...]
+    busy: bool
+
+
+@dataclass(frozen=True)
+class CoreView:
+    """The core at mission time ``t_s`` (module docstring). ``searching`` is whether the
+    core keeps search cells at all (``search_cells`` is then every cell, by id);
+    ``wind_outliers`` the vehicles whose wind reports are flagged (``core/wind_estimate.py``);
+    ``plans_adopted`` how many plans the core has adopted."""
+
+    t_s: float
+    tracks: tuple[TrackView, ...]
+    search_cells: tuple[SearchCellView, ...]
+    searching: bool
+    wind: WindState
+    vehicles: tuple[VehicleView, ...]
+    observer_counters: Mapping[str, int] = field(default_factory=dict)
+    wind_outliers: frozenset[str] = frozenset()
+    plans_adopted: int = 0
+
+    @property
+    def target_ids(self) -> frozenset[str]:
+        return frozenset(v.id for v in self.tracks)
+
+    def track(self, track_id: str) -> TrackView | None:
+        return next((v for v in self.tracks if v.id == track_id), None)
+
+    def firm_tracks(self) -> tuple[TrackView, ...]:
+        """The confirmed and prior tracks: what the uncertainty is measured over."""
+        return tuple(v for v in self.tracks if v.firm)
+
+    def status(self) -> dict[str, str]:
+        return {v.id: v.status for v in self.tracks}

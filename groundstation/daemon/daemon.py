@@ -25,6 +25,7 @@ from typing import TypedDict
 from domain.geodesy import GeoOrigin
 from domain.modes import ArduPlaneMode
 from groundstation.core import events as ev
+from groundstation.core.area import OperatingArea
 from groundstation.core.commands import (
     CancelSolve,
     Command,
@@ -34,12 +35,12 @@ from groundstation.core.commands import (
     ReleaseVehicle,
     SendHome,
     SolveRequest,
+    Verdict,
 )
 from groundstation.core.config import CoreConfig
 from groundstation.core.decision import DecisionCore
 from groundstation.core.metrics import MetricsRecorder
 from groundstation.core.records import command_to_record, event_to_record
-from groundstation.daemon.area import OperatingArea
 from groundstation.daemon.clock import MissionClock
 from groundstation.daemon.config import DaemonConfig, OnExit, OperatingCenter
 from groundstation.daemon.journal import Journal
@@ -65,7 +66,6 @@ __all__ = ["Daemon"]
 
 log = logging.getLogger(__name__)
 M = mavlink2
-TICK_S = 0.1
 MIN_WAKE_WALL_S = 0.01
 MAX_TICKS_PER_WAKE = 100
 SIGNING_REPORT_S = 5.0
@@ -82,7 +82,7 @@ class _Due:
     """When the ticker's periodic duties are next due (mission s)."""
 
     tick_s: float = 0.0
-    """The next core ``Tick`` (every ``TICK_S``)."""
+    """The next core ``Tick`` (every ``CoreConfig.tick_s``)."""
     sample_s: float = 0.0
     """The next metrics sample (every mission second)."""
     track_s: float = 0.0
@@ -256,14 +256,15 @@ class Daemon:
         if not logged and (level := line_level(line)) >= logging.INFO:
             log.log(level, "%s", describe_line(line))
 
-    def core_event(self, event: ev.Event) -> None:
-        """Feed the core and carry out what it says (as the offline runner does).
+    def core_event(self, event: ev.Event) -> Sequence[Verdict]:
+        """Feed the core and carry out what it says (as the offline runner does); returns
+        the core's verdicts on the detections this input decided.
 
         A fleet event (loiter end, vehicle joined/lost...) also wakes the ticker at once, so
         the plan it triggers is asked for on the next 0.1 s tick without waiting for the
         ticker's sleep."""
         if self._state.finished or self._state.internal_error is not None:
-            return  # the run is over, or a bug stops it: nothing more is commanded
+            return ()  # the run is over, or a bug stops it: nothing more is commanded
         if not isinstance(
             event,
             ev.Tick | ev.Telemetry | ev.Detection | ev.PlanSolved | ev.BoatPosition
@@ -276,9 +277,10 @@ class Daemon:
             pending = self.core.handle(event)
         except Exception as exc:  # a bug: the one bug path (Supervisor.bug), a clean stop
             self.supervisor.bug(f"core ({type(event).__name__})", exc)
-            return
+            return ()
         for command in pending:
             self._execute(command)
+        return pending.verdicts
 
     def clip(self, x_m: float, y_m: float) -> tuple[float, float, bool]:
         """Clip a waypoint into the operating area (SessionHost)."""
@@ -333,6 +335,10 @@ class Daemon:
         self.journal(event, logged=False, **record, **extra)
 
     def _on_solved(self, request: SolveRequest, result: PlanResult) -> None:
+        """A solver's answer, for the core unless a newer request overtook it (the core's
+        rule, applied before the answer is journalled as an input)."""
+        if not self.core.wants_answer(request.request_id):
+            return
         self.core_event(ev.PlanSolved(self.clock.now_s(), request.request_id, result))
 
     def _on_solve_error(self, request: SolveRequest, error: str) -> None:
@@ -525,15 +531,17 @@ class Daemon:
                 self.request_stop("duration")
                 return
             self._due.kick.clear()
+            wake_s = max(MIN_WAKE_WALL_S, self.clock.wall_s(self.core.config.tick_s))
             with contextlib.suppress(TimeoutError):
-                async with asyncio.timeout(max(MIN_WAKE_WALL_S, self.clock.wall_s(TICK_S))):
+                async with asyncio.timeout(wake_s):
                     await self._due.kick.wait()
 
     def tick(self, now: float) -> None:
         """Everything due by ``now`` (mission s): world, ticks, metrics, housekeeping."""
         due = self._due
-        if due.tick_s < now - MAX_TICKS_PER_WAKE * TICK_S:
-            due.tick_s = now - MAX_TICKS_PER_WAKE * TICK_S
+        tick_s = self.core.config.tick_s
+        if due.tick_s < now - MAX_TICKS_PER_WAKE * tick_s:
+            due.tick_s = now - MAX_TICKS_PER_WAKE * tick_s
         while due.tick_s <= now + 1e-9:
             t = due.tick_s
             if self.world is not None:
@@ -545,7 +553,7 @@ class Daemon:
             if t >= due.sample_s - 1e-9:
                 self.feed.sample(t)
                 due.sample_s += 1.0
-            due.tick_s = round(due.tick_s + TICK_S, 6)
+            due.tick_s = round(due.tick_s + tick_s, 6)
         for session in self.sessions.values():
             session.check_link(now)
         if self.signing is not None and now >= due.signing_report_s:

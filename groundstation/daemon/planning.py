@@ -6,8 +6,9 @@ The solver honours the problem's ``time_limit_s`` itself; if it has not answered
 ``1.5 x time_limit_s + 0.5`` wall seconds it is stopped (``PlanSolver.stop``) and returns its
 best plan so far (status ``fallback`` when CP-SAT found none). If solving raises, the
 heuristic alone is tried; if that fails too, the request gets no answer and the next
-trigger asks again. ``cancel(id)`` stops an overtaken solve; its answer is dropped here
-(the core would drop it too).
+trigger asks again. ``cancel(id)`` stops an overtaken solve at once; whether an answer still
+counts is the core's rule (``DecisionCore.wants_answer``: only the newest request), which the
+daemon applies before it journals the answer.
 
 The runner is a service of the daemon's task tree: :meth:`SolverRunner.run` (supervised in
 the root task group) owns a child ``asyncio.TaskGroup`` in which every solve runs, so a
@@ -120,8 +121,7 @@ class SolverRunner:
             except Exception as exc2:
                 if self.on_error is not None:
                     self.on_error(request, repr(exc2))
-        if self._solvers.pop(request.request_id, None) is None:
-            return  # cancelled: a newer request overtook it
+        self._solvers.pop(request.request_id, None)
         if result is not None:
             self.solved += 1
             self.on_solved(request, result)

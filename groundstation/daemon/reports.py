@@ -44,7 +44,7 @@ def run_summary(daemon: RunState, wall: float, cpu: float) -> dict[str, Any]:
         "mean_uncertainty": metrics.get("mean_uncertainty"),
         "max_uncertainty": metrics.get("max_uncertainty"),
         "final_uncertainty": metrics.get("final_uncertainty"),
-        "plans": daemon.core.plans_adopted,
+        "plans": daemon.core.view().plans_adopted,
         "uploads_ok": sum(s.uploads_ok for s in daemon.sessions.values()),
         "uploads_failed": sum(s.uploads_failed for s in daemon.sessions.values()),
         "loiter_to_upload_s": sorted(round(d, 3) for d in delays),

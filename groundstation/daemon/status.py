@@ -133,11 +133,12 @@ def _header(daemon: Daemon, alerts: OperatorAlerts | None) -> list[RenderableTyp
 
 
 def _wind_line(daemon: Daemon) -> Text:
-    state = daemon.core.wind_state
+    view = daemon.core.view()
+    state = view.wind
     text = f"wind {wind_text(*state.xy_m_s)} ({wind_label(state, daemon.wind_fallback_source)})"
     if not daemon.core_config.wind_aware:
         text += ", not used by the planner (wind_aware false)"
-    flagged = sorted(daemon.core.wind.flagged)
+    flagged = sorted(view.wind_outliers)
     if flagged:
         return Text.assemble(text, (f"  outlier: {', '.join(flagged)}", "yellow"))
     return Text(text)
@@ -184,19 +185,17 @@ def _vehicles(daemon: Daemon) -> Table:
 def _targets(daemon: Daemon) -> list[RenderableType]:
     """The tracker's counts, then the confirmed and prior targets (tentative: counted)."""
     t = daemon.clock.now_s()
-    tracks = track_dicts(daemon.core.track_views())
-    status = {v["id"]: v["status"] for v in tracks}
+    view = daemon.core.view()
+    tracks = track_dicts(view.tracks)
     table = _table("target", "x m>", "y m>", "sigma>", "lost", "seen s>", "status")
-    for tr in daemon.core.observer.tracks():
-        if status.get(tr.id) == "tentative":
-            continue
+    for tr in view.firm_tracks():
         seen = None if tr.last_seen_s is None else t - tr.last_seen_s
-        kind = status.get(tr.id, "confirmed")
+        kind = tr.status
         table.add_row(tr.id, f"{tr.x_m:.0f}", f"{tr.y_m:.0f}", f"{tr.sigma:.2f}",
                       Text("LOST", style="bold red") if tr.lost else "", _fmt(seen, ".0f"),
                       Text(kind, style="magenta" if kind == "prior" else ""))
     counts = track_counts(tracks)
-    return [Text(count_line(counts, len(daemon.core.search_view()))), table]
+    return [Text(count_line(counts, len(view.search_cells))), table]
 
 
 def _recent(lines: Iterable[dict[str, Any]]) -> list[RenderableType]:

@@ -4,19 +4,22 @@ sampled every mission second, and the periodic ``track`` and ``truth`` lines rep
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any, Protocol
 
 from groundstation.core import events as ev
+from groundstation.core.commands import Verdict
 from groundstation.core.decision import DecisionCore
 from groundstation.core.metrics import MetricsRecorder
+from groundstation.core.records import (
+    SearchSchedule,
+    search_record,
+    track_records,
+    truth_records,
+)
 from groundstation.daemon.track_views import TrackNotes
 
-__all__ = ["SEARCH_RECORD_S", "WorldFeed", "WorldFeedHost"]
-
-SEARCH_RECORD_S = 10.0
-"""Mission seconds between two ``search`` journal lines (as ``gcs simulate`` writes them)."""
-TENTATIVE = "tentative"
+__all__ = ["WorldFeed", "WorldFeedHost"]
 
 
 class _Truth(Protocol):
@@ -34,7 +37,7 @@ class WorldFeedHost(Protocol):
     @property
     def world(self) -> _Truth | None: ...
 
-    def core_event(self, event: ev.Event) -> None: ...
+    def core_event(self, event: ev.Event) -> Sequence[Verdict]: ...
     def journal(self, event: str, *, logged: bool = False, **fields: Any) -> None: ...
     def inside_area(self, x_m: float, y_m: float) -> bool: ...
 
@@ -44,13 +47,13 @@ class WorldFeed:
 
     def __init__(self, host: WorldFeedHost) -> None:
         self.core = host.core
-        self._core_event = host.core_event
+        self._core_event: Callable[[ev.Event], Sequence[Verdict]] = host.core_event
         self._journal: Callable[..., Any] = host.journal
         self.metrics = host.metrics
         self._world: Callable[[], _Truth | None] = lambda: host.world
         self._inside = host.inside_area
         self.notes = TrackNotes()
-        self._next_search_s = 0.0
+        self._search = SearchSchedule()
 
     def scenario_event(self, event: ev.Event) -> None:
         """A scripted event of the scenario or its camera: targets (and prior entries)
@@ -83,14 +86,11 @@ class WorldFeed:
 
     def detection(self, event: ev.Detection) -> bool:
         """A camera measurement for the core; False if it lies outside the operating area
-        (dropped). Accepted ones count as visits in the metrics."""
+        (dropped). Accepted labelled ones count as visits in the metrics."""
         if not self._inside(event.x_m, event.y_m):
             return False
-        self._core_event(event)
-        outcome = self.core.last_measurement
-        accepted: bool | None = outcome is not None and outcome.accepted
-        if outcome is None and event.target is None:
-            accepted = None  # buffered for the tracker's scan: not decided yet
+        verdicts = self._core_event(event)
+        accepted = verdicts[0].accepted if verdicts else None
         if accepted and event.target is not None:
             self.metrics.seen(event.t_s, event.vehicle, event.target)
         self._journal("detection", vehicle=event.vehicle, target=event.target,
@@ -103,30 +103,20 @@ class WorldFeed:
         as ``gcs simulate`` samples them)."""
         world = self._world()
         truth = world.truth() if world is not None else {}
-        status = self._statuses()
-        tracks = [tr for tr in self.core.observer.tracks() if status.get(tr.id) != TENTATIVE]
-        self.metrics.sample_tracks(t_s, tracks, truth)
-
-    def _statuses(self) -> dict[str, str]:
-        return {v.id: v.status for v in self.core.track_views()}
+        self.metrics.sample_tracks(t_s, self.core.view().firm_tracks(), truth)
 
     def journal_tracks(self) -> None:
         """``track`` lines of every estimate (with its ``status``: tentative, confirmed or
         prior), for simulated targets ``truth`` lines, and every ``SEARCH_RECORD_S`` a
-        ``search`` line (``cells``: ``[id, x_m, y_m, size_m, value_m2]`` each) when the core
-        searches."""
-        status = self._statuses()
-        for tr in self.core.observer.tracks():
-            self._journal("track", target=tr.id, sigma=round(tr.sigma, 3), x_m=round(tr.x_m, 1),
-                          y_m=round(tr.y_m, 1), lost=tr.lost or None, status=status.get(tr.id))
-        t_s = self.core.t_s
-        if self.core.search is not None and t_s >= self._next_search_s - 1e-9:
-            while self._next_search_s <= t_s + 1e-9:
-                self._next_search_s += SEARCH_RECORD_S
-            self._journal("search", cells=[[c.id, round(c.x_m, 1), round(c.y_m, 1),
-                                            round(c.size_m, 1), round(c.value_m2, 1)]
-                                           for c in self.core.search_view()])
+        ``search`` line when the core searches: the records of ``core/records.py``, as
+        ``gcs simulate`` writes them (the journal stamps the time)."""
+        view = self.core.view()
+        lines = track_records(view.t_s, view)
+        if self._search.due(view.t_s, view):
+            lines.append(search_record(view.t_s, view))
         world = self._world()
         if world is not None:
-            for target, (x, y) in sorted(world.truth().items()):
-                self._journal("truth", target=target, x_m=round(x, 1), y_m=round(y, 1))
+            lines += truth_records(view.t_s, dict(sorted(world.truth().items())))
+        for line in lines:
+            fields = {k: v for k, v in line.items() if k not in ("event", "t")}
+            self._journal(line["event"], **fields)

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from typing import Any, Protocol
 
 from domain.modes import ArduPlaneMode
+from groundstation.core.mission import target_mission
 from groundstation.mavlink.codec import mavlink2
 from groundstation.mavlink.mission_items import (
     LoiterTime,
@@ -190,13 +191,15 @@ def launch_job(host: JobHost, heading_rad: float) -> Job:
 
 
 def target_job(host: JobHost, fly: Fly) -> Job:
-    """Fly to a target: [timed loiter (or a waypoint for < 1 s) at the aim point, unlimited
-    loiter there], WP_LOITER_RAD set first; retried until verified, or overtaken."""
+    """Fly to a target: [timed loiter (or a waypoint for a pass) at the aim point, unlimited
+    loiter there] (``core/mission.py``), WP_LOITER_RAD set first; retried until verified,
+    or overtaken."""
     command = fly.command
     radius = host.loiter_radius_m(command.loiter_radius_m)
+    mission = target_mission(command, (fly.x_m, fly.y_m), radius)
     first: MissionStep
-    if command.loiter_s >= 1.0:
-        first = LoiterTime(fly.x_m, fly.y_m, host.alt_m, round(command.loiter_s))
+    if not mission.pass_over:
+        first = LoiterTime(fly.x_m, fly.y_m, host.alt_m, mission.loiter_s)
         if host.wp_loiter_rad_m != radius:
             if (yield SetParam("WP_LOITER_RAD", radius)):
                 host.wp_loiter_rad_m = radius

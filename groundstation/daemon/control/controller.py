@@ -59,7 +59,7 @@ class ControllerHost(Protocol):
     def wind_fallback_source(self) -> str: ...
 
     def journal(self, event: str, *, logged: bool = False, **fields: Any) -> None: ...
-    def core_event(self, event: ev.Event) -> None: ...
+    def core_event(self, event: ev.Event) -> object: ...
     def add_detection(self, event: ev.Detection) -> None: ...
     def area_center(self) -> tuple[float, float]: ...
     def inside_area(self, x_m: float, y_m: float) -> bool: ...
@@ -81,6 +81,7 @@ class DaemonController:
         d = self.daemon
         t = d.clock.now_s()
         origin = d.origin_or_none
+        view = d.core.view()
         vehicles = []
         for s in sorted(d.sessions.values(), key=lambda s: s.system_id):
             snap = s.snapshot
@@ -119,9 +120,9 @@ class DaemonController:
                 "lost": tr.lost,
                 "last_seen_s": tr.last_seen_s,
             }
-            for tr in d.core.observer.tracks()
+            for tr in view.tracks
         ]
-        tracks = track_dicts(d.core.track_views())
+        tracks = track_dicts(view.tracks)
         return {
             "t": t,
             "unix_s": d.clock.unix_s(),
@@ -134,11 +135,11 @@ class DaemonController:
             "targets": targets,
             "tracks": tracks,
             "track_counts": track_counts(tracks),
-            "search_cells": search_dicts(d.core.search_view()),
+            "search_cells": search_dicts(view.search_cells),
             "boat": {"x_m": d.boat_xy_m[0], "y_m": d.boat_xy_m[1]} if d.boat_xy_m else None,
             "fov_radius_m": d.core_config.observer.fov_radius_m,
             "plan": d.last_plan,
-            "wind": wind_summary(d.core.wind_state, d.wind_fallback_source,
+            "wind": wind_summary(view.wind, d.wind_fallback_source,
                                  d.core_config.wind_aware),
             "events": [line for line in d.journal_file.recent if is_operator_event(line)][-50:],
         }
@@ -185,7 +186,7 @@ class DaemonController:
         pos = self._position(x_m, y_m, lat_deg, lon_deg)
         if isinstance(pos, str):
             return _refuse(pos)
-        known = set(d.core.observer.target_ids)
+        known = d.core.view().target_ids
         if target_id is None:
             target_id = next(f"U{k}" for k in self._names if f"U{k}" not in known)
         if not isinstance(target_id, str) or not target_id:
@@ -220,7 +221,7 @@ class DaemonController:
         lon_deg: float | None = None,
     ) -> dict[str, Any]:
         d = self.daemon
-        if target_id not in d.core.observer.target_ids:
+        if target_id not in d.core.view().target_ids:
             return _refuse(f"unknown target {target_id!r}")
         pos = self._position(x_m, y_m, lat_deg, lon_deg)
         if isinstance(pos, str):
@@ -230,7 +231,7 @@ class DaemonController:
 
     async def remove_target(self, target_id: str) -> dict[str, Any]:
         d = self.daemon
-        if target_id not in d.core.observer.target_ids:
+        if target_id not in d.core.view().target_ids:
             return _refuse(f"unknown target {target_id!r}")
         d.journal("target_removed", target=target_id, source="api")
         d.core_event(ev.TargetRemoved(d.clock.now_s(), target_id))

@@ -41,6 +41,7 @@ from groundstation.core.records import (
     record_to_event,
     result_from_record,
 )
+from groundstation.core.views import CoreView
 from groundstation.runners.replay.compare import (
     Decision,
     compare_decisions,
@@ -271,21 +272,19 @@ class _Replayer:
         for command in commands:
             if isinstance(command, SolveRequest):
                 self.check_solve(command, line)
-        for r in group:
-            if r.get("event") == "track" and r.get("target") is not None:
-                self.check_track(r, line)
+        tracks = [r for r in group if r.get("event") == "track" and r.get("target") is not None]
+        view = self.core.view() if tracks else None
+        for r in tracks:
+            self.check_track(r, line, view)
 
-    def check_track(self, record: dict[str, Any], line: int) -> None:
+    def check_track(self, record: dict[str, Any], line: int, view: CoreView | None) -> None:
         """A journalled track estimate against the replayed observer's, at the same point
         of the input stream (first difference per target listed, the rest counted)."""
         report = self.report
         report.track_samples_compared += 1
         target = str(record["target"])
         t_s = float(record.get("t", 0.0))
-        try:
-            now = self.core.observer.track(target)
-        except KeyError:
-            now = None
+        now = view.track(target) if view is not None else None
         if now is None:
             differs, text = True, "no such track"
         else:

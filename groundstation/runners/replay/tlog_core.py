@@ -43,7 +43,6 @@ from planner import solve_plan
 __all__ = ["TLOG_DEFAULT_CONFIG", "TlogCoreRun", "run_core_on_tlog"]
 
 TLOG_DEFAULT_CONFIG = CoreConfig(policy=ReplanPolicy(on_events=True, period_s=5.0, commit=False))
-_TICK_S = 0.1
 
 
 @dataclass
@@ -121,7 +120,8 @@ def run_core_on_tlog(
     events.sort(key=lambda item: item[0])
     core = DecisionCore(config)
     t_first, t_last = events[0][0], events[-1][0]
-    ticks = [t_first + k * _TICK_S for k in range(int((t_last - t_first) / _TICK_S) + 1)]
+    tick_s = config.tick_s
+    ticks = [t_first + k * tick_s for k in range(int((t_last - t_first) / tick_s) + 1)]
     k = 0
     for t_tick in ticks:
         while k < len(events) and events[k][0] <= t_tick + 1e-9:

@@ -14,7 +14,7 @@ search. Then:
 * every mission second the confirmed tracks and the true icebergs in the area go to
   ``observer.track_quality.TrackQualityRecorder`` (whose keys join ``metrics.json``), and
   every frame's footprint with the true positions (for the time to confirm);
-* the journal gets a ``search`` line every ``SEARCH_RECORD_S`` of mission time.
+* the journal gets a ``search`` line every ``core.records.SEARCH_RECORD_S`` of mission time.
 
 Otherwise (the bundled labelled scenarios) nothing here draws a number or feeds an event:
 the run is what it was before discovery existed.
@@ -25,17 +25,16 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from typing import Any
 
-from groundstation.core.decision import DecisionCore
 from groundstation.core.events import CameraFrame, Detection, Event, TargetAdded
+from groundstation.core.records import SearchSchedule
+from groundstation.core.views import CoreView
 from observer.track_quality import TrackQualityRecorder
 from world.discovery_spec import resolve_prior
 from world.model import World
 from world.scenario import Scenario, TargetSpec
 
-__all__ = ["SEARCH_RECORD_S", "Discovery"]
+__all__ = ["Discovery"]
 
-SEARCH_RECORD_S = 10.0
-TENTATIVE = "tentative"
 CONFIRMED = "confirmed"
 
 
@@ -46,7 +45,7 @@ class Discovery:
         self.scenario = scenario
         self.prior = resolve_prior(scenario, targets, seed) if scenario.prior else []
         self.quality = TrackQualityRecorder()
-        self._next_search_s = 0.0
+        self._search = SearchSchedule()
 
     def prior_events(self) -> list[TargetAdded]:
         return [TargetAdded.listed(0.0, p) for p in self.prior]
@@ -72,21 +71,16 @@ class Discovery:
             return dict(truth)
         return {k: xy for k, xy in truth.items() if area.contains(*xy)}
 
-    def sample(self, t_s: float, core: DecisionCore,
+    def sample(self, t_s: float, view: CoreView,
                truth: Mapping[str, tuple[float, float]]) -> None:
-        confirmed = {v.id: (v.x_m, v.y_m) for v in core.track_views() if v.status == CONFIRMED}
+        confirmed = {v.id: (v.x_m, v.y_m) for v in view.tracks if v.status == CONFIRMED}
         inside = self.in_area(truth)
         outside = {k: xy for k, xy in truth.items() if k not in inside}
         self.quality.sample(t_s, confirmed, inside, outside)
 
-    def search_record(self, t_s: float, core: DecisionCore) -> dict[str, Any] | None:
-        """A ``search`` journal line when one is due (every ``SEARCH_RECORD_S``)."""
-        if core.search is None or t_s < self._next_search_s - 1e-9:
-            return None
-        while self._next_search_s <= t_s + 1e-9:
-            self._next_search_s += SEARCH_RECORD_S
-        cells = [[c.id, c.x_m, c.y_m, c.size_m, c.value_m2] for c in core.search_view()]
-        return {"event": "search", "t": t_s, "cells": cells}
+    def search_due(self, t_s: float, view: CoreView) -> bool:
+        """Whether a ``search`` journal line is due (``core.records.SearchSchedule``)."""
+        return self._search.due(t_s, view)
 
     def metrics(self, duration_s: float) -> dict[str, Any]:
         return dict(self.quality.to_dict(duration_s))

@@ -1,7 +1,7 @@
 """The offline simulator behind ``gcs simulate``: the decision core against the world model.
 
-Virtual time advances in fixed steps (the scenario's ``observer.step_s``, 0.1 s in the
-paper). Each step, in order:
+Virtual time advances in fixed steps of the core's tick (``CoreConfig.tick_s``: the
+scenario's ``observer.step_s``, 0.1 s in the paper). Each step, in order:
 
 1. scripted events due by now (targets appearing, vehicles lost, overrides...) reach the
    world and the core;
@@ -31,6 +31,7 @@ from typing import Any
 
 import numpy as np
 
+from groundstation.core.area import OperatingArea
 from groundstation.core.commands import (
     Command,
     FlyToTarget,
@@ -61,7 +62,14 @@ from groundstation.core.events import (
     WindReport,
 )
 from groundstation.core.metrics import MetricsRecorder
-from groundstation.core.records import command_to_record, event_to_record
+from groundstation.core.mission import target_mission
+from groundstation.core.records import (
+    command_to_record,
+    event_to_record,
+    search_record,
+    track_records,
+    truth_records,
+)
 from groundstation.core.scenario_config import core_config_for
 from groundstation.runners.simulate.discovery import Discovery
 from groundstation.runners.simulate.vehicle import OfflineVehicle
@@ -86,6 +94,10 @@ class SimulationOptions:
     snapshot_times_s: tuple[float, ...] = ()
     progress: Callable[[float, float], None] | None = None
     journal: bool = False
+    operating_radius_m: float | None = None
+    """The operating area around the launch origin (``core/area.py``): announced targets
+    outside it are refused, detections outside it dropped, aim points clipped onto it.
+    None (the default): no area."""
 
 
 @dataclass
@@ -143,9 +155,10 @@ class _Simulation:
         self.scenario = scenario
         self.options = options
         self.rng = np.random.default_rng(options.seed)
-        self.dt_s = scenario.observer.step_s
         self.duration_s = options.duration_s or scenario.duration_s
         self.core = DecisionCore(core_config_for(scenario, options.objective))
+        self.dt_s = self.core.config.tick_s  # the scenario's observer.step_s
+        self.area = OperatingArea(options.operating_radius_m, False)
         self.metrics = MetricsRecorder()
         self.fov_radius_m = self.core.config.observer.fov_radius_m
         self.wind = WindField(scenario.wind, options.seed)
@@ -189,7 +202,12 @@ class _Simulation:
 
     # --------------------------------------------------------------- core plumbing
     def feed(self, event: Event) -> None:
+        """Feed the core and carry out what it decides; the detections it accepted (a
+        labelled one now, an unlabelled frame's at the tick that scans it) count as visits."""
         pending = self.core.handle(event)
+        for verdict in pending.verdicts:
+            if verdict.accepted and verdict.target is not None:
+                self.metrics.seen(verdict.t_s, verdict.vehicle, verdict.target)
         while pending:
             command = pending.pop(0)
             pending.extend(self.execute(command))
@@ -209,8 +227,8 @@ class _Simulation:
         elif isinstance(command, FlyToTarget):
             vehicle = self.vehicles[command.vehicle]
             if vehicle.commanded:
-                vehicle.command_fly(command.x_m, command.y_m, command.loiter_s,
-                                    command.loiter_radius_m, command.target)
+                x_m, y_m, _ = self.area.clip(command.x_m, command.y_m)
+                vehicle.command_fly(target_mission(command, (x_m, y_m)))
                 self.metrics.fly(command.t_s, command.vehicle, command.target, command.x_m,
                                  command.y_m, command.eta_s, self.fov_radius_m)
         elif isinstance(command, SendHome):
@@ -250,8 +268,8 @@ class _Simulation:
                                            spec.vy_m_s, self.scenario.observer.iceberg_q_per_s))
             if not self.scenario.targets_known:
                 return  # the ground station learns of it from the camera (and the prior)
-            self.feed(TargetAdded(t_s, spec.id, spec.x_m, spec.y_m, spec.vx_m_s, spec.vy_m_s,
-                                  spec.sigma0))
+            self.announce(TargetAdded(t_s, spec.id, spec.x_m, spec.y_m, spec.vx_m_s,
+                                      spec.vy_m_s, spec.sigma0))
             return
         if item.kind == "target_removed" and item.target_id is not None:
             if item.target_id in self.world.icebergs:
@@ -282,18 +300,24 @@ class _Simulation:
         elif item.kind == "battery_low":
             self.feed(BatteryLow(t_s, vehicle_id))
 
+    def announce(self, event: TargetAdded) -> None:
+        """A target (or prior entry) for the core, unless outside the operating area."""
+        if not self.area.contains(event.x_m, event.y_m):
+            self.log(event.t_s, "target_refused", target=event.target,
+                     reason="outside the operating area")
+            return
+        self.feed(event)
+
     def feed_observed(self, event: Event) -> None:
-        """A camera input to the core; a detection is journalled, and an accepted labelled
-        one counts for the visits."""
+        """A camera input to the core (a detection outside the operating area is dropped);
+        a detection is journalled."""
+        if isinstance(event, Detection) and not self.area.contains(event.x_m, event.y_m):
+            return
         if self.options.journal and isinstance(event, Detection):
             self.run.journal.append({"event": "detection", "t": event.t_s,
                                      "vehicle": event.vehicle, "target": event.target,
                                      "x_m": event.x_m, "y_m": event.y_m})
         self.feed(event)
-        if isinstance(event, Detection) and event.target is not None:
-            outcome = self.core.last_measurement
-            if outcome is not None and outcome.accepted:
-                self.metrics.seen(event.t_s, event.vehicle, event.target)
 
     def report_wind(self, t_s: float) -> None:
         """Each flying, commanded vehicle's WIND at 1 Hz, as ArduPlane sends it (EXTRA3):
@@ -317,7 +341,7 @@ class _Simulation:
             s = vehicle.state
             self.feed(VehicleJoined(0.0, vehicle.id, s.x_m, s.y_m, s.heading_rad, s.speed_m_s))
         for added in self.discovery.prior_events() if self.discovery else []:
-            self.feed(added)
+            self.announce(added)
         steps = round(self.duration_s / self.dt_s)
         next_sample_s = 0.0
         for k in range(steps + 1):
@@ -333,8 +357,6 @@ class _Simulation:
             if on_second and not self.scenario.wind.calm:
                 self.report_wind(t_s)
             self.feed(Tick(t_s))
-            for hit_t_s, hit_vehicle, track in self.core.scan_hits:
-                self.metrics.seen(hit_t_s, hit_vehicle, track)  # unlabelled: the tracker's
             if on_second:
                 self.sample(t_s)
                 next_sample_s += 1.0
@@ -372,7 +394,7 @@ class _Simulation:
         metrics["policy"] = self.core.config.policy.describe()
         metrics["objective"] = self.core.config.objective
         metrics["wind"] = wind_record(self.scenario.wind)
-        metrics["observer_counters"] = dict(self.core.observer.counters)
+        metrics["observer_counters"] = dict(self.core.view().observer_counters)
         if self.discovery is not None:
             metrics.update(self.discovery.metrics(self.duration_s))
         self.run.metrics = metrics
@@ -381,30 +403,22 @@ class _Simulation:
     def sample(self, t_s: float) -> None:
         """Metrics, plots and journal once a mission second; the uncertainty is over the
         confirmed and prior tracks (tentative ones are candidates, not icebergs)."""
-        status = {v.id: v.status for v in self.core.track_views()}
-        tracks = [tr for tr in self.core.observer.tracks() if status[tr.id] != "tentative"]
+        view = self.core.view()
+        tracks = view.firm_tracks()
         truth = self.world.true_positions()
         self.metrics.sample_tracks(t_s, tracks, truth)
         if self.discovery is not None:
-            self.discovery.sample(t_s, self.core, truth)
+            self.discovery.sample(t_s, view, truth)
         for tr in tracks:
             self.run.target_estimates.setdefault(tr.id, []).append((t_s, tr.x_m, tr.y_m,
                                                                     tr.sigma))
         for target, (x, y) in truth.items():
             self.run.target_truth.setdefault(target, []).append((t_s, x, y))
         if self.options.journal:
-            for tr in self.core.observer.tracks():
-                self.run.journal.append({
-                    "event": "track", "t": t_s, "target": tr.id, "x_m": tr.x_m, "y_m": tr.y_m,
-                    "vx_m_s": tr.vx_m_s, "vy_m_s": tr.vy_m_s, "sigma": tr.sigma,
-                    "lost": tr.lost, "status": status[tr.id],
-                })
-            search = self.discovery.search_record(t_s, self.core) if self.discovery else None
-            if search is not None:
-                self.run.journal.append(search)
-            for target, (x, y) in truth.items():
-                self.run.journal.append({"event": "truth", "t": t_s, "target": target,
-                                         "x_m": x, "y_m": y})
+            self.run.journal += track_records(t_s, view)
+            if self.discovery is not None and self.discovery.search_due(t_s, view):
+                self.run.journal.append(search_record(t_s, view))
+            self.run.journal += truth_records(t_s, truth)
             if self.world.boat is not None:
                 self.run.journal.append({"event": "boat", "t": t_s, "x_m": self.world.boat.x_m,
                                          "y_m": self.world.boat.y_m})
@@ -420,9 +434,7 @@ class _Simulation:
             self.run.snapshots.append(MapSnapshot(
                 t_s=t_s,
                 uav_xy_m={v.id: (v.state.x_m, v.state.y_m) for v in self.vehicles.values()},
-                routes={
-                    v.id: [r for r in v.route] for v in self.core.vehicles.values()
-                },
+                routes={v.id: list(v.route) for v in view.vehicles},
                 estimates={tr.id: (tr.x_m, tr.y_m, tr.sigma) for tr in tracks},
                 truth=dict(truth),
                 boat_xy_m=(boat.x_m, boat.y_m) if boat else None,

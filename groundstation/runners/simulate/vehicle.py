@@ -1,11 +1,12 @@
 """A UAV of the offline simulator, flying what the decision core commands.
 
-It executes a :class:`FlyToTarget` the way floe's ArduPlane mission does
-(``NAV_LOITER_TIME`` over the aim point, then ``NAV_LOITER_UNLIM`` there):
+It executes a :class:`FlyToTarget` as ``core/mission.py`` defines it, the way floe's
+ArduPlane mission does (``NAV_LOITER_TIME`` over the aim point, then ``NAV_LOITER_UNLIM``
+there):
 
 * ``transit``: with a timed loiter, fly onto the loiter circle (vector field); the loiter
-  timer starts on reaching the circle, as ArduPlane's does. With ``loiter_s == 0`` (the
-  paper's pass-over) fly to the point itself; arriving within ``arrival_radius_m`` ends it.
+  timer starts on reaching the circle, as ArduPlane's does. On a pass (the paper's
+  pass-over) fly to the point itself; arriving within ``arrival_radius_m`` ends it.
 * ``loiter``: circle until the timer runs out; then the loiter has *ended* (an event).
 * ``hold``: circle the point for ever (until the next command).
 
@@ -22,6 +23,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from groundstation.core.mission import TargetMission
 from world.dynamics import (
     CALM,
     LoiterCommand,
@@ -52,13 +54,12 @@ class OfflineVehicle:
     commanded: bool = True
     lost: bool = False
 
-    def command_fly(self, x_m: float, y_m: float, loiter_s: float, loiter_radius_m: float,
-                    target: str) -> None:
-        self.aim_xy_m = (x_m, y_m)
-        self.loiter_s = loiter_s
-        self.loiter_radius_m = loiter_radius_m
+    def command_fly(self, mission: TargetMission) -> None:
+        self.aim_xy_m = (mission.x_m, mission.y_m)
+        self.loiter_s = float(mission.loiter_s)
+        self.loiter_radius_m = mission.loiter_radius_m
         self.loiter_end_s = None
-        self.target = target
+        self.target = mission.target
         self.phase = "transit"
 
     def command_hold(self, x_m: float, y_m: float, loiter_radius_m: float) -> None:

@@ -1,6 +1,12 @@
 """The operating area: a circle of ``operating_radius_m`` around home (the mission origin)
 or around the boat. Waypoints outside it are clipped onto its edge along the line from the
-centre, ``p' = c + (p - c) r / |p - c|``; targets outside it are refused."""
+centre, ``p' = c + (p - c) r / |p - c|``; targets (and prior entries) outside it are
+refused and camera detections outside it dropped, before they reach the core.
+
+The rule is defined here once for every frontend: the daemon (``gcs run``: its configured
+``operating_radius_m``, 10 km by default, around home or the boat) and ``gcs simulate``
+(``SimulationOptions.operating_radius_m``; none by default: the scenario's world is the
+area) apply it; ``gcs replay`` feeds the journalled inputs, which it already filtered."""
 
 from __future__ import annotations
 
