@@ -191,9 +191,9 @@ class DecisionCore:
         out = self.wind.update(t_s, {v.id for v in self.active_vehicles()})
         if self.config.wind_aware:
             state = self.wind.current
-            notes = self.wind_replan.replan(t_s, state.xy_m_s, state.source,
-                                            self.active_vehicles(), self._leg_time_s,
-                                            self.config.policy.commit)
+            legs = self.wind_replan.legs(t_s, state.xy_m_s, state.source,
+                                         self.active_vehicles(), self._leg_time_s)
+            notes = self.wind_replan.replan(t_s, legs, self.config.policy.commit)
             if notes:
                 self._mark_dirty("wind changed")
                 out += notes

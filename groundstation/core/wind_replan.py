@@ -85,19 +85,13 @@ class WindReplan:
                 out.append(LegReplan(v, eta, new_eta))
         return out
 
-    def replan(
-        self,
-        t_s: float,
-        wind_xy_m_s: tuple[float, float],
-        source: str,
-        vehicles: Iterable[VehicleRecord],
-        flight_time_s: Callable[[VehicleRecord, tuple[float, float]], float],
-        commit: bool,
-    ) -> list[Note]:
-        """Apply :meth:`legs`: each leg's vehicle is made idle (``commit``) and its aim
-        point forgotten, so the next plan commands it again; one ``wind_replan`` note each."""
+    @staticmethod
+    def replan(t_s: float, legs: Iterable[LegReplan], commit: bool) -> list[Note]:
+        """Apply :meth:`legs`' answer: each leg's vehicle is made idle (``commit``) and its
+        aim point forgotten, so the next plan commands it again; one ``wind_replan`` note
+        each."""
         notes: list[Note] = []
-        for leg in self.legs(t_s, wind_xy_m_s, source, vehicles, flight_time_s):
+        for leg in legs:
             v = leg.vehicle
             if commit:
                 v.busy = False

@@ -23,10 +23,10 @@ import logging
 from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any, Protocol
 
+from groundstation.daemon.hosts import FleetHost
 from groundstation.link.url import LinkKind
 
 if TYPE_CHECKING:
-    from groundstation.daemon.clock import MissionClock
     from groundstation.link.base import Link
     from groundstation.link.router import Router
 
@@ -47,15 +47,11 @@ DROPS_REPORT_S = 10.0
 _FEED_REASONS = ("malformed", "out_of_order", "late")
 
 
-class AlertsHost(Protocol):
+class AlertsHost(FleetHost, Protocol):
     """What the alerts read of the daemon (and its journal)."""
 
     @property
-    def clock(self) -> MissionClock: ...
-    @property
     def router(self) -> Router: ...
-    @property
-    def sessions(self) -> Mapping[int, Any]: ...
     @property
     def stopping(self) -> bool: ...
     @property

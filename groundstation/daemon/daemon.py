@@ -24,19 +24,9 @@ from typing import TypedDict
 
 from domain.geodesy import GeoOrigin
 from domain.modes import ArduPlaneMode
+from groundstation.core import commands as cmd
 from groundstation.core import events as ev
 from groundstation.core.area import OperatingArea
-from groundstation.core.commands import (
-    CancelSolve,
-    Command,
-    FlyToTarget,
-    Note,
-    PlanAdopted,
-    ReleaseVehicle,
-    SendHome,
-    SolveRequest,
-    Verdict,
-)
 from groundstation.core.config import CoreConfig
 from groundstation.core.decision import DecisionCore
 from groundstation.core.metrics import MetricsRecorder
@@ -79,21 +69,20 @@ MISSION_MESSAGES_FROM_GCS = frozenset(
 
 @dataclass
 class _Due:
-    """When the ticker's periodic duties are next due (mission s)."""
+    """When the ticker's periodic duties are next due (mission s): the core's ``Tick``
+    (``tick_s``, every ``CoreConfig.tick_s``), the metrics sample (``sample_s``, every
+    mission second), the ``track`` lines (``track_s``, every ``track_period_s``), the
+    ``signing_rejected`` lines (``signing_report_s``, every ``SIGNING_REPORT_S``) and the
+    ``link_drops`` check (``link_report_s``, every ``LINK_REPORT_PERIOD_S``, by
+    ``link_reporter``). A fleet event sets ``kick``: the ticker wakes at once."""
 
     tick_s: float = 0.0
-    """The next core ``Tick`` (every ``CoreConfig.tick_s``)."""
     sample_s: float = 0.0
-    """The next metrics sample (every mission second)."""
     track_s: float = 0.0
-    """The next ``track`` lines (every ``track_period_s``)."""
     signing_report_s: float = 0.0
-    """The next ``signing_rejected`` lines (every ``SIGNING_REPORT_S``)."""
     link_report_s: float = 0.0
-    """The next ``link_drops`` check (every ``LINK_REPORT_PERIOD_S``)."""
     link_reporter: LinkReporter = field(default_factory=LinkReporter)
     kick: asyncio.Event = field(default_factory=asyncio.Event)
-    """Set by a fleet event: the ticker wakes at once."""
 
 
 @dataclass
@@ -256,7 +245,7 @@ class Daemon:
         if not logged and (level := line_level(line)) >= logging.INFO:
             log.log(level, "%s", describe_line(line))
 
-    def core_event(self, event: ev.Event) -> Sequence[Verdict]:
+    def core_event(self, event: ev.Event) -> Sequence[cmd.Verdict]:
         """Feed the core and carry out what it says (as the offline runner does); returns
         the core's verdicts on the detections this input decided.
 
@@ -293,20 +282,20 @@ class Daemon:
         return self.area.contains(x_m, y_m)
 
     # ------------------------------------------------------------------ core commands
-    def _execute(self, command: Command) -> None:
+    def _execute(self, command: cmd.Command) -> None:
         """Journal the decision (the same records as ``gcs simulate``), then carry it out."""
-        if isinstance(command, SolveRequest):
+        if isinstance(command, cmd.SolveRequest):
             self.journal_file.write_record(command_to_record(command))
             self.solver.submit(command)
             return
         advisory = self.config.advisory or None
         extra = (self.feed.notes.fields(command.kind, command.target)
-                 if isinstance(command, Note) else {})  # track_deleted: was it confirmed
-        self._journal_command(command, advisory=advisory if isinstance(command, FlyToTarget)
+                 if isinstance(command, cmd.Note) else {})  # track_deleted: was it confirmed
+        self._journal_command(command, advisory=advisory if isinstance(command, cmd.FlyToTarget)
                               else None, **extra)
-        if isinstance(command, CancelSolve):
+        if isinstance(command, cmd.CancelSolve):
             self.solver.cancel(command.request_id)
-        elif isinstance(command, PlanAdopted):
+        elif isinstance(command, cmd.PlanAdopted):
             result = command.result
             self.metrics.plan(result.solve_time_s)
             self.last_plan = {
@@ -315,33 +304,33 @@ class Daemon:
                 "status": result.status,
                 "solve_time_s": result.solve_time_s,
             }
-        elif isinstance(command, FlyToTarget):
+        elif isinstance(command, cmd.FlyToTarget):
             session = self.by_name.get(command.vehicle)
             if session is not None and not self.config.advisory:
                 session.command_fly(command)
                 self.metrics.fly(command.t_s, command.vehicle, command.target, command.x_m,
                                  command.y_m, command.eta_s,
                                  self.core.config.observer.fov_radius_m)
-        elif isinstance(command, ReleaseVehicle | SendHome):
+        elif isinstance(command, cmd.ReleaseVehicle | cmd.SendHome):
             self.metrics.abandoned(command.vehicle)
             session = self.by_name.get(command.vehicle)
             if session is not None:
-                session.release(command.reason, home=isinstance(command, SendHome))
+                session.release(command.reason, home=isinstance(command, cmd.SendHome))
 
-    def _journal_command(self, command: Command, **extra: object) -> None:
+    def _journal_command(self, command: cmd.Command, **extra: object) -> None:
         record = command_to_record(command)
         event = record.pop("event")
         record.pop("t")
         self.journal(event, logged=False, **record, **extra)
 
-    def _on_solved(self, request: SolveRequest, result: PlanResult) -> None:
+    def _on_solved(self, request: cmd.SolveRequest, result: PlanResult) -> None:
         """A solver's answer, for the core unless a newer request overtook it (the core's
         rule, applied before the answer is journalled as an input)."""
         if not self.core.wants_answer(request.request_id):
             return
         self.core_event(ev.PlanSolved(self.clock.now_s(), request.request_id, result))
 
-    def _on_solve_error(self, request: SolveRequest, error: str) -> None:
+    def _on_solve_error(self, request: cmd.SolveRequest, error: str) -> None:
         self.journal("plan_failed", request=request.request_id, error=error)
 
     # ------------------------------------------------------------------ frames

@@ -25,29 +25,23 @@ mission time.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any, Protocol
 
 from groundstation.core import events as ev
+from groundstation.daemon.hosts import FleetHost
 
 if TYPE_CHECKING:
     from domain.geodesy import GeoOrigin
-    from groundstation.daemon.clock import MissionClock
-    from groundstation.daemon.session import VehicleSession
     from groundstation.daemon.world_feed import WorldFeed
 
 __all__ = ["FeedHost", "FeedLines"]
 
 
-class FeedHost(Protocol):
+class FeedHost(FleetHost, Protocol):
     """What the feed's lines need of the daemon."""
 
     @property
     def origin_or_none(self) -> GeoOrigin | None: ...
-    @property
-    def clock(self) -> MissionClock: ...
-    @property
-    def sessions(self) -> Mapping[int, VehicleSession]: ...
     @property
     def feed(self) -> WorldFeed: ...
 

@@ -9,7 +9,6 @@ from typing import Any, Protocol
 
 from groundstation.core import events as ev
 from groundstation.core.commands import Verdict
-from groundstation.core.decision import DecisionCore
 from groundstation.core.metrics import MetricsRecorder
 from groundstation.core.records import (
     SearchSchedule,
@@ -17,6 +16,7 @@ from groundstation.core.records import (
     track_records,
     truth_records,
 )
+from groundstation.daemon.hosts import CoreHost
 from groundstation.daemon.track_views import TrackNotes
 
 __all__ = ["WorldFeed", "WorldFeedHost"]
@@ -26,20 +26,15 @@ class _Truth(Protocol):
     def truth(self) -> dict[str, tuple[float, float]]: ...
 
 
-class WorldFeedHost(Protocol):
+class WorldFeedHost(CoreHost, Protocol):
     """What the feed needs of the daemon: the core and the way into it, the journal, the
-    metrics, the scenario's world (its truth, None without a scenario) and the area."""
+    area (:class:`~groundstation.daemon.hosts.CoreHost`), the metrics and the scenario's
+    world (its truth, None without a scenario)."""
 
-    @property
-    def core(self) -> DecisionCore: ...
     @property
     def metrics(self) -> MetricsRecorder: ...
     @property
     def world(self) -> _Truth | None: ...
-
-    def core_event(self, event: ev.Event) -> Sequence[Verdict]: ...
-    def journal(self, event: str, *, logged: bool = False, **fields: Any) -> None: ...
-    def inside_area(self, x_m: float, y_m: float) -> bool: ...
 
 
 class WorldFeed:

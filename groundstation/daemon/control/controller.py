@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 
 from groundstation.core import events as ev
 from groundstation.daemon.control.contract import VEHICLE_ACTIONS
+from groundstation.daemon.hosts import CoreHost, FleetHost
 from groundstation.daemon.log_lines import is_operator_event
 from groundstation.daemon.track_views import search_dicts, track_counts, track_dicts
 from groundstation.daemon.wind_view import vehicle_wind, wind_summary
@@ -21,8 +22,6 @@ from groundstation.vehicle.state import VehicleState
 if TYPE_CHECKING:
     from domain.geodesy import GeoOrigin
     from groundstation.core.config import CoreConfig
-    from groundstation.core.decision import DecisionCore
-    from groundstation.daemon.clock import MissionClock
     from groundstation.daemon.config import DaemonConfig
     from groundstation.daemon.journal import Journal
     from groundstation.daemon.session import VehicleSession
@@ -30,15 +29,11 @@ if TYPE_CHECKING:
 __all__ = ["ControllerHost", "DaemonController"]
 
 
-class ControllerHost(Protocol):
+class ControllerHost(FleetHost, CoreHost, Protocol):
     """What the control API reads of the daemon and asks it to do."""
 
     @property
     def config(self) -> DaemonConfig: ...
-    @property
-    def clock(self) -> MissionClock: ...
-    @property
-    def core(self) -> DecisionCore: ...
     @property
     def core_config(self) -> CoreConfig: ...
     @property
@@ -48,8 +43,6 @@ class ControllerHost(Protocol):
     @property
     def origin(self) -> GeoOrigin: ...
     @property
-    def sessions(self) -> Mapping[int, VehicleSession]: ...
-    @property
     def by_name(self) -> Mapping[str, VehicleSession]: ...
     @property
     def boat_xy_m(self) -> tuple[float, float] | None: ...
@@ -58,11 +51,8 @@ class ControllerHost(Protocol):
     @property
     def wind_fallback_source(self) -> str: ...
 
-    def journal(self, event: str, *, logged: bool = False, **fields: Any) -> None: ...
-    def core_event(self, event: ev.Event) -> object: ...
     def add_detection(self, event: ev.Detection) -> None: ...
     def area_center(self) -> tuple[float, float]: ...
-    def inside_area(self, x_m: float, y_m: float) -> bool: ...
 
 
 def _refuse(error: str) -> dict[str, Any]:
