@@ -13,8 +13,6 @@ name echoes the value (relative and absolute tolerance 1e-6, float32 on the wire
 ``PARAM_VALUE`` of that name with another value (the vehicle clamped or refused it) is
 noted and waited past: silence resends, and the retries end it with TIMEOUT.
 
-
-
 :class:`ParamRead`: send ``PARAM_REQUEST_READ(name, param_index = -1)`` (by name) until a
 ``PARAM_VALUE`` of that name arrives; its value is :attr:`ParamRead.value`. ArduPilot
 answers a read by name with the parameter's value and ``param_index`` -1 (65535 on the
@@ -30,9 +28,11 @@ raises, input after the end returns ``[]``; bad arguments raise ``LocalProtocolE
 
 from __future__ import annotations
 
+import abc
 import enum
 import math
 from collections.abc import Sequence
+from typing import Any, TypeVar
 
 from domain.errors import LocalProtocolError
 from groundstation.mavlink.codec import MAVLinkMessage, mavlink2
@@ -158,21 +158,30 @@ class ParamSetState(enum.Enum):
     DONE = "done"
 
 
-class ParamSet(TransferBase[ParamSetState]):
-    """Set parameter ``name`` to ``value`` (REAL32) and confirm it by PARAM_VALUE."""
+class ParamReadState(enum.Enum):
+    """Where a parameter read is."""
+
+    IDLE = "idle"
+    WAITING_VALUE = "waiting_value"  # PARAM_REQUEST_READ sent (silence resends it)
+    DONE = "done"
+
+
+_P = TypeVar("_P", ParamSetState, ParamReadState)
+
+
+class _ParamExchange(TransferBase[_P]):
+    """One message about parameter ``name``, resent on silence until a PARAM_VALUE of that
+    name settles it (:meth:`_on_value`); the retries end it with TIMEOUT (``_gave_up``)."""
 
     default_timeout_s = COMMAND_LONG_TIMEOUT_S
-    _IDLE = ParamSetState.IDLE
-    _DONE = ParamSetState.DONE
     _HANDLED = frozenset({"PARAM_VALUE"})
-    _WHAT = "parameter set"
+    _WAITING: _P
 
     def __init__(
         self,
         target_system: int,
         target_component: int,
         name: str,
-        value: float,
         *,
         timeout_s: float = COMMAND_LONG_TIMEOUT_S,
         retries: int = DEFAULT_RETRIES,
@@ -187,31 +196,64 @@ class ParamSet(TransferBase[ParamSetState]):
             own_system=own_system,
             own_component=own_component,
         )
-        _check_name(name)
-        if not math.isfinite(f32(float(value))):
-            raise LocalProtocolError(f"parameter {name} value must fit a float32: {value!r}")
+        if not (name and name.isascii() and len(name) <= _PARAM_ID_LEN and "\x00" not in name):
+            raise LocalProtocolError(f"parameter name must be 1..16 ASCII characters: {name!r}")
         self.name = name
-        self.value = float(value)
 
     def start(self, now_s: float) -> list[Action]:
-        """Begin: send PARAM_SET."""
-        self._begin(now_s, ParamSetState.WAITING_VALUE)
+        """Begin: send the message."""
+        self._begin(now_s, self._WAITING)
         return [Send(self._message())]
 
     def _on_silence(self, now_s: float, *, give_up: bool) -> list[Action]:
         if give_up:
-            return self._finish(
-                TransferCode.TIMEOUT,
-                f"no PARAM_VALUE {self.name}={self.value:g} after {self.retries + 1} PARAM_SET",
-            )
+            return self._finish(TransferCode.TIMEOUT, self._gave_up())
         return [Send(self._message())]
 
     def _on_message(self, kind: str, msg: MAVLinkMessage, now_s: float) -> list[Action]:
         if _param_id(msg) != self.name:
             return []
         value = float_field(msg, "param_value")
-        if value is None:
+        if value is None:  # not a finite number
+            self._notes.append(f"PARAM_VALUE {self.name} at t={now_s:.3f}s: no finite value")
             return []
+        return self._on_value(value, now_s)
+
+    @abc.abstractmethod
+    def _message(self) -> MAVLinkMessage: ...
+
+    @abc.abstractmethod
+    def _gave_up(self) -> str: ...
+
+    @abc.abstractmethod
+    def _on_value(self, value: float, now_s: float) -> list[Action]: ...
+
+
+class ParamSet(_ParamExchange[ParamSetState]):
+    """Set parameter ``name`` to ``value`` (REAL32) and confirm it by PARAM_VALUE."""
+
+    _IDLE = ParamSetState.IDLE
+    _DONE = ParamSetState.DONE
+    _WAITING = ParamSetState.WAITING_VALUE
+    _WHAT = "parameter set"
+
+    def __init__(
+        self,
+        target_system: int,
+        target_component: int,
+        name: str,
+        value: float,
+        **options: Any,
+    ) -> None:
+        super().__init__(target_system, target_component, name, **options)
+        if not math.isfinite(f32(float(value))):
+            raise LocalProtocolError(f"parameter {name} value must fit a float32: {value!r}")
+        self.value = float(value)
+
+    def _gave_up(self) -> str:
+        return f"no PARAM_VALUE {self.name}={self.value:g} after {self.retries + 1} PARAM_SET"
+
+    def _on_value(self, value: float, now_s: float) -> list[Action]:
         if not math.isclose(value, self.value, rel_tol=1e-6, abs_tol=1e-6):
             self._notes.append(f"PARAM_VALUE {self.name}={value:g} at t={now_s:.3f}s (not ours)")
             return []
@@ -227,69 +269,26 @@ class ParamSet(TransferBase[ParamSetState]):
         )
 
 
-class ParamReadState(enum.Enum):
-    """Where a parameter read is."""
-
-    IDLE = "idle"
-    WAITING_VALUE = "waiting_value"  # PARAM_REQUEST_READ sent (silence resends it)
-    DONE = "done"
-
-
-class ParamRead(TransferBase[ParamReadState]):
+class ParamRead(_ParamExchange[ParamReadState]):
     """Read parameter ``name`` by name (PARAM_REQUEST_READ, index -1) from its PARAM_VALUE
     (module docstring); :attr:`value` once it succeeded."""
 
-    default_timeout_s = COMMAND_LONG_TIMEOUT_S
     _IDLE = ParamReadState.IDLE
     _DONE = ParamReadState.DONE
-    _HANDLED = frozenset({"PARAM_VALUE"})
+    _WAITING = ParamReadState.WAITING_VALUE
     _WHAT = "parameter read"
 
-    def __init__(
-        self,
-        target_system: int,
-        target_component: int,
-        name: str,
-        *,
-        timeout_s: float = COMMAND_LONG_TIMEOUT_S,
-        retries: int = DEFAULT_RETRIES,
-        own_system: int | None = None,
-        own_component: int | None = None,
-    ) -> None:
-        super().__init__(
-            target_system,
-            target_component,
-            timeout_s=timeout_s,
-            retries=retries,
-            own_system=own_system,
-            own_component=own_component,
-        )
-        _check_name(name)
-        self.name = name
+    def __init__(self, target_system: int, target_component: int, name: str,
+                 **options: Any) -> None:  # fmt: skip
+        super().__init__(target_system, target_component, name, **options)
         self.value: float | None = None
         """The value the vehicle answered (float32 on the wire), once it did."""
 
-    def start(self, now_s: float) -> list[Action]:
-        """Begin: send PARAM_REQUEST_READ."""
-        self._begin(now_s, ParamReadState.WAITING_VALUE)
-        return [Send(self._message())]
+    def _gave_up(self) -> str:
+        return (f"no PARAM_VALUE {self.name} after {self.retries + 1} PARAM_REQUEST_READ "
+                "(ArduPilot does not answer a name it does not have)")
 
-    def _on_silence(self, now_s: float, *, give_up: bool) -> list[Action]:
-        if give_up:
-            return self._finish(
-                TransferCode.TIMEOUT,
-                f"no PARAM_VALUE {self.name} after {self.retries + 1} PARAM_REQUEST_READ "
-                "(ArduPilot does not answer a name it does not have)",
-            )
-        return [Send(self._message())]
-
-    def _on_message(self, kind: str, msg: MAVLinkMessage, now_s: float) -> list[Action]:
-        if _param_id(msg) != self.name:
-            return []
-        value = float_field(msg, "param_value")
-        if value is None:  # not a finite number
-            self._notes.append(f"PARAM_VALUE {self.name} at t={now_s:.3f}s: no finite value")
-            return []
+    def _on_value(self, value: float, now_s: float) -> list[Action]:
         self.value = value
         return self._finish(TransferCode.SUCCESS, f"{self.name} = {value:g}")
 
@@ -297,11 +296,6 @@ class ParamRead(TransferBase[ParamReadState]):
         return mavlink2.MAVLink_param_request_read_message(
             self.target_system, self.target_component, self.name.encode("ascii"), -1
         )
-
-
-def _check_name(name: str) -> None:
-    if not (name and name.isascii() and len(name) <= _PARAM_ID_LEN and "\x00" not in name):
-        raise LocalProtocolError(f"parameter name must be 1..16 ASCII characters: {name!r}")
 
 
 def _param_id(msg: MAVLinkMessage) -> str | None:
