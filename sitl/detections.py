@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 
 from domain.geodesy import GeoOrigin
-from world.model import Boat, Iceberg, World
+from world.model import Iceberg, World
 
 __all__ = ["DetectionSource", "scenario_targets", "world_from_scenario"]
 
@@ -62,7 +62,7 @@ def world_from_scenario(scenario: Any, rng: np.random.Generator) -> tuple[World,
     boat = None
     if scenario.boat is not None:
         b = scenario.boat
-        boat = Boat(b.x_m, b.y_m, b.heading_rad, b.speed_m_s)
+        boat = b.build()
     from world.discovery_spec import scenario_camera
 
     camera = scenario_camera(scenario)

@@ -59,12 +59,44 @@ class Iceberg:
 
 @dataclass
 class Boat:
-    """The boat on a fixed course (heading counter-clockwise from +x)."""
+    """The boat (the ship): on a fixed course (heading counter-clockwise from +x), or, with
+    ``route``, sailing those waypoints in a loop at ``speed_m_s`` (an ice-management
+    pattern: it turns at each waypoint to the next, the last leading back to the first;
+    it starts at (x_m, y_m) heading for ``route[0]``)."""
 
     x_m: float
     y_m: float
     heading_rad: float
     speed_m_s: float
+    route: tuple[tuple[float, float], ...] = ()
+    leg: int = 0
+    """The waypoint of ``route`` it is heading for."""
+
+    def step(self, dt_s: float) -> None:
+        """Sail ``dt_s`` seconds (on the route, turning at waypoints within the step)."""
+        travel_m = self.speed_m_s * dt_s
+        if not self.route:
+            self.x_m += travel_m * math.cos(self.heading_rad)
+            self.y_m += travel_m * math.sin(self.heading_rad)
+            return
+        for _ in range(len(self.route) + 1):
+            wx, wy = self.route[self.leg % len(self.route)]
+            gap_m = math.hypot(wx - self.x_m, wy - self.y_m)
+            if gap_m > 1e-9:
+                self.heading_rad = math.atan2(wy - self.y_m, wx - self.x_m)
+            if travel_m < gap_m:
+                self.x_m += travel_m * math.cos(self.heading_rad)
+                self.y_m += travel_m * math.sin(self.heading_rad)
+                return
+            self.x_m, self.y_m = wx, wy
+            travel_m -= gap_m
+            self.leg = (self.leg + 1) % len(self.route)
+
+    @property
+    def velocity_m_s(self) -> tuple[float, float]:
+        """Velocity over ground now (ENU m/s)."""
+        return (self.speed_m_s * math.cos(self.heading_rad),
+                self.speed_m_s * math.sin(self.heading_rad))
 
 
 @dataclass(frozen=True)
@@ -192,8 +224,7 @@ class World:
                 iceberg.vx_m_s += float(dv[0])
                 iceberg.vy_m_s += float(dv[1])
         if self.boat is not None:
-            self.boat.x_m += self.boat.speed_m_s * math.cos(self.boat.heading_rad) * dt_s
-            self.boat.y_m += self.boat.speed_m_s * math.sin(self.boat.heading_rad) * dt_s
+            self.boat.step(dt_s)
         self.t_s += dt_s
 
     def observe(self, uav_positions: Mapping[str, Sequence[float]]) -> list[Measurement]:

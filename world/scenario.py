@@ -30,8 +30,9 @@ from domain.limits import (
     MAX_TARGETS,
     MAX_WIND_M_S,
 )
-from domain.yaml_fields import FieldError, Fields, load_yaml_file, load_yaml_text
+from domain.yaml_fields import FieldError, Fields, check_number, load_yaml_file, load_yaml_text
 from world.discovery_spec import AreaSpec, CameraSpec, PriorSpec, SearchSpec, parse_discovery
+from world.model import Boat
 from world.wind import WindSpec
 
 __all__ = [
@@ -44,6 +45,7 @@ __all__ = [
     "ScenarioError",
     "ScriptedEvent",
     "TargetSpec",
+    "WatchSpec",
     "bundled_scenarios",
     "load_scenario",
     "load_scenario_data",
@@ -93,10 +95,18 @@ class RandomTargets:
 
 @dataclass(frozen=True)
 class BoatSpec:
+    """The ship at the start: where, heading, speed; ``route`` (optional): waypoints it
+    then sails in a loop (``world.model.Boat``)."""
+
     x_m: float
     y_m: float
     heading_rad: float
     speed_m_s: float
+    route: tuple[tuple[float, float], ...] = ()
+
+    def build(self) -> Boat:
+        """The world's boat at the start."""
+        return Boat(self.x_m, self.y_m, self.heading_rad, self.speed_m_s, self.route)
 
 
 @dataclass(frozen=True)
@@ -121,6 +131,27 @@ class FleetSpec:
         if count == 1:
             return [0.0]
         return [k * math.pi / (count - 1) for k in range(count)]
+
+
+@dataclass(frozen=True)
+class WatchSpec:
+    """A watch from the moving ship (``watch:``; docs/ship.md). ``on_station`` vehicles fly
+    at once and the rest of ``fleet.count`` wait on deck as spares (None: all fly);
+    ``endurance_s`` is a full battery's flight time at cruise (the simulators' battery is
+    sized to it, and the ground station assumes it where a vehicle reports nothing);
+    ``reserve_pct`` the charge a return must end with; ``turnaround_s`` (simulators) the
+    battery swap from a recovery to a ready spare; ``recovery_radius_m`` how close to the
+    ship a vehicle in RTL or LAND is recovered; ``home_update_m`` how far the ship's
+    predicted position moves before homes follow; ``launch_s`` from a launch order to the
+    vehicle on its way."""
+
+    on_station: int | None = None
+    endurance_s: float = 3600.0
+    reserve_pct: float = 15.0
+    turnaround_s: float = 600.0
+    recovery_radius_m: float = 150.0
+    home_update_m: float = 150.0
+    launch_s: float = 60.0
 
 
 @dataclass(frozen=True)
@@ -194,6 +225,7 @@ class Scenario:
     prior: PriorSpec | None = None
     tracker: dict[str, float | int | str] = field(default_factory=dict)
     search: SearchSpec | None = None
+    watch: WatchSpec | None = None
 
     def launch_point(self) -> tuple[float, float]:
         """Where the UAVs start: the given point, else the boat, else the origin."""
@@ -274,6 +306,8 @@ def parse_scenario(data: Any, *, source: str = "") -> Scenario:
     )
     faults = parse_scenario_faults(top.items("faults"))
     wind = _parse_wind(top.sub("wind"))
+    watch = _parse_watch(top.sub("watch")) if top.has("watch") else None
+    top.raw("watch")
     more = parse_discovery(top, len(targets) + (random_targets.count if random_targets else 0))
     top.done()
     ids = [t.id for t in targets] + [e.target.id for e in events if e.target is not None]
@@ -304,6 +338,7 @@ def parse_scenario(data: Any, *, source: str = "") -> Scenario:
         prior=more.prior,
         tracker=more.tracker,
         search=more.search,
+        watch=watch,
     )
 
 
@@ -328,6 +363,22 @@ def resolve_targets(scenario: Scenario, rng: np.random.Generator) -> list[Target
             ))
             taken.add(f"T{k}")
     return targets
+
+
+def _parse_watch(f: Fields) -> WatchSpec:
+    on_station: int | None = None
+    if f.has("on_station"):
+        on_station = f.integer("on_station", minimum=1, maximum=MAX_FLEET)
+    else:
+        f.raw("on_station")
+    endurance = f.number("endurance_s", 3600.0, minimum=60.0, maximum=86_400.0)
+    reserve = f.number("reserve_pct", 15.0, minimum=0.0, maximum=90.0)
+    turnaround = f.number("turnaround_s", 600.0, minimum=0.0, maximum=MAX_DURATION_S)
+    recovery = f.number("recovery_radius_m", 150.0, minimum=1.0, maximum=10_000.0)
+    home_update = f.number("home_update_m", 150.0, minimum=1.0, maximum=100_000.0)
+    launch = f.number("launch_s", 60.0, minimum=0.0, maximum=3_600.0)
+    f.done()
+    return WatchSpec(on_station, endurance, reserve, turnaround, recovery, home_update, launch)
 
 
 def _parse_fleet(f: Fields) -> FleetSpec:
@@ -359,8 +410,6 @@ def _parse_fleet(f: Fields) -> FleetSpec:
         values = f.items("headings_rad")
         if not values:
             raise FieldError(f.path_of("headings_rad"), "must not be empty")
-        from domain.yaml_fields import check_number
-
         headings = tuple(
             check_number(f"{f.path_of('headings_rad')}[{i}]", v) for i, v in enumerate(values)
         )
@@ -377,9 +426,28 @@ def _parse_boat(f: Fields) -> BoatSpec:
         y_m=f.number("y_m", minimum=-MAX_COORDINATE_M, maximum=MAX_COORDINATE_M),
         heading_rad=f.number("heading_rad", 0.0),
         speed_m_s=f.number("speed_m_s", 0.0, minimum=0.0, maximum=MAX_SPEED_M_S),
+        route=_parse_route(f),
     )
     f.done()
     return boat
+
+
+def _parse_route(f: Fields) -> tuple[tuple[float, float], ...]:
+    if not f.has("route"):
+        f.raw("route")
+        return ()
+    points = []
+    for i, item in enumerate(f.items("route")):
+        path = f"{f.path_of('route')}[{i}]"
+        if not isinstance(item, list | tuple) or len(item) != 2:
+            raise FieldError(path, f"must be a point [x_m, y_m], got {item!r}")
+        points.append((check_number(f"{path}[0]", item[0], minimum=-MAX_COORDINATE_M,
+                                    maximum=MAX_COORDINATE_M),
+                       check_number(f"{path}[1]", item[1], minimum=-MAX_COORDINATE_M,
+                                    maximum=MAX_COORDINATE_M)))
+    if len(points) < 2:
+        raise FieldError(f.path_of("route"), "needs at least two waypoints")
+    return tuple(points)
 
 
 def _parse_target(f: Fields) -> TargetSpec:

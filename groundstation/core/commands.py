@@ -12,10 +12,12 @@ __all__ = [
     "Command",
     "Decisions",
     "FlyToTarget",
+    "LaunchVehicle",
     "Note",
     "PlanAdopted",
     "ReleaseVehicle",
     "SendHome",
+    "SetHome",
     "SolveRequest",
     "Verdict",
     "WindEstimate",
@@ -97,6 +99,31 @@ class SendHome:
 
 
 @dataclass(frozen=True)
+class SetHome:
+    """Move ``vehicle``'s home (where an RTL goes, whoever starts it: floe, ArduPlane's
+    battery or link-loss failsafe) to (x_m, y_m): the ship's predicted position when the
+    vehicle would reach it (``core/ship.py``). The frontend sends ``MAV_CMD_DO_SET_HOME``
+    and verifies it by the ``HOME_POSITION`` that follows, like a mission."""
+
+    t_s: float
+    vehicle: str
+    x_m: float
+    y_m: float
+
+
+@dataclass(frozen=True)
+class LaunchVehicle:
+    """Launch the spare ``vehicle`` from the ship (``reason``: ``on station``, or
+    ``relief`` of the vehicle ``relieves``). With ``--launch`` the frontend launches it
+    itself; otherwise it asks the operator for a catapult launch (console, API, map)."""
+
+    t_s: float
+    vehicle: str
+    reason: str
+    relieves: str | None = None
+
+
+@dataclass(frozen=True)
 class Note:
     """Something worth journalling that needs no action (e.g. a target discovered)."""
 
@@ -124,7 +151,7 @@ class WindEstimate:
 
 Command = (
     SolveRequest | CancelSolve | PlanAdopted | FlyToTarget | ReleaseVehicle | SendHome | Note
-    | WindEstimate
+    | WindEstimate | SetHome | LaunchVehicle
 )
 
 

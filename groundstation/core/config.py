@@ -13,7 +13,14 @@ from observer import ObserverConfig, TrackerConfig
 from planner import Objective
 from planner.search_cells import SearchConfig
 
-__all__ = ["BatteryAction", "CoreConfig", "ReplanPolicy", "config_from_dict", "config_to_dict"]
+__all__ = [
+    "BatteryAction",
+    "CoreConfig",
+    "ReplanPolicy",
+    "WatchConfig",
+    "config_from_dict",
+    "config_to_dict",
+]
 
 
 class BatteryAction(StrEnum):
@@ -68,6 +75,49 @@ class ReplanPolicy:
 
 
 @dataclass(frozen=True)
+class WatchConfig:
+    """A watch from a moving ship (docs/ship.md): endurance, relief, homes on the ship.
+
+    * ``on_station``: vehicles flying at once; the rest of the fleet are spares on deck,
+      launched to relieve a vehicle before it must go home. None: every vehicle flies.
+    * ``endurance_s``: a full battery's flight time, used where a vehicle reports nothing
+      useful about its battery (and as the energy model's prior).
+    * ``reserve_pct``: the charge a vehicle must still hold when its return ends.
+    * ``home_update_m``: a vehicle's home is moved when the ship's predicted position for
+      it moved farther than this.
+    * ``recovery_radius_m``: a vehicle that comes down this close to the ship's predicted
+      position was recovered (else it is down).
+    * ``launch_s``: from a launch order to the vehicle in the plan (catapult, climb-out).
+    * ``ready_pct``: a spare on deck is ready when its battery holds at least this.
+    """
+
+    on_station: int | None = None
+    endurance_s: float = 3600.0
+    reserve_pct: float = 15.0
+    home_update_m: float = 150.0
+    recovery_radius_m: float = 150.0
+    launch_s: float = 60.0
+    ready_pct: float = 95.0
+
+    def __post_init__(self) -> None:
+        if self.on_station is not None and (
+            isinstance(self.on_station, bool) or not isinstance(self.on_station, int)
+            or self.on_station < 1
+        ):
+            raise ValueError(f"on_station must be a whole number >= 1, got {self.on_station!r}")
+        for name, low, high in (("endurance_s", 60.0, 86_400.0), ("reserve_pct", 0.0, 90.0),
+                                ("home_update_m", 1.0, 100_000.0),
+                                ("recovery_radius_m", 1.0, 10_000.0),
+                                ("launch_s", 0.0, 3_600.0), ("ready_pct", 1.0, 100.0)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int | float) or not (
+                math.isfinite(value) and low <= value <= high
+            ):
+                raise ValueError(f"{name} must be a number in [{low:g}, {high:g}], got {value!r}")
+            object.__setattr__(self, name, float(value))
+
+
+@dataclass(frozen=True)
 class CoreConfig:
     """Everything the decision core needs to decide; no I/O settings here."""
 
@@ -115,6 +165,11 @@ class CoreConfig:
     mean uncertainty 4 932 +- 973 m^2 (13/20 bounded) at 0 against 6 127 +- 1 766
     (11/20) at 1; discovery, seeds 0-9, true icebergs confirmed at the end 0.979 at 0
     against 0.972 at 1, which costs 5x the CPU (170 against 34 s a run)."""
+
+    watch: WatchConfig | None = None
+    """The ship watch (endurance, relief, moving homes: ``core/energy.py``,
+    ``core/relief.py``, ``core/ship.py``). None: none of it (the paper's runs; journals
+    written before the watch existed read as None, so they replay as they ran)."""
 
     def __post_init__(self) -> None:
         if self.turn_radius_m <= 0:
@@ -204,6 +259,8 @@ def config_from_dict(data: Mapping[str, Any]) -> CoreConfig:
             values["tracker"] = TrackerConfig(**values["tracker"])
         if values.get("search") is not None:
             values["search"] = SearchConfig(**values["search"])
+        if values.get("watch") is not None:
+            values["watch"] = WatchConfig(**values["watch"])
         return CoreConfig(**values)
     except TypeError as exc:
         raise ValueError(f"core config: {exc}") from exc

@@ -14,6 +14,7 @@ from planner import PlanResult
 
 __all__ = [
     "BatteryLow",
+    "BatteryReport",
     "BoatPosition",
     "CameraFrame",
     "Detection",
@@ -27,7 +28,9 @@ __all__ = [
     "Telemetry",
     "Tick",
     "VehicleJoined",
+    "VehicleLanded",
     "VehicleLost",
+    "VehicleOnDeck",
     "VehicleRebooted",
     "VehicleReturned",
     "WindReport",
@@ -193,9 +196,62 @@ class BatteryLow:
 
 @dataclass(frozen=True)
 class BoatPosition:
-    """Where the boat is (drives the priority knob: process noise rising near the boat)."""
+    """A fix of the ship (the paper's boat): where it is, and where known its velocity over
+    ground and heading. It drives the priority knob (process noise rising near the boat)
+    and the ship's track (``core/ship.py``), which predicts the ship between fixes: homes
+    move with it, returns are planned to it.
+
+    ``vx_m_s, vy_m_s``: velocity over ground (ENU m/s; NMEA RMC/VTG course and speed), None
+    when the source does not say. ``heading_rad``: the bow's heading (CCW from east; NMEA
+    HDT), None when unknown. ``sigma_m``: the fix's 1-sigma horizontal error (m), None for
+    the source's default. ``source``: where the fix came from (``scenario``, ``feed``,
+    ``nmea``). Journals written before these fields existed read with them all None."""
 
     t_s: float
+    x_m: float
+    y_m: float
+    vx_m_s: float | None = None
+    vy_m_s: float | None = None
+    heading_rad: float | None = None
+    sigma_m: float | None = None
+    source: str = ""
+
+
+@dataclass(frozen=True)
+class BatteryReport:
+    """A vehicle's battery as its autopilot reports it (``BATTERY_STATUS``/``SYS_STATUS``;
+    the simulators' battery model): ``remaining_pct`` 0-100, ``current_a``, ``voltage_v``;
+    None where the vehicle reports nothing (ArduPilot's -1 / UINT16_MAX). Frontends send one
+    at most every few seconds, or when the remaining charge moved by a percent: the core's
+    energy model (``core/energy.py``) learns the vehicle's consumption from them."""
+
+    t_s: float
+    vehicle: str
+    remaining_pct: float | None
+    current_a: float | None = None
+    voltage_v: float | None = None
+
+
+@dataclass(frozen=True)
+class VehicleOnDeck:
+    """A vehicle stands on the ship, disarmed: a spare. ``ready`` when it may be launched
+    (a fresh boot and a full battery, ``battery_pct``); a recovered vehicle waiting for
+    its battery swap is on deck but not ready. Frontends send it when it changes."""
+
+    t_s: float
+    vehicle: str
+    ready: bool
+    battery_pct: float | None = None
+
+
+@dataclass(frozen=True)
+class VehicleLanded:
+    """A vehicle that flew is on the ground (landed, recovered, or fell) at (x_m, y_m).
+    The core calls it recovered when it came down within the watch's recovery radius of
+    the ship's predicted position (``WatchConfig.recovery_radius_m``), else down."""
+
+    t_s: float
+    vehicle: str
     x_m: float
     y_m: float
 
@@ -247,7 +303,10 @@ Event = (
     | OperatorOverride
     | OperatorResume
     | BatteryLow
+    | BatteryReport
     | BoatPosition
+    | VehicleOnDeck
+    | VehicleLanded
     | PlanSolved
     | WindReport
     | WindWithdrawn

@@ -27,10 +27,12 @@ from groundstation.core.commands import (
     CancelSolve,
     Command,
     FlyToTarget,
+    LaunchVehicle,
     Note,
     PlanAdopted,
     ReleaseVehicle,
     SendHome,
+    SetHome,
     SolveRequest,
     WindEstimate,
 )
@@ -167,6 +169,12 @@ def command_to_record(command: Command) -> dict[str, Any]:
     if isinstance(command, SendHome):
         return {"event": "send_home", "t": command.t_s, "vehicle": command.vehicle,
                 "reason": command.reason}
+    if isinstance(command, SetHome):
+        return {"event": "set_home", "t": command.t_s, "vehicle": command.vehicle,
+                "x_m": command.x_m, "y_m": command.y_m}
+    if isinstance(command, LaunchVehicle):
+        return {"event": "launch", "t": command.t_s, "vehicle": command.vehicle,
+                "reason": command.reason, "relieves": command.relieves}
     if isinstance(command, WindEstimate):
         speed, from_deg = wind_from_vector(command.wx_m_s, command.wy_m_s)
         return {"event": "wind", "t": command.t_s, "speed_m_s": speed, "from_deg": from_deg,

@@ -27,7 +27,7 @@ import numpy as np
 
 from groundstation.core import events as ev
 from world.discovery_spec import PriorEntry, discovery_mode, resolve_prior, scenario_camera
-from world.model import Boat, Iceberg, World
+from world.model import Iceberg, World
 from world.scenario import Scenario, resolve_targets
 
 __all__ = ["ScenarioWorld"]
@@ -51,7 +51,7 @@ class ScenarioWorld:
         boat = scenario.boat
         self.world = World(
             [],
-            Boat(boat.x_m, boat.y_m, boat.heading_rad, boat.speed_m_s) if boat else None,
+            boat.build() if boat else None,
             scenario_camera(scenario),
             rng,
         )

@@ -76,7 +76,7 @@ from groundstation.runners.simulate.vehicle import OfflineVehicle
 from planner import solve_plan
 from world.discovery_spec import discovery_mode, scenario_camera
 from world.dynamics import UavState
-from world.model import Boat, Iceberg, World
+from world.model import Iceberg, World
 from world.scenario import Scenario, ScriptedEvent, resolve_targets
 from world.wind import WindField, WindSpec
 
@@ -169,7 +169,7 @@ class _Simulation:
         boat = scenario.boat
         camera = scenario_camera(scenario)
         self.world = World(
-            [], Boat(boat.x_m, boat.y_m, boat.heading_rad, boat.speed_m_s) if boat else None,
+            [], boat.build() if boat else None,
             camera, self.rng,
         )
         count = options.uavs or scenario.fleet.count
