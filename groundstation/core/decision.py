@@ -44,11 +44,13 @@ from groundstation.core.commands import (
     FlyToTarget,
     Note,
     PlanAdopted,
+    SendHome,
     SolveRequest,
     Verdict,
 )
 from groundstation.core.config import CoreConfig
 from groundstation.core.events import (
+    BatteryReport,
     BoatPosition,
     CameraFrame,
     Detection,
@@ -60,6 +62,8 @@ from groundstation.core.events import (
     Telemetry,
     Tick,
     VehicleJoined,
+    VehicleLanded,
+    VehicleOnDeck,
     WindReport,
     WindWithdrawn,
 )
@@ -74,6 +78,7 @@ from groundstation.core.views import (
     VehicleView,
     search_cell_view,
 )
+from groundstation.core.watch import WatchKeeper
 from groundstation.core.wind_estimate import WindEstimator, WindState
 from groundstation.core.wind_replan import WindReplan
 from observer import UNCONFIRMED, Observer, boat_priority_q
@@ -106,6 +111,8 @@ class DecisionCore:
         """The vehicles' wind estimate, combined (``core/wind_estimate.py``)."""
         self.wind_replan = WindReplan(config.wind_replan_m_s, config.wind_replan_margin_s,
                                       config.observer.fov_radius_m)
+        self.watch = WatchKeeper(config.watch, config.loiter_s) if config.watch else None
+        """The ship watch (``core/watch.py``): homes, energy, relief; None without one."""
         self._next_request_id = 1
         self._verdicts: list[Verdict] = []  # this input's, returned with its commands
         # Called with every input before it is applied (frontends journal it for replay).
@@ -142,6 +149,10 @@ class DecisionCore:
         elif isinstance(event, BoatPosition):
             if math.isfinite(event.x_m) and math.isfinite(event.y_m):
                 self.boat_xy_m = (event.x_m, event.y_m)
+            if self.watch is not None and not self.watch.fix(event):
+                self._count("invalid_ship_fixes")
+        elif isinstance(event, BatteryReport | VehicleOnDeck | VehicleLanded):
+            out += self._on_watch_input(event)
         elif isinstance(event, WindReport):
             self.wind.report(event)
             out += self._update_wind(event.t_s)
@@ -151,10 +162,54 @@ class DecisionCore:
             out += self._on_fleet_or_target_event(event)
         if isinstance(event, Tick):
             out += self._update_wind(event.t_s)  # reports age out; before the plan uses it
+            if self.watch is not None and self.watch.due(event.t_s):
+                watch = self.watch.tick(event.t_s, self.vehicles.values(), self._intercept_xy)
+                if any(isinstance(c, SendHome) for c in watch):
+                    self._mark_dirty("vehicle sent home")
+                out += watch
             # Events only mark the plan dirty; the next tick replans once for all of them,
             # so a burst (several targets added at once) gives one plan, not one each.
             out += self._maybe_replan(event.t_s)
         return Decisions(out, self._verdicts)
+
+    def _on_watch_input(self, event: BatteryReport | VehicleOnDeck | VehicleLanded
+                        ) -> list[Command]:
+        """The watch's inputs (``core/watch.py``); without a watch a battery report is
+        only counted and the deck's events are ignored."""
+        if self.watch is None:
+            self._count("watch_inputs_ignored")
+            return []
+        if isinstance(event, BatteryReport):
+            if not self.watch.battery(event):
+                self._count("battery_reports_invalid")
+            return []
+        record = self.vehicles.get(event.vehicle)
+        if isinstance(event, VehicleOnDeck):
+            if record is None:
+                ship = self.watch.ship.predict(event.t_s)
+                x_m, y_m = ship.xy_m if ship is not None else (0.0, 0.0)
+                record = VehicleRecord(event.vehicle, x_m, y_m, 0.0, self.config.speed_m_s,
+                                       event.t_s, status=FleetStatus.DECK)
+                self.vehicles[event.vehicle] = record
+            changed = self.watch.on_deck(event, record)
+            if changed is None:
+                return []
+            return [Note(event.t_s, f"vehicle_{changed}", event.vehicle,
+                         detail=f"battery {event.battery_pct:.0f} %"
+                         if event.battery_pct is not None else "")]
+        if record is None:
+            return []
+        was_active = record.status is FleetStatus.ACTIVE
+        note = self.watch.landed(event, record)
+        if was_active:
+            self._mark_dirty("vehicle landed")
+        return [note]
+
+    def _intercept_xy(self, record: VehicleRecord, xy_m: tuple[float, float],
+                      v_m_s: tuple[float, float]) -> tuple[float, float, float]:
+        """The intercept of a point ``xy_m`` moving at ``v_m_s`` in the planning wind."""
+        return intercept(record, xy_m, v_m_s, self.planning_wind_m_s(),
+                         self.config.turn_radius_m)
 
     def set_boat(self, x_m: float, y_m: float, t_s: float | None = None) -> None:
         """Shorthand for handling :class:`BoatPosition` (recorded like every input)."""
@@ -282,6 +337,8 @@ class DecisionCore:
             record.status, record.busy, record.target = FleetStatus.ACTIVE, False, None
             self._on_pose(event.vehicle, event.t_s, event.x_m, event.y_m, event.heading_rad,
                           event.speed_m_s)
+            if self.watch is not None:
+                self.watch.joined(event.t_s, event.vehicle)
             self._mark_dirty("vehicle joined")
         elif isinstance(event, LoiterEnded):
             out += self._on_loiter_ended(event)
@@ -305,6 +362,9 @@ class DecisionCore:
         rest = tuple(t for t in rest if t in known)
         if not rest:
             return []
+        home = self._unflyable(event.t_s, record, rest[0])
+        if home:
+            return home
         command = self._fly(event.t_s, record, rest[0], rest)
         return [command] if command is not None else []
 
@@ -428,6 +488,10 @@ class DecisionCore:
                 self.config.policy.commit and record.busy
             ):
                 continue
+            home = self._unflyable(event.t_s, record, target)
+            if home:
+                fly += home
+                continue
             assignments[uav.id] = target
             command = self._fly(event.t_s, record, target, tuple(route))
             if command is not None:
@@ -435,6 +499,18 @@ class DecisionCore:
         adopted = PlanAdopted(event.t_s, request.request_id, request.problem, result,
                               assignments, request.hint, request.reason)
         return [adopted, *fly]
+
+    def _unflyable(self, t_s: float, record: VehicleRecord, target: str) -> list[Command]:
+        """On a watch, a leg to ``target`` that would leave ``record`` short of the charge
+        to reach the ship with its reserve is not flown: the vehicle goes home instead
+        (the planner's other vehicles are replanned without it). Empty: fly it."""
+        if self.watch is None:
+            return []
+        x_m, y_m, t_arr_s = self.intercept(record, target)
+        if self.watch.leg_ok(t_s, record, (x_m, y_m), t_s + t_arr_s, self._intercept_xy):
+            return []
+        self._mark_dirty("vehicle sent home")
+        return self.watch.send_home_instead(t_s, record, self._intercept_xy)
 
     def _fly(self, t_s: float, record: VehicleRecord, target: str,
              route: tuple[str, ...]) -> FlyToTarget | None:
@@ -520,9 +596,12 @@ class DecisionCore:
             VehicleView(v.id, v.status, v.x_m, v.y_m, v.heading_rad, v.target, v.route, v.busy)
             for v in self.vehicles.values()
         )
+        watch = (None if self.watch is None
+                 else self.watch.view(self.t_s, self.vehicles.values(), self._intercept_xy))
         return CoreView(self.t_s, tuple(self.track_views()), tuple(self.search_view()),
                         self.search is not None, self.wind.current, vehicles,
-                        dict(self.observer.counters), self.wind.flagged, self.plans_adopted)
+                        dict(self.observer.counters), self.wind.flagged, self.plans_adopted,
+                        watch)
 
     def track_views(self) -> list[TrackView]:
         """Every track with its status (``core/views.py``), sorted by id."""

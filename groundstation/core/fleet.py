@@ -26,12 +26,21 @@ class FleetStatus(enum.StrEnum):
     Not the vehicle controller's :class:`~groundstation.vehicle.state.VehicleState`: the core
     knows only whether a vehicle is in the plan (``active``), taken over, sent home, or lost
     (the controller's link, a reboot, no progress, a landing: all ``VehicleLost``); the
-    controller's states before a vehicle joins never reach it."""
+    controller's states before a vehicle joins never reach it, except on a ship watch,
+    where the deck's are the core's (``spare``, ``deck``, ``launching``, ``down``)."""
 
     ACTIVE = "active"
     OVERRIDDEN = "overridden"
     LOST = "lost"
     HOME = "home"
+    SPARE = "spare"
+    """On the ship's deck, ready to launch (the watch: ``core/watch.py``)."""
+    DECK = "deck"
+    """On the ship's deck, not ready: recovered, waiting for its battery swap."""
+    LAUNCHING = "launching"
+    """A spare whose launch was ordered, not yet in the plan."""
+    DOWN = "down"
+    """Came down away from the ship."""
 
 
 

@@ -9,13 +9,13 @@ the scenario's ``search:`` over its ``area:``.
 
 from __future__ import annotations
 
-from groundstation.core.config import CoreConfig, ReplanPolicy
+from groundstation.core.config import CoreConfig, ReplanPolicy, WatchConfig
 from observer import ObserverConfig, TrackerConfig
 from planner import Objective
 from planner.search_cells import SearchConfig
 from world.scenario import Scenario
 
-__all__ = ["core_config_for", "tracker_config_for"]
+__all__ = ["core_config_for", "tracker_config_for", "watch_config_for"]
 
 
 def tracker_config_for(scenario: Scenario) -> TrackerConfig:
@@ -66,7 +66,18 @@ def core_config_for(scenario: Scenario, objective: str | None = None) -> CoreCon
             scenario.area.x_min_m, scenario.area.x_max_m,
             scenario.area.y_min_m, scenario.area.y_max_m,
         ),
+        watch=watch_config_for(scenario),
     )
+
+
+def watch_config_for(scenario: Scenario) -> WatchConfig | None:
+    """The core's side of the scenario's ``watch:`` (None without one)."""
+    spec = scenario.watch
+    if spec is None:
+        return None
+    return WatchConfig(on_station=spec.on_station, endurance_s=spec.endurance_s,
+                       reserve_pct=spec.reserve_pct, home_update_m=spec.home_update_m,
+                       recovery_radius_m=spec.recovery_radius_m, launch_s=spec.launch_s)
 
 
 def _search(scenario: Scenario) -> SearchConfig | None:

@@ -15,6 +15,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 from groundstation.core.fleet import FleetStatus
+from groundstation.core.watch import WatchView
 from groundstation.core.wind_estimate import WindState
 from planner.search_cells import SearchCell
 
@@ -104,6 +105,8 @@ class CoreView:
     observer_counters: Mapping[str, int] = field(default_factory=dict)
     wind_outliers: frozenset[str] = frozenset()
     plans_adopted: int = 0
+    watch: WatchView | None = None
+    """The ship watch (``core/watch.py``); None without one."""
 
     @property
     def target_ids(self) -> frozenset[str]:
