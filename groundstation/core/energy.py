@@ -165,6 +165,13 @@ class VehicleEnergy:
         """Seconds before it must turn home, with a return of ``return_s`` from here."""
         return self.endurance_left_s(t_s) - (return_s + RETURN_MARGIN_S)
 
+    def expected_spare_s(self, t_s: float, return_s: float) -> float:
+        """:meth:`spare_s` at the learnt rate ``c`` itself (for planning reliefs, never for
+        the decision to go home)."""
+        rate = max(self.rate_pct_s, 0.5 * self.c0_pct_s)
+        left = (self.remaining_pct(t_s) - self.reserve_pct) / rate
+        return left - (return_s + RETURN_MARGIN_S)
+
     def leg_ok(self, t_s: float, leg_s: float, return_after_s: float) -> bool:
         """A leg of ``leg_s`` then a return of ``return_after_s`` keeps the reserve."""
         return self.endurance_left_s(t_s) >= leg_s + return_after_s + RETURN_MARGIN_S

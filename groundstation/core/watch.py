@@ -88,10 +88,14 @@ class WatchKeeper:
         self.relieves: dict[str, str] = {}
         """Launched spare -> the vehicle it relieves."""
         self.returns: dict[str, float] = {}
+        self.rtl_targets: dict[str, tuple[float, float]] = {}
+        """A vehicle floe sent home -> where that RTL goes (ArduPlane fixes an RTL's
+        target when the mode is entered; a new home needs a new RTL)."""
         self.reliefs = 0
         self._alarms: dict[str, str] = {}
         self._next_tick_s = 0.0
         self._short_since_s: float | None = None
+        self._last_relief_s: float | None = None
 
     # ------------------------------------------------------------------ inputs
     def _energy(self, vehicle: str) -> VehicleEnergy:
@@ -129,6 +133,7 @@ class WatchKeeper:
         self._energy(event.vehicle).landed()
         self.homes.pop(event.vehicle, None)
         self.returns.pop(event.vehicle, None)
+        self.rtl_targets.pop(event.vehicle, None)
         ship = self.ship.predict(event.t_s)
         if ship is None:
             distance = math.hypot(event.x_m, event.y_m)
@@ -172,14 +177,17 @@ class WatchKeeper:
                 self._energy(record.id).flying(t_s)
                 returns[record.id] = self.return_to_ship(t_s, record, intercept)
         out += self._homes(t_s, vehicles, returns)
+        out += self._reaim(t_s, vehicles, returns)
         active = [r for r in vehicles if r.status is FleetStatus.ACTIVE]
-        due: dict[str, float] = {}
+        due: dict[str, tuple[float, float]] = {}
         for record in active:
-            spare = self._energy(record.id).spare_s(t_s, returns[record.id][2])
+            energy = self._energy(record.id)
+            spare = energy.spare_s(t_s, returns[record.id][2])
             if spare <= 0.0:
                 out += self._send_home(t_s, record, returns[record.id], "energy")
             else:
-                due[record.id] = t_s + spare
+                expected = energy.expected_spare_s(t_s, returns[record.id][2])
+                due[record.id] = (t_s + spare, t_s + max(spare, expected))
         out += self._relief(t_s, vehicles, due, returns)
         out += self._check_alarms(t_s, vehicles, returns)
         return out
@@ -188,8 +196,10 @@ class WatchKeeper:
                returns: dict[str, tuple[float, float, float]]) -> list[Command]:
         out: list[Command] = []
         for record in vehicles:
-            if record.id not in returns:
-                continue
+            if record.id not in returns or (
+                record.status is FleetStatus.HOME and record.id in self.rtl_targets
+            ):
+                continue  # a return floe started keeps its home (re-aimed by _reaim)
             aim = returns[record.id][:2]
             home = self.homes.get(record.id)
             if home is None or math.dist(home, aim) > self.config.home_update_m:
@@ -197,16 +207,37 @@ class WatchKeeper:
                 out.append(SetHome(t_s, record.id, aim[0], aim[1]))
         return out
 
+    def _reaim(self, t_s: float, vehicles: list[VehicleRecord],
+               returns: dict[str, tuple[float, float, float]]) -> list[Command]:
+        """A vehicle floe sent home whose RTL goes farther than ``recovery_radius_m`` from
+        where the ship will now be when it gets there (the ship turned, or the prediction
+        was poor) is sent home again, to a fresh home."""
+        out: list[Command] = []
+        for record in vehicles:
+            target = self.rtl_targets.get(record.id)
+            if record.status is not FleetStatus.HOME or target is None:
+                continue
+            ret = returns[record.id]
+            if math.dist(target, ret[:2]) > self.config.recovery_radius_m:
+                out += self._send_home(t_s, record, ret, "return re-aimed at the ship")
+        return out
+
     def _send_home(self, t_s: float, record: VehicleRecord,
                    ret: tuple[float, float, float], why: str) -> list[Command]:
         e = self._energy(record.id)
         record.status, record.busy, record.target = FleetStatus.HOME, False, None
-        self.homes[record.id] = ret[:2]
+        self.homes[record.id] = self.rtl_targets[record.id] = ret[:2]
         detail = (f"{why}: {e.remaining_pct(t_s):.0f} % left, {ret[2]:.0f} s to the ship")
         return [SetHome(t_s, record.id, ret[0], ret[1]), SendHome(t_s, record.id, detail)]
 
-    def _relief(self, t_s: float, vehicles: list[VehicleRecord], due: dict[str, float],
+    def _relief(self, t_s: float, vehicles: list[VehicleRecord],
+                due: dict[str, tuple[float, float]],
                 returns: dict[str, tuple[float, float, float]]) -> list[Command]:
+        """Fill the station; send home the vehicles whose relief joined; launch the next
+        relief. ``due``: each active vehicle's turn-home time at the cautious rate (when it
+        must go) and at the learnt rate (what reliefs are planned on, so that a model still
+        unsure of its rate does not bring every relief forward); reliefs ordered by the
+        stagger alone are at least half a spacing apart, those its energy forces are not."""
         out: list[Command] = []
         by_id = {r.id: r for r in vehicles}
         for spare, ordered in list(self.launching.items()):
@@ -240,15 +271,18 @@ class WatchKeeper:
         # the next staggered return, and its relief's launch
         spacing = relief_spacing_s(self.config.endurance_s, self.config.reserve_pct,
                                    max(1, wanted))
-        plan = staggered_returns(due, spacing)
+        staggered = staggered_returns(
+            {v: d[1] for v, d in due.items() if v not in relieving}, spacing)
+        plan = {v: min(r, due[v][0]) for v, r in staggered.items()}
         self.returns = plan
-        for vehicle in sorted(plan, key=lambda v: (plan[v], v)):
-            if vehicle in relieving or not spares:
-                break
-            if t_s >= plan[vehicle] - self.config.launch_s:
+        if plan and spares:
+            vehicle = min(plan, key=lambda v: (plan[v], v))
+            forced = t_s >= due[vehicle][0] - self.config.launch_s
+            spaced = (self._last_relief_s is None
+                      or t_s - self._last_relief_s >= 0.5 * spacing)
+            if t_s >= plan[vehicle] - self.config.launch_s and (forced or spaced):
                 out.append(self._launch(t_s, spares.pop(0), "relief", vehicle))
-                relieving.add(vehicle)
-            break
+                self._last_relief_s = t_s
         return out
 
     def _launch(self, t_s: float, spare: VehicleRecord, reason: str,

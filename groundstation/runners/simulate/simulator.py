@@ -35,15 +35,18 @@ from groundstation.core.area import OperatingArea
 from groundstation.core.commands import (
     Command,
     FlyToTarget,
+    LaunchVehicle,
     PlanAdopted,
     ReleaseVehicle,
     SendHome,
+    SetHome,
     SolveRequest,
 )
 from groundstation.core.config import config_to_dict
 from groundstation.core.decision import DecisionCore
 from groundstation.core.events import (
     BatteryLow,
+    BatteryReport,
     BoatPosition,
     Detection,
     Event,
@@ -56,7 +59,9 @@ from groundstation.core.events import (
     Telemetry,
     Tick,
     VehicleJoined,
+    VehicleLanded,
     VehicleLost,
+    VehicleOnDeck,
     VehicleRebooted,
     VehicleReturned,
     WindReport,
@@ -71,6 +76,8 @@ from groundstation.core.records import (
     truth_records,
 )
 from groundstation.core.scenario_config import core_config_for
+from groundstation.core.watch_metrics import WatchMetrics
+from groundstation.runners.simulate.deck import Deck, DeckState
 from groundstation.runners.simulate.discovery import Discovery
 from groundstation.runners.simulate.vehicle import OfflineVehicle
 from planner import solve_plan
@@ -175,6 +182,11 @@ class _Simulation:
         count = options.uavs or scenario.fleet.count
         x0, y0 = scenario.launch_point()
         fleet = scenario.fleet
+        self.deck: Deck | None = None
+        """The ship's deck and the planes' batteries on a watch (``deck.py``)."""
+        self.watch_metrics = WatchMetrics()
+        if scenario.watch is not None and self.world.boat is not None:
+            self.deck = Deck(scenario.watch, fleet, self.world.boat)
         self.vehicles = {
             str(k + 1): OfflineVehicle(
                 str(k + 1), UavState(x0, y0, heading, fleet.speed_m_s), fleet.turn_radius_m,
@@ -235,8 +247,16 @@ class _Simulation:
             vehicle = self.vehicles[command.vehicle]
             vehicle.commanded = False
             self.metrics.abandoned(command.vehicle)
-            vehicle.command_hold(*self.scenario.launch_point(), vehicle.loiter_radius_m)
+            home = (self.deck.rtl(command.vehicle) if self.deck is not None
+                    else self.scenario.launch_point())
+            vehicle.command_hold(*home, vehicle.loiter_radius_m)
             self.log(command.t_s, "send_home", vehicle=command.vehicle)
+        elif isinstance(command, SetHome) and self.deck is not None:
+            self.deck.set_home(command.vehicle, command.x_m, command.y_m)
+        elif isinstance(command, LaunchVehicle) and self.deck is not None:
+            if not self.deck.launch(command.t_s, command.vehicle):
+                self.log(command.t_s, "launch_refused", vehicle=command.vehicle,
+                         reason=f"not a ready spare ({self.deck.state(command.vehicle)})")
         elif isinstance(command, ReleaseVehicle):
             vehicle = self.vehicles[command.vehicle]
             vehicle.commanded = False
@@ -337,8 +357,14 @@ class _Simulation:
     # --------------------------------------------------------------- the loop
     def execute_run(self) -> SimulationRun:
         wall_start = time.perf_counter()
+        if self.deck is not None:
+            self.feed(self.ship_fix(0.0))
         for vehicle in self.vehicles.values():
             s = vehicle.state
+            if self.deck is not None:
+                self.deck.add(vehicle.id)
+                self.feed(VehicleOnDeck(0.0, vehicle.id, True, 100.0))
+                continue
             self.feed(VehicleJoined(0.0, vehicle.id, s.x_m, s.y_m, s.heading_rad, s.speed_m_s))
         for added in self.discovery.prior_events() if self.discovery else []:
             self.announce(added)
@@ -347,13 +373,19 @@ class _Simulation:
         for k in range(steps + 1):
             t_s = k * self.dt_s
             self.apply_script(t_s)
+            if self.deck is not None:
+                self.deck_step(t_s)
             for vehicle in self.vehicles.values():
+                if self.deck is not None and self.deck.on_deck(vehicle.id):
+                    continue
                 self.metrics.position(t_s, vehicle.id, vehicle.state.x_m, vehicle.state.y_m)
                 if not vehicle.lost:
                     self.feed(self.telemetry(t_s, vehicle))
             if self.world.boat is not None and self.core.config.priority_gain > 0:
                 self.feed(BoatPosition(t_s, self.world.boat.x_m, self.world.boat.y_m))
             on_second = t_s >= next_sample_s - 1e-9
+            if on_second and self.deck is not None:
+                self.feed(self.ship_fix(t_s))
             if on_second and not self.scenario.wind.calm:
                 self.report_wind(t_s)
             self.feed(Tick(t_s))
@@ -366,6 +398,8 @@ class _Simulation:
                 break
             wind_xy_m_s = self.wind.at(t_s + 0.5 * self.dt_s)
             for vehicle in self.vehicles.values():
+                if self.deck is not None and not self.fly_on_watch(t_s, vehicle, wind_xy_m_s):
+                    continue
                 if vehicle.step(t_s, self.dt_s, wind_xy_m_s) and not vehicle.lost and (
                     vehicle.commanded
                 ):
@@ -397,13 +431,79 @@ class _Simulation:
         metrics["observer_counters"] = dict(self.core.view().observer_counters)
         if self.discovery is not None:
             metrics.update(self.discovery.metrics(self.duration_s))
+        if self.deck is not None:
+            self.watch_metrics.launches = self.deck.launches
+            metrics.update(self.watch_metrics.to_dict(self.metrics.series))
         self.run.metrics = metrics
         return self.run
+
+    # --------------------------------------------------------------- the watch's deck
+    def ship_fix(self, t_s: float) -> BoatPosition:
+        """The ship's own fix (its GPS: position, course and speed over ground)."""
+        boat = self.world.boat
+        assert boat is not None
+        vx, vy = boat.velocity_m_s
+        return BoatPosition(t_s, boat.x_m, boat.y_m, vx, vy, boat.heading_rad, None,
+                            "scenario")
+
+    def deck_step(self, t_s: float) -> None:
+        """Planes on deck stand on the ship; launches, battery swaps and reports fall due."""
+        assert self.deck is not None and self.world.boat is not None
+        boat = self.world.boat
+        for vehicle in self.vehicles.values():
+            vid = vehicle.id
+            if self.deck.on_deck(vid):
+                vehicle.state = UavState(boat.x_m, boat.y_m, boat.heading_rad,
+                                         self.scenario.fleet.speed_m_s)
+            if self.deck.ready_due(t_s, vid):
+                self.log(t_s, "battery_swapped", vehicle=vid)
+                self.feed(VehicleOnDeck(t_s, vid, True, self.deck.battery_pct(vid)))
+            if self.deck.airborne_due(t_s, vid):
+                vehicle.lost, vehicle.commanded = False, True
+                vehicle.phase, vehicle.aim_xy_m, vehicle.target = "free", None, None
+                self.log(t_s, "launched", vehicle=vid)
+                s = vehicle.state
+                self.feed(VehicleJoined(t_s, vid, s.x_m, s.y_m, s.heading_rad, s.speed_m_s))
+            pct = self.deck.report_due(t_s, vid)
+            if pct is not None and not vehicle.lost:
+                plane = self.deck.planes[vid]
+                self.feed(BatteryReport(t_s, vid, pct, plane.battery.current_a,
+                                        plane.battery.voltage_v))
+
+    def fly_on_watch(self, t_s: float, vehicle: OfflineVehicle,
+                     wind_xy_m_s: tuple[float, float]) -> bool:
+        """Drain, fall, recover: False when the plane does not fly this step."""
+        assert self.deck is not None
+        vid = vehicle.id
+        if self.deck.on_deck(vid) or self.deck.state(vid) is DeckState.FALLEN:
+            return False
+        t_next = t_s + self.dt_s
+        if self.deck.drain(vid, self.dt_s, vehicle.state.speed_m_s, math.hypot(*wind_xy_m_s)):
+            vehicle.lost, vehicle.commanded = True, False
+            self.watch_metrics.vehicle_lost(vid)
+            self.log(t_next, "vehicle_fell", vehicle=vid, reason="battery empty")
+            s = vehicle.state
+            self.feed(VehicleLost(t_next, vid))
+            self.feed(VehicleLanded(t_next, vid, s.x_m, s.y_m))
+            return False
+        s = vehicle.state
+        if self.deck.check_return(t_next, vid, s.x_m, s.y_m, vehicle.loiter_radius_m):
+            landing = self.deck.landings[-1]
+            self.watch_metrics.landing(landing.battery_pct, landing.return_end_m)
+            vehicle.commanded = False
+            self.log(t_next, "vehicle_recovered", vehicle=vid,
+                     battery_pct=round(landing.battery_pct, 1),
+                     return_end_m=round(landing.return_end_m, 1))
+            self.feed(VehicleLanded(t_next, vid, s.x_m, s.y_m))
+            self.feed(VehicleOnDeck(t_next, vid, False, landing.battery_pct))
+            return False
+        return True
 
     def sample(self, t_s: float) -> None:
         """Metrics, plots and journal once a mission second; the uncertainty is over the
         confirmed and prior tracks (tentative ones are candidates, not icebergs)."""
         view = self.core.view()
+        self.watch_metrics.sample(view.watch)
         tracks = view.firm_tracks()
         truth = self.world.true_positions()
         self.metrics.sample_tracks(t_s, tracks, truth)
