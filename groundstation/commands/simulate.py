@@ -239,3 +239,21 @@ def _print_summary(rows: list[dict[str, Any]]) -> None:
             f" {len(r['lost_targets']):>4} {len(r['visits']):>6} {r['plans']:>5}"
             f" {r['realtime_factor']:>10.0f}  {r['dir']}"
         )
+    for r in rows:
+        if "on_station_shortfall_s" in r:
+            print(_watch_line(r))
+
+
+def _watch_line(r: dict[str, Any]) -> str:
+    """A watch run's figures (core/watch_metrics.py), one line per fleet size."""
+    hours = " ".join(f"{v:.0f}" for v in r["hourly_mean_uncertainty"])
+    ends = r["rtl_end_distance_to_ship_m"]
+    end = ("no return" if ends["median"] is None
+           else f"returns ended {ends['median']:.0f} m (median), {ends['max']:.0f} m (max) "
+                "from the ship")
+    landing = r["min_landing_battery_pct"]
+    lowest = "none recovered" if landing is None else f"lowest landing charge {landing:.1f} %"
+    share = 100.0 * r["on_station_shortfall_s"] / max(r["duration_s"], 1e-9)
+    return (f"watch, {r['uavs']} uavs: {r['vehicles_lost']} lost, {r['reliefs']} reliefs,"
+            f" {r['launches']} launches; {lowest}; {end}; short on station"
+            f" {r['on_station_shortfall_s']:.0f} s ({share:.1f} %); mean sigma by hour {hours}")

@@ -1,19 +1,22 @@
 """Each vehicle's energy: what its battery says, how fast it drains, and how long it can
 stay out before it must turn for the ship.
 
-The model is the remaining charge ``r`` (%) falling at a rate ``c`` (%/s) in flight. ``c``
-starts at the configured endurance's, ``c_0 = 100 / endurance_s``, with a standard
-deviation of 25 % of it, and is learnt from the vehicle's reports (``BatteryReport``)
-with a scalar Kalman filter: between an anchor reading ``(t_a, r_a)`` and a reading
-``(t, r)`` at least :data:`MIN_SPAN_S` later, both in flight,
+The model is the remaining charge ``r`` (%) falling at a rate ``c`` (%/s) in flight. The
+configured endurance gives the prior ``c_0 = 100 / endurance_s`` with a standard deviation
+``sd_0`` of 25 % of it. The vehicle's readings in flight (``BatteryReport``) over the last
+:data:`WINDOW_S` seconds give a least-squares slope ``m`` with the standard error
 
-    m = (r_a - r) / (t - t_a),   var(m) = 2 sigma_r^2 / (t - t_a)^2
+    se(m)^2 = sigma_r^2 / sum_i (t_i - t_mean)^2
 
-with ``sigma_r`` = :data:`READING_SIGMA_PCT` (ArduPilot reports whole percents: the
-quantisation's 0.29 % and the estimator's own noise); the rate's variance grows by
-``(RATE_DRIFT * c_0)^2`` per minute between updates (the drain changes with airspeed, wind
-and climbs). Between readings the charge is extrapolated, ``r(t) = r_a' - c (t - t_r)``
-from the last reading ``(t_r, r_a')``.
+(``sigma_r`` = :data:`READING_SIGMA_PCT`: ArduPilot reports whole percents, a quantisation
+of 0.29 %, and its estimator has noise of its own). The rate is the precision-weighted
+combination of the two,
+
+    1 / var(c) = 1 / sd_0^2 + 1 / se(m)^2,   c = var(c) (c_0 / sd_0^2 + m / se(m)^2),
+
+so a vehicle that reports nothing keeps the configured rate and its wide margin, and one
+that reports for ten minutes is known to about a percent. Between readings the charge is
+extrapolated from the last one, ``r(t) = r_last - c (t - t_last)``.
 
 Where a vehicle reports nothing useful (no remaining %, or garbage), its charge is
 *assumed*: full when first seen in flight, draining at ``c_0``; a vehicle whose reports stop
@@ -33,13 +36,15 @@ RETURN_MARGIN_S``.
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass
 
 __all__ = ["RETURN_MARGIN_S", "EnergyView", "VehicleEnergy"]
 
-MIN_SPAN_S = 20.0
+WINDOW_S = 600.0
+MIN_SPAN_S = 60.0
+"""A slope needs readings spanning at least this."""
 READING_SIGMA_PCT = 0.5
-RATE_DRIFT = 0.05
 PRIOR_SD_SHARE = 0.25
 RETURN_MARGIN_S = 60.0
 """Added to every return: the approach to the ship and a turn or two waiting for it."""
@@ -72,11 +77,11 @@ class VehicleEnergy:
     def __init__(self, endurance_s: float, reserve_pct: float) -> None:
         self.reserve_pct = reserve_pct
         self.c0_pct_s = 100.0 / endurance_s
+        self.prior_var = (PRIOR_SD_SHARE * self.c0_pct_s) ** 2
         self.rate_pct_s = self.c0_pct_s
-        self.rate_var = (PRIOR_SD_SHARE * self.c0_pct_s) ** 2
-        self._anchor: tuple[float, float] | None = None  # (t, r) in flight
+        self.rate_var = self.prior_var
+        self._window: deque[tuple[float, float]] = deque()  # readings in flight (t, r)
         self._last: tuple[float, float] | None = None  # the newest reading (t, r)
-        self._rate_t_s: float | None = None
         self.reported = False
         self.flying_since_s: float | None = None
 
@@ -90,12 +95,12 @@ class VehicleEnergy:
         return max(self.rate_pct_s + 2.0 * self.rate_sd_pct_s, 0.5 * self.c0_pct_s)
 
     def fresh(self, t_s: float, remaining_pct: float | None = None) -> None:
-        """A new battery (a spare on deck): forget the flight's anchor, keep what was
-        learnt of the rate."""
-        self._anchor = None
+        """A new battery (a spare on deck): forget the last flight's readings, keep the
+        rate learnt from them."""
+        self._window.clear()
         self.flying_since_s = None
         if remaining_pct is not None and _valid_pct(remaining_pct):
-            self._last = (t_s, remaining_pct)
+            self._last = (t_s, float(remaining_pct))
             self.reported = True
         else:
             self._last = None
@@ -105,12 +110,10 @@ class VehicleEnergy:
         """The vehicle is seen in flight (its first sighting starts the assumed drain)."""
         if self.flying_since_s is None:
             self.flying_since_s = t_s
-            if self._last is not None:
-                self._anchor = (t_s, self.remaining_pct(t_s))
 
     def landed(self) -> None:
         self.flying_since_s = None
-        self._anchor = None
+        self._window.clear()
 
     def report(self, t_s: float, remaining_pct: float | None) -> bool:
         """A battery reading; False when it says nothing useful (None, NaN, out of range)."""
@@ -120,28 +123,27 @@ class VehicleEnergy:
         self._last = (t_s, float(remaining_pct))
         if self.flying_since_s is None:
             return True
-        if self._anchor is None:
-            self._anchor = (t_s, float(remaining_pct))
-            return True
-        t_a, r_a = self._anchor
-        span = t_s - t_a
-        if span < MIN_SPAN_S:
-            return True
-        self._drift(t_s)
-        measured = (r_a - remaining_pct) / span
-        var_m = 2.0 * READING_SIGMA_PCT**2 / span**2
-        gain = self.rate_var / (self.rate_var + var_m)
-        self.rate_pct_s += gain * (measured - self.rate_pct_s)
-        self.rate_pct_s = max(self.rate_pct_s, 0.0)
-        self.rate_var *= 1.0 - gain
-        self._anchor = (t_s, float(remaining_pct))
+        self._window.append(self._last)
+        while self._window and self._window[0][0] < t_s - WINDOW_S:
+            self._window.popleft()
+        self._learn()
         return True
 
-    def _drift(self, t_s: float) -> None:
-        if self._rate_t_s is not None and t_s > self._rate_t_s:
-            minutes = (t_s - self._rate_t_s) / 60.0
-            self.rate_var += minutes * (RATE_DRIFT * self.c0_pct_s) ** 2
-        self._rate_t_s = t_s
+    def _learn(self) -> None:
+        """The prior and the window's slope, combined (module docstring)."""
+        n = len(self._window)
+        if n < 3 or self._window[-1][0] - self._window[0][0] < MIN_SPAN_S:
+            return
+        t_mean = sum(t for t, _ in self._window) / n
+        r_mean = sum(r for _, r in self._window) / n
+        sxx = sum((t - t_mean) ** 2 for t, _ in self._window)
+        sxy = sum((t - t_mean) * (r - r_mean) for t, r in self._window)
+        slope = -sxy / sxx
+        se2 = READING_SIGMA_PCT**2 / sxx
+        precision = 1.0 / self.prior_var + 1.0 / se2
+        self.rate_var = 1.0 / precision
+        self.rate_pct_s = max(0.0, self.rate_var * (self.c0_pct_s / self.prior_var
+                                                    + slope / se2))
 
     def remaining_pct(self, t_s: float) -> float:
         """The charge now: the last reading extrapolated in flight; assumed full when
@@ -153,8 +155,7 @@ class VehicleEnergy:
         else:
             return 100.0
         if self.flying_since_s is not None:
-            start = max(t_r, self.flying_since_s)
-            r -= self.rate_pct_s * max(0.0, t_s - start)
+            r -= self.rate_pct_s * max(0.0, t_s - max(t_r, self.flying_since_s))
         return max(0.0, r)
 
     def endurance_left_s(self, t_s: float) -> float:

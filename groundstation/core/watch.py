@@ -4,7 +4,8 @@ Once a mission second (``tick``), for the vehicles the core knows:
 
 1. **The ship** (``core/ship.py``) is predicted to now. A vehicle's *return* is its flight
    to the ship's predicted position when it would get there (``core/intercept.py`` with
-   the ship's velocity, in the planning wind); without a ship fix, to the origin.
+   the ship's velocity, in the planning wind); without a ship fix, to the origin (the
+   energy rules use it; no home is moved).
 2. **Homes**: every vehicle in the air (in the plan, sent home, or taken over: moving its
    home changes no mode, and it makes the pilot's or a failsafe's RTL go to the ship) gets a
    ``SetHome`` at its return's aim point when that moved more than ``home_update_m`` from
@@ -195,6 +196,8 @@ class WatchKeeper:
     def _homes(self, t_s: float, vehicles: list[VehicleRecord],
                returns: dict[str, tuple[float, float, float]]) -> list[Command]:
         out: list[Command] = []
+        if not self.ship.known:
+            return out  # no ship fix yet: the homes stay where the vehicles launched
         for record in vehicles:
             if record.id not in returns or (
                 record.status is FleetStatus.HOME and record.id in self.rtl_targets

@@ -142,7 +142,8 @@ def execute_run(task: RunTask) -> RunOutcome:
 
 def flatten_metrics(metrics: Mapping[str, Any]) -> dict[str, Any]:
     """Every scalar of ``metrics.json`` as a column (schema.metrics_columns):
-    lists become counts (``visits``, ``lost_targets``), ``solve_time_s`` becomes
+    lists become counts (``visits``, ``lost_targets``), ``hourly_mean_uncertainty`` its first
+    and last hours (``first_hour_uncertainty``, ``last_hour_uncertainty``), ``solve_time_s`` becomes
     ``solve_time_median_s`` / ``solve_time_max_s``, ``max_estimation_error_m`` ({target:
     m}) its maximum over the targets, other nested scalar mappings ``outer_inner``."""
     flat: dict[str, Any] = {}
@@ -154,6 +155,9 @@ def flatten_metrics(metrics: Mapping[str, Any]) -> dict[str, Any]:
             flat[key] = max(value.values()) if value else None
         elif key in ("visits", "lost_targets"):
             flat[key] = len(value)
+        elif key == "hourly_mean_uncertainty":
+            flat["first_hour_uncertainty"] = value[0] if value else None
+            flat["last_hour_uncertainty"] = value[-1] if value else None
         elif isinstance(value, Mapping):
             flat.update({f"{key}_{inner}": v for inner, v in value.items()})
         elif value is None and key in ARRIVAL_SUMMARIES:  # no arrival was counted

@@ -73,6 +73,17 @@ _METRICS: dict[str, str] = {
     "time_to_confirm_s_max": "float64",
     "false_tracks_per_hour": "float64",
     "id_switches": "int64",
+    # the ship watch (core/watch_metrics.py); null without a watch
+    "vehicles_lost": "int64",
+    "min_landing_battery_pct": "float64",
+    "rtl_end_distance_to_ship_m_median": "float64",
+    "rtl_end_distance_to_ship_m_max": "float64",
+    "rtl_end_distance_to_ship_m_count": "int64",
+    "on_station_shortfall_s": "float64",
+    "reliefs": "int64",
+    "launches": "int64",
+    "first_hour_uncertainty": "float64",
+    "last_hour_uncertainty": "float64",
 }
 
 ARRIVAL_SUMMARIES: dict[str, tuple[str, ...]] = {
