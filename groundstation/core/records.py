@@ -173,7 +173,7 @@ def command_to_record(command: Command) -> dict[str, Any]:
         return {"event": "set_home", "t": command.t_s, "vehicle": command.vehicle,
                 "x_m": command.x_m, "y_m": command.y_m}
     if isinstance(command, LaunchVehicle):
-        return {"event": "launch", "t": command.t_s, "vehicle": command.vehicle,
+        return {"event": "launch_order", "t": command.t_s, "vehicle": command.vehicle,
                 "reason": command.reason, "relieves": command.relieves}
     if isinstance(command, WindEstimate):
         speed, from_deg = wind_from_vector(command.wx_m_s, command.wy_m_s)

@@ -28,6 +28,13 @@ The tracker's notes: ``track_confirmed`` is an operator event, and so is a
 ``confirmed: true``, or does not say); ``track_born`` and the deletion of a never-confirmed
 tentative track (``confirmed: false``) are state updates, as clutter makes them frequent
 (``daemon/track_views.py``).
+
+The ship watch's (``core/watch.py``, docs/ship.md): a ``watch_alarm`` (no vehicle in the
+plan, fewer on station than planned, a vehicle that may not reach the ship), a
+``vehicle_down`` or ``vehicle_fell``, a ``home_set_failed`` and a silent ship feed are
+problems; ``watch_clear``, ``vehicle_recovered``, ``vehicle_spare``, ``launch_order`` and
+the feed's ``ship_feed_restored`` are operator events; the homes' ``set_home`` (every
+vehicle, each time the ship moved ``home_update_m``) and the battery inputs are state.
 """
 
 from __future__ import annotations
@@ -80,6 +87,11 @@ PROBLEM_EVENTS = frozenset(
         "wind_fallback",
         "airspeed_failed",
         "cruise_speed_refused",
+        "watch_alarm",
+        "vehicle_down",
+        "vehicle_fell",
+        "home_set_failed",
+        "ship_feed_silent",
     }
 )
 """Operator events that report something wrong: logged at WARNING."""
@@ -114,6 +126,11 @@ OPERATOR_EVENTS = PROBLEM_EVENTS | frozenset(
         "start",
         "stop",
         "track_confirmed",
+        "watch_clear",
+        "vehicle_recovered",
+        "vehicle_spare",
+        "launch_order",
+        "ship_feed_restored",
     }
 )
 """The events every operator view shows (plus the conditional ones of the module doc)."""

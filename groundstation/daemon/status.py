@@ -38,6 +38,7 @@ from groundstation.daemon.log_lines import (
     plan_detail,
 )
 from groundstation.daemon.track_views import count_line, track_counts, track_dicts
+from groundstation.daemon.watch_lines import ship_text, watch_rows
 from groundstation.daemon.wind_view import wind_label, wind_text
 from groundstation.mavlink.telemetry_events import VehicleSnapshot
 from groundstation.vehicle.state import LinkState
@@ -182,6 +183,30 @@ def _vehicles(daemon: Daemon) -> Table:
     return table
 
 
+def _watch(daemon: Daemon) -> list[RenderableType]:
+    """The ship watch (docs/ship.md): the ship, each vehicle's endurance and turn-home
+    time, the spares and the next relief; the alarms in red."""
+    view = daemon.core.view().watch
+    if view is None:
+        return []
+    t = daemon.clock.now_s()
+    out: list[RenderableType] = [Text(ship_text(view))]
+    spares = ", ".join(view.spares) or "none"
+    relief = ("" if view.next_relief is None else
+              f"; next return: {view.next_relief[0]} at t={view.next_relief[1]:.0f}")
+    out.append(Text(f"on station {view.on_station} of {view.planned_on_station}; "
+                    f"spares on deck: {spares}; reliefs {view.reliefs}{relief}"))
+    for alarm in view.alarms:
+        out.append(Text(f"WATCH: {alarm}", style="bold red"))
+    table = _table("vehicle", "charge %>", "drain %/min>", "min left>", "turn home",
+                   "reach ship")
+    for row in watch_rows(view, t):
+        table.add_row(*row[:5], Text(row[5], style="bold red" if row[5] == "NO" else ""))
+    if table.row_count:
+        out.append(table)
+    return out
+
+
 def _targets(daemon: Daemon) -> list[RenderableType]:
     """The tracker's counts, then the confirmed and prior targets (tentative: counted)."""
     t = daemon.clock.now_s()
@@ -216,7 +241,8 @@ def render_status(
     trouble = set(link_lines(stats, only_trouble=True))
     links = [Text(text, style="yellow" if text in trouble else "", no_wrap=True,
                   overflow="ellipsis") for text in link_lines(stats)]
-    return Group(*_header(daemon, alerts), _vehicles(daemon), *_targets(daemon), *links,
+    return Group(*_header(daemon, alerts), _vehicles(daemon), *_watch(daemon),
+                 *_targets(daemon), *links,
                  Text(""), *_recent(tally.recent))
 
 
