@@ -12,10 +12,11 @@ The ship's motion is a function of the simulator's time only: the ship does not 
 
 from __future__ import annotations
 
+from world.battery import BatteryModel
 from world.model import Boat
-from world.scenario import BoatSpec
+from world.scenario import BoatSpec, WatchSpec
 
-__all__ = ["SHIP_STEP_S", "ShipTrack"]
+__all__ = ["SHIP_STEP_S", "ShipTrack", "describe_watch"]
 
 SHIP_STEP_S = 0.1
 
@@ -45,3 +46,30 @@ class ShipTrack:
         """ENU ground velocity at ``t_s``."""
         self.advance(t_s)
         return self.boat.velocity_m_s
+
+
+def describe_watch(
+    battery: BatteryModel | None, ship: BoatSpec | None, watch: WatchSpec | None
+) -> list[str]:
+    """``gcs sitl``'s start lines for a watch: the ship, the recovery, the pack (none
+    without a watch)."""
+    if watch is None:
+        return []
+    lines = []
+    if ship is not None:
+        route = f", looping a route of {len(ship.route)} waypoints" if ship.route else ""
+        lines.append(
+            f"ship: from ({ship.x_m:g}, {ship.y_m:g}) m at {ship.speed_m_s:g} m/s{route}; "
+            "vehicles stand on its deck and take off from it"
+        )
+        lines.append(
+            f"recovery: RTL or LAND within {watch.recovery_radius_m:g} m of the ship; "
+            f"turnaround {watch.turnaround_s:g} s (fresh pack, reboot on deck)"
+        )
+    if battery is not None:
+        lines.append(
+            f"battery: endurance {battery.endurance_s:g} s at {battery.cruise_speed_m_s:g} m/s "
+            f"in still air ({battery.capacity_mah:g} mAh, {battery.cruise_current_a:.1f} A at "
+            "cruise); at 0 % the plane falls"
+        )
+    return lines
