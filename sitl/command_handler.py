@@ -20,8 +20,8 @@ COMMAND_ACK (UNSUPPORTED for unknown ones, FAILED/DENIED where ArduPlane refuses
   COMMAND_LONG: param5/6 degrees, param7 m AMSL); any other param1 FAILED; an altitude that
   is not finite or beyond LOCATION_ALT_MAX_M, or a frame other than the global ones,
   DENIED; a latitude or longitude out of range (AP_AHRS::set_home's check) or no position
-  yet FAILED. Accepted: home moves and is locked, mission item 0 follows, HOME_POSITION
-  goes to every link, then COMMAND_ACK ACCEPTED.
+  yet FAILED. Accepted: home moves and is locked, mission item 0 follows, COMMAND_ACK
+  ACCEPTED, then HOME_POSITION to every link (AP_AHRS::set_home queues MSG_HOME).
 """
 
 from __future__ import annotations
@@ -229,7 +229,7 @@ def _set_home(v: VehicleView, msg: Any, p: list[float], frame: int | None) -> li
         lat_deg, lon_deg = p[4], p[5]
     if p[0] == 1.0 or (lat_deg == 0.0 and lon_deg == 0.0):
         ok = v.home_from_current(lock=True)
-        return [*_drain(v), _ack(msg, cmd, M.MAV_RESULT_ACCEPTED if ok else M.MAV_RESULT_FAILED)]
+        return [_ack(msg, cmd, M.MAV_RESULT_ACCEPTED if ok else M.MAV_RESULT_FAILED), *_drain(v)]
     if p[0] != 0.0:
         return [_ack(msg, cmd, M.MAV_RESULT_FAILED)]
     if not math.isfinite(p[6]) or abs(p[6]) >= LOCATION_ALT_MAX_M:
@@ -241,11 +241,11 @@ def _set_home(v: VehicleView, msg: Any, p: list[float], frame: int | None) -> li
         amsl_m += v.home_amsl_m
     if not v.ready_flags["gps"] or not v.set_home(lat_deg, lon_deg, amsl_m, lock=True):
         return [_ack(msg, cmd, M.MAV_RESULT_FAILED)]
-    return [*_drain(v), _ack(msg, cmd, M.MAV_RESULT_ACCEPTED)]
+    return [_ack(msg, cmd, M.MAV_RESULT_ACCEPTED), *_drain(v)]
 
 
 def _drain(v: VehicleView) -> list[Any]:
-    """The vehicle's pending broadcasts (a new home's HOME_POSITION)."""
+    """The vehicle's pending broadcasts (a new home's HOME_POSITION), sent after the ack."""
     return v.take_pending()
 
 

@@ -7,6 +7,7 @@ last test, which goes through the simulator's real TCP socket with pymavlink."""
 from __future__ import annotations
 
 import math
+import time
 from typing import Any
 
 import pytest
@@ -424,3 +425,20 @@ def test_do_set_home_over_tcp_with_pymavlink(monkeypatch: pytest.MonkeyPatch) ->
             assert (home.longitude, home.altitude) == (round(lon * 1e7), 5000)
         finally:
             conn.close()
+
+
+def test_the_servers_journal_records_a_fall() -> None:
+    from sitl.faults import build_faults
+
+    cfgs = [config(system_id=1, airborne=True, params={"CRASH_DETECT": 1.0}),
+            config(system_id=2, airborne=True, params={"CRASH_DETECT": 1.0})]
+    faults = build_faults(["2:battery:at=1,pct=0"], [1, 2], 0)
+    server = SitlServer(cfgs, ServerOptions(speedup=100.0, base_port=0), faults)
+    with ServerThread(server):
+        end = time.monotonic() + 15.0
+        while time.monotonic() < end and not any(e.kind == "fell" for e in server.events):
+            time.sleep(0.05)
+    fell = [e for e in server.events if e.kind == "fell"]
+    assert [e.system_id for e in fell] == [2]
+    assert fell[0].text.startswith("vehicle 2 fell at t=") and "(battery empty)" in fell[0].text
+    assert [e.kind for e in server.events if e.system_id == 2] == ["motor_stopped", "fell"]
