@@ -19,10 +19,11 @@ BATT_CAPACITY``, ``voltage = empty_v + (full_v - empty_v) (1 - used/capacity)`` 
 10.2 V empty; BATT_LOW_VOLT 10.5 V at 12.5 %). Below BATT_LOW_VOLT: "Battery 1 is low ..."
 and the BATT_FS_LOW_ACT action (1 or 2: RTL).
 
-At 0 % the motor stops: the plane glides wings level (sinking ``V / 10``) to the ground
-("SIM Hit ground at X m/s"), ArduPlane's crash check says "Crash Detected" and disarms
-(CRASH_DETECT's disarm bit; see :meth:`SimVehicle._crash`), and it lies there, sending
-telemetry. :attr:`SimVehicle.events` records it (``fell``).
+At 0 % the motor stops ("Battery 1 is critical ..."): the plane glides wings level
+(sinking ``V / 10``) to the ground ("SIM Hit ground at X m/s"); with CRASH_DETECT set,
+ArduPlane's crash check says "Crash detected" and (disarm bit) disarms
+(:meth:`SimVehicle._crash`); it lies there, sending telemetry. :attr:`SimVehicle.events`
+records it (``motor_stopped``, ``fell``).
 
 The ship (``config.ship``, a watch's deck): on the ground on deck the vehicle's position is
 the ship's, every step, and its ground velocity the ship's; home is set where it gets its
@@ -517,16 +518,21 @@ class SimVehicle:
         )
 
     def _crash(self) -> list[Any]:
-        """The plane came down with a flat pack: ArduPlane's crash check (CRASH_DETECT with
-        its disarm bit, which a watch's vehicles have) says "Crash Detected" and disarms.
-        ArduPlane runs that check in AUTO only; here it runs after a battery-empty fall in
-        any mode (docs/sitl.md, "Battery")."""
-        self.crashed = True
+        """The plane came down with a flat pack. ArduPlane's crash check
+        (``crash_detection_update``): with CRASH_DETECT 0 (its default) nothing; otherwise
+        "Crash detected" (EMERGENCY), HEARTBEAT EMERGENCY unless a failsafe shows CRITICAL,
+        and with the disarm bit (a watch's vehicles have it) the plane disarms ("Throttle
+        disarmed"). ArduPlane runs the check in AUTO only; here it runs after a
+        battery-empty fall in any mode (docs/sitl.md, "Battery and the fall")."""
         af = self.airframe
         self._record("fell", f"vehicle {self.system_id} fell at t={self.t_s:.1f} s "
                              f"(battery empty) at x={af.x_m:.0f} m, y={af.y_m:.0f} m")
-        out = self.text.make("Crash Detected", M.MAV_SEVERITY_EMERGENCY)
-        if int(self.params.get("CRASH_DETECT")) & CRASH_DETECT_DISARM:
+        action = int(self.params.get("CRASH_DETECT"))
+        if action == 0:
+            return []
+        self.crashed = True
+        out = self.text.make("Crash detected", M.MAV_SEVERITY_EMERGENCY)
+        if action & CRASH_DETECT_DISARM:
             self.autopilot.armed = False
             out += self.text.make("Throttle disarmed")
         return out

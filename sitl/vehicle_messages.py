@@ -245,13 +245,16 @@ def _nav_controller(v: VehicleView) -> Any:
 
 def system_status(v: VehicleView) -> int:
     """HEARTBEAT ``system_status`` as ArduPlane's ``vehicle_system_status()``: CALIBRATING
-    while INITIALISING, CRITICAL while a failsafe is active, ACTIVE while flying, else
-    STANDBY (armed or not: a plane armed on the ground, or one that came down, is STANDBY).
-    ArduPlane's EMERGENCY (crash detected) needs CRASH_DETECT, 0 by default: never here."""
+    while INITIALISING, CRITICAL while a failsafe is active, EMERGENCY once a crash was
+    detected (needs CRASH_DETECT, 0 by default: only the fall at 0 % with it set), ACTIVE
+    while flying, else STANDBY (armed or not: a plane armed on the ground, or one that came
+    down, is STANDBY)."""
     if not v.ready_flags["init"]:
         return int(M.MAV_STATE_CALIBRATING)
     if v.failsafe_active:
         return int(M.MAV_STATE_CRITICAL)
+    if v.crashed:
+        return int(M.MAV_STATE_EMERGENCY)
     if not v.airframe.on_ground:
         return int(M.MAV_STATE_ACTIVE)
     return int(M.MAV_STATE_STANDBY)

@@ -92,6 +92,7 @@ class VehicleView(Protocol):
     home_lon_deg: float
     home_amsl_m: float
     battery_low_sent: bool
+    crashed: bool
     battery_used_mah: float
     t_s: float
     wind_estimate: EkfWindModel

@@ -148,8 +148,9 @@ def test_at_zero_percent_the_plane_falls(crash_detect: float) -> None:
     said = texts(sent)
     assert v.airframe.on_ground and v.airframe.alt_m == 0.0
     assert any(t.startswith("SIM Hit ground at") for t in said)
-    assert "Crash Detected" in said
-    assert v.autopilot.armed is (crash_detect == 0.0)  # ArduPlane's CRASH_DETECT disarm bit
+    # ArduPlane's crash check: nothing with CRASH_DETECT 0, else "Crash detected", disarm
+    assert ("Crash detected" in said) is (crash_detect == 1.0)
+    assert v.autopilot.armed is (crash_detect == 0.0)
     kinds = [e.kind for e in v.events]
     assert kinds == ["motor_stopped", "fell"]
     assert "fell at t=" in v.events[-1].text and "battery empty" in v.events[-1].text
