@@ -443,3 +443,31 @@ def test_the_servers_journal_records_a_fall() -> None:
     assert [e.system_id for e in fell] == [2]
     assert fell[0].text.startswith("vehicle 2 fell at t=") and "(battery empty)" in fell[0].text
     assert [e.kind for e in server.events if e.system_id == 2] == ["motor_stopped", "fell"]
+
+
+def test_gcs_sitl_ship_watch_says_what_it_simulates(capsys: pytest.CaptureFixture[str]) -> None:
+    from groundstation.commands import sitl as cmd
+
+    status = cmd.run(["--scenario", "ship-watch", "--base-port", "0", "--speedup", "50",
+                      "--duration", "5", "--fast-boot", "--detections", "none"])
+    out = capsys.readouterr().out
+    assert status == 0
+    assert "ship: from (1000, 1000) m at 10 m/s, looping a route of 4 waypoints" in out
+    assert "recovery: RTL or LAND within 150 m of the ship; turnaround 600 s" in out
+    assert "battery: endurance 3600 s at 22 m/s" in out
+    configs, _faults, _feed, _options = cmd.build(
+        cmd.parse_options(["--scenario", "ship-watch", "--base-port", "0"]))
+    assert len(configs) == 5 and all(c.ship is not None and c.watch for c in configs)
+
+
+def test_the_daemons_sim_vehicles_get_the_watch_from_the_scenario() -> None:
+    from groundstation.commands.embedded_sim import build_embedded_sim
+    from groundstation.daemon.config_parse import parse_config
+
+    scenario = load_scenario("ship-watch")
+    sim = build_embedded_sim(parse_config({"vehicles": ["sim:5"]}, {}), scenario)
+    for slot in sim.server.slots:
+        c = slot.config
+        assert c.ship == scenario.boat and c.watch == scenario.watch
+        assert c.battery is not None and c.battery.endurance_s == 3600.0
+        assert c.params["CRASH_DETECT"] == 1.0
