@@ -467,8 +467,8 @@ class SimVehicle:
         if self.on_deck and af.on_ground:
             self._place_on_deck(self.t_s - dt_s)
         guidance, alt_cmd = ap.guidance(af)
-        if self.motor_stopped and guidance.kind != "ground":
-            guidance = Guidance("glide")  # no thrust: wings level, sinking V / 10
+        if self.motor_stopped:  # no thrust: wings level, sinking V / 10; no take-off
+            guidance = Guidance("ground" if af.on_ground else "glide")
         was_on_ground = af.on_ground
         alt0_m = af.alt_m
         wind = self.wind.at(self.t_s - dt_s, self.params)
