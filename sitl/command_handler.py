@@ -145,7 +145,9 @@ def _arm(v: VehicleView, msg: Any, p: list[float]) -> list[Any]:
                 _ack(msg, cmd, M.MAV_RESULT_FAILED),
             ]
         ap.armed = True
-        return [*v.text.make("Throttle armed"), _ack(msg, cmd, M.MAV_RESULT_ACCEPTED)]
+        v.home_on_arming()
+        return [*v.text.make("Throttle armed"), _ack(msg, cmd, M.MAV_RESULT_ACCEPTED),
+                *_drain(v)]
     if p[0] == 0.0:
         if not v.airframe.on_ground and _int(p[1]) != FORCE_DISARM:
             return [_ack(msg, cmd, M.MAV_RESULT_FAILED)]

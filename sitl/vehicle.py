@@ -28,7 +28,8 @@ records it (``motor_stopped``, ``fell``).
 The ship (``config.ship``, a watch's deck): on the ground on deck the vehicle's position is
 the ship's, every step, and its ground velocity the ship's; home is set where it gets its
 fix (the EKF's ready, ``ekf_s``) and, while disarmed and unlocked, follows it every 5 s
-(ArduPlane's ``update_home`` in ``one_second_loop``). DO_SET_HOME locks home.
+(ArduPlane's ``update_home`` in ``one_second_loop``) and at arming (``AP_Arming_Plane::arm``).
+DO_SET_HOME locks home.
 Recovery (``config.watch``): armed, flying, in RTL or on a NAV_LAND item, within
 ``recovery_radius_m`` of the ship: on deck, disarmed ("SIM Recovered on deck"); after
 ``turnaround_s`` it reboots with a fresh pack (new boot, on deck, home at its fix).
@@ -400,6 +401,12 @@ class SimVehicle:
             return False
         lat, lon, _ = self.position_geodetic()
         return self.set_home(lat, lon, self.config.home_amsl_m, lock=lock)
+
+    def home_on_arming(self) -> None:
+        """AP_Arming_Plane::arm calls update_home: an unlocked home moves to the plane (on
+        a ship's deck; elsewhere the simulator keeps its home, as before)."""
+        if self.ship is not None and self.home_set and not self.home_locked:
+            self.home_from_current()
 
     # ------------------------------------------------------------------ ship
     def _near_ship(self, af: Airframe, radius_m: float) -> bool:

@@ -180,15 +180,19 @@ def test_the_deck_moves_with_the_ship_and_home_follows_until_armed() -> None:
     assert 240.0 <= lx <= 300.0
     # a take-off starts from the deck
     v.store.write(1, StoredItem(M.MAV_CMD_NAV_TAKEOFF, M.MAV_FRAME_GLOBAL_RELATIVE_ALT, z=50.0))
-    assert ack(lb.send(cmd_long(M.MAV_CMD_COMPONENT_ARM_DISARM, 1)), 400) == 0
+    out = lb.send(cmd_long(M.MAV_CMD_COMPONENT_ARM_DISARM, 1))
+    assert ack(out, 400) == 0
+    # AP_Arming_Plane::arm updates an unlocked home: the deck now
+    armed_home = [m for m in out if m.get_type() == "HOME_POSITION"]
+    assert len(armed_home) == 1 and v.home_xy_m[0] == pytest.approx(v.airframe.x_m, abs=0.01)
     lb.send(cmd_long(M.MAV_CMD_DO_SET_MODE, 1, 10))
     x0 = v.airframe.x_m
     lb.advance(3.0)
     assert not v.on_deck and not v.airframe.on_ground
     assert abs(v.airframe.x_m - x0) < 60.0 and v.airframe.alt_m > 0.0
-    lb.inbox.clear()
+    home_at_arming = v.home_xy_m
     lb.advance(10.0)
-    assert not lb.take("HOME_POSITION") or v.home_xy_m[0] <= 330.0  # armed: home stays
+    assert v.home_xy_m == home_at_arming  # armed: home no longer follows the ship
 
 
 def test_setup_of_the_ship_watch_scenario() -> None:
