@@ -33,6 +33,7 @@ Facts reproduced (design.md, "MAVLink facts"; ArduPlane's commands_logic.cpp):
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -104,8 +105,10 @@ class Autopilot:
         home_xy_m: tuple[float, float],
         home_amsl_m: float,
         cruise_speed_m_s: float,
+        rally_points: Callable[[], list[StoredItem]] | None = None,
     ) -> None:
         self.store = store
+        self.rally_points = rally_points or list
         self.params = params
         self.text = text
         self.origin = origin
@@ -185,12 +188,42 @@ class Autopilot:
         return out
 
     def _start_rtl(self, af: Airframe) -> list[Any]:
+        """ArduPlane's do_RTL at RTL entry: the target (the best rally point or home) is
+        computed once, here; a home moved later takes effect at the next RTL entry."""
         alt_cm = self.params.get("ALT_HOLD_RTL")
         alt_m = af.alt_m if alt_cm < 0 else alt_cm / 100.0
         rtl_radius = self.params.get("RTL_RADIUS")
         radius, cw = self._loiter_radius(rtl_radius)
-        self.nav = NavTarget("hold", 0, *self.home_xy_m, alt_m, radius, cw)
+        x_m, y_m = self.home_xy_m
+        rally = self.best_rally_point(af)
+        if rally is not None:
+            x_m, y_m, alt_m = rally
+        self.nav = NavTarget("hold", 0, x_m, y_m, alt_m, radius, cw)
         return []
+
+    def best_rally_point(self, af: Airframe) -> tuple[float, float, float] | None:
+        """AP_Rally::calc_best_rally_or_home_location: the nearest rally point, unless
+        RALLY_LIMIT_KM > 0 and it is farther than that (then home); with RALLY_INCL_HOME 1
+        only if it is nearer than home. None: home. (x_m, y_m, alt_m above home)."""
+        best: tuple[float, float, float] | None = None
+        best_m = math.inf
+        for item in self.rally_points():
+            if item.x == 0 and item.y == 0:
+                continue  # AP_Rally's sanity check: (0, 0) is no rally point
+            x_m, y_m, _ = self.origin.to_local(item.lat_deg, item.lon_deg)
+            dist_m = af.distance_to_m(x_m, y_m)
+            if dist_m < best_m:
+                alt_m = item.z - self.home_amsl_m if item.frame in (
+                    M.MAV_FRAME_GLOBAL, M.MAV_FRAME_GLOBAL_INT) else item.z
+                best, best_m = (x_m, y_m, alt_m), dist_m
+        if best is None:
+            return None
+        limit_km = self.params.get("RALLY_LIMIT_KM")
+        if limit_km > 0 and best_m > 1000.0 * limit_km:
+            return None
+        if int(self.params.get("RALLY_INCL_HOME")) and best_m >= af.distance_to_m(*self.home_xy_m):
+            return None
+        return best
 
     def set_guided_target(
         self, x_m: float, y_m: float, alt_m: float, radius_signed_m: float

@@ -14,6 +14,14 @@ COMMAND_ACK (UNSUPPORTED for unknown ones, FAILED/DENIED where ArduPlane refuses
   PREFLIGHT_REBOOT_SHUTDOWN; DO_REPOSITION only as COMMAND_INT: ACCEPTED if param2 has
   MAV_DO_REPOSITION_FLAGS_CHANGE_MODE or the vehicle already is in GUIDED, else FAILED;
   |lat| > 90 or |lon| > 180 -> DENIED.
+* DO_SET_HOME (GCS_MAVLINK::handle_command_do_set_home; COMMAND_LONG is handled as the
+  COMMAND_INT it converts to): param1 = 1, or latitude and longitude both 0, -> home = the
+  current location; param1 = 0 -> the given point (COMMAND_INT: x/y degE7, z in ``frame``;
+  COMMAND_LONG: param5/6 degrees, param7 m AMSL); any other param1 FAILED; an altitude that
+  is not finite or beyond LOCATION_ALT_MAX_M, or a frame other than the global ones,
+  DENIED; a latitude or longitude out of range (AP_AHRS::set_home's check) or no position
+  yet FAILED. Accepted: home moves and is locked, mission item 0 follows, COMMAND_ACK
+  ACCEPTED, then HOME_POSITION to every link (AP_AHRS::set_home queues MSG_HOME).
 """
 
 from __future__ import annotations
@@ -23,6 +31,7 @@ from typing import Any
 
 from groundstation.mavlink.codec import mavlink2
 from sitl.autopilot import AUTO, GUIDED, INITIALISING, LOITER, MODE_NAMES, RTL
+from sitl.mission_store import LOCATION_ALT_MAX_M
 from sitl.telemetry import STREAMABLE
 from sitl.vehicle_messages import autopilot_version, build_message
 from sitl.vehicle_state import VehicleView
@@ -136,7 +145,9 @@ def _arm(v: VehicleView, msg: Any, p: list[float]) -> list[Any]:
                 _ack(msg, cmd, M.MAV_RESULT_FAILED),
             ]
         ap.armed = True
-        return [*v.text.make("Throttle armed"), _ack(msg, cmd, M.MAV_RESULT_ACCEPTED)]
+        v.home_on_arming()
+        return [*v.text.make("Throttle armed"), _ack(msg, cmd, M.MAV_RESULT_ACCEPTED),
+                *_drain(v)]
     if p[0] == 0.0:
         if not v.airframe.on_ground and _int(p[1]) != FORCE_DISARM:
             return [_ack(msg, cmd, M.MAV_RESULT_FAILED)]
@@ -200,6 +211,46 @@ def _reposition(v: VehicleView, msg: Any, p: list[float], frame: int | None) -> 
     return [*out, _ack(msg, cmd, M.MAV_RESULT_ACCEPTED)]
 
 
+_HOME_FRAMES = frozenset(
+    {
+        M.MAV_FRAME_GLOBAL,
+        M.MAV_FRAME_GLOBAL_INT,
+        M.MAV_FRAME_GLOBAL_RELATIVE_ALT,
+        M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+    }
+)
+
+
+def _set_home(v: VehicleView, msg: Any, p: list[float], frame: int | None) -> list[Any]:
+    """MAV_CMD_DO_SET_HOME (module docstring)."""
+    cmd = M.MAV_CMD_DO_SET_HOME
+    is_int = frame is not None
+    if is_int:
+        lat_deg, lon_deg = p[4] * 1e-7, p[5] * 1e-7
+    else:
+        lat_deg, lon_deg = p[4], p[5]
+    if p[0] == 1.0 or (lat_deg == 0.0 and lon_deg == 0.0):
+        ok = v.home_from_current(lock=True)
+        return [_ack(msg, cmd, M.MAV_RESULT_ACCEPTED if ok else M.MAV_RESULT_FAILED), *_drain(v)]
+    if p[0] != 0.0:
+        return [_ack(msg, cmd, M.MAV_RESULT_FAILED)]
+    if not math.isfinite(p[6]) or abs(p[6]) >= LOCATION_ALT_MAX_M:
+        return [_ack(msg, cmd, M.MAV_RESULT_DENIED)]
+    if is_int and frame not in _HOME_FRAMES:
+        return [_ack(msg, cmd, M.MAV_RESULT_DENIED)]
+    amsl_m = p[6]
+    if frame in (M.MAV_FRAME_GLOBAL_RELATIVE_ALT, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT):
+        amsl_m += v.home_amsl_m
+    if not v.ready_flags["gps"] or not v.set_home(lat_deg, lon_deg, amsl_m, lock=True):
+        return [_ack(msg, cmd, M.MAV_RESULT_FAILED)]
+    return [_ack(msg, cmd, M.MAV_RESULT_ACCEPTED), *_drain(v)]
+
+
+def _drain(v: VehicleView) -> list[Any]:
+    """The vehicle's pending broadcasts (a new home's HOME_POSITION), sent after the ack."""
+    return v.take_pending()
+
+
 def _command(
     v: VehicleView, msg: Any, cmd: int, p: list[float], frame: int | None, t_s: float
 ) -> list[Any]:
@@ -256,6 +307,8 @@ def _command(
         return [_ack(msg, cmd, M.MAV_RESULT_ACCEPTED), answer]
     if cmd == M.MAV_CMD_DO_REPOSITION:
         return _reposition(v, msg, p, frame)
+    if cmd == M.MAV_CMD_DO_SET_HOME:
+        return _set_home(v, msg, p, frame)
     if cmd == M.MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN:
         if p[0] != 1.0 or ap.armed:
             return [_ack(msg, cmd, M.MAV_RESULT_FAILED)]

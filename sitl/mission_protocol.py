@@ -53,7 +53,9 @@ class MissionEvents:
 class MissionServer:
     """Answers mission-protocol messages for one vehicle; owns no clock (``t_s`` is passed)."""
 
-    def __init__(self, store: MissionStore, text: StatusTextFactory) -> None:
+    def __init__(
+        self, store: MissionStore, text: StatusTextFactory, geo: GeoItemsServer | None = None
+    ) -> None:
         self.store = store
         self._text = text
         self.receiving = False
@@ -64,7 +66,9 @@ class MissionServer:
         self._last_receive_t = 0.0
         self._request_warning_sent = False
         self._item_warning_sent = False
-        self.geo = GeoItemsServer(rerequest_s=REREQUEST_S, upload_timeout_s=UPLOAD_TIMEOUT_S)
+        self.geo = geo or GeoItemsServer(rerequest_s=REREQUEST_S, upload_timeout_s=UPLOAD_TIMEOUT_S)
+        """The fence and rally stores (the vehicle's own, so they survive a reboot, as
+        ArduPilot keeps them in EEPROM)."""
 
     def _ack(self, peer: tuple[int, int], result: int, mission_type: int = 0) -> Any:
         return M.MAVLink_mission_ack_message(peer[0], peer[1], result, mission_type)

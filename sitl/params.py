@@ -83,6 +83,12 @@ def default_param_specs(system_id: int, cruise_speed_m_s: float) -> list[ParamSp
         ParamSpec("SIM_WIND_SPD", 0, _REAL32, 0, MAX_WIND_M_S),
         ParamSpec("SIM_WIND_DIR", 180, _REAL32, -360, 720),
         ParamSpec("SIM_WIND_TURB", 0, _REAL32, 0, MAX_WIND_M_S),
+        # ArduPlane's crash check (is_flying.cpp): bit 0 disarms; off by default
+        ParamSpec("CRASH_DETECT", 0, _INT8, 0, 1),
+        # AP_Rally, ArduPlane's defaults: points loaded, 5 km limit, home not a rally point
+        ParamSpec("RALLY_TOTAL", 0, _INT8, 0, 100),
+        ParamSpec("RALLY_LIMIT_KM", 5.0, _REAL32, 0, 1000),
+        ParamSpec("RALLY_INCL_HOME", 0, _INT8, 0, 1),
         ParamSpec("Q_ENABLE", 0, _INT8, 0, 2),
         ParamSpec("FLTMODE_CH", 8, _INT8, 1, 16),
         ParamSpec("FLTMODE1", ArduPlaneMode.AUTO, _INT8, 0, 25),

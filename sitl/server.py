@@ -27,12 +27,17 @@
 * An optional feed (:class:`sitl.detections.DetectionSource`-like: ``step(t_s, positions)``
   returning datagrams) is given each vehicle's local position and its datagrams are sent
   to ``feed_address``.
+* The simulator's journal: what the vehicles record (:class:`sitl.vehicle.SimEvent`: a
+  battery run flat, a fall, a recovery on deck, a turnaround) is collected in
+  :attr:`SitlServer.events` and logged on the ``sitl.events`` logger (printed on stdout as
+  ``sitl: ...`` when logging is not configured, as under ``gcs sitl``).
 """
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
+import logging
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -40,12 +45,14 @@ from typing import Any, Protocol
 
 from groundstation.mavlink.codec import MavlinkDecoder, MavlinkEncoder
 from sitl.faults import VehicleFaults
+from sitl.ship import describe_watch
 from sitl.signing_endpoint import VehicleSigning
-from sitl.vehicle import SimVehicle, VehicleConfig
+from sitl.vehicle import SimEvent, SimVehicle, VehicleConfig
 
 __all__ = ["Feed", "ServerOptions", "SitlServer"]
 
 _MAX_CLIENT_BUFFER = 1 << 20
+_EVENTS = logging.getLogger("sitl.events")
 
 
 class Feed(Protocol):
@@ -84,6 +91,7 @@ class _Slot:
     server: asyncio.Server | None = None
     port: int = 0
     clients: set[asyncio.StreamWriter] = field(default_factory=set)
+    events_seen: int = 0
 
 
 class _Udp(asyncio.DatagramProtocol):
@@ -135,6 +143,8 @@ class SitlServer:
         self.messages_in = 0
         self.bad_frames = 0
         self.udp_port: int | None = None
+        self.events: list[SimEvent] = []
+        """Every vehicle's recorded events, in the order the simulator saw them."""
 
     # ----------------------------------------------------------------- setup
     @property
@@ -192,6 +202,9 @@ class SitlServer:
         if self._feed_udp is not None and self.options.feed_address is not None:
             addr = self.options.feed_address
             lines.append(f"detection feed -> udp:{addr[0]}:{addr[1]}")
+        if self.slots:
+            c = self.slots[0].config
+            lines += describe_watch(c.battery, c.ship, c.watch)
         lines.append(
             f"speed-up {self.options.speedup:g}x"
             + (", vehicles boot when a TCP client connects" if self.options.wait_for_client else "")
@@ -330,6 +343,7 @@ class SitlServer:
                 continue
             self._service(slot)
             self._downlink(slot, slot.vehicle.step(self.t_s))
+            self._journal(slot)
             if not slot.vehicle.alive:
                 for writer in list(slot.clients):
                     writer.close()
@@ -343,6 +357,19 @@ class SitlServer:
             for datagram in self.feed.step(self.t_s, positions):
                 if self._feed_udp is not None:
                     self._feed_udp.sendto(datagram)
+
+    def _journal(self, slot: _Slot) -> None:
+        """Collect and log what the vehicle recorded since the last tick."""
+        vehicle = slot.vehicle
+        if vehicle is None or len(vehicle.events) == slot.events_seen:
+            return
+        for event in vehicle.events[slot.events_seen:]:
+            self.events.append(event)
+            if _EVENTS.hasHandlers():
+                _EVENTS.info("%s", event.text)
+            else:
+                print(f"sitl: {event.text}", flush=True)
+        slot.events_seen = len(vehicle.events)
 
     async def run(self, duration_s: float | None = None) -> None:
         """Tick until :meth:`stop` or ``duration_s`` simulated seconds."""

@@ -12,6 +12,13 @@ vehicles start at home with headings spread over the circle, calm air. The vehic
 ``WindField(wind, seed)`` (:mod:`sitl.sim_wind`): the scenario's wind unless the caller
 gives another (``--wind``), and the seed the detection feed draws the icebergs with. The feed
 sends frame lines unless the scenario's camera is the paper's (``CameraSpec.classic``).
+
+A watch (``watch:`` in the scenario): every vehicle's pack is
+``BatteryModel(endurance_s=watch.endurance_s, cruise_speed_m_s=fleet.speed_m_s)``; with a
+boat and the fleet launched from it (``fleet.launch: boat``, no launch point), the
+vehicles stand on the ship's deck (:mod:`sitl.ship`) and are recovered and turned around
+as the watch says; their CRASH_DETECT is 1 (a crash disarms). Without a watch, none of this
+(the default pack: 15 A at cruise, 2400 s).
 """
 
 from __future__ import annotations
@@ -24,7 +31,10 @@ from typing import Any
 from domain.geodesy import GeoOrigin
 from sitl.detections import DetectionSource
 from sitl.faults import fault_spec
+from sitl.ship import describe_watch
 from sitl.vehicle import VehicleConfig
+from world.battery import BatteryModel
+from world.scenario import BoatSpec, WatchSpec
 from world.wind import WindSpec
 
 __all__ = ["SitlSetup", "scenario_setup"]
@@ -43,6 +53,15 @@ class SitlSetup:
     feed_factory: Callable[[int, bool], DetectionSource | None] | None = None
     skipped_events: list[str] = field(default_factory=list)
     wind: WindSpec = field(default_factory=WindSpec)
+    battery: BatteryModel | None = None
+    """The pack (a watch's endurance; None: the default)."""
+    ship: BoatSpec | None = None
+    """The ship the vehicles stand on (a watch launched from the boat; None: the ground)."""
+    watch: WatchSpec | None = None
+
+    def describe(self) -> list[str]:
+        """What the watch makes the simulator do, one line each (none without a watch)."""
+        return describe_watch(self.battery, self.ship, self.watch)
 
     def make_feed(self, seed: int, anonymous: bool) -> DetectionSource | None:
         """The detection feed (None without a scenario)."""
@@ -71,6 +90,10 @@ class SitlSetup:
             unix_time_at_zero_s=unix_time_at_zero_s,
             wind=self.wind if wind is None else wind,
             wind_seed=wind_seed,
+            battery=self.battery,
+            ship=self.ship,
+            watch=self.watch if self.ship is not None else None,
+            params={"CRASH_DETECT": 1.0} if self.watch is not None else {},
         )
 
 
@@ -127,6 +150,14 @@ def scenario_setup(
     specs += [str(spec) for spec in getattr(scenario, "faults", ()) or ()]
 
     frames = not scenario.camera.classic  # the paper's camera: no frame lines, as before
+    watch: WatchSpec | None = getattr(scenario, "watch", None)
+    battery = ship = None
+    if watch is not None:
+        battery = BatteryModel(endurance_s=float(watch.endurance_s),
+                               cruise_speed_m_s=float(scenario.fleet.speed_m_s))
+        from_boat = scenario.fleet.launch_x_m is None or scenario.fleet.launch_y_m is None
+        if scenario.boat is not None and from_boat:
+            ship = scenario.boat
 
     def factory(seed: int, anonymous: bool) -> DetectionSource:
         return DetectionSource.for_scenario(scenario, seed, origin, anonymous, frames=frames)
@@ -141,4 +172,7 @@ def scenario_setup(
         factory,
         skipped,
         scenario.wind,
+        battery,
+        ship,
+        watch,
     )

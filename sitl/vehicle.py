@@ -8,10 +8,31 @@ set. ``fast_boot`` shortens the three to 0.5, 1 and 2 s. ``airborne`` starts fly
 ``airborne_alt_m``, armed, in AUTO on item 1 of the mission [home, NAV_LOITER_UNLIM over
 home], like a UAV launched before the ground station took over.
 
-Battery: a 3S pack; consumption ``I`` = 15 A flying, 0.5 A on the ground;
-``remaining = 1 - used_mAh / BATT_CAPACITY``; ``voltage = 10.2 + 2.4 remaining`` V (12.6 V
-full, BATT_LOW_VOLT 10.5 V at 12.5 %). Below BATT_LOW_VOLT: "Battery 1 is low ..." and the
-BATT_FS_LOW_ACT action (1 or 2: RTL).
+Battery: the pack is a ``world.battery.Battery`` drained every physics step with the
+airspeed flown, the wind's speed where the plane flies, its climb rate and whether the motor
+runs (``I = I_c (0.6 (v/v_c)^3 + 0.4 v_c/v) + m g max(0, climb) / (eta U)``, times
+``1 + 0.01 w`` in a wind of ``w`` m/s; the idle current on the ground or gliding with the
+throttle closed; world/battery.py). ``I_c = 3.6 capacity_mAh / endurance_s``: the watch's
+``endurance_s``, else ``DEFAULT_ENDURANCE_S`` (2400 s: 15 A at cruise, as before).
+Reported as ArduPlane's analog monitor reports it: ``remaining = 1 - used_mAh /
+BATT_CAPACITY``, ``voltage = empty_v + (full_v - empty_v) (1 - used/capacity)`` (12.6 V full,
+10.2 V empty; BATT_LOW_VOLT 10.5 V at 12.5 %). Below BATT_LOW_VOLT: "Battery 1 is low ..."
+and the BATT_FS_LOW_ACT action (1 or 2: RTL).
+
+At 0 % the motor stops ("Battery 1 is critical ..."): the plane glides wings level
+(sinking ``V / 10``) to the ground ("SIM Hit ground at X m/s"); with CRASH_DETECT set,
+ArduPlane's crash check says "Crash detected" and (disarm bit) disarms
+(:meth:`SimVehicle._crash`); it lies there, sending telemetry. :attr:`SimVehicle.events`
+records it (``motor_stopped``, ``fell``).
+
+The ship (``config.ship``, a watch's deck): on the ground on deck the vehicle's position is
+the ship's, every step, and its ground velocity the ship's; home is set where it gets its
+fix (the EKF's ready, ``ekf_s``) and, while disarmed and unlocked, follows it every 5 s
+(ArduPlane's ``update_home`` in ``one_second_loop``) and at arming (``AP_Arming_Plane::arm``).
+DO_SET_HOME locks home.
+Recovery (``config.watch``): armed, flying, in RTL or on a NAV_LAND item, within
+``recovery_radius_m`` of the ship: on deck, disarmed ("SIM Recovered on deck"); after
+``turnaround_s`` it reboots with a fresh pack (new boot, on deck, home at its fix).
 
 Kill/restart (:meth:`SimVehicle.kill`): the autopilot process is dead for a while (sends
 and hears nothing), then powers up on the ground where the aircraft came down: disarmed,
@@ -29,20 +50,23 @@ from typing import Any
 from domain.geodesy import compass_deg_from_enu_rad
 from groundstation.mavlink.codec import mavlink2
 from sitl import command_handler
-from sitl.airframe import Airframe
+from sitl.airframe import Airframe, Guidance
 from sitl.autopilot import AUTO, GUIDED, INITIALISING, LOITER, MANUAL, MODE_NAMES, RTL, Autopilot
 from sitl.faults import FaultEvent
-from sitl.mission_protocol import MissionEvents, MissionServer
+from sitl.geo_items import GeoItemsServer
+from sitl.mission_protocol import REREQUEST_S, UPLOAD_TIMEOUT_S, MissionEvents, MissionServer
 from sitl.mission_store import MAX_MISSION_ITEMS, MissionStore, StoredItem
 from sitl.params import ParamStore, default_param_specs
+from sitl.ship import ShipTrack
 from sitl.sim_airspeed import AirspeedSensor
 from sitl.sim_wind import EkfWindModel, FlownWind, wind_param_values
 from sitl.statustext import StatusTextFactory
 from sitl.telemetry import StreamScheduler
 from sitl.vehicle_messages import build_message
 from sitl.vehicle_state import VehicleConfig
+from world.battery import Battery
 
-__all__ = ["ReceivedCommand", "SimVehicle", "VehicleConfig"]
+__all__ = ["ReceivedCommand", "SimEvent", "SimVehicle", "VehicleConfig"]
 
 M = mavlink2
 PHYSICS_DT_S = 0.1
@@ -72,6 +96,23 @@ COMMAND_MESSAGES = frozenset(
     }
 )
 RECEIVED_LOG_SIZE = 10_000
+HOME_UPDATE_S = 5.0
+"""ArduPlane moves an unlocked home to the disarmed plane's position every 5 s at most."""
+CRASH_DETECT_DISARM = 1
+"""CRASH_DETECT's action bit: disarm on a detected crash."""
+
+
+@dataclass(frozen=True)
+class SimEvent:
+    """Something the simulator records about a vehicle (its journal: the server logs it):
+    ``kind`` is ``motor_stopped`` (battery empty), ``fell`` (came down after that),
+    ``recovered`` (on deck), ``turnaround`` (rebooted with a fresh pack); ``t_s`` the
+    simulator's time."""
+
+    t_s: float
+    system_id: int
+    kind: str
+    text: str
 
 
 @dataclass(frozen=True)
@@ -101,10 +142,25 @@ class SimVehicle:
         self.wind = FlownWind(config.wind, config.wind_seed)  # the air does not reboot
         self.airspeed_sensor = AirspeedSensor()  # a faulty pitot stays faulty at a reboot
         self.text = StatusTextFactory()
+        self.home_lat_deg = config.home_lat_deg
+        self.home_lon_deg = config.home_lon_deg
+        self.home_amsl_m = config.home_amsl_m
+        self.home_locked = False
         hx, hy, _ = config.origin.to_local(config.home_lat_deg, config.home_lon_deg)
         self.home_xy_m = (hx, hy)
         self.store = MissionStore(self._home_item())
-        self.battery_used_mah = 0.0
+        model = config.battery_model()
+        self.battery = Battery(model)  # the pack is hardware: it survives reboots
+        self.battery_energy_wh = 0.0
+        """Energy drawn from the pack (``sum U I dt``; BATTERY_STATUS energy_consumed)."""
+        if "BATT_CAPACITY" not in config.params:
+            self.params.set("BATT_CAPACITY", model.capacity_mah)
+        # rally points and the fence are stored in EEPROM: they survive reboots
+        self.geo = GeoItemsServer(rerequest_s=REREQUEST_S, upload_timeout_s=UPLOAD_TIMEOUT_S)
+        self.ship = ShipTrack(config.ship, t_s) if config.ship is not None else None
+        self.events: list[SimEvent] = []
+        self.crashed = False
+        self._turnaround_at_s: float | None = None
         self.reboots = 0
         self.kills = 0
         self.received: deque[ReceivedCommand] = deque(maxlen=RECEIVED_LOG_SIZE)
@@ -119,20 +175,20 @@ class SimVehicle:
 
     # ------------------------------------------------------------------ boot
     def _home_item(self) -> StoredItem:
-        c = self.config
         return StoredItem(
             M.MAV_CMD_NAV_WAYPOINT,
             M.MAV_FRAME_GLOBAL,
-            x=round(c.home_lat_deg * 1e7),
-            y=round(c.home_lon_deg * 1e7),
-            z=c.home_amsl_m,
+            x=round(self.home_lat_deg * 1e7),
+            y=round(self.home_lon_deg * 1e7),
+            z=self.home_amsl_m,
         )
 
     def _boot(self, t_s: float, airborne: bool | None = None) -> None:
         c = self.config
         self.t_boot_s = t_s
         self.t_s = t_s
-        self.mission = MissionServer(self.store, self.text)
+        self.geo.reset()
+        self.mission = MissionServer(self.store, self.text, self.geo)
         # de-phase the vehicles' 1 Hz streams (like independent autopilots) so that N
         # vehicles do not all burst in the same tick
         self.streams = StreamScheduler(t_s + (c.system_id * 0.137) % 1.0)
@@ -144,10 +200,18 @@ class SimVehicle:
             self.home_xy_m,
             c.home_amsl_m,
             c.cruise_speed_m_s,
+            rally_points=lambda: self.geo.stores[M.MAV_MISSION_TYPE_RALLY],
         )
         x0 = c.launch_x_m if c.launch_x_m is not None else self.home_xy_m[0]
         y0 = c.launch_y_m if c.launch_y_m is not None else self.home_xy_m[1]
         self.airframe = Airframe(x0, y0, c.launch_heading_rad, 0.0, 0.0, c.min_turn_radius_m)
+        self.on_deck = self.ship is not None
+        self.motor_stopped = False
+        self.crashed = False
+        self._next_home_update_s = t_s
+        if self.ship is not None:
+            self.home_locked = False  # a lock is RAM state: a reboot forgets it
+            self._place_on_deck(t_s)
         self.wind_estimate = EkfWindModel()  # the EKF starts again at zero
         self.airspeed_sensor.booted()
         self.ready_flags = {"init": False, "gps": False, "ekf": False}
@@ -176,6 +240,7 @@ class SimVehicle:
             )
         af = self.airframe
         af.on_ground, af.alt_m, af.speed_m_s = False, c.airborne_alt_m, c.cruise_speed_m_s
+        self.on_deck = False
         self.autopilot.armed = True
         self.autopilot.current_seq = 1
         self._pending += self.autopilot.set_mode(AUTO, af)
@@ -213,12 +278,15 @@ class SimVehicle:
         ``time_boot_ms`` from 0, INITIALISING then MANUAL, the mission reloaded from
         storage (EEPROM), parameters kept, the same battery pack."""
         where = self.airframe
+        was_on_deck = self.on_deck
         self._dead_until_s = None
         self.reboots += 1
         self.store.capacity = 0
         self._boot(t_s, airborne=False)
-        af = self.airframe
-        af.x_m, af.y_m, af.heading_rad = where.x_m, where.y_m, where.heading_rad
+        if not (self.ship is not None and was_on_deck):
+            af = self.airframe
+            af.x_m, af.y_m, af.heading_rad = where.x_m, where.y_m, where.heading_rad
+            self.on_deck = False
 
     def apply_fault(self, event: FaultEvent, t_s: float) -> list[Any]:
         """Apply a scheduled fault: kill, reboot, operator mode switch, low battery, or the
@@ -243,6 +311,10 @@ class SimVehicle:
         out, self._pending = self._pending, []
         return out
 
+    def take_pending(self) -> list[Any]:
+        """What the vehicle has queued to send to every link (e.g. a new HOME_POSITION)."""
+        return self._drain()
+
     # ----------------------------------------------------------- properties
     @property
     def system_id(self) -> int:
@@ -260,15 +332,25 @@ class SimVehicle:
         return all(self.ready_flags.values())
 
     @property
+    def battery_used_mah(self) -> float:
+        """Charge drawn from the pack (mAh)."""
+        return self.battery.used_mah
+
+    @battery_used_mah.setter
+    def battery_used_mah(self, value: float) -> None:
+        self.battery.used_mah = min(self.battery.model.capacity_mah, max(0.0, value))
+
+    @property
     def battery_remaining(self) -> float:
-        """Remaining charge fraction in [0, 1]."""
+        """Remaining charge fraction in [0, 1] as the monitor reports it:
+        ``1 - used_mAh / BATT_CAPACITY``."""
         cap = max(1.0, self.params.get("BATT_CAPACITY"))
         return max(0.0, 1.0 - self.battery_used_mah / cap)
 
     @property
     def battery_voltage_v(self) -> float:
-        """Pack voltage."""
-        return 10.2 + 2.4 * self.battery_remaining
+        """Pack voltage (``world.battery.Battery.voltage_v``: linear in the charge left)."""
+        return self.battery.voltage_v
 
     @property
     def failsafe_active(self) -> bool:
@@ -277,8 +359,10 @@ class SimVehicle:
 
     @property
     def battery_current_a(self) -> float:
-        """Pack current."""
-        return 0.5 if self.airframe.on_ground else 15.0
+        """Pack current in the last physics step (the idle current before the first)."""
+        if self.battery.current_a == 0.0 and not self.battery.empty:
+            return self.battery.model.idle_current_a
+        return self.battery.current_a
 
     def position_geodetic(self) -> tuple[float, float, float]:
         """(lat_deg, lon_deg, alt_amsl_m) of the aircraft."""
@@ -289,6 +373,60 @@ class SimVehicle:
             self._geodetic_cache = (key, (lat, lon))
         lat, lon = self._geodetic_cache[1]
         return lat, lon, self.config.home_amsl_m + af.alt_m
+
+    # ------------------------------------------------------------------ home
+    def set_home(self, lat_deg: float, lon_deg: float, amsl_m: float, *, lock: bool) -> bool:
+        """Move home (AP_AHRS::set_home): refused (False) for a latitude or longitude out
+        of range or not finite, or an altitude not finite; mission item 0 follows (AP_Mission
+        reads item 0 from the AHRS home); HOME_POSITION is sent to every link; ``lock``
+        (DO_SET_HOME) stops the disarmed plane's home from following it."""
+        if not (math.isfinite(lat_deg) and math.isfinite(lon_deg) and math.isfinite(amsl_m)):
+            return False
+        if abs(lat_deg) > 90.0 or abs(lon_deg) > 180.0:
+            return False
+        self.home_lat_deg, self.home_lon_deg, self.home_amsl_m = lat_deg, lon_deg, amsl_m
+        hx, hy, _ = self.config.origin.to_local(lat_deg, lon_deg)
+        self.home_xy_m = (hx, hy)
+        self.autopilot.home_xy_m = self.home_xy_m
+        self.store.set_home(self._home_item())
+        self.home_set = True
+        self.home_locked = self.home_locked or lock
+        self._pending.append(build_message(self, M.MAVLINK_MSG_ID_HOME_POSITION))
+        return True
+
+    def home_from_current(self, *, lock: bool = False) -> bool:
+        """Home = where the plane is now (DO_SET_HOME param1 = 1; the first fix); False
+        without a GPS fix."""
+        if not self.ready_flags["gps"]:
+            return False
+        lat, lon, _ = self.position_geodetic()
+        return self.set_home(lat, lon, self.config.home_amsl_m, lock=lock)
+
+    def home_on_arming(self) -> None:
+        """AP_Arming_Plane::arm calls update_home: an unlocked home moves to the plane (on
+        a ship's deck; elsewhere the simulator keeps its home, as before)."""
+        if self.ship is not None and self.home_set and not self.home_locked:
+            self.home_from_current()
+
+    # ------------------------------------------------------------------ ship
+    def _near_ship(self, af: Airframe, radius_m: float) -> bool:
+        if self.ship is None:
+            return False
+        sx, sy = self.ship.position_m(self.t_s)
+        return math.hypot(af.x_m - sx, af.y_m - sy) <= radius_m
+
+    def _place_on_deck(self, t_s: float) -> None:
+        """Stand on the ship: its position, its ground velocity, on the ground."""
+        assert self.ship is not None
+        af = self.airframe
+        af.x_m, af.y_m = self.ship.position_m(t_s)
+        af.on_ground, af.alt_m, af.speed_m_s, af.climb_m_s = True, 0.0, 0.0, 0.0
+        af.turn_rate_rad_s = 0.0
+        af.drift_xy_m_s = self.ship.velocity_m_s(t_s)
+        self.on_deck = True
+
+    def _record(self, kind: str, text: str) -> None:
+        self.events.append(SimEvent(self.t_s, self.system_id, kind, text))
 
     @property
     def mode_name(self) -> str:
@@ -303,7 +441,12 @@ class SimVehicle:
                 self.t_s = max(self.t_s, t_s)
                 return []
             self._restart(self._dead_until_s)
-        out = self._drain()
+        before: list[Any] = []
+        if self._turnaround_at_s is not None and t_s >= self._turnaround_at_s:
+            at_s, self._turnaround_at_s = self._turnaround_at_s, None
+            before = self.step(at_s)
+            self._turnaround(at_s)
+        out = before + self._drain()
         while self.t_s < t_s - 1e-9:  # telemetry per physics step: rates hold at any tick
             dt = min(PHYSICS_DT_S, t_s - self.t_s)
             self.t_s += dt
@@ -328,14 +471,24 @@ class SimVehicle:
 
     def _physics(self, dt_s: float) -> list[Any]:
         ap, af = self.autopilot, self.airframe
+        if self.on_deck and af.on_ground:
+            self._place_on_deck(self.t_s - dt_s)
         guidance, alt_cmd = ap.guidance(af)
+        if self.motor_stopped:  # no thrust: wings level, sinking V / 10; no take-off
+            guidance = Guidance("ground" if af.on_ground else "glide")
         was_on_ground = af.on_ground
+        alt0_m = af.alt_m
         wind = self.wind.at(self.t_s - dt_s, self.params)
         af.step(guidance, alt_cmd, ap.airspeed_cmd_m_s(), dt_s, wind)
+        if self.on_deck:
+            if af.on_ground:
+                self._place_on_deck(self.t_s)
+            else:
+                self.on_deck = False  # took off from the deck
         sensor = self.airspeed_sensor
         self.wind_estimate.update(sensor.estimate_target(wind), dt_s, flying=not af.on_ground)
-        self.battery_used_mah += self.battery_current_a * dt_s / 3.6
-        out = ap.update(self.t_s, af)
+        out = self._drain_battery(dt_s, guidance.kind, (af.alt_m - alt0_m) / dt_s, wind)
+        out += ap.update(self.t_s, af)
         for severity, text in sensor.step(dt_s, flying=not af.on_ground):
             out += self.text.make(text, severity)
         if af.on_ground and not was_on_ground and af.touchdown_sink_m_s is not None:
@@ -343,9 +496,93 @@ class SimVehicle:
             out += self.text.make(
                 f"SIM Hit ground at {af.touchdown_sink_m_s:.1f} m/s", M.MAV_SEVERITY_CRITICAL
             )
+            if self.motor_stopped:
+                out += self._crash()
         if not self.battery_low_sent and self.battery_voltage_v < self.params.get("BATT_LOW_VOLT"):
             out += self.battery_low()
+        out += self._recovery()
+        out += self._update_home()
         return out
+
+    def _drain_battery(
+        self, dt_s: float, guidance_kind: str, climb_m_s: float, wind: tuple[float, float]
+    ) -> list[Any]:
+        """Drain the pack for one step (module docstring); at 0 % the motor stops."""
+        af = self.airframe
+        motor_on = not af.on_ground and guidance_kind != "glide" and not self.motor_stopped
+        voltage_v = self.battery.voltage_v
+        self.battery.drain(dt_s, af.speed_m_s, math.hypot(*wind), climb_m_s, motor_on)
+        self.battery_energy_wh += voltage_v * self.battery.current_a * dt_s / 3600.0
+        if not self.battery.empty or self.motor_stopped or af.on_ground:
+            return []
+        self.motor_stopped = True
+        text = (f"vehicle {self.system_id}: battery empty at t={self.t_s:.1f} s, "
+                f"motor stopped at {af.alt_m:.0f} m")
+        self._record("motor_stopped", text)
+        return self.text.make(
+            f"Battery 1 is critical {self.battery_voltage_v:.2f}V used "
+            f"{self.battery_used_mah:.0f} mAh", M.MAV_SEVERITY_CRITICAL
+        )
+
+    def _crash(self) -> list[Any]:
+        """The plane came down with a flat pack. ArduPlane's crash check
+        (``crash_detection_update``): with CRASH_DETECT 0 (its default) nothing; otherwise
+        "Crash detected" (EMERGENCY), HEARTBEAT EMERGENCY unless a failsafe shows CRITICAL,
+        and with the disarm bit (a watch's vehicles have it) the plane disarms ("Throttle
+        disarmed"). ArduPlane runs the check in AUTO only; here it runs after a
+        battery-empty fall in any mode (docs/sitl.md, "Battery and the fall")."""
+        af = self.airframe
+        self._record("fell", f"vehicle {self.system_id} fell at t={self.t_s:.1f} s "
+                             f"(battery empty) at x={af.x_m:.0f} m, y={af.y_m:.0f} m")
+        action = int(self.params.get("CRASH_DETECT"))
+        if action == 0:
+            return []
+        self.crashed = True
+        out = self.text.make("Crash detected", M.MAV_SEVERITY_EMERGENCY)
+        if action & CRASH_DETECT_DISARM:
+            self.autopilot.armed = False
+            out += self.text.make("Throttle disarmed")
+        return out
+
+    def _recovery(self) -> list[Any]:
+        """A watch's recovery: armed, flying, in RTL or on a NAV_LAND item, within
+        ``recovery_radius_m`` of the ship -> on deck, disarmed; the turnaround starts."""
+        watch, ap, af = self.config.watch, self.autopilot, self.airframe
+        if watch is None or self.ship is None or af.on_ground or not ap.armed:
+            return []
+        nav = ap.nav
+        landing = ap.mode == AUTO and nav is not None and nav.kind in ("land", "landing")
+        if not (ap.mode == RTL or landing) or not self._near_ship(af, watch.recovery_radius_m):
+            return []
+        ap.armed = False
+        self._place_on_deck(self.t_s)
+        self._turnaround_at_s = self.t_s + watch.turnaround_s
+        self._record("recovered", f"vehicle {self.system_id} recovered on deck at "
+                                  f"t={self.t_s:.1f} s, {100 * self.battery_remaining:.0f} % "
+                                  f"left; ready again at t={self._turnaround_at_s:.1f} s")
+        return [*self.text.make("SIM Recovered on deck"), *self.text.make("Throttle disarmed")]
+
+    def _turnaround(self, t_s: float) -> None:
+        """The battery swap is done: a fresh pack and a new boot on deck (home at the fix)."""
+        self._turnaround_at_s = None
+        self.battery.swap()
+        self.battery_energy_wh = 0.0
+        self.reboots += 1
+        self.store.capacity = 0
+        self._boot(t_s, airborne=False)
+        self._record("turnaround", f"vehicle {self.system_id} rebooted on deck with a fresh "
+                                   f"pack at t={t_s:.1f} s")
+
+    def _update_home(self) -> list[Any]:
+        """ArduPlane's update_home: on deck, disarmed, home set and not locked, home moves
+        to the plane every 5 s."""
+        if self.ship is None or not self.home_set or self.home_locked or self.autopilot.armed:
+            return []
+        if self.t_s < self._next_home_update_s:
+            return []
+        self._next_home_update_s = self.t_s + HOME_UPDATE_S
+        self.home_from_current()
+        return self._drain()
 
     def battery_low(self) -> list[Any]:
         """The low-battery failsafe: warn once, then the BATT_FS_LOW_ACT action."""
@@ -384,6 +621,10 @@ class SimVehicle:
             flags["ekf"] = True
             self.home_set = True
             out += self.text.make("EKF3 IMU0 is using GPS")
+            if self.ship is not None:  # home where it gets its fix: the deck, now
+                self.home_from_current()
+                self._pending.clear()  # the HOME_POSITION below is the one
+                self._next_home_update_s = self.t_s + HOME_UPDATE_S
             out.append(build_message(self, M.MAVLINK_MSG_ID_HOME_POSITION))
         return out
 
@@ -432,7 +673,11 @@ class SimVehicle:
             return command_handler.guided_item(self, msg)
         if kind in MISSION_MESSAGES:
             events = MissionEvents()
-            return self.mission.handle(msg, t_s, events)
+            out = self.mission.handle(msg, t_s, events)
+            rally = len(self.geo.stores[M.MAV_MISSION_TYPE_RALLY])
+            if rally != self.params.get("RALLY_TOTAL"):  # AP_Rally counts what is stored
+                self.params.set("RALLY_TOTAL", rally)
+            return out
         if kind == "MISSION_SET_CURRENT":
             _ok, out = self.autopilot.set_current_item(int(msg.seq), self.airframe)
             return [*out, build_message(self, M.MAVLINK_MSG_ID_MISSION_CURRENT)]

@@ -87,9 +87,9 @@ def _sys_status(v: VehicleView) -> Any:
         enabled,
         health,
         200,
-        int(v.battery_voltage_v * 1000),
-        int(v.battery_current_a * 100),
-        int(v.battery_remaining * 100),
+        round(v.battery_voltage_v * 1000),  # mV
+        round(v.battery_current_a * 100),  # cA
+        round(v.battery_remaining * 100),  # %
         0,
         0,
         0,
@@ -99,18 +99,28 @@ def _sys_status(v: VehicleView) -> Any:
     )
 
 
+UINT16_UNKNOWN = 65535
+INT16_UNKNOWN = 32767
+
+
 def _battery(v: VehicleView) -> Any:
-    cells = int(v.battery_voltage_v * 1000 / 3)
+    """BATTERY_STATUS as ArduPlane's analog monitor (BATT_MONITOR 4) sends it
+    (GCS_MAVLINK::send_battery_status): function and type UNKNOWN, temperature INT16_MAX
+    (no sensor), no cell voltages so the pack's voltage in ``voltages[0]`` (mV) and
+    UINT16_MAX in the other cells (MAVLink's rule), current in cA, consumed mAh, consumed
+    energy in hJ (``consumed_wh * 36``), remaining %."""
+    voltage_mv = min(65534, round(v.battery_voltage_v * 1000))
+    energy_hj = round(v.battery_energy_wh * 36)
     return M.MAVLink_battery_status_message(
         0,
-        M.MAV_BATTERY_FUNCTION_ALL,
-        M.MAV_BATTERY_TYPE_LIPO,
-        2000,
-        [cells] * 3 + [65535] * 7,
-        int(v.battery_current_a * 100),
-        int(v.battery_used_mah),
-        -1,
-        int(v.battery_remaining * 100),
+        M.MAV_BATTERY_FUNCTION_UNKNOWN,
+        M.MAV_BATTERY_TYPE_UNKNOWN,
+        INT16_UNKNOWN,
+        [voltage_mv] + [UINT16_UNKNOWN] * 9,
+        round(v.battery_current_a * 100),
+        round(v.battery_used_mah),
+        energy_hj,
+        round(v.battery_remaining * 100),
     )
 
 
@@ -183,13 +193,12 @@ def _wind(v: VehicleView) -> Any:
 
 
 def _home(v: VehicleView) -> Any:
-    c = v.config
     if not v.home_set:
         return None
     return M.MAVLink_home_position_message(
-        round(c.home_lat_deg * 1e7),
-        round(c.home_lon_deg * 1e7),
-        round(c.home_amsl_m * 1000),
+        round(v.home_lat_deg * 1e7),
+        round(v.home_lon_deg * 1e7),
+        round(v.home_amsl_m * 1000),
         0.0,
         0.0,
         0.0,
@@ -236,13 +245,16 @@ def _nav_controller(v: VehicleView) -> Any:
 
 def system_status(v: VehicleView) -> int:
     """HEARTBEAT ``system_status`` as ArduPlane's ``vehicle_system_status()``: CALIBRATING
-    while INITIALISING, CRITICAL while a failsafe is active, ACTIVE while flying, else
-    STANDBY (armed or not: a plane armed on the ground, or one that came down, is STANDBY).
-    ArduPlane's EMERGENCY (crash detected) needs CRASH_DETECT, 0 by default: never here."""
+    while INITIALISING, CRITICAL while a failsafe is active, EMERGENCY once a crash was
+    detected (needs CRASH_DETECT, 0 by default: only the fall at 0 % with it set), ACTIVE
+    while flying, else STANDBY (armed or not: a plane armed on the ground, or one that came
+    down, is STANDBY)."""
     if not v.ready_flags["init"]:
         return int(M.MAV_STATE_CALIBRATING)
     if v.failsafe_active:
         return int(M.MAV_STATE_CRITICAL)
+    if v.crashed:
+        return int(M.MAV_STATE_EMERGENCY)
     if not v.airframe.on_ground:
         return int(M.MAV_STATE_ACTIVE)
     return int(M.MAV_STATE_STANDBY)

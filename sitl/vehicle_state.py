@@ -21,16 +21,25 @@ from sitl.sim_airspeed import AirspeedSensor
 from sitl.sim_wind import EkfWindModel
 from sitl.statustext import StatusTextFactory
 from sitl.telemetry import StreamScheduler
+from world.battery import BatteryModel
+from world.scenario import BoatSpec, WatchSpec
 from world.wind import WindSpec
 
-__all__ = ["VehicleConfig", "VehicleView"]
+__all__ = ["DEFAULT_ENDURANCE_S", "VehicleConfig", "VehicleView"]
+
+DEFAULT_ENDURANCE_S = 2400.0
+"""The pack's flight time at cruise in still air without a watch: the 10 000 mAh pack at
+15 A (``3.6 * 10000 / 15`` s), the figures the simulator used before the battery model."""
 
 
 @dataclass(frozen=True)
 class VehicleConfig:
     """Everything that defines one simulated vehicle. ``wind``: the wind it flies in
     (``WindField(wind, wind_seed)``, the SIM_WIND_* parameters' initial values; calm by
-    default)."""
+    default). ``battery``: the pack's model (None: ``BatteryModel(DEFAULT_ENDURANCE_S,
+    cruise_speed_m_s)``). ``ship``: the ship it stands on when on the ground (a watch's
+    deck, :mod:`sitl.ship`; None: the ground at its launch point). ``watch``: the scenario's
+    watch (recovery radius, turnaround; None: no recovery, today's behaviour)."""
 
     system_id: int
     origin: GeoOrigin
@@ -50,6 +59,16 @@ class VehicleConfig:
     params: dict[str, float] = field(default_factory=dict)
     wind: WindSpec = field(default_factory=WindSpec)
     wind_seed: int = 0
+    battery: BatteryModel | None = None
+    ship: BoatSpec | None = None
+    watch: WatchSpec | None = None
+
+    def battery_model(self) -> BatteryModel:
+        """The pack's model (``battery``, else the default at this cruise airspeed)."""
+        if self.battery is not None:
+            return self.battery
+        return BatteryModel(endurance_s=DEFAULT_ENDURANCE_S,
+                            cruise_speed_m_s=self.cruise_speed_m_s)
 
     @property
     def boot_times_s(self) -> tuple[float, float, float]:
@@ -69,7 +88,11 @@ class VehicleView(Protocol):
     airframe: Airframe
     ready_flags: dict[str, bool]
     home_set: bool
+    home_lat_deg: float
+    home_lon_deg: float
+    home_amsl_m: float
     battery_low_sent: bool
+    crashed: bool
     battery_used_mah: float
     t_s: float
     wind_estimate: EkfWindModel
@@ -94,6 +117,9 @@ class VehicleView(Protocol):
     def battery_current_a(self) -> float: ...
 
     @property
+    def battery_energy_wh(self) -> float: ...
+
+    @property
     def failsafe_active(self) -> bool: ...
 
     def position_geodetic(self) -> tuple[float, float, float]: ...
@@ -107,3 +133,11 @@ class VehicleView(Protocol):
     def prearm_failure(self) -> str | None: ...
 
     def reboot(self, t_s: float) -> list[Any]: ...
+
+    def set_home(self, lat_deg: float, lon_deg: float, amsl_m: float, *, lock: bool) -> bool: ...
+
+    def home_from_current(self, *, lock: bool = False) -> bool: ...
+
+    def take_pending(self) -> list[Any]: ...
+
+    def home_on_arming(self) -> None: ...
