@@ -273,8 +273,12 @@ class NmeaReader:
             self._drop("non_ascii", repr(sentence[:40]))
             return None
         text = sentence.decode("ascii").strip()
-        kind = text[3:6] if len(text) >= 6 else ""
-        if text.startswith("!") or text.startswith("$P") or kind not in _USED:
+        address = text[1:].partition(",")[0].partition("*")[0]
+        if not address.isalnum() or not (len(address) == 5 or address[0] == "P"):
+            self._drop("malformed", text)
+            return None
+        kind = address[2:] if len(address) == 5 else ""
+        if text.startswith("!") or address.startswith("P") or kind not in _USED:
             self.counters.ignored += 1
             return None
         try:
