@@ -100,8 +100,7 @@ class ShipFeed:
         self.silent = False
         self._last_fix_s: float | None = None
         self._watch_from_s = 0.0
-        self._sentences_at_fix = 0
-        self._valid_at_fix = 0
+        self._at_fix = (0, 0, 0, 0)  # the reader's bytes, sentences, valid, dropped then
         self._link_state = ""
 
     @property
@@ -135,8 +134,7 @@ class ShipFeed:
 
     def _fixed(self, now_s: float) -> None:
         self._last_fix_s = now_s
-        counters = self.reader.counters
-        self._sentences_at_fix, self._valid_at_fix = counters.sentences, counters.valid
+        self._at_fix = self._counts()
         if self.silent:
             self.silent = False
             log.warning("ship feed %s: fixes again", self.spec.url)
@@ -148,21 +146,26 @@ class ShipFeed:
         if self.silent or now_s - since_s < self.silent_after_s:
             return self.silent
         self.silent = True
-        counters = self.reader.counters
-        sentences = counters.sentences - self._sentences_at_fix
-        valid = counters.valid - self._valid_at_fix
-        what = ("nothing received" if sentences == 0 and counters.bytes == 0
+        now = self._counts()
+        received, sentences, valid, dropped = (a - b for a, b in zip(now, self._at_fix,
+                                                                     strict=True))
+        what = ("nothing received" if received == 0
+                else f"{received} bytes, no sentence" if sentences == 0
                 else f"{sentences} sentences, none valid" if valid == 0
                 else f"{sentences} sentences, {valid} valid, no position")
         if self.no_origin and valid:
             what += f"; {self.no_origin} fixes without a mission origin"
-        last = self.reader.last_drop
+        last = self.reader.last_drop if dropped else None
         log.warning("ship feed %s: no fix for %.0f mission s (%s%s)", self.spec.url,
                     now_s - since_s, what, f"; last dropped {last}" if last else "")
         self.host.journal("ship_feed_silent", logged=True, url=self.spec.url,
                           silent_s=round(now_s - since_s, 3), sentences=sentences,
                           valid=valid, detail=what, last_drop=last)
         return True
+
+    def _counts(self) -> tuple[int, int, int, int]:
+        c = self.reader.counters
+        return c.bytes, c.sentences, c.valid, c.dropped_total
 
     def summary(self) -> dict[str, Any]:
         """The counters (journalled at the end: ``ship_feed_summary``)."""
@@ -187,7 +190,7 @@ class ShipFeed:
             return
         if state == "connected":
             log.info("ship feed %s: connected", self.spec.url)
-            self.host.journal("ship_feed_link", url=self.spec.url, state=state)
+            self.host.journal("ship_feed_link", logged=True, url=self.spec.url, state=state)
             return
         log.warning("ship feed %s: %s (%s); retrying", self.spec.url, state, reason)
         self.host.journal("ship_feed_link", logged=True, url=self.spec.url, state=state,
