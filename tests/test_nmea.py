@@ -10,6 +10,8 @@ from pathlib import Path
 
 import pynmea2
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from domain.geodesy import GeoOrigin
 from groundstation.daemon.ship_feed import UERE_M, ShipFeed, boat_position
@@ -399,3 +401,39 @@ def test_no_origin_fixes_are_counted() -> None:
     feed = ShipFeed(host, parse_ship_url("udp:127.0.0.1:0"))  # type: ignore[arg-type]
     feed.on_bytes(sentence("GPGGA,120000,7855.0000,N,01157.0000,E,1,08,0.9,5,M,,M,,"))
     assert host.fixes == [] and feed.no_origin == 1
+
+
+# ------------------------------------------------------------------ never an exception
+@settings(max_examples=200, deadline=None)
+@given(st.binary(max_size=600))
+def test_random_bytes_never_raise(data: bytes) -> None:
+    reader = NmeaReader()
+    reader.feed(data, 0.0)
+    reader.feed(data + b"\r\n", 1.0)
+    assert reader.buffered_bytes <= MAX_LINE_BYTES
+
+
+_MUTATIONS = st.lists(st.tuples(st.integers(0, 100), st.sampled_from(
+    [*"0123456789.,-+NSEWAVTMK*$! ", "nan", "inf", "1e999", ""])), max_size=4)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.sampled_from([b"HEHDT,4.0,T", b"GPVTG,3.0,T,,,0.50,N,,,D",
+                        b"GPRMC,130711.00,A,5012.790800,N,00806.879600,W,0.5,3.0,010611,,A",
+                        b"GPGGA,194050.00,4221.8237733,N,07101.9411707,W,1,00,3.3,10.835,M,"
+                        b"-33.320,M,,", b"INGLL,4426.1130,N,07140.5579,W,194102,A"]),
+       _MUTATIONS)
+def test_mutated_sentences_with_good_checksums_never_raise(
+        body: bytes, mutations: list[tuple[int, str]]) -> None:
+    """Past the checksum, into pynmea2 and the field checks: counted, never raised."""
+    text = body.decode()
+    for position, insert in mutations:
+        i = position % (len(text) + 1)
+        text = text[:i] + insert + text[i + 1:]
+    reader = NmeaReader()
+    fixes = reader.feed(sentence(text), 0.0)
+    c = reader.counters
+    assert c.valid + c.ignored + c.dropped_total >= 1
+    for fix in fixes:
+        assert -90 <= fix.lat_deg <= 90 and -180 <= fix.lon_deg <= 180
+        assert fix.speed_m_s is None or 0 <= fix.speed_m_s <= 50
