@@ -6,7 +6,9 @@ Assertions are on mission time and journal events; wall time only bounds the run
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import math
+import os
 import re
 from pathlib import Path
 from typing import Any
@@ -18,7 +20,8 @@ from groundstation.commands.run import build_config, run, run_daemon
 from groundstation.daemon.daemon import Daemon
 from groundstation.daemon.journal import read_journal
 from groundstation.daemon.ship_feed import UERE_M
-from groundstation.link.nmea import KNOT_M_S
+from groundstation.link.nmea import KNOT_M_S, NmeaReader
+from groundstation.link.nmea_source import NmeaSource, parse_ship_url
 from tests.daemon_run import Journal, events, stop_when
 
 WALL_TIMEOUT_S = 90.0
@@ -233,3 +236,39 @@ def test_a_bad_ship_url_is_one_line_and_exit_2(url: str, tmp_path: Path,
     err = capsys.readouterr().err
     assert status == 2
     assert err.count("\n") == 1 and "--ship" in err and "Traceback" not in err
+
+
+@pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs a pseudo-terminal")
+def test_serial_source_reads_a_pseudo_terminal() -> None:
+    """``serial:DEVICE`` at NMEA's 4800 baud, on a pty standing in for the ship's GPS."""
+    import tty
+
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    spec = parse_ship_url(f"serial:{os.ttyname(slave)}")
+    assert spec.baud == 4800
+    reader = NmeaReader()
+    fixes: list[Any] = []
+    states: list[tuple[str, str]] = []
+
+    async def main() -> None:
+        source = NmeaSource(spec, lambda data: fixes.extend(reader.feed(data, 1.0)),
+                            lambda state, reason: states.append((state, reason)))
+        task = asyncio.create_task(source.run())
+        while not states:
+            await asyncio.sleep(0.01)
+        os.write(master, _sentence("GPGGA,120000,7855.0000,N,01157.0000,E,1,08,0.9,5,M,,M,,"))
+        while not fixes:
+            await asyncio.sleep(0.01)
+        task.cancel()
+        with contextlib.suppress(asyncio.CancelledError):
+            await task
+        await source.stop()
+
+    try:
+        asyncio.run(asyncio.wait_for(main(), 20.0))
+    finally:
+        os.close(master)
+        os.close(slave)
+    assert states[0] == ("connected", "")
+    assert fixes[0].lat_deg == pytest.approx(78 + 55 / 60)
