@@ -97,6 +97,11 @@ def _parser() -> argparse.ArgumentParser:
     )
     a("--detections", metavar="HOST:PORT|off",
       help="detection feed UDP (default 127.0.0.1:14600; with sim:N a free port, printed)")
+    a("--ship", metavar="URL",
+      help="the ship's NMEA 0183 position/heading: udp:HOST:PORT (listen), tcp:HOST:PORT "
+      "(connect) or serial:DEVICE[:BAUD] (default 4800); replaces the scenario's boat")
+    a("--ship-silent-after", dest="ship_silent_after_s", type=float, metavar="S",
+      help="warn when the ship feed gave no valid fix for S mission seconds (default 10)")
     a("--run-dir", metavar="DIR", help="parent of the run folders (default runs)")
     a("--journal", metavar="FILE", help="journal path (default RUN/journal.jsonl)")
     a("--gcs-system-id", type=int, metavar="ID", help="floe's MAVLink system id (default 245)")

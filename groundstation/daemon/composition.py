@@ -22,12 +22,15 @@ from groundstation.daemon.embedded import EmbeddedVehicles
 from groundstation.daemon.feed_lines import FeedHost, FeedLines
 from groundstation.daemon.services import FnService, Service
 from groundstation.daemon.session import VehicleSession
+from groundstation.daemon.ship_feed import ShipFeed, ShipFeedHost
 from groundstation.link.detection_feed import DetectionFeed
+from groundstation.link.nmea_source import describe_ship_source, parse_ship_url
+from groundstation.link.url import LinkUrlError
 from groundstation.storage import StorageError, atomic_write_text
 from groundstation.vehicle.state import LinkState
 
 __all__ = ["StartError", "camera_positions", "feed_counters", "start_control",
-           "start_detection_feed", "status_service"]
+           "start_detection_feed", "start_ship_feed", "status_service"]
 
 
 class StartError(UsageError):
@@ -149,4 +152,30 @@ async def start_detection_feed(
     bound_host, bound_port = getattr(feed, "address", (host, port))
     chosen = " (a free port; --detections HOST:PORT to choose)" if port == 0 else ""
     print_fn(f"gcs run: detection feed on udp:{bound_host}:{bound_port}{chosen}")
+    return feed
+
+
+async def start_ship_feed(
+    config: DaemonConfig, host_: ShipFeedHost, print_fn: Callable[[str], None],
+    stack: contextlib.AsyncExitStack,
+) -> ShipFeed | None:
+    """The ship's NMEA feed (``--ship``): a UDP listener bound now, a TCP or serial stream
+    opened by its service; closed, and its counters journalled, on the way out."""
+    ship = config.ship
+    if ship.url is None:
+        return None
+    try:
+        spec = parse_ship_url(ship.url)
+    except LinkUrlError as exc:
+        raise StartError(f"ship: {exc}") from None
+    feed = ShipFeed(host_, spec, silent_after_s=ship.silent_after_s, max_age_s=ship.max_age_s)
+    try:
+        await feed.start()
+    except OSError as exc:
+        raise StartError(f"ship: cannot listen on UDP {spec.host}:{spec.port}: "
+                         f"{exc.strerror or exc}") from None
+    stack.callback(feed.journal_summary)  # before the run files close (pushed after them)
+    stack.push_async_callback(stop_quietly, feed.stop)
+    print_fn(f"gcs run: ship feed (NMEA 0183) {spec.canonical}: "
+             f"{describe_ship_source(spec, feed.source.address)}")
     return feed

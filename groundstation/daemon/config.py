@@ -49,6 +49,7 @@ __all__ = [
     "PlannerConfig",
     "RecordsConfig",
     "ReplanTrigger",
+    "ShipConfig",
     "SigningConfig",
     "SimConfig",
     "StatusMode",
@@ -256,6 +257,18 @@ class SimConfig:
 
 
 @dataclass(frozen=True, slots=True)
+class ShipConfig:
+    """The ship's NMEA 0183 feed (``--ship URL``; docs/ship.md): ``url`` None = none (the
+    scenario's boat or the detection feed's ``boat`` lines, if any, place the ship)."""
+
+    url: str | None = None
+    silent_after_s: float = 10.0
+    """Warn when the feed gave no valid fix for this many mission seconds."""
+    max_age_s: float = 3.0
+    """Course, speed and heading older than this (mission s) are not fused into a fix."""
+
+
+@dataclass(frozen=True, slots=True)
 class DaemonConfig:
     """Everything ``gcs run`` can be told (docs/daemon.md has each key)."""
 
@@ -267,6 +280,7 @@ class DaemonConfig:
     records: RecordsConfig = field(default_factory=RecordsConfig)
     signing: SigningConfig = field(default_factory=SigningConfig)
     sim: SimConfig = field(default_factory=SimConfig)
+    ship: ShipConfig = field(default_factory=ShipConfig)
     detections: Endpoint | None = DETECTIONS_UNSET
     """The detection feed's UDP address; None: off (unset: see :func:`resolve`)."""
     speedup: float | None = None

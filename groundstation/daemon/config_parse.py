@@ -39,6 +39,7 @@ from groundstation.daemon.config import (
     PlannerConfig,
     RecordsConfig,
     ReplanTrigger,
+    ShipConfig,
     SigningConfig,
     SimConfig,
     VehicleSettings,
@@ -51,7 +52,7 @@ __all__ = ["ALIASES", "FLAGS", "check_config", "parse_config"]
 
 _GROUPS: tuple[type, ...] = (
     LinksConfig, MissionConfig, FleetConfig, BatteryConfig, PlannerConfig, HttpConfig,
-    RecordsConfig, SigningConfig, SimConfig,
+    RecordsConfig, SigningConfig, SimConfig, ShipConfig,
 )  # fmt: skip
 
 ALIASES: dict[str, str] = {
@@ -102,6 +103,7 @@ ALIASES: dict[str, str] = {
     "sim_fast_boot": "sim.fast_boot",
     "sim_loss": "sim.loss",
     "sim_fault": "sim.faults",
+    "ship": "ship.url",
 }
 """The flat keys of earlier releases (still accepted) -> the nested field they set."""
 
@@ -145,6 +147,8 @@ FLAGS: dict[str, str] = {
     "--status": "status",
     "--on-exit": "on_exit",
     "--wind": "wind",
+    "--ship": "ship.url",
+    "--ship-silent-after": "ship.silent_after_s",
 }
 """Each flag of ``gcs run`` -> the field it sets (``--no-launch`` is ``--launch`` false)."""
 
@@ -360,6 +364,19 @@ def _vehicles(urls: tuple[str, ...]) -> str | None:
     return None
 
 
+def _ship_url(url: str | None) -> str | None:
+    if url is None:
+        return None
+    from groundstation.link.nmea_source import parse_ship_url
+    from groundstation.link.url import LinkUrlError
+
+    try:
+        parse_ship_url(url)
+    except LinkUrlError as exc:
+        return str(exc)
+    return None
+
+
 def _gcs_id(value: int) -> str | None:
     if 1 <= value <= 254:
         return None
@@ -418,6 +435,9 @@ _CHECKS: dict[str, Check] = {
     "http.max_writes_per_s": _positive(10_000.0),
     "http.header_timeout_s": _positive(300.0),
     "fleet.settings": _altitudes,
+    "ship.url": _ship_url,
+    "ship.silent_after_s": _positive(),
+    "ship.max_age_s": _positive(60.0),
 }
 
 

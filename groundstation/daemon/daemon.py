@@ -562,9 +562,17 @@ class Daemon:
             self.journal("link_drops", **line)
 
     def set_boat(self, x_m: float, y_m: float) -> None:
-        """Where the boat is (scenario truth or the detection feed), for the core."""
+        """Where the boat is (scenario truth or the detection feed), for the core; ignored
+        when ``--ship`` gives the ship's NMEA feed, which wins (``ship_fix``)."""
+        if self.config.ship.url is not None:
+            return
         self.area.boat_xy_m = (x_m, y_m)
         self.core_event(ev.BoatPosition(self.core.t_s, x_m, y_m))  # as core.set_boat stamps it
+
+    def ship_fix(self, event: ev.BoatPosition) -> None:
+        """A fix of the ship's NMEA feed (``daemon/ship_feed.py``), for the core."""
+        self.area.boat_xy_m = (event.x_m, event.y_m)
+        self.core_event(event)
 
     def no_origin(self) -> None:
         """A feed line dropped: no mission origin yet (FeedHost)."""

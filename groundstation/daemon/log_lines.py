@@ -131,6 +131,7 @@ OPERATOR_EVENTS = PROBLEM_EVENTS | frozenset(
         "vehicle_spare",
         "launch_order",
         "ship_feed_restored",
+        "ship_feed_link",
     }
 )
 """The events every operator view shows (plus the conditional ones of the module doc)."""

@@ -42,6 +42,7 @@ from groundstation.daemon.composition import (
     feed_counters,
     start_control,
     start_detection_feed,
+    start_ship_feed,
     status_service,
 )
 from groundstation.daemon.config import DaemonConfig, resolve
@@ -235,6 +236,8 @@ async def run_daemon(
         services: list[Service] = [EmbeddedService(sim)] if sim is not None else []
         control = await start_control(config, daemon, print_fn, stack)
         feed = await start_detection_feed(config, daemon, print_fn, stack)
+        ship = await start_ship_feed(config, daemon, print_fn, stack)
+        services += [ship] if ship is not None else []
         alerts = OperatorAlerts(daemon, feed_counters(feed))
         services += [FnService("alerts", alerts.run), *([control] if control else [])]
         _print_start(setup, files.run_dir, urls, print_fn)
