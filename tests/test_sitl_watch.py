@@ -456,7 +456,10 @@ def test_gcs_sitl_ship_watch_says_what_it_simulates(capsys: pytest.CaptureFixtur
                       "--duration", "5", "--fast-boot", "--detections", "none"])
     out = capsys.readouterr().out
     assert status == 0
-    assert "ship: from (1000, 1000) m at 10 m/s, looping a route of 4 waypoints" in out
+    boat = load_scenario("ship-watch").boat
+    assert boat is not None
+    assert (f"ship: from ({boat.x_m:.0f}, {boat.y_m:.0f}) m at 10 m/s, looping a route of "
+            f"{len(boat.route)} waypoints") in out
     assert "recovery: RTL or LAND within 150 m of the ship; turnaround 600 s" in out
     assert "battery: endurance 3600 s at 22 m/s" in out
     configs, _faults, _feed, _options = cmd.build(

@@ -4,6 +4,7 @@ relief, homes on the ship, and legs that leave no way home (``core/ship.py``,
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import pytest
@@ -215,7 +216,7 @@ def test_homes_follow_the_ship_in_steps_of_home_update_m() -> None:
     out = _drive(core, 0.0, 60.0)
     homes = [c for c in out if isinstance(c, SetHome) and c.vehicle == "1"]
     assert len(homes) >= 3
-    steps = [math.dist((a.x_m, a.y_m), (b.x_m, b.y_m)) for a, b in zip(homes, homes[1:])]
+    steps = [math.dist((a.x_m, a.y_m), (b.x_m, b.y_m)) for a, b in itertools.pairwise(homes)]
     assert all(s > 150.0 for s in steps)
     assert all(s < 400.0 for s in steps)  # the ship moves 10 m/s: no big jumps
 
