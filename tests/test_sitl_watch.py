@@ -456,12 +456,14 @@ def test_gcs_sitl_ship_watch_says_what_it_simulates(capsys: pytest.CaptureFixtur
                       "--duration", "5", "--fast-boot", "--detections", "none"])
     out = capsys.readouterr().out
     assert status == 0
-    boat = load_scenario("ship-watch").boat
-    assert boat is not None
-    assert (f"ship: from ({boat.x_m:.0f}, {boat.y_m:.0f}) m at 10 m/s, looping a route of "
-            f"{len(boat.route)} waypoints") in out
-    assert "recovery: RTL or LAND within 150 m of the ship; turnaround 600 s" in out
-    assert "battery: endurance 3600 s at 22 m/s" in out
+    scenario = load_scenario("ship-watch")
+    boat, watch = scenario.boat, scenario.watch
+    assert boat is not None and watch is not None
+    assert (f"ship: from ({boat.x_m:g}, {boat.y_m:g}) m at {boat.speed_m_s:g} m/s, looping a "
+            f"route of {len(boat.route)} waypoints") in out
+    assert (f"recovery: RTL or LAND within {watch.recovery_radius_m:g} m of the ship; "
+            f"turnaround {watch.turnaround_s:g} s") in out
+    assert f"battery: endurance {watch.endurance_s:g} s at 22 m/s" in out
     configs, _faults, _feed, _options = cmd.build(
         cmd.parse_options(["--scenario", "ship-watch", "--base-port", "0"]))
     assert len(configs) == 5 and all(c.ship is not None and c.watch for c in configs)
