@@ -16,6 +16,7 @@ import asyncio
 import contextlib
 import functools
 import logging
+import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -31,6 +32,7 @@ from groundstation.core.config import CoreConfig
 from groundstation.core.decision import DecisionCore
 from groundstation.core.metrics import MetricsRecorder
 from groundstation.core.records import command_to_record, event_to_record
+from groundstation.core.watch_metrics import WatchMetrics
 from groundstation.daemon.clock import MissionClock
 from groundstation.daemon.config import DaemonConfig, OnExit, OperatingCenter
 from groundstation.daemon.journal import Journal
@@ -175,6 +177,8 @@ class Daemon:
             on_error=self._on_solve_error,
         )
         self.metrics = MetricsRecorder()
+        self.watch_metrics = WatchMetrics()
+        """The ship watch's figures (``core/watch_metrics.py``), when there is a watch."""
         self.world = world
         self.control_url: str | None = None
         """The control API's address, once its server listens (the status display)."""
@@ -293,6 +297,10 @@ class Daemon:
                  if isinstance(command, cmd.Note) else {})  # track_deleted: was it confirmed
         self._journal_command(command, advisory=advisory if isinstance(command, cmd.FlyToTarget)
                               else None, **extra)
+        if isinstance(command, cmd.Note) and command.vehicle is not None and (
+            command.kind in ("vehicle_recovered", "vehicle_down")
+        ):
+            self._watch_landing(command)
         if isinstance(command, cmd.CancelSolve):
             self.solver.cancel(command.request_id)
         elif isinstance(command, cmd.PlanAdopted):
@@ -316,6 +324,26 @@ class Daemon:
             session = self.by_name.get(command.vehicle)
             if session is not None:
                 session.release(command.reason, home=isinstance(command, cmd.SendHome))
+
+    def _watch_landing(self, note: cmd.Note) -> None:
+        """A watch's landing, in figures: a recovery's charge and where the return ended
+        (against the scenario's true ship where there is one, else the ship's track), or
+        a vehicle down."""
+        watch, vehicle = self.core.watch, note.vehicle
+        record = self.core.vehicles.get(vehicle or "")
+        if watch is None or vehicle is None or record is None:
+            return
+        if note.kind == "vehicle_down":
+            self.watch_metrics.vehicle_lost(vehicle)
+            return
+        ship = self.world.boat_xy_m if self.world is not None else None
+        if ship is None:
+            predicted = watch.ship.predict(note.t_s)
+            ship = predicted.xy_m if predicted is not None else None
+        energy = watch.energy.get(vehicle)
+        self.watch_metrics.landing(
+            energy.remaining_pct(note.t_s) if energy is not None else float("nan"),
+            None if ship is None else math.dist(ship, (record.x_m, record.y_m)))
 
     def _journal_command(self, command: cmd.Command, **extra: object) -> None:
         record = command_to_record(command)
@@ -536,11 +564,16 @@ class Daemon:
             if self.world is not None:
                 for event in self.world.step_to(t):
                     self.feed.scenario_event(event)
-                if self.world.boat_xy_m is not None:
-                    self.set_boat(*self.world.boat_xy_m)
+                if self.world.boat_xy_m is not None and (
+                    self.core_config.watch is None or t >= due.sample_s - 1e-9
+                ):  # on a watch the ship's fix once a second, with its velocity
+                    self.set_boat(*self.world.boat_xy_m, self.world.boat_velocity_m_s
+                                  if self.core_config.watch is not None else None)
             self.core_event(ev.Tick(t))
             if t >= due.sample_s - 1e-9:
                 self.feed.sample(t)
+                if self.core.watch is not None:
+                    self.watch_metrics.sample(self.core.view().watch)
                 due.sample_s += 1.0
             due.tick_s = round(due.tick_s + tick_s, 6)
         for session in self.sessions.values():
@@ -561,13 +594,17 @@ class Daemon:
         for line in self._due.link_reporter.changes(self.router.links):
             self.journal("link_drops", **line)
 
-    def set_boat(self, x_m: float, y_m: float) -> None:
+    def set_boat(self, x_m: float, y_m: float,
+                 velocity_m_s: tuple[float, float] | None = None) -> None:
         """Where the boat is (scenario truth or the detection feed), for the core; ignored
         when ``--ship`` gives the ship's NMEA feed, which wins (``ship_fix``)."""
         if self.config.ship.url is not None:
             return
         self.area.boat_xy_m = (x_m, y_m)
-        self.core_event(ev.BoatPosition(self.core.t_s, x_m, y_m))  # as core.set_boat stamps it
+        vx, vy = velocity_m_s if velocity_m_s is not None else (None, None)
+        # stamped as core.set_boat stamps it
+        self.core_event(ev.BoatPosition(self.core.t_s, x_m, y_m, vx, vy, source="scenario"
+                                        if velocity_m_s is not None else ""))
 
     def ship_fix(self, event: ev.BoatPosition) -> None:
         """A fix of the ship's NMEA feed (``daemon/ship_feed.py``), for the core."""
@@ -592,5 +629,7 @@ class Daemon:
     def metrics_dict(self) -> dict[str, object]:
         wall = time.perf_counter() - self._state.wall_start
         out = self.metrics.to_dict(wall)
+        if self.core.watch is not None:
+            out.update(self.watch_metrics.to_dict(self.metrics.series))
         out["summary"] = self.summary()
         return out

@@ -138,5 +138,11 @@ class ScenarioWorld:
         boat = self.world.boat
         return (boat.x_m, boat.y_m) if boat is not None else None
 
+    @property
+    def boat_velocity_m_s(self) -> tuple[float, float] | None:
+        """The scenario's ship's velocity over ground now (its GPS's course and speed)."""
+        boat = self.world.boat
+        return boat.velocity_m_s if boat is not None else None
+
     def truth(self) -> dict[str, tuple[float, float]]:
         return self.world.true_positions()
