@@ -257,7 +257,7 @@ class Daemon:
         if not isinstance(
             event,
             ev.Tick | ev.Telemetry | ev.Detection | ev.PlanSolved | ev.BoatPosition
-            | ev.WindReport,
+            | ev.WindReport | ev.BatteryReport,
         ):
             self._due.kick.set()
         elif isinstance(event, ev.Telemetry):  # the arrival-error metric follows telemetry
@@ -316,6 +316,14 @@ class Daemon:
             session = self.by_name.get(command.vehicle)
             if session is not None:
                 session.release(command.reason, home=isinstance(command, cmd.SendHome))
+        elif isinstance(command, cmd.SetHome):  # to any vehicle in the air (the controller)
+            session = self.by_name.get(command.vehicle)
+            if session is not None:
+                session.set_home(command.x_m, command.y_m)
+        elif isinstance(command, cmd.LaunchVehicle):
+            session = self.by_name.get(command.vehicle)
+            if session is not None:
+                session.want_launch(command.reason, command.relieves)
 
     def _journal_command(self, command: cmd.Command, **extra: object) -> None:
         record = command_to_record(command)
@@ -381,7 +389,7 @@ class Daemon:
         index = sysid - 1 if self.config.sim_count else len(self.sessions)
         session = VehicleSession(
             sysid, name, index, self, self.config, settings, port, self.clock, component_id,
-            planned_speed_m_s=self.core_config.speed_m_s,
+            planned_speed_m_s=self.core_config.speed_m_s, watch=self.core_config.watch,
         )
         self.sessions[sysid] = session
         self.by_name[name] = session
