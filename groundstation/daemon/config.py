@@ -136,6 +136,10 @@ class LinksConfig:
     gcs_system_id: int = 245
     transfer_timeout_s: float = 1.5
     transfer_retries: int = 5
+    ship_beacon: int | None = 17
+    """The ship's MAVLink system id: its GLOBAL_POSITION_INT goes to every vehicle link at
+    1 Hz while the ship's position is known (ArduPilot's ``FOLL_SYSID``; docs/
+    ship-vehicles.md). None (``off``): no beacon."""
 
     @property
     def sim_count(self) -> int | None:
@@ -298,6 +302,8 @@ class DaemonConfig:
         settings without their unset keys. ``parse_config(c.to_dict(), {}) == c``."""
         out = {f.name: _plain(getattr(self, f.name)) for f in dataclasses.fields(self)}
         out["detections"] = _off(self.detections)
+        if self.links.ship_beacon is None:
+            out["links"]["ship_beacon"] = "off"
         if self.detections == DETECTIONS_UNSET:  # unresolved: left to resolve() again
             del out["detections"]
         return out

@@ -187,6 +187,8 @@ class Daemon:
         )
         self.stopping = False
         self.last_plan: LastPlan | None = None
+        self.last_boat: ev.BoatPosition | None = None
+        """The ship's last fix the core was given (the ship beacon sends it)."""
         self._due = _Due()
         self._state = _RunState()
         supervisor = Supervisor(clock.now_s, self.journal, self._on_bug)
@@ -262,6 +264,8 @@ class Daemon:
             self._due.kick.set()
         elif isinstance(event, ev.Telemetry):  # the arrival-error metric follows telemetry
             self.metrics.position(event.t_s, event.vehicle, event.x_m, event.y_m)
+        elif isinstance(event, ev.BoatPosition):
+            self.last_boat = event
         try:
             pending = self.core.handle(event)
         except Exception as exc:  # a bug: the one bug path (Supervisor.bug), a clean stop
