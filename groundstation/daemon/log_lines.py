@@ -77,7 +77,6 @@ PROBLEM_EVENTS = frozenset(
         "command_refused",
         "launch_timeout",
         "launch_held",
-        "home_set_failed",
         "ship_beacon_conflict",
         "landed_unplaced",
         "stop_wait_timeout",
