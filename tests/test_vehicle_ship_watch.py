@@ -232,6 +232,14 @@ def test_a_refused_set_home_is_journalled_and_warned() -> None:
     (failed,) = rig.journal("home_set_failed")
     assert "DENIED" in failed.fields["reason"]
     assert any("home could not be moved" in w for w in rig.warnings())
+    rig.new_home(300.0, 0.0)  # the same refusal again: journalled, not warned again
+    assert len(rig.journal("home_set_failed")) == 2
+    assert len([w for w in rig.warnings() if "home could not be moved" in w]) == 1
+    rig.home_answer = True
+    rig.new_home(400.0, 0.0)
+    rig.home_answer = False
+    rig.new_home(500.0, 0.0)  # after a success: told again
+    assert len([w for w in rig.warnings() if "home could not be moved" in w]) == 2
 
 
 def test_a_set_home_cut_short_by_a_lost_link_is_sent_again_when_it_is_back() -> None:

@@ -119,6 +119,7 @@ class VehicleController:
         self._home_job: Job | None = None
         self.home_xy_m: tuple[float, float] | None = None
         """The home the vehicle last confirmed after a SetHome (local ENU m)."""
+        self._home_warned: str | None = None  # the failure last told (until a success)
         self.stopping = False
         self.snap = VehicleSnapshot(system_id=system_id)
         self.t_s = 0.0
@@ -1015,19 +1016,23 @@ class VehicleController:
 
     def home_moved(self, x_m: float, y_m: float, outcome: controller_io.HomeOutcome) -> None:
         """A home set ended: ``home_set`` with where the vehicle says its home is and how
-        far that is from the request, or ``home_set_failed`` (a warning, unless a newer
-        SetHome is already waiting)."""
+        far that is from the request, or ``home_set_failed`` (a warning once per cause
+        until one succeeds, and none when a newer SetHome is already waiting)."""
         self._home_job = self._home_req = None
         if outcome.ok:
+            self._home_warned = None
             if outcome.x_m is not None and outcome.y_m is not None:
                 self.home_xy_m = (outcome.x_m, outcome.y_m)
             self.journal("home_set", x_m=outcome.x_m, y_m=outcome.y_m, requested_x_m=x_m,
                          requested_y_m=y_m, error_m=outcome.error_m, retries=outcome.retries)
             return
-        superseded = self._new_home is not None
+        # told once per cause until a home set succeeds: a vehicle that does not support
+        # DO_SET_HOME would warn at every step of the ship (the journal has every one)
+        warn = self._new_home is None and outcome.error != self._home_warned
         self.journal("home_set_failed", x_m=x_m, y_m=y_m, reason=outcome.error,
-                     retries=outcome.retries, logged=not superseded)
-        if not superseded:
+                     retries=outcome.retries, logged=True)
+        if warn:
+            self._home_warned = outcome.error
             self._out.append(controller_io.Warn(
                 f"vehicle {self.vehicle}: its home could not be moved ({outcome.error}); "
                 "an RTL now goes to its old home"
