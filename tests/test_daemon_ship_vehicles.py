@@ -7,8 +7,9 @@ The peer is a minimal scripted ArduPlane-shaped vehicle in a thread (the built-i
 on main does not answer DO_SET_HOME yet): HEARTBEAT (FBWA, armed), GLOBAL_POSITION_INT
 (flying at 100 m, 22 m/s), SYS_STATUS and HOME_POSITION; it answers PARAM_REQUEST_READ,
 DO_SET_HOME (COMMAND_ACK, then HOME_POSITION at the new home) and REQUEST_MESSAGE 242, and
-keeps what it received. The test feeds the decision core's commands directly (the core that
-emits them is being written): it asserts on the journal and on what the peer received.
+keeps what it received. The test feeds the decision core's commands directly: it asserts on
+the journal and on what the peer received. The last test runs the built-in simulator with
+the real watch core (ship-watch, --launch): only the core's launch orders launch.
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from daemon_run import events
+from daemon_run import events, run_gcs
 
 from domain.geodesy import GeoOrigin
 from groundstation.commands.run import build_config
@@ -256,3 +257,31 @@ def test_the_ship_beacon_reaches_the_vehicle_link(tmp_path: Path) -> None:
     assert all(900 <= g <= 1500 for g in gaps_ms), gaps_ms
     assert not [m for m in plane.received if m.get_srcSystem() == 17
                 and m.get_type() == "HEARTBEAT"]  # the beacon is no vehicle
+
+
+@pytest.mark.timeout(120)
+def test_with_a_watch_on_station_only_the_core_s_orders_launch(tmp_path: Path) -> None:
+    """The built-in simulator's vehicles on deck, the ship-watch scenario (3 on station),
+    ``--launch``: the spares report themselves on deck, the core orders three launches and
+    floe carries out exactly those; the fourth stays on deck, ready, never armed."""
+    daemon, journal = run_gcs(tmp_path, "--vehicles", "sim:4", "--scenario", "ship-watch",
+                              "--launch", "--speedup", "50", "--duration", "100",
+                              "--ship-beacon", "off", timeout_s=100.0)
+    assert not events(journal, "task_error")
+    decks = [e for e in events(journal, "input") if e["kind"] == "VehicleOnDeck"]
+    assert {e["vehicle"] for e in decks} == {"1", "2", "3", "4"}
+    assert all(e["ready"] for e in decks)
+    orders = events(journal, "launch_order")
+    assert len(orders) == 3 and all(e["reason"] == "on station" for e in orders)
+    ordered = {e["vehicle"] for e in orders}
+    for launch in events(journal, "launch"):  # the controller's: each after its order
+        order = next(e for e in orders if e["vehicle"] == launch["vehicle"])
+        assert launch["t"] >= order["t"]
+    assert {e["vehicle"] for e in events(journal, "launch")} == ordered
+    assert {e["vehicle"] for e in events(journal, "launch_wanted", action="launch")} == ordered
+    spare = ({"1", "2", "3", "4"} - ordered).pop()
+    assert not events(journal, "armed", vehicle=spare, armed=True)
+    assert daemon.by_name[spare].status == "on_ground"
+    assert {e["vehicle"] for e in events(journal, "vehicle_joined")} == ordered
+    reports = [e for e in events(journal, "input") if e["kind"] == "BatteryReport"]
+    assert {e["vehicle"] for e in reports} == {"1", "2", "3", "4"}
