@@ -21,6 +21,7 @@ import logging
 import math
 from typing import Any, Protocol
 
+from domain.errors import LocalProtocolError
 from domain.geodesy import GeoOrigin
 from groundstation.core import events as ev
 from groundstation.core.commands import FlyToTarget
@@ -311,8 +312,11 @@ class VehicleSession:
         origin = self.host.origin
         lat_deg, lon_deg, _ = origin.to_geodetic(request.x_m, request.y_m)
         home = self.snapshot.home
-        machine, result = await self.port.set_home(lat_deg, lon_deg,
-                                                   None if home is None else home[2])
+        try:
+            machine, result = await self.port.set_home(lat_deg, lon_deg,
+                                                       None if home is None else home[2])
+        except LocalProtocolError as exc:  # not a position the vehicle can be sent
+            return controller_io.HomeOutcome(False, error=str(exc))
         if not result.ok or machine.home is None:
             return controller_io.HomeOutcome(False, error_m=machine.error_m,
                                              retries=result.retries_used, error=result.message)
