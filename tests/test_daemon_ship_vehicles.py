@@ -29,6 +29,7 @@ from domain.geodesy import GeoOrigin
 from groundstation.commands.run import build_config
 from groundstation.core import commands as cmd
 from groundstation.core import events as ev
+from groundstation.daemon.control.controller import DaemonController
 from groundstation.daemon.daemon import Daemon
 from groundstation.daemon.journal import read_journal
 from groundstation.daemon.startup import run_daemon
@@ -285,3 +286,27 @@ def test_with_a_watch_on_station_only_the_core_s_orders_launch(tmp_path: Path) -
     assert {e["vehicle"] for e in events(journal, "vehicle_joined")} == ordered
     reports = [e for e in events(journal, "input") if e["kind"] == "BatteryReport"]
     assert {e["vehicle"] for e in reports} == {"1", "2", "3", "4"}
+    # the API: no launch is wanted of anyone now (the ordered ones fly), no home confirmed
+    # (the simulator on main answers DO_SET_HOME UNSUPPORTED)
+    state = DaemonController(daemon).state()
+    assert all(v["launch_wanted"] is None and "home" in v for v in state["vehicles"])
+
+
+@pytest.mark.timeout(120)
+def test_without_launch_the_operator_is_asked_and_the_api_shows_it(tmp_path: Path) -> None:
+    """The same without ``--launch``: nothing is armed; each ordered spare is asked for
+    (journal, console) and the API's vehicle says ``launch_wanted``."""
+    daemon, journal = run_gcs(tmp_path, "--vehicles", "sim:4", "--scenario", "ship-watch",
+                              "--no-launch", "--speedup", "50", "--duration", "40",
+                              "--ship-beacon", "off", timeout_s=100.0)
+    assert not events(journal, "task_error")
+    orders = events(journal, "launch_order")
+    assert len(orders) == 3
+    asked = events(journal, "launch_wanted", action="ask")
+    assert {e["vehicle"] for e in asked} == {e["vehicle"] for e in orders}
+    assert not events(journal, "launch") and not events(journal, "armed", armed=True)
+    state = DaemonController(daemon).state()
+    wanted = {v["id"]: v["launch_wanted"] for v in state["vehicles"]}
+    assert {k for k, w in wanted.items() if w is not None} == {e["vehicle"] for e in orders}
+    assert all(w == {"reason": "on station", "relieves": None}
+               for w in wanted.values() if w is not None)
