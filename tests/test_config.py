@@ -306,3 +306,20 @@ def test_the_wind_replan_settings_reach_the_core() -> None:
     assert core({"wind_replan": False}) == (None, 5.0)
     with pytest.raises(ConfigError, match=r"planner\.wind_replan_margin_s"):
         parse_config({"vehicles": ["sim:1"], "planner": {"wind_replan_margin_s": 0}}, {})
+
+
+def test_ship_beacon_is_a_system_id_or_off_and_round_trips(tmp_path: Path) -> None:
+    assert build_config(["--vehicles", "sim:1"]).links.ship_beacon == 17
+    off = build_config(["--vehicles", "sim:1", "--ship-beacon", "off"])
+    assert off.links.ship_beacon is None and off.to_dict()["links"]["ship_beacon"] == "off"
+    assert build_config(["--config", _write(tmp_path / "b.yaml", yaml.safe_dump(
+        off.to_dict()))]) == off  # fmt: skip
+    assert build_config(["--vehicles", "sim:1", "--ship-beacon", "42"]).links.ship_beacon == 42
+    data = {"links": {"vehicles": ["sim:1"], "ship_beacon": "off"}}
+    assert parse_config(data, {}).links.ship_beacon is None
+    with pytest.raises(UsageError, match=r"--ship-beacon: expected 1\.\.254 or off"):
+        build_config(["--vehicles", "sim:1", "--ship-beacon", "300"])
+    with pytest.raises(UsageError, match="must not be floe's own"):
+        build_config(["--vehicles", "sim:1", "--ship-beacon", "245"])
+    with pytest.raises(UsageError, match=r"links\.ship_beacon: expected an integer"):
+        parse_config({"links": {"vehicles": ["sim:1"], "ship_beacon": "on"}}, {})

@@ -33,6 +33,16 @@ class _RunParser(argparse.ArgumentParser):
         self.exit(2, f"gcs run: error: {message}\n")
 
 
+def _beacon(text: str) -> int | str:
+    """``--ship-beacon``: ``off`` or a system id (checked with the configuration)."""
+    if text == "off":
+        return text
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected off or a system id, got {text!r}") from None
+
+
 def _parser() -> argparse.ArgumentParser:
     from groundstation.daemon.config import Objective, OnExit, ReplanTrigger, StatusMode
 
@@ -105,6 +115,9 @@ def _parser() -> argparse.ArgumentParser:
     a("--run-dir", metavar="DIR", help="parent of the run folders (default runs)")
     a("--journal", metavar="FILE", help="journal path (default RUN/journal.jsonl)")
     a("--gcs-system-id", type=int, metavar="ID", help="floe's MAVLink system id (default 245)")
+    a("--ship-beacon", type=_beacon, metavar="off|SYSID",
+      help="the ship's GLOBAL_POSITION_INT to the vehicles from this system id, for "
+      "ArduPilot's FOLL_SYSID (default 17; off: none)")
     a(
         "--speedup",
         type=float,

@@ -95,6 +95,13 @@ def _list(client: ApiClient, as_json: bool) -> int:
     if not rows:
         print("(no vehicles)")
     for v in vehicles:
+        wanted = v.get("launch_wanted")
+        if isinstance(wanted, dict):
+            vid = v.get("id")
+            why = (f"relief of {wanted['relieves']}" if wanted.get("relieves") is not None
+                   else wanted.get("reason"))
+            print(f"vehicle {vid}: launch wanted ({why}): catapult it, or "
+                  f"'gcs vehicle launch {vid}'")
         if v.get("launch_held"):
             vid = v.get("id")
             print(f"vehicle {vid}: {v['launch_held']}; floe will not launch it on its own "

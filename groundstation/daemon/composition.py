@@ -22,6 +22,7 @@ from groundstation.daemon.embedded import EmbeddedVehicles
 from groundstation.daemon.feed_lines import FeedHost, FeedLines
 from groundstation.daemon.services import FnService, Service
 from groundstation.daemon.session import VehicleSession
+from groundstation.daemon.ship_beacon import BeaconClock, ShipBeacon
 from groundstation.daemon.ship_feed import ShipFeed, ShipFeedHost
 from groundstation.link.detection_feed import DetectionFeed
 from groundstation.link.nmea_source import describe_ship_source, parse_ship_url
@@ -29,8 +30,8 @@ from groundstation.link.url import LinkUrlError
 from groundstation.storage import StorageError, atomic_write_text
 from groundstation.vehicle.state import LinkState
 
-__all__ = ["StartError", "camera_positions", "feed_counters", "start_control",
-           "start_detection_feed", "start_ship_feed", "status_service"]
+__all__ = ["StartError", "camera_positions", "feed_counters", "ship_beacon_service",
+           "start_control", "start_detection_feed", "start_ship_feed", "status_service"]
 
 
 class StartError(UsageError):
@@ -72,6 +73,24 @@ def status_service(daemon: Daemon, console: OperatorConsole, alerts: OperatorAle
         await status_loop(daemon, console.out, alerts, live=console.live_table)
 
     return FnService("status", status)
+
+
+def ship_beacon_service(config: DaemonConfig, daemon: Daemon) -> Service | None:
+    """The ship's beacon (``links.ship_beacon``), unless off or advisory (which sends nothing
+    but heartbeats)."""
+    sysid = config.links.ship_beacon
+    if sysid is None or config.advisory:
+        return None
+    beacon = ShipBeacon(
+        sysid,
+        lambda: daemon.last_boat,
+        lambda: daemon.origin_or_none,
+        daemon.router.broadcast,
+        BeaconClock(daemon.clock.now_s, daemon.clock.wall_s),
+        lambda: daemon.sessions.keys(),
+        daemon.journal,
+    )
+    return FnService(beacon.name, beacon.run)
 
 
 def feed_counters(feed: DetectionFeed | None) -> Callable[[], Mapping[str, int]] | None:

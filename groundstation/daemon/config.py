@@ -29,7 +29,7 @@ from typing import Any
 from domain.errors import ConfigError
 from domain.geodesy import GeoOrigin
 from domain.yaml_fields import load_yaml_file
-from groundstation.core.config import BatteryAction
+from groundstation.core.config import BatteryAction, WatchConfig
 from groundstation.vehicle.settings import ControllerSettings
 from planner import Objective
 from world.wind import WindSpec
@@ -137,6 +137,10 @@ class LinksConfig:
     gcs_system_id: int = 245
     transfer_timeout_s: float = 1.5
     transfer_retries: int = 5
+    ship_beacon: int | None = 17
+    """The ship's MAVLink system id: its GLOBAL_POSITION_INT goes to every vehicle link at
+    1 Hz while the ship's position is known (ArduPilot's ``FOLL_SYSID``; docs/
+    ship-vehicles.md). None (``off``): no beacon."""
 
     @property
     def sim_count(self) -> int | None:
@@ -312,6 +316,8 @@ class DaemonConfig:
         settings without their unset keys. ``parse_config(c.to_dict(), {}) == c``."""
         out = {f.name: _plain(getattr(self, f.name)) for f in dataclasses.fields(self)}
         out["detections"] = _off(self.detections)
+        if self.links.ship_beacon is None:
+            out["links"]["ship_beacon"] = "off"
         if self.detections == DETECTIONS_UNSET:  # unresolved: left to resolve() again
             del out["detections"]
         return out
@@ -398,11 +404,12 @@ def load_config_file(path: str) -> dict[str, Any]:
 
 def controller_settings(
     config: DaemonConfig, vehicle: VehicleSettings, index: int,
-    planned_speed_m_s: float | None = None,
+    planned_speed_m_s: float | None = None, watch: WatchConfig | None = None,
 ) -> ControllerSettings:
     """The mapping from the daemon's configuration (the only place that knows both).
     ``planned_speed_m_s``: the core's airspeed (the scenario's), the configured speed of a
-    vehicle without its own ``speed_m_s`` whose cruise airspeed cannot be read."""
+    vehicle without its own ``speed_m_s`` whose cruise airspeed cannot be read. ``watch``:
+    the core's ship watch (its ``ready_pct``; with ``on_station``, launches on order)."""
     fleet = config.fleet
     return ControllerSettings(
         altitude_m=vehicle.altitude_m or fleet.altitude_m + fleet.altitude_step_m * index,
@@ -415,4 +422,6 @@ def controller_settings(
         battery_low_pct=fleet.battery.low_pct,
         telemetry_rate_hz=fleet.telemetry_rate_hz,
         progress_timeout_s=fleet.progress_timeout_s,
+        ready_pct=None if watch is None else watch.ready_pct,
+        launch_on_order=watch is not None and watch.on_station is not None,
     )

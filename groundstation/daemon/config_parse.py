@@ -112,6 +112,7 @@ FLAGS: dict[str, str] = {
     "--out": "links.out",
     "--rebind-after": "links.rebind_after_s",
     "--gcs-system-id": "links.gcs_system_id",
+    "--ship-beacon": "links.ship_beacon",
     "--scenario": "mission.scenario",
     "--targets": "mission.targets",
     "--duration": "mission.duration_s",
@@ -219,6 +220,8 @@ def _coerce(value: Any, kind: Any, name: str) -> Any:
         if optional:
             return None
         raise ConfigError(f"{name}: a value is required")
+    if kind is int and optional and value == "off":  # links.ship_beacon: off
+        return None
     if kind is Endpoint:
         if value == "off" and optional:
             return None
@@ -409,6 +412,7 @@ _CHECKS: dict[str, Check] = {
     "speedup": _positive(1000.0, optional=True),
     "mission.duration_s": _positive(optional=True),
     "links.gcs_system_id": _gcs_id,
+    "links.ship_beacon": lambda v: None if v is None else _between(1, 254, "1..254 or off")(v),
     "planner.num_workers": _between(1, 64, "1..64"),
     "fleet.altitude_m": _positive(),
     "links.rebind_after_s": _positive(),
@@ -460,6 +464,10 @@ def check_config(config: DaemonConfig, names: Mapping[str, str] | None = None) -
     if planner.replan in (ReplanTrigger.PERIOD, ReplanTrigger.BOTH) and planner.period_s is None:
         name = names.get("planner.period_s", "planner.period_s")
         raise ConfigError(f"{name}: required when replan is period or both")
+    beacon = config.links.ship_beacon
+    if beacon is not None and beacon == config.links.gcs_system_id:
+        name = names.get("links.ship_beacon", "links.ship_beacon")
+        raise ConfigError(f"{name}: the ship's system id must not be floe's own ({beacon})")
     count = config.sim_count
     if count is not None:
         for spec in config.sim.faults:

@@ -191,6 +191,8 @@ class Daemon:
         )
         self.stopping = False
         self.last_plan: LastPlan | None = None
+        self.last_boat: ev.BoatPosition | None = None
+        """The ship's last fix the core was given (the ship beacon sends it)."""
         self._due = _Due()
         self._state = _RunState()
         supervisor = Supervisor(clock.now_s, self.journal, self._on_bug)
@@ -261,11 +263,13 @@ class Daemon:
         if not isinstance(
             event,
             ev.Tick | ev.Telemetry | ev.Detection | ev.PlanSolved | ev.BoatPosition
-            | ev.WindReport,
+            | ev.WindReport | ev.BatteryReport,
         ):
             self._due.kick.set()
         elif isinstance(event, ev.Telemetry):  # the arrival-error metric follows telemetry
             self.metrics.position(event.t_s, event.vehicle, event.x_m, event.y_m)
+        elif isinstance(event, ev.BoatPosition):
+            self.last_boat = event
         try:
             pending = self.core.handle(event)
         except Exception as exc:  # a bug: the one bug path (Supervisor.bug), a clean stop
@@ -324,6 +328,14 @@ class Daemon:
             session = self.by_name.get(command.vehicle)
             if session is not None:
                 session.release(command.reason, home=isinstance(command, cmd.SendHome))
+        elif isinstance(command, cmd.SetHome):  # to any vehicle in the air (the controller)
+            session = self.by_name.get(command.vehicle)
+            if session is not None:
+                session.set_home(command.x_m, command.y_m)
+        elif isinstance(command, cmd.LaunchVehicle):
+            session = self.by_name.get(command.vehicle)
+            if session is not None:
+                session.want_launch(command.reason, command.relieves)
 
     def _watch_landing(self, note: cmd.Note) -> None:
         """A watch's landing, in figures: a recovery's charge and where the return ended
@@ -409,7 +421,7 @@ class Daemon:
         index = sysid - 1 if self.config.sim_count else len(self.sessions)
         session = VehicleSession(
             sysid, name, index, self, self.config, settings, port, self.clock, component_id,
-            planned_speed_m_s=self.core_config.speed_m_s,
+            planned_speed_m_s=self.core_config.speed_m_s, watch=self.core_config.watch,
         )
         self.sessions[sysid] = session
         self.by_name[name] = session

@@ -21,9 +21,11 @@ import logging
 import math
 from typing import Any, Protocol
 
+from domain.errors import LocalProtocolError
 from domain.geodesy import GeoOrigin
 from groundstation.core import events as ev
 from groundstation.core.commands import FlyToTarget
+from groundstation.core.config import WatchConfig
 from groundstation.daemon.clock import MissionClock
 from groundstation.daemon.config import DaemonConfig, VehicleSettings, controller_settings
 from groundstation.daemon.vehicle_port import VehiclePort
@@ -70,6 +72,7 @@ class VehicleSession:
         clock: MissionClock,
         component_id: int = 1,
         planned_speed_m_s: float | None = None,
+        watch: WatchConfig | None = None,
     ) -> None:
         self.system_id = system_id
         self.component_id = component_id
@@ -81,7 +84,8 @@ class VehicleSession:
         self.port = port
         self.clock = clock
         self.controller = VehicleController(
-            name, system_id, controller_settings(config, settings, index, planned_speed_m_s)
+            name, system_id,
+            controller_settings(config, settings, index, planned_speed_m_s, watch),
         )
         self.telemetry = VehicleTelemetry(
             system_id, host.origin, battery_low_pct=config.fleet.battery.low_pct,
@@ -190,6 +194,21 @@ class VehicleSession:
         """Core said: stop commanding (ReleaseVehicle) or go home (SendHome)."""
         self._feed(controller_io.Release(self.clock.now_s(), reason, home))
 
+    def set_home(self, x_m: float, y_m: float) -> None:
+        """Core said: move the home (SetHome; sent to any vehicle in the air, whoever has it)."""
+        self._feed(controller_io.NewHome(self.clock.now_s(), x_m, y_m))
+
+    def want_launch(self, reason: str, relieves: str | None) -> None:
+        """Core said: launch this spare (LaunchVehicle): with --launch floe does, else the
+        operator is asked."""
+        self._feed(controller_io.LaunchWanted(self.clock.now_s(), reason, relieves))
+
+    @property
+    def launch_wanted(self) -> dict[str, Any] | None:
+        """The core's pending launch order (the API's ``launch_wanted``), until it flies."""
+        order = self.controller.launch_wanted
+        return None if order is None else {"reason": order.reason, "relieves": order.relieves}
+
     def request_launch(self) -> tuple[bool, str]:
         ok, error = self.controller.launch()
         self._carry_out(self.controller.take_outputs())
@@ -283,7 +302,26 @@ class VehicleSession:
             return await port.arm()
         if isinstance(request, controller_io.ReadParam):
             return await port.param_read(request.name)
+        if isinstance(request, controller_io.MoveHome):
+            return await self._move_home(request)
         return await port.param_set(request.name, request.value)
+
+    async def _move_home(self, request: controller_io.MoveHome) -> controller_io.HomeOutcome:
+        """DO_SET_HOME at the local point, at the altitude of the vehicle's current home
+        (its HOME_POSITION; asked for first when not known), verified by HOME_POSITION."""
+        origin = self.host.origin
+        lat_deg, lon_deg, _ = origin.to_geodetic(request.x_m, request.y_m)
+        home = self.snapshot.home
+        try:
+            machine, result = await self.port.set_home(lat_deg, lon_deg,
+                                                       None if home is None else home[2])
+        except LocalProtocolError as exc:  # not a position the vehicle can be sent
+            return controller_io.HomeOutcome(False, error=str(exc))
+        if not result.ok or machine.home is None:
+            return controller_io.HomeOutcome(False, error_m=machine.error_m,
+                                             retries=result.retries_used, error=result.message)
+        x_m, y_m, _ = origin.to_local(machine.home[0], machine.home[1])
+        return controller_io.HomeOutcome(True, x_m, y_m, machine.error_m, result.retries_used)
 
     async def _upload_verified(
         self, request: controller_io.UploadMission

@@ -40,6 +40,7 @@ from groundstation.daemon.composition import (
     StartError,
     camera_positions,
     feed_counters,
+    ship_beacon_service,
     start_control,
     start_detection_feed,
     start_ship_feed,
@@ -240,6 +241,8 @@ async def run_daemon(
         services += [ship] if ship is not None else []
         alerts = OperatorAlerts(daemon, feed_counters(feed))
         services += [FnService("alerts", alerts.run), *([control] if control else [])]
+        beacon = ship_beacon_service(config, daemon)
+        services += [beacon] if beacon is not None else []
         _print_start(setup, files.run_dir, urls, print_fn)
         if install_signals:
             _install_signals(daemon)

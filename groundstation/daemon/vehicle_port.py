@@ -2,7 +2,8 @@
 
 A :class:`VehiclePort` sends the daemon's messages to one system id (through the router)
 and runs its exchanges: mission upload / download / set current, COMMAND_LONG with its
-COMMAND_ACK, PARAM_SET and PARAM_REQUEST_READ with their PARAM_VALUE, each one a
+COMMAND_ACK, DO_SET_HOME with its COMMAND_ACK and HOME_POSITION, PARAM_SET and
+PARAM_REQUEST_READ with their PARAM_VALUE, each one a
 :class:`~groundstation.mavlink.mission_transfer.TransferBase` machine. Every timeout is in
 mission seconds (``clock.wall_s`` turns a wait into wall time), so at a 50x speed-up the
 vehicle sees the same 1.5 s timeouts it would see at 1x.
@@ -49,7 +50,7 @@ from groundstation.mavlink.mission_transfer import (
     TransferResult,
 )
 from groundstation.mavlink.mission_upload import MissionUpload
-from groundstation.mavlink.vehicle_commands import CommandLong, ParamRead, ParamSet
+from groundstation.mavlink.vehicle_commands import CommandLong, HomeSet, ParamRead, ParamSet
 
 __all__ = ["PortClock", "VehiclePort"]
 
@@ -319,6 +320,26 @@ class VehiclePort:
         )
         await self.run(machine)
         return machine.value
+
+    async def set_home(
+        self, lat_deg: float, lon_deg: float, alt_m: float | None, timeout_s: float = 1.0,
+        retries: int = 3,
+    ) -> tuple[HomeSet, TransferResult]:
+        """MAV_CMD_DO_SET_HOME verified by HOME_POSITION (:class:`HomeSet`; ``alt_m`` None:
+        keep the vehicle's home altitude): the machine (its confirmed home, error) and its
+        result."""
+        machine = HomeSet(
+            self.system_id,
+            self.component_id,
+            lat_deg,
+            lon_deg,
+            alt_m,
+            timeout_s=timeout_s,
+            retries=retries,
+            own_system=self._own_system,
+        )
+        result = await self.run(machine)
+        return machine, result
 
     def request_rates(self, position_hz: float) -> None:
         """Ask for the telemetry the daemon needs (fire and forget; repeated by the session).

@@ -92,6 +92,8 @@ PREARM_CHECK_BIT = 0x10000000  # MAV_SYS_STATUS_PREARM_CHECK
 _ARMED_FLAG = 128  # MAV_MODE_FLAG_SAFETY_ARMED
 _CUSTOM_MODE_FLAG = 1  # MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
 _UINT16_UNKNOWN = 65535
+_MAX_CURRENT_CA = 100_000
+"""A battery current beyond 1000 A is no reading (cA on the wire)."""
 _MISSION_STATE_MAX = 5  # MISSION_STATE_COMPLETE, the last MISSION_STATE value
 _STATUSTEXT_CHUNK = 50
 _MAX_SPEED_M_S = 150.0
@@ -230,6 +232,8 @@ class VehicleTelemetry:
             landed_state=None,
             reboot_suspected=False,
             wind_xy_m_s=None,
+            home=None,
+            home_xy_m=None,
         )
         self._last_position_boot_ms = None
         self.wind.reset()  # the autopilot's wind estimate starts again too
@@ -337,6 +341,7 @@ class VehicleTelemetry:
             "SYS_STATUS",
             int(msg.battery_remaining),
             None if voltage_mv == _UINT16_UNKNOWN else voltage_mv,
+            int(msg.current_battery),
         )
         return events
 
@@ -344,13 +349,21 @@ class VehicleTelemetry:
         voltages = list(msg.voltages)
         cell0 = int(voltages[0]) if voltages else _UINT16_UNKNOWN
         voltage_mv = None if cell0 == _UINT16_UNKNOWN else cell0
-        return self._battery(now_s, "BATTERY_STATUS", int(msg.battery_remaining), voltage_mv)
+        return self._battery(now_s, "BATTERY_STATUS", int(msg.battery_remaining), voltage_mv,
+                             int(msg.current_battery))
 
     def _battery(
-        self, now_s: float, kind: str, remaining: int, voltage_mv: int | None
+        self, now_s: float, kind: str, remaining: int, voltage_mv: int | None,
+        current_ca: int = -1,
     ) -> list[TelemetryEvent]:
         events: list[TelemetryEvent] = []
         snap = self._snap
+        if current_ca == -1:  # ArduPilot: no current sensor / not known
+            snap = replace(snap, battery_current_a=None)
+        elif abs(current_ca) <= _MAX_CURRENT_CA:
+            snap = replace(snap, battery_current_a=current_ca / 100.0)
+        else:
+            events.append(InvalidTelemetry(now_s, kind, "current_battery", current_ca))
         if remaining != -1:
             if 0 <= remaining <= 100:
                 snap = replace(snap, battery_remaining_pct=float(remaining))
@@ -389,6 +402,19 @@ class VehicleTelemetry:
         )
         if seq != old:
             return [MissionCurrentChanged(now_s, old, seq, total)]
+        return []
+
+    def _on_home_position(self, msg: MAVLinkMessage, now_s: float) -> list[TelemetryEvent]:
+        """HOME_POSITION: where the autopilot's RTL goes (lat/lon degE7, altitude mm AMSL)."""
+        lat, lon, alt_mm = int(msg.latitude), int(msg.longitude), int(msg.altitude)
+        if abs(lat) > 900_000_000 or abs(lon) > 1_800_000_000 or (lat == 0 and lon == 0):
+            return [InvalidTelemetry(now_s, "HOME_POSITION", "lat/lon", (lat, lon))]
+        if abs(alt_mm) / 1000.0 > _MAX_ALT_M:
+            return [InvalidTelemetry(now_s, "HOME_POSITION", "altitude", alt_mm)]
+        lat_deg, lon_deg = lat * 1e-7, lon * 1e-7
+        x_m, y_m, _ = self.origin.to_local(lat_deg, lon_deg)
+        self._snap = replace(self._snap, home=(lat_deg, lon_deg, alt_mm / 1000.0),
+                             home_xy_m=(x_m, y_m), last_home_s=now_s)
         return []
 
     def _on_extended_sys_state(self, msg: MAVLinkMessage, now_s: float) -> list[TelemetryEvent]:
@@ -455,6 +481,7 @@ _HANDLERS = {
     "MISSION_ITEM_REACHED": VehicleTelemetry._on_item_reached,
     "STATUSTEXT": VehicleTelemetry._on_statustext,
     "EXTENDED_SYS_STATE": VehicleTelemetry._on_extended_sys_state,
+    "HOME_POSITION": VehicleTelemetry._on_home_position,
     "WIND": VehicleTelemetry._on_wind,
 }
 

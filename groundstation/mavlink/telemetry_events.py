@@ -164,6 +164,15 @@ class VehicleSnapshot:
     where the autopilot does not report it (0, UNKNOWN, or a MAVLink 1 frame)."""
     battery_remaining_pct: float | None = None
     battery_voltage_v: float | None = None
+    battery_current_a: float | None = None
+    """SYS_STATUS / BATTERY_STATUS ``current_battery`` (cA -> A); None where the autopilot
+    says it does not know (-1), or before it said anything."""
+    home: tuple[float, float, float] | None = None
+    """The autopilot's home as its last HOME_POSITION said: (lat_deg, lon_deg, alt_m AMSL)."""
+    home_xy_m: tuple[float, float] | None = None
+    """That home in local ENU (m), with the mission origin."""
+    last_home_s: float | None = None
+    """When the last valid HOME_POSITION arrived (mission s)."""
     prearm_ok: bool | None = None
     last_heard_s: float | None = None
     last_heartbeat_s: float | None = None

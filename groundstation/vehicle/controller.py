@@ -26,6 +26,14 @@ Rules (each decision needs evidence over several frames, :mod:`.evidence`):
   launched at the operator's request.
 * One exchange at a time; a newer FlyToTarget overtakes a pending one; the mission owed when
   the link went is sent again when it is back.
+* The ship watch (docs/ship-vehicles.md): the battery goes to the core as ``BatteryReport``
+  (at most every ``battery_report_s``, at once on a ``battery_report_pct`` move); a vehicle
+  standing disarmed on the ground is ``VehicleOnDeck`` (when its readiness changes); one
+  that flew and came down is ``VehicleLanded`` once (the evidence that sets ``came_down``).
+  The core's SetHome is one verified DO_SET_HOME (:func:`~.jobs.set_home_job`), to any
+  vehicle in the air, also one taken over or sent home; a newer one supersedes it. The
+  core's LaunchVehicle launches a spare with ``launch`` (``--launch``), else asks the
+  operator; with ``launch_on_order`` nothing else is launched on floe's own.
 """
 
 from __future__ import annotations
@@ -57,6 +65,7 @@ from groundstation.vehicle.jobs import (
     home_job,
     launch_job,
     park_job,
+    set_home_job,
     target_job,
 )
 from groundstation.vehicle.settings import ControllerSettings
@@ -87,7 +96,9 @@ class VehicleController:
         self.s = settings
         self.state = S.CONNECTING
         self.link: LinkState = LinkState.OK
-        self.launch_requested = settings.launch
+        self.launch_requested = settings.launch and not settings.launch_on_order
+        """Launch it once it may be (``--launch``; with a watch's ``on_station`` only on the
+        core's LaunchVehicle or the operator's request)."""
         self.has_flown = False
         """Seen flying in this session: once it comes down, floe never launches it again on
         its own initiative (only an operator's :meth:`launch` does)."""
@@ -96,6 +107,19 @@ class VehicleController:
         self._operator_launch = False  # an operator's launch request, until it flies
         self.launch_held: str | None = None
         """Why a launch floe would have started on its own is held (until the operator's)."""
+        self.launch_wanted: controller_io.LaunchWanted | None = None
+        """The core's LaunchVehicle for this vehicle, until it flies (the API shows it)."""
+        self._spare_launch = False  # the core's launch of a fresh spare, until it flies
+        self._fresh_boot = True  # booted since it last came down (or never flew)
+        self._down_in_rtl = False  # it came down in an RTL (floe's, or a failsafe's)
+        self._battery_sent: tuple[float, float | None] | None = None  # (t_s, pct) last sent
+        self._deck_sent: bool | None = None  # the last VehicleOnDeck's ready (None: none)
+        self._new_home: controller_io.NewHome | None = None  # the core's SetHome, to send
+        self._home_req: controller_io.NewHome | None = None  # the one being sent
+        self._home_job: Job | None = None
+        self.home_xy_m: tuple[float, float] | None = None
+        """The home the vehicle last confirmed after a SetHome (local ENU m)."""
+        self._home_warned: str | None = None  # the failure last told (until a success)
         self.stopping = False
         self.snap = VehicleSnapshot(system_id=system_id)
         self.t_s = 0.0
@@ -174,6 +198,8 @@ class VehicleController:
         (``override_grace_s``): a pilot's RTL seen just before floe's next upload or its
         switch to AUTO must not be undone by them. An override aborts the job; a battery
         failsafe or a mission end of the autopilot's own lets it go on."""
+        if isinstance(request, controller_io.MoveHome):  # changes no mode: no grace to wait
+            return self.snap.reboot_suspected or self.link is not LinkState.OK
         commanding = (controller_io.SetMode | controller_io.UploadMission | controller_io.SetCurrent
                       | controller_io.Arm)
         if not isinstance(request, commanding):
@@ -198,6 +224,10 @@ class VehicleController:
             self._release(inp.reason, inp.home)
         elif isinstance(inp, controller_io.Stop):
             self.stopping = True
+        elif isinstance(inp, controller_io.NewHome):
+            self._on_new_home(inp)
+        elif isinstance(inp, controller_io.LaunchWanted):
+            self._on_launch_wanted(inp)
         self._advance()
         out, self._out = self._out, []
         return out
@@ -221,18 +251,21 @@ class VehicleController:
         kind = frame.kind
         if kind == "SYS_STATUS" and s.sensors is not None:
             self._airspeed(self.airspeed.sys_status(*s.sensors, t))
-        grounded = False
+        grounded = came_down = False
         if kind in ("HEARTBEAT", "GLOBAL_POSITION_INT", "EXTENDED_SYS_STATE"):
             grounded = self.watch.flight(s, t)
-            self._track_flight(grounded)
+            came_down = self._track_flight(grounded)
         if grounded and self.state is S.ACTIVE:
             self._leave("landed", t, S.ON_GROUND, alt_m=s.alt_m, armed=s.armed)
+        if came_down:
+            self._landed(t)
         if kind == "HEARTBEAT":
             self._on_heartbeat(t)
         elif kind in ("SYS_STATUS", "BATTERY_STATUS"):
             self.watch.battery.reading(s.battery_remaining_pct, t)
             if self.watch.battery.confirmed(t):
                 self._battery_low(t)
+            self._report_battery(t)
         elif kind == "MISSION_CURRENT" and s.mission_current_seq is not None:
             self.watch.mission_current(s.mission_current_seq, s.mission_state)
             loiter = self._loiter
@@ -248,15 +281,26 @@ class VehicleController:
         if self.state is S.LAUNCHING and self._launch_deadline_s is not None and up:
             self._launch_deadline_s = None
             self.joined("launched")
+        if kind in ("HEARTBEAT", "GLOBAL_POSITION_INT", "EXTENDED_SYS_STATE", "SYS_STATUS",
+                    "BATTERY_STATUS"):
+            self._deck(t)
 
-    def _track_flight(self, grounded: bool) -> None:
+    def _track_flight(self, grounded: bool) -> bool:
         """Whether it has flown, and how it came down after it did (before the state
-        changes on this frame: the state says whose it was when it came down)."""
+        changes on this frame: the state says whose it was when it came down). True on
+        the frame it is found down after it flew (once per landing)."""
         if self.watch.flying.confirmed:
             self.has_flown = True
             self.came_down = None
             self._operator_launch = False
+            self._spare_launch = False
+            self._fresh_boot = False
+            self._down_in_rtl = False
+            self.launch_wanted = None
+            if self.s.launch_on_order:
+                self.launch_requested = False  # one order, one flight
         elif grounded and self.has_flown and self.came_down is None:
+            self._down_in_rtl = self.snap.mode == ArduPlaneMode.RTL or self.state is S.HOME
             mode = self.snap.mode_name or "?"
             self.came_down = {
                 S.ACTIVE: f"came down in {mode} while floe flew it",
@@ -266,6 +310,8 @@ class VehicleController:
                 S.MANUAL: f"came down in {mode}, not floe's",
                 S.HOME: f"came down in {mode} after floe sent it home",
             }.get(self.state, f"came down in {mode}")
+            return True
+        return False
 
     def _on_event(self, event: TelemetryEvent) -> None:
         t = event.t_s
@@ -349,6 +395,8 @@ class VehicleController:
             time_boot_ms=event.time_boot_ms,
         )  # fmt: skip
         self._out.append(controller_io.NotifyRebooted())
+        if self.came_down is not None:
+            self._fresh_boot = True  # powered up again after it came down (battery swap)
         self._airspeed_rebooted()
         self._abort_job()
         self._loiter = None
@@ -372,6 +420,10 @@ class VehicleController:
             if self.link is not LinkState.LOST:
                 self.link = LinkState.LOST
                 self.journal("link_lost", silent_s=round(silent_s, 2))
+                if self._deck_sent:  # a spare it cannot hear is no ready spare
+                    self._core(ev.VehicleOnDeck(t, self.vehicle, False,
+                                                self._battery_pct()))
+                self._deck_sent = None
                 self._pending_fly = None
                 self._restore = None
                 self._abort_job(cancel=True)
@@ -561,7 +613,8 @@ class VehicleController:
         if self.state is not S.ON_GROUND:
             self.state = S.ON_GROUND
             self.journal("on_ground", prearm_ok=s.prearm_ok)
-        if self.launch_requested and self.has_flown and not self._operator_launch:
+        if (self.launch_requested and self.has_flown and not self._operator_launch
+                and not self._spare_launch):
             self._hold_launch()
             return
         if self.launch_requested and s.prearm_ok and not self.s.advisory:
@@ -610,6 +663,8 @@ class VehicleController:
             self._pending_home = False
             self._start(home_job(self))
             return True
+        if self._new_home is not None and self._start_home_set():
+            return True
         fly = self._pending_fly
         if fly is not None and self.commanded:
             self._pending_fly = None
@@ -636,6 +691,12 @@ class VehicleController:
         self._send(self._jobs.done(done.request, done.result, self.stopping))
 
     def _abort_job(self, cancel: bool = False) -> None:
+        if self._home_job is not None and self._jobs.job is self._home_job:
+            # a home set cut short (reboot, link lost, override) is sent again when it may
+            # be, unless a newer one is waiting
+            if self._new_home is None:
+                self._new_home = self._home_req
+            self._home_job = self._home_req = None
         if self._jobs.abort() and cancel:
             self._out.append(controller_io.CancelExchange())
 
@@ -672,6 +733,132 @@ class VehicleController:
         self.journal("battery_low", remaining_pct=self.snap.battery_remaining_pct)
         if self.state is S.ACTIVE:
             self._core(ev.BatteryLow(t, self.vehicle))
+
+    # ------------------------------------------------------------------ the ship watch
+    def _battery_pct(self) -> float | None:
+        return _reading(self.snap.battery_remaining_pct, 0.0, 100.0)
+
+    def _report_battery(self, t: float) -> None:
+        """``BatteryReport`` for the core's energy model: at most every
+        ``battery_report_s``, or at once when the remaining charge moved by
+        ``battery_report_pct``. What is not a reading (NaN, out of range, ArduPilot's
+        "unknown") is None; nothing at all is sent while nothing is known."""
+        s = self.snap
+        pct = self._battery_pct()
+        current_a = _reading(s.battery_current_a, -1000.0, 1000.0)
+        voltage_v = _reading(s.battery_voltage_v, 0.0, 100.0)
+        if pct is None and current_a is None and voltage_v is None:
+            return
+        last = self._battery_sent
+        if last is not None and t - last[0] < self.s.battery_report_s - 1e-9:
+            moved = pct is not None and (
+                last[1] is None or abs(pct - last[1]) >= self.s.battery_report_pct - 1e-9)
+            if not moved:
+                return
+        self._battery_sent = (t, pct)
+        self._core(ev.BatteryReport(t, self.vehicle, pct, current_a, voltage_v))
+
+    def _spare_ok(self) -> bool:
+        """Whether floe may launch it on the core's order: it never flew; or (only with a
+        watch configured: the relief's opt-in) it came down in an RTL, floe's or a
+        failsafe's, and has since been booted again with at least ``ready_pct``. Any
+        other vehicle that came down after it flew is never launched on floe's own."""
+        if not self.has_flown:
+            return True
+        ready_pct, pct = self.s.ready_pct, self._battery_pct()
+        return (ready_pct is not None and self.came_down is not None and self._fresh_boot
+                and self._down_in_rtl and pct is not None and pct >= ready_pct)
+
+    def _deck(self, t: float) -> None:
+        """``VehicleOnDeck`` when a vehicle standing disarmed on the ground changes
+        readiness (ready: floe may launch it, :meth:`_spare_ok`, with at least
+        ``ready_pct`` of charge when a watch is configured)."""
+        s = self.snap
+        on_deck = (s.armed is False and self.watch.grounded.confirmed and not self.flying()
+                   and not s.reboot_suspected and self.link is not LinkState.LOST
+                   and self.state is not S.LAUNCHING)
+        if not on_deck:
+            self._deck_sent = None
+            return
+        pct = self._battery_pct()
+        ready_pct = self.s.ready_pct
+        charged = ready_pct is None or (pct is not None and pct >= ready_pct)
+        ready = charged and self._spare_ok()
+        if ready != self._deck_sent:
+            self._deck_sent = ready
+            self._core(ev.VehicleOnDeck(t, self.vehicle, ready, pct))
+
+    def _landed(self, t: float) -> None:
+        """It flew and is found on the ground (the evidence behind ``came_down``): once."""
+        s = self.snap
+        if s.x_m is None or s.y_m is None:
+            self.journal("landed_unplaced", reason=self.came_down)
+            return
+        self._core(ev.VehicleLanded(t, self.vehicle, s.x_m, s.y_m))
+
+    def _on_new_home(self, new: controller_io.NewHome) -> None:
+        """The core's SetHome: the newest one wins; a home set still running for an older
+        one is cancelled (it is one command: nothing is half done)."""
+        if not (math.isfinite(new.x_m) and math.isfinite(new.y_m)):
+            self.journal("home_set_failed", x_m=new.x_m, y_m=new.y_m, reason="not a position")
+            return
+        self._new_home = new
+        if self._home_job is not None and self._jobs.job is self._home_job:
+            self._home_job = self._home_req = None
+            self._abort_job(cancel=True)
+
+    def _start_home_set(self) -> bool:
+        """Start the waiting home set if the vehicle is in the air (whoever has it: moving
+        the home changes no mode); drop it for one on the ground; else let it wait."""
+        new = self._new_home
+        assert new is not None
+        if self.s.advisory:  # advisory commands nothing (the core's set_home line stays)
+            self._new_home = None
+            return False
+        if not self.flying():
+            if self.state is not S.LAUNCHING and self.watch.grounded.confirmed:
+                self._new_home = None
+                self.journal("home_set_failed", x_m=new.x_m, y_m=new.y_m,
+                             reason="on the ground (its home is where it is armed)")
+            return False
+        self._new_home = None
+        self._home_req = new
+        self._home_job = set_home_job(self, new.x_m, new.y_m)
+        self._start(self._home_job)
+        return True
+
+    def _on_launch_wanted(self, order: controller_io.LaunchWanted) -> None:
+        """The core's LaunchVehicle: with ``--launch`` floe launches the spare if it may
+        (:meth:`_spare_ok`, on the ground); otherwise the operator is asked (console,
+        journal, the API's ``launch_wanted`` and the live map's button)."""
+        self.launch_wanted = order
+        what = (f"relief of {order.relieves}" if order.relieves is not None
+                else order.reason)
+        down = self.state in (S.OVERRIDDEN, S.HOME) and self.watch.grounded.confirmed
+        grounded = self.state in (S.ON_GROUND, S.CONNECTING) or down
+        if self.state is S.LAUNCHING or self.flying():
+            self.journal("launch_wanted", reason=order.reason, relieves=order.relieves,
+                         action="none", why=f"already {self.status}")
+            return
+        if self.s.launch and not self.s.advisory and grounded and self._spare_ok():
+            self.journal("launch_wanted", reason=order.reason, relieves=order.relieves,
+                         action="launch")
+            if down:
+                self.state = S.ON_GROUND
+                self._pending_home = False
+            self._spare_launch = True
+            self.launch_held = None
+            self._launch_request()
+            return
+        why = ("floe launches only with --launch" if not self.s.launch or self.s.advisory
+               else "not on the ground" if not grounded
+               else self.came_down or "came down after it flew")
+        self.journal("launch_wanted", reason=order.reason, relieves=order.relieves,
+                     action="ask", why=why, logged=True)
+        self._out.append(controller_io.Warn(
+            f"launch vehicle {self.vehicle} ({what}): catapult it, or "
+            f"'gcs vehicle launch {self.vehicle}'"
+        ))  # fmt: skip
 
     def _on_wind(self, event: WindReported) -> None:
         """The vehicle's accepted wind estimate goes to the core (``WindReport``) while it
@@ -827,7 +1014,39 @@ class VehicleController:
         self.cruise_source = source
         self.journal("cruise_speed", speed_m_s=self.cruise_speed_m_s, source=source)
 
+    def home_moved(self, x_m: float, y_m: float, outcome: controller_io.HomeOutcome) -> None:
+        """A home set ended: ``home_set`` with where the vehicle says its home is and how
+        far that is from the request, or ``home_set_failed`` (a warning once per cause
+        until one succeeds, and none when a newer SetHome is already waiting)."""
+        self._home_job = self._home_req = None
+        if outcome.ok:
+            self._home_warned = None
+            if outcome.x_m is not None and outcome.y_m is not None:
+                self.home_xy_m = (outcome.x_m, outcome.y_m)
+            self.journal("home_set", x_m=outcome.x_m, y_m=outcome.y_m, requested_x_m=x_m,
+                         requested_y_m=y_m, error_m=outcome.error_m, retries=outcome.retries)
+            return
+        # told once per cause until a home set succeeds: a vehicle that does not support
+        # DO_SET_HOME would warn at every step of the ship (the journal has every one)
+        warn = self._new_home is None and outcome.error != self._home_warned
+        self.journal("home_set_failed", x_m=x_m, y_m=y_m, reason=outcome.error,
+                     retries=outcome.retries, logged=True)
+        if warn:
+            self._home_warned = outcome.error
+            self._out.append(controller_io.Warn(
+                f"vehicle {self.vehicle}: its home could not be moved ({outcome.error}); "
+                "an RTL now goes to its old home"
+            ))  # fmt: skip
+
     def home_done(self, ok: bool) -> None:
         self.journal("rtl", ok=ok)
         if not ok:
             self._pending_home = True
+
+
+def _reading(value: float | None, low: float, high: float) -> float | None:
+    """A battery value as the core is told it: None unless a finite number in [low, high]."""
+    if value is None or isinstance(value, bool) or not isinstance(value, int | float):
+        return None
+    value = float(value)
+    return value if math.isfinite(value) and low <= value <= high else None

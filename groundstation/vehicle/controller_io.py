@@ -3,7 +3,8 @@
 In: :class:`AutopilotFrame` (one message from the vehicle's autopilot, reduced),
 :class:`TimePassed` (the daemon's tick: silence, progress, deadlines), :class:`ExchangeDone`
 (the result of the exchange the controller asked for), :class:`Fly` / :class:`Release`
-(the decision core's commands), :class:`ForeignFrame` (a frame of another component,
+(the decision core's commands), :class:`NewHome` (its SetHome), :class:`LaunchWanted` (its
+LaunchVehicle), :class:`ForeignFrame` (a frame of another component,
 counted) and :class:`Stop`. Operator requests (launch, resume, override) are the
 controller's methods of those names.
 
@@ -36,8 +37,12 @@ __all__ = [
     "ExchangeDone",
     "Fly",
     "ForeignFrame",
+    "HomeOutcome",
     "Input",
     "JournalLine",
+    "LaunchWanted",
+    "MoveHome",
+    "NewHome",
     "NotifyRebooted",
     "Output",
     "ReadParam",
@@ -101,6 +106,25 @@ class Release:
 
 
 @dataclass(frozen=True)
+class NewHome:
+    """The core's SetHome: move the vehicle's home to (x_m, y_m) (local ENU, m)."""
+
+    t_s: float
+    x_m: float
+    y_m: float
+
+
+@dataclass(frozen=True)
+class LaunchWanted:
+    """The core's LaunchVehicle: launch this spare (``reason``; ``relieves`` the vehicle it
+    relieves, if any). With ``--launch`` floe launches it; otherwise it asks the operator."""
+
+    t_s: float
+    reason: str
+    relieves: str | None = None
+
+
+@dataclass(frozen=True)
 class Stop:
     t_s: float
 
@@ -116,10 +140,24 @@ class UploadOutcome:
 
 
 @dataclass(frozen=True)
+class HomeOutcome:
+    """A home set: confirmed by HOME_POSITION (``ok``; ``x_m, y_m`` where the vehicle says
+    its home now is, ``error_m`` from the request), or why not (``error``)."""
+
+    ok: bool
+    x_m: float | None = None
+    y_m: float | None = None
+    error_m: float | None = None
+    retries: int = 0
+    error: str | None = None
+
+
+@dataclass(frozen=True)
 class ExchangeDone:
     """The answer to ``request``: an :class:`UploadOutcome` (UploadMission), a
     ``TransferResult`` (Download, SetCurrent), a MAV_RESULT or None on silence (SetMode,
-    Arm), a bool (SetParam) or the value read, None on silence (ReadParam)."""
+    Arm), a bool (SetParam), the value read, None on silence (ReadParam), or a
+    :class:`HomeOutcome` (MoveHome)."""
 
     t_s: float
     request: Exchange
@@ -127,7 +165,8 @@ class ExchangeDone:
 
 
 Input = (
-    AutopilotFrame | ForeignFrame | TimePassed | Fly | Release | Stop | ExchangeDone
+    AutopilotFrame | ForeignFrame | TimePassed | Fly | Release | Stop | ExchangeDone | NewHome
+    | LaunchWanted
 )
 
 
@@ -179,7 +218,18 @@ class ReadParam:
     name: str
 
 
-Exchange = UploadMission | Download | SetCurrent | SetMode | Arm | SetParam | ReadParam
+@dataclass(frozen=True, eq=False)
+class MoveHome:
+    """Move the home to (x_m, y_m) (local ENU; the driver converts with the mission origin
+    and keeps the home's altitude), verified by HOME_POSITION: a :class:`HomeOutcome`."""
+
+    x_m: float
+    y_m: float
+
+
+Exchange = (
+    UploadMission | Download | SetCurrent | SetMode | Arm | SetParam | ReadParam | MoveHome
+)
 
 
 @dataclass(frozen=True)

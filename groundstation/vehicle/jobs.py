@@ -28,6 +28,8 @@ from groundstation.vehicle.controller_io import (
     Download,
     Exchange,
     Fly,
+    HomeOutcome,
+    MoveHome,
     ReadParam,
     SetCurrent,
     SetMode,
@@ -48,6 +50,7 @@ __all__ = [
     "home_job",
     "launch_job",
     "park_job",
+    "set_home_job",
     "target_job",
 ]
 
@@ -101,6 +104,7 @@ class JobHost(Protocol):
     def target_wanted(self) -> bool: ...
     def home_done(self, ok: bool) -> None: ...
     def cruise_known(self, speed_m_s: float | None, source: str) -> None: ...
+    def home_moved(self, x_m: float, y_m: float, outcome: HomeOutcome) -> None: ...
 
 
 def mission_job(
@@ -247,6 +251,16 @@ def home_job(host: JobHost) -> Job:
     host.home_done(ok)
     if not ok:
         yield Pause(host.t_s + host.retry_pause_s)
+
+
+def set_home_job(host: JobHost, x_m: float, y_m: float) -> Job:
+    """Move the vehicle's home to (x_m, y_m): one DO_SET_HOME, verified by the HOME_POSITION
+    that follows (the driver resends on silence, a bounded number of times). It changes no
+    mode and no mission; ``host.home_moved`` journals the outcome."""
+    outcome = yield MoveHome(x_m, y_m)
+    if not isinstance(outcome, HomeOutcome):  # the exchange ended without an answer
+        outcome = HomeOutcome(False, error="no answer")
+    host.home_moved(x_m, y_m, outcome)
 
 
 class JobRunner:

@@ -28,6 +28,15 @@ class ControllerSettings:
     converges in flight: a vehicle just launched or taken over under-reports at first).
     ``speed_m_s``: the configured airspeed (the vehicle's own setting, else the core's),
     planned with only when the vehicle's cruise airspeed parameter cannot be read.
+
+    The ship watch (docs/ship-vehicles.md): ``battery_report_s`` / ``battery_report_pct``:
+    a ``BatteryReport`` goes to the core at most every this many mission seconds, or at once
+    when the remaining charge moved by this many points. ``ready_pct``: the watch's
+    ``ready_pct`` (None: no watch), the charge a spare on deck needs to be ready, and the
+    watch's recovery rule (a vehicle that came down in an RTL and rebooted with this much
+    is a fresh spare again). ``launch_on_order``: a watch with ``on_station`` is
+    configured, so ``launch`` (``--launch``) launches only what the core's LaunchVehicle
+    (or the operator) names, never every vehicle found on the ground.
     """
 
     altitude_m: float = 100.0
@@ -57,3 +66,7 @@ class ControllerSettings:
     default_loiter_radius_m: float = 120.0
     wind_report_min_s: float = 0.8
     wind_settle_s: float = 10.0
+    battery_report_s: float = 5.0
+    battery_report_pct: float = 1.0
+    ready_pct: float | None = None
+    launch_on_order: bool = False

@@ -16,7 +16,10 @@ State snapshot (``state()``), JSON-able, the same document the live page draws::
       "vehicles": [{"id", "name", "system_id", "x_m", "y_m", "alt_m", "heading_rad",
                     "speed_m_s", "mode", "armed", "status" (active|overridden|lost|home|
                     on_ground|joining), "launch_held" (why floe will not launch it on
-                    its own: it came down after it flew; None), "link" (ok|degraded|lost),
+                    its own: it came down after it flew; None), "launch_wanted"
+                    ({"reason", "relieves"}: the core asks for this spare's launch, until
+                    it flies; None), "home" ([x_m, y_m]: the home it confirmed after
+                    floe moved it to the ship; None), "link" (ok|degraded|lost),
                     "battery_pct",
                     "target", "route": [ids], "aim": [x_m, y_m] | None,
                     "track": [[x_m, y_m], ...] (recent positions),

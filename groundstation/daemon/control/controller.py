@@ -89,6 +89,9 @@ class DaemonController:
                     "armed": snap.armed,
                     "status": s.status,
                     "launch_held": s.launch_held,
+                    "launch_wanted": s.launch_wanted,
+                    "home": (list(s.controller.home_xy_m)
+                             if s.controller.home_xy_m is not None else None),
                     "link": s.link,
                     "battery_pct": snap.battery_remaining_pct,
                     "target": s.fly.target if s.fly else None,

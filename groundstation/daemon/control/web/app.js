@@ -276,7 +276,37 @@
       const route = Array.isArray(v.route) ? v.route.join(" → ") : "";
       setCell(c[6], route || "–");
       c[6].title = route;
+      const launch = row.querySelector("button[data-act=launch]");
+      const wanted = wantedText(v);
+      launch.classList.toggle("wanted", wanted !== null);
+      launch.title = wanted === null ? "arm, take off, hand over to floe"
+        : "floe asks: launch it (" + wanted + ")";
     });
+    updateLaunchWanted(vehicles);
+  }
+
+  // the core asks for a spare's launch (a ship watch's relief): one button each over the map
+  function wantedText(v) {
+    const w = v.launch_wanted;
+    if (!w || typeof w !== "object") return null;
+    return w.relieves !== null && w.relieves !== undefined
+      ? "relief of " + w.relieves : String(w.reason || "launch");
+  }
+
+  function updateLaunchWanted(vehicles) {
+    const box = $("launch-wanted");
+    const wanted = vehicles.filter((v) => wantedText(v) !== null);
+    const keys = wanted.map((v) => String(v.id) + ":" + wantedText(v)).join("|");
+    if (box.dataset.keys === keys) return;
+    box.dataset.keys = keys;
+    box.replaceChildren(...wanted.map((v) => {
+      const button = document.createElement("button");
+      button.type = "button";
+      button.dataset.vehicle = String(v.id);
+      button.textContent = "launch " + (v.name || v.id) + " (" + wantedText(v) + ")";
+      button.title = "catapult it, or let floe launch it: POST /api/vehicles/" + v.id + "/launch";
+      return button;
+    }));
   }
 
   function updateTargets(doc) {
@@ -793,6 +823,13 @@
     $("targets").tBodies[0].addEventListener("click", (e) => {
       const row = e.target.closest("tr");
       if (row) select(row.dataset.id);
+    });
+    $("launch-wanted").addEventListener("click", async (e) => {
+      const button = e.target.closest("button[data-vehicle]");
+      if (!button) return;
+      const id = button.dataset.vehicle;
+      const reply = await api("POST", "/api/vehicles/" + encodeURIComponent(id) + "/launch");
+      if (reply) notice("launch: vehicle " + (reply.vehicle || id) + " ok");
     });
     $("vehicles").tBodies[0].addEventListener("click", async (e) => {
       const button = e.target.closest("button[data-act]");
