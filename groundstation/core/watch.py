@@ -49,6 +49,7 @@ __all__ = ["WatchKeeper", "WatchView"]
 
 TICK_S = 1.0
 SHORTFALL_GRACE_S = 30.0
+REAIM_EVERY_S = 20.0
 LAUNCH_TIMEOUT_S = 180.0
 """A launch order not followed by the vehicle joining within ``launch_s`` + this is
 dropped (``launch_timeout`` note) and the spare may be ordered again."""
@@ -97,6 +98,7 @@ class WatchKeeper:
         self._next_tick_s = 0.0
         self._short_since_s: float | None = None
         self._last_relief_s: float | None = None
+        self._reaimed_s: dict[str, float] = {}
 
     # ------------------------------------------------------------------ inputs
     def _energy(self, vehicle: str) -> VehicleEnergy:
@@ -178,7 +180,7 @@ class WatchKeeper:
                 self._energy(record.id).flying(t_s)
                 returns[record.id] = self.return_to_ship(t_s, record, intercept)
         out += self._homes(t_s, vehicles, returns)
-        out += self._reaim(t_s, vehicles, returns)
+        out += self._reaim(t_s, vehicles, returns, intercept)
         active = [r for r in vehicles if r.status is FleetStatus.ACTIVE]
         due: dict[str, tuple[float, float]] = {}
         for record in active:
@@ -211,18 +213,26 @@ class WatchKeeper:
         return out
 
     def _reaim(self, t_s: float, vehicles: list[VehicleRecord],
-               returns: dict[str, tuple[float, float, float]]) -> list[Command]:
-        """A vehicle floe sent home whose RTL goes farther than ``recovery_radius_m`` from
-        where the ship will now be when it gets there (the ship turned, or the prediction
-        was poor) is sent home again, to a fresh home."""
+               returns: dict[str, tuple[float, float, float]],
+               intercept: Intercept) -> list[Command]:
+        """A vehicle floe sent home whose RTL target will be farther than
+        ``recovery_radius_m`` from the ship when the vehicle gets there (the ship turned,
+        or the prediction was poor) is sent home again, to a fresh home; at most once every
+        :data:`REAIM_EVERY_S`, as each re-aim is a home set and two mode changes."""
         out: list[Command] = []
         for record in vehicles:
             target = self.rtl_targets.get(record.id)
-            if record.status is not FleetStatus.HOME or target is None:
+            if record.status is not FleetStatus.HOME or target is None or (
+                t_s - self._reaimed_s.get(record.id, -math.inf) < REAIM_EVERY_S
+            ):
                 continue
-            ret = returns[record.id]
-            if math.dist(target, ret[:2]) > self.config.recovery_radius_m:
-                out += self._send_home(t_s, record, ret, "return re-aimed at the ship")
+            eta_s = intercept(record, target, (0.0, 0.0))[2]
+            ship = self.ship.predict(t_s + eta_s)
+            if ship is None or math.dist(target, ship.xy_m) <= self.config.recovery_radius_m:
+                continue
+            self._reaimed_s[record.id] = t_s
+            out += self._send_home(t_s, record, returns[record.id],
+                                   "return re-aimed at the ship")
         return out
 
     def _send_home(self, t_s: float, record: VehicleRecord,

@@ -333,6 +333,7 @@ class Daemon:
             if session is not None:
                 session.set_home(command.x_m, command.y_m)
         elif isinstance(command, cmd.LaunchVehicle):
+            self.watch_metrics.launches += 1
             session = self.by_name.get(command.vehicle)
             if session is not None:
                 session.want_launch(command.reason, command.relieves)
@@ -352,10 +353,14 @@ class Daemon:
         if ship is None:
             predicted = watch.ship.predict(note.t_s)
             ship = predicted.xy_m if predicted is not None else None
+        session = self.by_name.get(vehicle)
+        snap = session.snapshot if session is not None else None
+        where = ((snap.x_m, snap.y_m) if snap is not None and snap.x_m is not None
+                 and snap.y_m is not None else (record.x_m, record.y_m))
         energy = watch.energy.get(vehicle)
         self.watch_metrics.landing(
             energy.remaining_pct(note.t_s) if energy is not None else float("nan"),
-            None if ship is None else math.dist(ship, (record.x_m, record.y_m)))
+            None if ship is None else math.dist(ship, where))
 
     def _journal_command(self, command: cmd.Command, **extra: object) -> None:
         record = command_to_record(command)

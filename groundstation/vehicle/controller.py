@@ -84,6 +84,11 @@ __all__ = ["FlyRecord", "LinkState", "VehicleController", "VehicleState"]
 S = VehicleState
 
 
+
+_POSE_STATES = (S.ACTIVE, S.HOME, S.OVERRIDDEN)
+"""Whose position the core hears: in the plan, sent home, or taken over (the ship watch
+aims the homes and returns of all three; ``core/watch.py``)."""
+
 class VehicleController:
     """See the module docstring. ``handle(input) -> outputs``; never raises on telemetry.
 
@@ -271,7 +276,9 @@ class VehicleController:
             loiter = self._loiter
             if loiter is not None and loiter.observe_current(s.mission_current_seq, t):
                 self._loiter_ended(t, loiter)
-        elif kind == "GLOBAL_POSITION_INT" and self.state is S.ACTIVE and self._restore is None:
+        elif kind == "GLOBAL_POSITION_INT" and self.state in _POSE_STATES and (
+            self._restore is None
+        ):  # sent home or taken over too: the watch aims homes and returns from it
             self._core_pose()
             fly = self.fly
             if fly is not None and fly.verified_t_s is not None:
@@ -659,11 +666,12 @@ class VehicleController:
             self._assess()
             if self._jobs.job is not None:
                 return True
+        # a new home before the RTL: ArduPlane fixes the RTL's target when it enters RTL
+        if self._new_home is not None and self._start_home_set():
+            return True
         if self._pending_home and not self.s.advisory:
             self._pending_home = False
             self._start(home_job(self))
-            return True
-        if self._new_home is not None and self._start_home_set():
             return True
         fly = self._pending_fly
         if fly is not None and self.commanded:

@@ -245,6 +245,17 @@ def cruise_job(host: JobHost) -> Job:
 
 
 def home_job(host: JobHost) -> Job:
+    """RTL, to the home the vehicle has now. ArduPlane fixes an RTL's target when the mode
+    is entered and ignores a switch to the mode it is in, so a vehicle floe already sent
+    home (a return re-aimed at where the ship will be, its home just moved) leaves RTL for
+    LOITER and enters it again."""
+    if host.mode() == ArduPlaneMode.RTL:
+        host.expect_mode(ArduPlaneMode.LOITER)
+        answer = yield SetMode(ArduPlaneMode.LOITER)
+        if answer != M.MAV_RESULT_ACCEPTED:
+            host.home_done(False)
+            yield Pause(host.t_s + host.retry_pause_s)
+            return
     host.expect_mode(ArduPlaneMode.RTL)
     answer = yield SetMode(ArduPlaneMode.RTL)
     ok = answer == M.MAV_RESULT_ACCEPTED
