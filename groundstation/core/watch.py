@@ -226,6 +226,11 @@ class WatchKeeper:
                 t_s - self._reaimed_s.get(record.id, -math.inf) < REAIM_EVERY_S
             ):
                 continue
+            now = self.ship.predict(t_s)
+            if now is not None and math.dist((record.x_m, record.y_m), now.xy_m) <= (
+                2.0 * self.config.recovery_radius_m
+            ):
+                continue  # at the ship: it is being recovered
             eta_s = intercept(record, target, (0.0, 0.0))[2]
             ship = self.ship.predict(t_s + eta_s)
             if ship is None or math.dist(target, ship.xy_m) <= self.config.recovery_radius_m:

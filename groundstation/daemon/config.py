@@ -140,7 +140,7 @@ class LinksConfig:
     ship_beacon: int | None = 17
     """The ship's MAVLink system id: its GLOBAL_POSITION_INT goes to every vehicle link at
     1 Hz while the ship's position is known (ArduPilot's ``FOLL_SYSID``; docs/
-    ship-vehicles.md). None (``off``): no beacon."""
+    ship.md). None (``off``): no beacon."""
 
     @property
     def sim_count(self) -> int | None:

@@ -1,5 +1,5 @@
 """The ship as a MAVLink beacon: ``GLOBAL_POSITION_INT`` of the ship, from its own system id,
-to every vehicle link at 1 Hz of mission time (docs/ship-vehicles.md).
+to every vehicle link at 1 Hz of mission time (docs/ship.md).
 
 ArduPilot's follow library (``AP_Follow``: ``FOLL_ENABLE``, ``FOLL_SYSID``), and with it the
 ship-landing script (``plane_ship_landing.lua``), takes the target's position from the

@@ -26,7 +26,7 @@ Rules (each decision needs evidence over several frames, :mod:`.evidence`):
   launched at the operator's request.
 * One exchange at a time; a newer FlyToTarget overtakes a pending one; the mission owed when
   the link went is sent again when it is back.
-* The ship watch (docs/ship-vehicles.md): the battery goes to the core as ``BatteryReport``
+* The ship watch (docs/ship.md): the battery goes to the core as ``BatteryReport``
   (at most every ``battery_report_s``, at once on a ``battery_report_pct`` move); a vehicle
   standing disarmed on the ground is ``VehicleOnDeck`` (when its readiness changes); one
   that flew and came down is ``VehicleLanded`` once (the evidence that sets ``came_down``).
@@ -825,8 +825,8 @@ class VehicleController:
             return False
         if not self.flying():
             if self.state is not S.LAUNCHING and self.watch.grounded.confirmed:
-                self._new_home = None
-                self.journal("home_set_failed", x_m=new.x_m, y_m=new.y_m,
+                self._new_home = None  # moot, not a failure: it landed (or was recovered)
+                self.journal("home_set_skipped", x_m=new.x_m, y_m=new.y_m,
                              reason="on the ground (its home is where it is armed)")
             return False
         self._new_home = None

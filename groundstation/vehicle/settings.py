@@ -29,7 +29,7 @@ class ControllerSettings:
     ``speed_m_s``: the configured airspeed (the vehicle's own setting, else the core's),
     planned with only when the vehicle's cruise airspeed parameter cannot be read.
 
-    The ship watch (docs/ship-vehicles.md): ``battery_report_s`` / ``battery_report_pct``:
+    The ship watch (docs/ship.md): ``battery_report_s`` / ``battery_report_pct``:
     a ``BatteryReport`` goes to the core at most every this many mission seconds, or at once
     when the remaining charge moved by this many points. ``ready_pct``: the watch's
     ``ready_pct`` (None: no watch), the charge a spare on deck needs to be ready, and the

@@ -1,0 +1,73 @@
+"""The whole watch through real MAVLink on 127.0.0.1: ``gcs run`` with the built-in
+simulator's ArduPlanes on a moving ship (a short-endurance copy of ``ship-watch``): the
+homes follow the ship, each verified by the vehicle's HOME_POSITION and visible in the tlog
+as DO_SET_HOME; a vehicle is relieved by a spare, sent home with its reserve, recovered on
+deck, and comes back as a spare after its battery swap; nothing is lost."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pytest
+import yaml
+from daemon_run import events, run_gcs
+
+from groundstation.link.tlog import TlogReader
+from groundstation.mavlink.codec import mavlink2 as M
+from world.scenario import load_scenario_data
+
+pytestmark = pytest.mark.timeout(240)
+
+
+def _short_watch(tmp_path: Path) -> Path:
+    """ship-watch with a 15-minute battery, a 1-minute swap and two on station of three."""
+    data, _ = load_scenario_data("ship-watch")
+    data["fleet"]["count"] = 3
+    data["watch"].update(on_station=2, endurance_s=900, reserve_pct=20, turnaround_s=60,
+                         launch_s=20)
+    path = tmp_path / "short-watch.yaml"
+    path.write_text(yaml.safe_dump(data), encoding="utf-8")
+    return path
+
+
+def test_a_short_watch_relieves_recovers_and_moves_homes_with_the_ship(tmp_path: Path) -> None:
+    scenario = _short_watch(tmp_path)
+    daemon, journal = run_gcs(tmp_path / "run", "--vehicles", "sim:3", "--scenario", str(scenario),
+                              "--launch", "--speedup", "30", "--duration", "1000",
+                              timeout_s=200.0)
+    assert not events(journal, "task_error") and not events(journal, "core_error")
+    # homes: verified by HOME_POSITION, and moving with the ship
+    homes = events(journal, "home_set")
+    assert len(homes) >= 10
+    assert all(h["error_m"] < 5.0 for h in homes)
+    assert not events(journal, "home_set_failed")
+    xs = [h["x_m"] for h in homes]
+    ys = [h["y_m"] for h in homes]
+    assert max(math.hypot(x - xs[0], y - ys[0]) for x, y in zip(xs, ys, strict=True)) > 1000.0
+    # the tlog holds the commands and the vehicles' answers
+    sent = received = 0
+    for record in TlogReader(daemon.run_dir / "flight.tlog"):
+        msg = record.message
+        if msg.get_type() == "COMMAND_INT" and msg.command == M.MAV_CMD_DO_SET_HOME:
+            sent += 1
+        elif msg.get_type() == "HOME_POSITION":
+            received += 1
+    assert sent >= len(homes) and received >= len(homes)
+    # relief: a spare launched for a vehicle, which went home when it joined
+    reliefs = events(journal, "launch_order", reason="relief")
+    assert reliefs
+    relieved = [e for e in events(journal, "send_home") if "relieved by" in e["reason"]]
+    assert relieved
+    # recovered on deck with its reserve, then a spare again after the swap
+    recovered = events(journal, "vehicle_recovered")
+    assert recovered
+    first = recovered[0]
+    spare_again = [e for e in events(journal, "vehicle_spare", vehicle=first["vehicle"])
+                   if e["t"] > first["t"]]
+    assert spare_again
+    assert not events(journal, "vehicle_down") and not events(journal, "vehicle_fell")
+    metrics = daemon.metrics_dict()
+    assert metrics["vehicles_lost"] == 0
+    assert metrics["min_landing_battery_pct"] is not None
+    assert metrics["min_landing_battery_pct"] >= 10.0  # half the 20 % reserve
