@@ -16,6 +16,7 @@ from groundstation.daemon.control.contract import VEHICLE_ACTIONS
 from groundstation.daemon.hosts import CoreHost, FleetHost
 from groundstation.daemon.log_lines import is_operator_event
 from groundstation.daemon.track_views import search_dicts, track_counts, track_dicts
+from groundstation.daemon.watch_lines import watch_dict
 from groundstation.daemon.wind_view import vehicle_wind, wind_summary
 from groundstation.vehicle.state import VehicleState
 
@@ -130,6 +131,7 @@ class DaemonController:
             "track_counts": track_counts(tracks),
             "search_cells": search_dicts(view.search_cells),
             "boat": {"x_m": d.boat_xy_m[0], "y_m": d.boat_xy_m[1]} if d.boat_xy_m else None,
+            "watch": watch_dict(view.watch) if view.watch is not None else None,
             "fov_radius_m": d.core_config.observer.fov_radius_m,
             "plan": d.last_plan,
             "wind": wind_summary(view.wind, d.wind_fallback_source,

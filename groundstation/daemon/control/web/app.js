@@ -271,7 +271,15 @@
         (num(v.speed_m_s) ? fmt(v.speed_m_s, 1) + " m/s" : "");
       setCell(c[2], v.status || "–", "st-" + (v.status || ""));
       setCell(c[3], v.link || "–", "st-" + (v.link === "ok" ? "active" : v.link || ""));
-      setCell(c[4], num(v.battery_pct) ? fmt(v.battery_pct) + "%" : "–");
+      const energy = doc.watch && doc.watch.energy ? doc.watch.energy[v.id] : null;
+      setCell(c[4], (num(v.battery_pct) ? fmt(v.battery_pct) + "%" : "–") +
+        (energy && num(energy.endurance_left_s)
+          ? " · " + fmt(Math.max(0, energy.endurance_left_s) / 60) + " min" +
+            (energy.reachable === false ? " · CAN'T REACH SHIP" : "") : ""),
+        energy && energy.reachable === false ? "st-lost" : "");
+      c[4].title = energy ? "drain " + fmt(energy.rate_pct_min, 2) + " %/min (" +
+        energy.source + ")" + (num(energy.turn_home_t)
+          ? ", must turn home by t=" + fmt(energy.turn_home_t) + " s" : "") : "";
       setCell(c[5], v.target === null || v.target === undefined ? "–" : String(v.target));
       const route = Array.isArray(v.route) ? v.route.join(" → ") : "";
       setCell(c[6], route || "–");
@@ -681,6 +689,47 @@
     ctx.textAlign = "start";
   }
 
+  // the ship's predicted track (the next 10 min) and its uncertainty; the watch's alarms
+  function drawShipTrack(doc) {
+    const ship = doc.watch && doc.watch.ship;
+    if (!ship || !Array.isArray(ship.track) || ship.track.length < 2) return;
+    ctx.setLineDash([6, 5]); ctx.strokeStyle = "#7a4e2d"; ctx.lineWidth = 1.5;
+    ctx.beginPath();
+    ship.track.forEach((p, i) => {
+      const [sx, sy] = toScreen(p[0], p[1]);
+      if (i === 0) ctx.moveTo(sx, sy); else ctx.lineTo(sx, sy);
+    });
+    ctx.stroke(); ctx.setLineDash([]);
+    if (num(ship.sigma_m)) {
+      const [sx, sy] = toScreen(ship.x_m, ship.y_m);
+      ctx.strokeStyle = "rgba(122, 78, 45, 0.5)";
+      ctx.beginPath(); ctx.arc(sx, sy, Math.max(3, 2 * ship.sigma_m * app.view.scale), 0,
+        2 * Math.PI); ctx.stroke();
+    }
+  }
+
+  function drawWatch(doc, w, h) {
+    const watch = doc.watch;
+    if (!watch) return;
+    const lines = ["on station " + watch.on_station + " of " + watch.planned_on_station +
+      ", spares: " + (watch.spares.length ? watch.spares.join(", ") : "none")];
+    if (watch.next_relief) {
+      lines.push("next return: " + watch.next_relief.vehicle + " at t=" +
+        fmt(watch.next_relief.t));
+    }
+    const alarms = Array.isArray(watch.alarms) ? watch.alarms : [];
+    ctx.font = "12px system-ui, sans-serif";
+    const all = lines.concat(alarms);
+    const boxW = Math.max(...all.map((t) => ctx.measureText(t).width)) + 12;
+    const top = h - 12 - 16 * all.length;
+    ctx.fillStyle = "rgba(255, 255, 255, 0.85)";
+    ctx.fillRect(w - 8 - boxW, top - 4, boxW, 16 * all.length + 8);
+    all.forEach((text, i) => {
+      ctx.fillStyle = i >= lines.length ? "#b3261e" : "#1d2630";
+      ctx.fillText(text, w - 2 - boxW, top + 12 + 16 * i);
+    });
+  }
+
   function drawBoat(doc) {
     const b = doc.boat;
     if (!b || !num(b.x_m) || !num(b.y_m)) return;
@@ -718,10 +767,12 @@
       }
       app.layers = { search: 0, confirmed: 0, tentative: 0, prior: 0 };
       app.layers.search = L.drawSearch(ctx, doc, toScreen, app.view.scale);
+      drawShipTrack(doc);
       drawBoat(doc);
       drawTargets(doc, fov);
       drawVehicles(doc, fov);
       drawWind(doc, w);
+      drawWatch(doc, w, h);
     } else {
       ctx.fillStyle = "#46596b"; ctx.font = "14px system-ui, sans-serif";
       ctx.fillText("waiting for the daemon…", w / 2 - 70, h / 2);
