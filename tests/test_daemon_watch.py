@@ -71,3 +71,27 @@ def test_a_short_watch_relieves_recovers_and_moves_homes_with_the_ship(tmp_path:
     assert metrics["vehicles_lost"] == 0
     assert metrics["min_landing_battery_pct"] is not None
     assert metrics["min_landing_battery_pct"] >= 10.0  # half the 20 % reserve
+
+
+def test_a_config_file_s_watch_turns_it_on_and_bad_values_are_one_line(tmp_path: Path) -> None:
+    """Real vehicles and a real ship have no scenario: the config's ``watch:`` keys turn the
+    watch on (the core's defaults for the rest); over a scenario's they override it."""
+    from groundstation.commands.run import build_config
+    from groundstation.core.config import WatchConfig
+    from groundstation.daemon.composition import StartError
+    from groundstation.daemon.startup import core_config
+    from world.scenario import load_scenario
+
+    good = tmp_path / "good.yaml"
+    good.write_text("watch: {on_station: 2, reserve_pct: 20}\n", encoding="utf-8")
+    config = build_config(["--vehicles", "sim:2", "--config", str(good)])
+    watch = core_config(config, None, 1.0).watch
+    assert watch == WatchConfig(on_station=2, reserve_pct=20.0)
+    over = core_config(config, load_scenario("ship-watch"), 1.0).watch
+    assert over is not None and over.on_station == 2 and over.reserve_pct == 20.0
+    assert over.endurance_s == 3600.0  # the scenario's, not overridden
+    assert core_config(build_config(["--vehicles", "sim:2"]), None, 1.0).watch is None
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("watch: {reserve_pct: 120}\n", encoding="utf-8")
+    with pytest.raises(StartError, match=r"watch: reserve_pct must be a number in \[0, 90\]"):
+        core_config(build_config(["--vehicles", "sim:2", "--config", str(bad)]), None, 1.0)

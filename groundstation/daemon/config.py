@@ -54,6 +54,7 @@ __all__ = [
     "SimConfig",
     "StatusMode",
     "VehicleSettings",
+    "WatchSettings",
     "controller_settings",
     "load_config_file",
     "parse_hostport",
@@ -273,6 +274,26 @@ class ShipConfig:
 
 
 @dataclass(frozen=True, slots=True)
+class WatchSettings:
+    """The ship watch (``watch:``; docs/ship.md) for a ``gcs run`` whose scenario has none
+    (real vehicles, a real ship): any key given turns the watch on, with the core's
+    defaults for the rest; with a scenario's ``watch:``, the keys given override its."""
+
+    on_station: int | None = None
+    endurance_s: float | None = None
+    reserve_pct: float | None = None
+    home_update_m: float | None = None
+    recovery_radius_m: float | None = None
+    launch_s: float | None = None
+
+    @property
+    def given(self) -> dict[str, Any]:
+        """The keys given, by name."""
+        return {name: getattr(self, name) for name in self.__slots__
+                if getattr(self, name) is not None}
+
+
+@dataclass(frozen=True, slots=True)
 class DaemonConfig:
     """Everything ``gcs run`` can be told (docs/daemon.md has each key)."""
 
@@ -285,6 +306,7 @@ class DaemonConfig:
     signing: SigningConfig = field(default_factory=SigningConfig)
     sim: SimConfig = field(default_factory=SimConfig)
     ship: ShipConfig = field(default_factory=ShipConfig)
+    watch: WatchSettings = field(default_factory=WatchSettings)
     detections: Endpoint | None = DETECTIONS_UNSET
     """The detection feed's UDP address; None: off (unset: see :func:`resolve`)."""
     speedup: float | None = None

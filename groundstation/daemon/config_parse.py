@@ -43,6 +43,7 @@ from groundstation.daemon.config import (
     SigningConfig,
     SimConfig,
     VehicleSettings,
+    WatchSettings,
     parse_hostport,
     parse_latlon,
 )
@@ -52,7 +53,7 @@ __all__ = ["ALIASES", "FLAGS", "check_config", "parse_config"]
 
 _GROUPS: tuple[type, ...] = (
     LinksConfig, MissionConfig, FleetConfig, BatteryConfig, PlannerConfig, HttpConfig,
-    RecordsConfig, SigningConfig, SimConfig, ShipConfig,
+    RecordsConfig, SigningConfig, SimConfig, ShipConfig, WatchSettings,
 )  # fmt: skip
 
 ALIASES: dict[str, str] = {

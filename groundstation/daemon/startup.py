@@ -32,7 +32,7 @@ from domain.geodesy import GeoOrigin
 from domain.limits import MAX_COORDINATE_M, MAX_SPEED_M_S, MAX_TARGETS
 from domain.yaml_fields import check_number, load_yaml_file
 from groundstation.core import events as ev
-from groundstation.core.config import CoreConfig, ReplanPolicy, config_to_dict
+from groundstation.core.config import CoreConfig, ReplanPolicy, WatchConfig, config_to_dict
 from groundstation.core.scenario_config import core_config_for
 from groundstation.daemon.alerts import OperatorAlerts
 from groundstation.daemon.clock import MissionClock
@@ -123,7 +123,20 @@ def core_config(config: DaemonConfig, scenario: Any, speedup: float) -> CoreConf
         battery_low_action=config.fleet.battery.action,
         time_limit_s=max(MIN_SOLVER_WALL_S, limit / speedup),
         wind_xy_m_s=fallback_wind(config, scenario)[0].mean_xy_m_s,
+        watch=_watch(config, base.watch),
     )
+
+
+def _watch(config: DaemonConfig, scenario_watch: WatchConfig | None) -> WatchConfig | None:
+    """The scenario's watch with the config's ``watch:`` keys over it; the config's alone
+    when the scenario has none (docs/ship.md)."""
+    given = config.watch.given
+    if not given:
+        return scenario_watch
+    try:
+        return dataclasses.replace(scenario_watch or WatchConfig(), **given)
+    except (TypeError, ValueError) as exc:
+        raise StartError(f"watch: {exc}") from None
 
 
 _LIMITS = {
