@@ -130,6 +130,7 @@ OPERATOR_EVENTS = PROBLEM_EVENTS | frozenset(
         "stop",
         "track_confirmed",
         "watch_clear",
+        "power_up",
         "vehicle_recovered",
         "vehicle_spare",
         "launch_order",

@@ -397,8 +397,11 @@ class VehicleController:
             self.override(t, change.reason, change.name)
 
     def _on_reboot(self, event: Rebooted) -> None:
+        # a vehicle that came down and powers up again (a battery swap on deck) is not a
+        # problem; one that reboots in flight, or unexplained, is
         self.journal(
-            "reboot", previous_time_boot_ms=event.previous_time_boot_ms,
+            "power_up" if self.came_down is not None and not self.flying() else "reboot",
+            previous_time_boot_ms=event.previous_time_boot_ms,
             time_boot_ms=event.time_boot_ms,
         )  # fmt: skip
         self._out.append(controller_io.NotifyRebooted())
