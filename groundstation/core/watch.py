@@ -217,8 +217,9 @@ class WatchKeeper:
                intercept: Intercept) -> list[Command]:
         """A vehicle floe sent home whose RTL target will be farther than
         ``recovery_radius_m`` from the ship when the vehicle gets there (the ship turned,
-        or the prediction was poor) is sent home again, to a fresh home; at most once every
-        :data:`REAIM_EVERY_S`, as each re-aim is a home set and two mode changes."""
+        or the prediction was poor) is sent home again, to a fresh home; not within
+        :data:`REAIM_EVERY_S` of the last send (the vehicle is still turning for home, and
+        each re-aim is a home set and two mode changes)."""
         out: list[Command] = []
         for record in vehicles:
             target = self.rtl_targets.get(record.id)
@@ -245,6 +246,7 @@ class WatchKeeper:
         e = self._energy(record.id)
         record.status, record.busy, record.target = FleetStatus.HOME, False, None
         self.homes[record.id] = self.rtl_targets[record.id] = ret[:2]
+        self._reaimed_s[record.id] = t_s  # judged again once it has turned for home
         detail = (f"{why}: {e.remaining_pct(t_s):.0f} % left, {ret[2]:.0f} s to the ship")
         return [SetHome(t_s, record.id, ret[0], ret[1]), SendHome(t_s, record.id, detail)]
 
