@@ -232,3 +232,26 @@ def test_an_alarm_when_no_vehicle_can_fly_and_it_clears() -> None:
     core.handle(VehicleOnDeck(6.0, "2", True, 100.0))
     out = _drive(core, 6.0, 8.0)
     assert any(isinstance(c, Note) and c.kind == "watch_clear" for c in out)
+
+
+def test_the_watch_reads_for_the_operator_and_as_json() -> None:
+    """The console's lines and the API's ``watch`` from the core's view: the ship, each
+    vehicle's charge and turn-home time, the spares; plain JSON (no NaN, no infinity)."""
+    import json
+
+    from groundstation.daemon.watch_lines import ship_text, watch_dict, watch_rows
+
+    core = _core(on_station=1, endurance_s=3600.0)
+    core.handle(VehicleOnDeck(0.0, "2", True, 100.0))
+    core.handle(VehicleJoined(0.0, "1", 1000.0, 0.0, 0.0, 22.0))
+    core.handle(BatteryReport(0.0, "1", 80.0))
+    _drive(core, 0.0, 3.0)
+    view = core.view().watch
+    assert view is not None
+    assert ship_text(view).startswith("ship at (30, 0) m, 10.0 m/s to 090 deg")
+    (row,) = [r for r in watch_rows(view, 3.0) if r[0] == "1"]
+    assert row[1] == "80" and row[5] == "yes" and row[4].startswith("t=")
+    doc = json.loads(json.dumps(watch_dict(view), allow_nan=False))
+    assert doc["spares"] == ["2"] and doc["on_station"] == 1
+    assert doc["energy"]["1"]["source"] == "reported"
+    assert doc["ship"]["course_deg"] == pytest.approx(90.0)
