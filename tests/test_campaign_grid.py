@@ -75,6 +75,21 @@ def test_a_bad_campaign_file_is_one_line_naming_the_field(
     assert not (tmp_path / "out").exists()  # nothing runs before the whole grid is valid
 
 
+@pytest.mark.parametrize("scenario_text", ["- a\n- b\n", "just words\n", "42\n"])
+def test_a_scenario_file_that_is_yaml_but_not_a_mapping_is_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], scenario_text: str
+) -> None:
+    """Issue 28's probe: a grid's scenario file that parses as YAML but holds a list, a
+    string or a number was a 26-line traceback."""
+    write(tmp_path, scenario_text, "odd.yaml")
+    path = write(tmp_path, "grid: {scenario: [odd.yaml]}\n")
+    assert main(["campaign", str(path), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1, err
+    assert "grid.scenario[0]: scenario " in err and "not a mapping of scenario fields" in err
+    assert not (tmp_path / "out").exists()
+
+
 def test_a_changed_grid_needs_extend_and_keeps_the_runs_it_holds(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

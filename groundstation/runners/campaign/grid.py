@@ -340,6 +340,9 @@ def _load_scenario(name: str, base_dir: Path, index: int) -> tuple[Any, str]:
         data, source = load_scenario_data(target)
     except ScenarioError as exc:
         raise FieldError(f"grid.scenario[{index}]", str(exc)) from None
+    if data is not None and not isinstance(data, Mapping):
+        raise FieldError(f"grid.scenario[{index}]", f"scenario {source}: the file holds a "
+                         f"{type(data).__name__}, not a mapping of scenario fields")
     return data, source
 
 
