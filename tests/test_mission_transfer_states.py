@@ -174,6 +174,35 @@ def test_download_states() -> None:
     assert sm.state is DownloadState.DONE and sm.result is not None and sm.result.ok
 
 
+@pytest.mark.parametrize("stale", [M.MAV_MISSION_ERROR, M.MAV_MISSION_INVALID_SEQUENCE])
+def test_a_stale_item_error_before_the_count_does_not_end_the_download(stale: int) -> None:
+    """Issue 28: the verifying download after an upload got the vehicle's MISSION_ACK
+    ERROR to the upload's duplicate item in the same millisecond as its MISSION_COUNT, and
+    ended. An item error before the count answers an earlier exchange; the download goes on.
+    A refusal of the list itself (UNSUPPORTED, DENIED) still ends it."""
+    sm = MissionDownload(VEH_SYS, VEH_COMP)
+    sm.start(0.0)
+    assert sm.receive(wire(M.MAVLink_mission_ack_message(GCS_SYS, GCS_COMP, stale, 0)),
+                      0.1) == []
+    assert sm.state is DownloadState.REQUESTING_LIST
+    sm.receive(wire(M.MAVLink_mission_count_message(GCS_SYS, GCS_COMP, 1, 0)), 0.1)
+    sm.receive(wire(mission()[0].to_message(GCS_SYS, GCS_COMP)), 0.2)
+    assert sm.state is DownloadState.DONE and sm.result is not None and sm.result.ok
+    denied = MissionDownload(VEH_SYS, VEH_COMP)
+    denied.start(0.0)
+    denied.receive(wire(M.MAVLink_mission_ack_message(GCS_SYS, GCS_COMP,
+                                                      M.MAV_MISSION_DENIED, 0)), 0.1)
+    assert denied.state is DownloadState.DONE and denied.result is not None
+    assert not denied.result.ok
+    # once the count is in, an item error answers this download's request: it ends
+    late = MissionDownload(VEH_SYS, VEH_COMP)
+    late.start(0.0)
+    late.receive(wire(M.MAVLink_mission_count_message(GCS_SYS, GCS_COMP, 2, 0)), 0.1)
+    late.receive(wire(M.MAVLink_mission_ack_message(GCS_SYS, GCS_COMP, stale, 0)), 0.2)
+    assert late.state is DownloadState.DONE and late.result is not None
+    assert not late.result.ok
+
+
 def test_clear_and_set_current_states() -> None:
     clear = MissionClear(VEH_SYS, VEH_COMP)
     clear.start(0.0)

@@ -38,6 +38,11 @@ _UINT16_MAX = 65535
 _UINT8_MAX = 255
 
 
+_ITEM_ERRORS = frozenset({mavlink2.MAV_MISSION_ERROR, mavlink2.MAV_MISSION_INVALID_SEQUENCE})
+"""MISSION_ACK results that answer an item (its sequence, a duplicate), never a list
+request."""
+
+
 class DownloadState(enum.Enum):
     """Where a download is."""
 
@@ -94,6 +99,12 @@ class MissionDownload(TransferBase[DownloadState]):
         if kind == "MISSION_ACK":
             ack_type = int_field(msg, "type", 0, _UINT8_MAX)
             if ack_type is None or ack_type == mavlink2.MAV_MISSION_ACCEPTED:
+                return []
+            if self._state is DownloadState.REQUESTING_LIST and ack_type in _ITEM_ERRORS:
+                # an item error before the count answers an earlier exchange (the upload
+                # this download verifies: the vehicle's answer to a duplicate item), not the
+                # MISSION_REQUEST_LIST: the count it waits for may come in the same instant
+                self._notes.append(f"stale MISSION_ACK {ack_type} ignored at t={now_s:.3f}s")
                 return []
             return self._finish_for_ack(ack_type, "to the download")
         return self._on_item(msg, now_s)
