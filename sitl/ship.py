@@ -1,7 +1,7 @@
 """The ship a watch's vehicles launch from and land on (sans-IO, clock-free).
 
 Each simulated vehicle of a watch (``watch:`` in the scenario, a boat, ``fleet.launch:
-boat``) carries its own :class:`ShipTrack`: the scenario's boat (``BoatSpec.build()``, the
+boat``) carries its own :class:`SimShip`: the scenario's boat (``BoatSpec.build()``, the
 same ``world.model.Boat`` the detection feed's world sails) advanced in steps of at most
 ``SHIP_STEP_S`` = 0.1 s, as the world steps it, so every vehicle and the feed see the ship at
 the same place at the same simulated time (a route's turns fall inside a step exactly, so the
@@ -16,12 +16,12 @@ from world.battery import BatteryModel
 from world.model import Boat
 from world.scenario import BoatSpec, WatchSpec
 
-__all__ = ["SHIP_STEP_S", "ShipTrack", "describe_watch"]
+__all__ = ["SHIP_STEP_S", "SimShip", "describe_watch"]
 
 SHIP_STEP_S = 0.1
 
 
-class ShipTrack:
+class SimShip:
     """The ship's position and velocity at a simulated time (monotonic: asking for an
     earlier time than the last answer gives the last state)."""
 

@@ -57,7 +57,7 @@ from sitl.geo_items import GeoItemsServer
 from sitl.mission_protocol import REREQUEST_S, UPLOAD_TIMEOUT_S, MissionEvents, MissionServer
 from sitl.mission_store import MAX_MISSION_ITEMS, MissionStore, StoredItem
 from sitl.params import ParamStore, default_param_specs
-from sitl.ship import ShipTrack
+from sitl.ship import SimShip
 from sitl.sim_airspeed import AirspeedSensor
 from sitl.sim_wind import EkfWindModel, FlownWind, wind_param_values
 from sitl.statustext import StatusTextFactory
@@ -157,7 +157,7 @@ class SimVehicle:
             self.params.set("BATT_CAPACITY", model.capacity_mah)
         # rally points and the fence are stored in EEPROM: they survive reboots
         self.geo = GeoItemsServer(rerequest_s=REREQUEST_S, upload_timeout_s=UPLOAD_TIMEOUT_S)
-        self.ship = ShipTrack(config.ship, t_s) if config.ship is not None else None
+        self.ship = SimShip(config.ship, t_s) if config.ship is not None else None
         self.events: list[SimEvent] = []
         self.crashed = False
         self._turnaround_at_s: float | None = None

@@ -70,6 +70,7 @@ from groundstation.core.events import (
 from groundstation.core.fleet import FleetStatus, VehicleRecord, free_vehicles, status_change
 from groundstation.core.intercept import intercept, travel_time_s
 from groundstation.core.planning_targets import build_problem, search_targets, track_targets
+from groundstation.core.ship import ShipTrack
 from groundstation.core.tracking import TrackBook, TrackerFactory
 from groundstation.core.views import (
     CoreView,
@@ -78,7 +79,7 @@ from groundstation.core.views import (
     VehicleView,
     search_cell_view,
 )
-from groundstation.core.watch import WatchKeeper
+from groundstation.core.watch import WatchKeeper, WatchView
 from groundstation.core.wind_estimate import WindEstimator, WindState
 from groundstation.core.wind_replan import WindReplan
 from observer import UNCONFIRMED, Observer, boat_priority_q
@@ -111,7 +112,11 @@ class DecisionCore:
         """The vehicles' wind estimate, combined (``core/wind_estimate.py``)."""
         self.wind_replan = WindReplan(config.wind_replan_m_s, config.wind_replan_margin_s,
                                       config.observer.fov_radius_m)
-        self.watch = WatchKeeper(config.watch, config.loiter_s) if config.watch else None
+        self.ship = ShipTrack()
+        """The ship's track from every ``BoatPosition`` (``core/ship.py``): the watch's
+        homes and returns, the daemon's beacon and the displays read it."""
+        self.watch = (WatchKeeper(config.watch, config.loiter_s, self.ship) if config.watch
+                      else None)
         """The ship watch (``core/watch.py``): homes, energy, relief; None without one."""
         self._next_request_id = 1
         self._verdicts: list[Verdict] = []  # this input's, returned with its commands
@@ -149,7 +154,7 @@ class DecisionCore:
         elif isinstance(event, BoatPosition):
             if math.isfinite(event.x_m) and math.isfinite(event.y_m):
                 self.boat_xy_m = (event.x_m, event.y_m)
-            if self.watch is not None and not self.watch.fix(event):
+            if not self.ship.fix(event):
                 self._count("invalid_ship_fixes")
         elif isinstance(event, BatteryReport | VehicleOnDeck | VehicleLanded):
             out += self._on_watch_input(event)
@@ -362,10 +367,11 @@ class DecisionCore:
         rest = tuple(t for t in rest if t in known)
         if not rest:
             return []
-        home = self._unflyable(event.t_s, record, rest[0])
+        leg = self.intercept(record, rest[0])
+        home = self._unflyable(event.t_s, record, leg)
         if home:
             return home
-        command = self._fly(event.t_s, record, rest[0], rest)
+        command = self._fly(event.t_s, record, rest[0], rest, leg)
         return [command] if command is not None else []
 
     def _on_status_change(self, event: Event) -> list[Command]:
@@ -488,33 +494,37 @@ class DecisionCore:
                 self.config.policy.commit and record.busy
             ):
                 continue
-            home = self._unflyable(event.t_s, record, target)
+            leg = self.intercept(record, target)
+            home = self._unflyable(event.t_s, record, leg)
             if home:
                 fly += home
                 continue
             assignments[uav.id] = target
-            command = self._fly(event.t_s, record, target, tuple(route))
+            command = self._fly(event.t_s, record, target, tuple(route), leg)
             if command is not None:
                 fly.append(command)
         adopted = PlanAdopted(event.t_s, request.request_id, request.problem, result,
                               assignments, request.hint, request.reason)
         return [adopted, *fly]
 
-    def _unflyable(self, t_s: float, record: VehicleRecord, target: str) -> list[Command]:
-        """On a watch, a leg to ``target`` that would leave ``record`` short of the charge
-        to reach the ship with its reserve is not flown: the vehicle goes home instead
-        (the planner's other vehicles are replanned without it). Empty: fly it."""
+    def _unflyable(self, t_s: float, record: VehicleRecord,
+                   leg: tuple[float, float, float]) -> list[Command]:
+        """On a watch, a ``leg`` (its aim point and flight time, :meth:`intercept`) that
+        would leave ``record`` short of the charge to reach the ship with its reserve is
+        not flown: the vehicle goes home instead (the planner's other vehicles are
+        replanned without it). Empty: fly it."""
         if self.watch is None:
             return []
-        x_m, y_m, t_arr_s = self.intercept(record, target)
+        x_m, y_m, t_arr_s = leg
         if self.watch.leg_ok(t_s, record, (x_m, y_m), t_s + t_arr_s, self._intercept_xy):
             return []
         self._mark_dirty("vehicle sent home")
         return self.watch.send_home_instead(t_s, record, self._intercept_xy)
 
     def _fly(self, t_s: float, record: VehicleRecord, target: str,
-             route: tuple[str, ...]) -> FlyToTarget | None:
-        x_m, y_m, t_arr_s = self.intercept(record, target)
+             route: tuple[str, ...], leg: tuple[float, float, float]) -> FlyToTarget | None:
+        """Send ``record`` to ``target`` along ``leg`` (its :meth:`intercept`)."""
+        x_m, y_m, t_arr_s = leg
         aim = (x_m, y_m)
         unchanged = (
             record.target == target and record.aim_xy_m is not None
@@ -596,12 +606,18 @@ class DecisionCore:
             VehicleView(v.id, v.status, v.x_m, v.y_m, v.heading_rad, v.target, v.route, v.busy)
             for v in self.vehicles.values()
         )
-        watch = (None if self.watch is None
-                 else self.watch.view(self.t_s, self.vehicles.values(), self._intercept_xy))
+        watch = self.watch_view()
         return CoreView(self.t_s, tuple(self.track_views()), tuple(self.search_view()),
                         self.search is not None, self.wind.current, vehicles,
                         dict(self.observer.counters), self.wind.flagged, self.plans_adopted,
                         watch)
+
+    def watch_view(self) -> WatchView | None:
+        """The ship watch now (``CoreView.watch``) without the rest of the view; None
+        without a watch."""
+        if self.watch is None:
+            return None
+        return self.watch.view(self.t_s, self.vehicles.values(), self._intercept_xy)
 
     def track_views(self) -> list[TrackView]:
         """Every track with its status (``core/views.py``), sorted by id."""

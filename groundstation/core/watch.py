@@ -37,7 +37,6 @@ from groundstation.core.config import WatchConfig
 from groundstation.core.energy import EnergyView, VehicleEnergy
 from groundstation.core.events import (
     BatteryReport,
-    BoatPosition,
     VehicleLanded,
     VehicleOnDeck,
 )
@@ -79,10 +78,11 @@ class WatchView:
 class WatchKeeper:
     """The watch's state and rules (module docstring)."""
 
-    def __init__(self, config: WatchConfig, loiter_s: float) -> None:
+    def __init__(self, config: WatchConfig, loiter_s: float, ship: ShipTrack) -> None:
         self.config = config
         self.loiter_s = loiter_s
-        self.ship = ShipTrack()
+        self.ship = ship
+        """The core's track of the ship (``core/ship.py``): the watch reads it."""
         self.energy: dict[str, VehicleEnergy] = {}
         self.homes: dict[str, tuple[float, float]] = {}
         self.launching: dict[str, float] = {}
@@ -107,9 +107,6 @@ class WatchKeeper:
             e = self.energy[vehicle] = VehicleEnergy(self.config.endurance_s,
                                                      self.config.reserve_pct)
         return e
-
-    def fix(self, event: BoatPosition) -> bool:
-        return self.ship.fix(event)
 
     def battery(self, event: BatteryReport) -> bool:
         return self._energy(event.vehicle).report(event.t_s, event.remaining_pct)

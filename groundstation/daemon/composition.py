@@ -83,7 +83,7 @@ def ship_beacon_service(config: DaemonConfig, daemon: Daemon) -> Service | None:
         return None
     beacon = ShipBeacon(
         sysid,
-        lambda: daemon.last_boat,
+        daemon.core.ship,
         lambda: daemon.origin_or_none,
         daemon.router.broadcast,
         BeaconClock(daemon.clock.now_s, daemon.clock.wall_s),

@@ -191,7 +191,6 @@ class Daemon:
         )
         self.stopping = False
         self.last_plan: LastPlan | None = None
-        self.last_boat: ev.BoatPosition | None = None
         """The ship's last fix the core was given (the ship beacon sends it)."""
         self._due = _Due()
         self._state = _RunState()
@@ -268,8 +267,6 @@ class Daemon:
             self._due.kick.set()
         elif isinstance(event, ev.Telemetry):  # the arrival-error metric follows telemetry
             self.metrics.position(event.t_s, event.vehicle, event.x_m, event.y_m)
-        elif isinstance(event, ev.BoatPosition):
-            self.last_boat = event
         try:
             pending = self.core.handle(event)
         except Exception as exc:  # a bug: the one bug path (Supervisor.bug), a clean stop
@@ -589,8 +586,7 @@ class Daemon:
             self.core_event(ev.Tick(t))
             if t >= due.sample_s - 1e-9:
                 self.feed.sample(t)
-                if self.core.watch is not None:
-                    self.watch_metrics.sample(self.core.view().watch)
+                self.watch_metrics.sample(self.core.watch_view())
                 due.sample_s += 1.0
             due.tick_s = round(due.tick_s + tick_s, 6)
         for session in self.sessions.values():

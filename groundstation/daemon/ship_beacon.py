@@ -11,10 +11,12 @@ system ``ship_beacon`` (default 17; set ``FOLL_SYSID`` to it: with 0, ArduPilot 
 first system it hears), component MAV_COMP_ID_USER1, with no HEARTBEAT (it is no vehicle,
 and no ground station must take it for one).
 
-The fix is the decision core's last ``BoatPosition`` (the scenario's ship, the detection
-feed's, an NMEA feed's), predicted forward with its velocity when known; none is sent once
-the fix is older than ``stale_s`` (a follower must lose a lost ship, not chase a stale one),
-nor when its system id is a vehicle's (``ship_beacon_conflict``, journalled once).
+The position is the decision core's track of the ship (``core/ship.py``, fed by every
+``BoatPosition``: the scenario's ship, the detection feed's, an NMEA feed's) predicted to
+now, with its velocity (the fixes' own, else the one the track learnt from their
+positions); none is sent once the last fix is older than ``stale_s`` (a follower must lose
+a lost ship, not chase a stale one), nor when its system id is a vehicle's
+(``ship_beacon_conflict``, journalled once).
 """
 
 from __future__ import annotations
@@ -25,7 +27,7 @@ from collections.abc import Callable, Collection
 from dataclasses import dataclass
 
 from domain.geodesy import GeoOrigin, compass_deg_from_enu_rad
-from groundstation.core import events as ev
+from groundstation.core.ship import ShipPrediction, ShipTrack
 from groundstation.mavlink.codec import MavlinkEncoder, MAVLinkMessage, mavlink2
 
 __all__ = ["BEACON_COMPONENT", "DEFAULT_SHIP_SYSID", "ShipBeacon", "beacon_message"]
@@ -47,47 +49,33 @@ class BeaconClock:
     wall_s: Callable[[float], float]
 
 
-def beacon_message(fix: ev.BoatPosition, origin: GeoOrigin, now_s: float,
-                   stale_s: float = STALE_S) -> MAVLinkMessage | None:
-    """The GLOBAL_POSITION_INT of the ship at ``now_s`` (mission s) from ``fix``, or None
-    when the fix is stale or not a position. Position predicted with the fix's velocity,
-    altitude the origin's (the deck at sea level), ``time_boot_ms`` the mission time."""
-    age_s = now_s - fix.t_s
-    if not (math.isfinite(fix.x_m) and math.isfinite(fix.y_m)) or age_s > stale_s:
+def beacon_message(ship: ShipPrediction | None, heading_rad: float | None,
+                   origin: GeoOrigin, stale_s: float = STALE_S) -> MAVLinkMessage | None:
+    """The GLOBAL_POSITION_INT of the ship predicted to ``ship.t_s`` (mission s), or None
+    without a prediction or when its last fix is older than ``stale_s``. ``heading_rad``:
+    the bow's (HDT), else the course when the ship moves. Altitude the origin's (the deck
+    at sea level), ``time_boot_ms`` the mission time."""
+    if ship is None or ship.fix_age_s > stale_s:
         return None
-    velocity = _velocity(fix)
-    x_m, y_m = fix.x_m, fix.y_m
-    ve_m_s = vn_m_s = 0.0
-    if velocity is not None:
-        ve_m_s, vn_m_s = velocity
-        x_m += ve_m_s * max(0.0, age_s)
-        y_m += vn_m_s * max(0.0, age_s)
-    lat_deg, lon_deg, _ = origin.to_geodetic(x_m, y_m)
-    heading = fix.heading_rad
+    lat_deg, lon_deg, _ = origin.to_geodetic(ship.x_m, ship.y_m)
+    ve_m_s, vn_m_s = ship.vx_m_s, ship.vy_m_s
+    heading = heading_rad
     if heading is None or not math.isfinite(heading):
-        fast = velocity is not None and math.hypot(ve_m_s, vn_m_s) >= _MIN_COURSE_SPEED_M_S
+        fast = math.hypot(ve_m_s, vn_m_s) >= _MIN_COURSE_SPEED_M_S
         heading = math.atan2(vn_m_s, ve_m_s) if fast else None
     hdg = (_UINT16_UNKNOWN if heading is None
            else round(compass_deg_from_enu_rad(heading) * 100) % 36000)
-    north_cm_s, east_cm_s = _cm_s(vn_m_s), _cm_s(ve_m_s)
     return M.MAVLink_global_position_int_message(
-        int(max(0.0, now_s) * 1000) % 2**32,
+        int(max(0.0, ship.t_s) * 1000) % 2**32,
         round(lat_deg * 1e7),
         round(lon_deg * 1e7),
         round(origin.alt_m * 1000),
         0,  # relative_alt: the deck
-        north_cm_s,
-        east_cm_s,
+        _cm_s(vn_m_s),
+        _cm_s(ve_m_s),
         0,
         hdg,
     )
-
-
-def _velocity(fix: ev.BoatPosition) -> tuple[float, float] | None:
-    vx, vy = fix.vx_m_s, fix.vy_m_s
-    if vx is None or vy is None or not (math.isfinite(vx) and math.isfinite(vy)):
-        return None
-    return vx, vy
 
 
 def _cm_s(v_m_s: float) -> int:
@@ -95,8 +83,8 @@ def _cm_s(v_m_s: float) -> int:
 
 
 class ShipBeacon:
-    """The beacon's service (``async run``), see the module docstring. ``fix`` and
-    ``origin`` read the daemon (the last BoatPosition, the mission origin), ``broadcast``
+    """The beacon's service (``async run``), see the module docstring. ``ship`` is the
+    core's track of the ship, ``origin`` reads the daemon's mission origin, ``broadcast``
     sends a frame on every vehicle link, ``vehicle_ids`` the system ids with a session,
     ``journal`` the daemon's journal."""
 
@@ -105,7 +93,7 @@ class ShipBeacon:
     def __init__(
         self,
         system_id: int,
-        fix: Callable[[], ev.BoatPosition | None],
+        ship: ShipTrack,
         origin: Callable[[], GeoOrigin | None],
         broadcast: Callable[[bytes], int],
         clock: BeaconClock,
@@ -117,7 +105,7 @@ class ShipBeacon:
     ) -> None:
         self.encoder = MavlinkEncoder(system_id, BEACON_COMPONENT)
         self.system_id = system_id
-        self._fix = fix
+        self._ship = ship
         self._origin = origin
         self._broadcast = broadcast
         self._clock = clock
@@ -138,10 +126,11 @@ class ShipBeacon:
             self._journal("ship_beacon_conflict", system_id=self.system_id,
                           reason="a vehicle has the beacon's system id: beacon stopped")
             return False
-        fix, origin = self._fix(), self._origin()
-        if fix is None or origin is None:
+        origin = self._origin()
+        if origin is None:
             return False
-        msg = beacon_message(fix, origin, self._clock.now_s(), self.stale_s)
+        msg = beacon_message(self._ship.predict(self._clock.now_s()), self._ship.heading_rad,
+                             origin, self.stale_s)
         if msg is None:
             return False
         self._broadcast(self.encoder.encode(msg))

@@ -186,7 +186,7 @@ def _vehicles(daemon: Daemon) -> Table:
 def _watch(daemon: Daemon) -> list[RenderableType]:
     """The ship watch (docs/ship.md): the ship, each vehicle's endurance and turn-home
     time, the spares and the next relief; the alarms in red."""
-    view = daemon.core.view().watch
+    view = daemon.core.watch_view()
     if view is None:
         return []
     t = daemon.clock.now_s()

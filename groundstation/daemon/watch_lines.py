@@ -7,7 +7,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from domain.wind_triangle import wind_from_vector
+from domain.geodesy import compass_deg_from_enu_rad
 from groundstation.core.watch import WatchView
 
 __all__ = ["ship_text", "watch_dict", "watch_rows"]
@@ -19,7 +19,7 @@ def ship_text(view: WatchView) -> str:
     if ship is None:
         return "ship: no fix yet"
     speed = math.hypot(ship.vx_m_s, ship.vy_m_s)
-    course = (90.0 - math.degrees(math.atan2(ship.vy_m_s, ship.vx_m_s))) % 360.0
+    course = _course_deg(ship.vx_m_s, ship.vy_m_s)
     age = "never" if math.isinf(ship.fix_age_s) else f"{ship.fix_age_s:.0f} s old"
     return (f"ship at ({ship.x_m:.0f}, {ship.y_m:.0f}) m, {speed:.1f} m/s to {course:03.0f} "
             f"deg, fix {age} (+-{ship.sigma_m:.0f} m)")
@@ -51,7 +51,7 @@ def watch_dict(view: WatchView) -> dict[str, Any]:
             "track": [[ship.x_m + ship.vx_m_s * dt, ship.y_m + ship.vy_m_s * dt]
                       for dt in (0.0, 300.0, 600.0)],
             "speed_m_s": math.hypot(ship.vx_m_s, ship.vy_m_s),
-            "course_deg": wind_from_vector(-ship.vx_m_s, -ship.vy_m_s)[1],
+            "course_deg": _course_deg(ship.vx_m_s, ship.vy_m_s),
         },
         "energy": {
             v: {"remaining_pct": e.remaining_pct, "rate_pct_min": e.rate_pct_min,
@@ -68,3 +68,8 @@ def watch_dict(view: WatchView) -> dict[str, Any]:
         "alarms": list(view.alarms),
         "reliefs": view.reliefs,
     }
+
+
+def _course_deg(vx_m_s: float, vy_m_s: float) -> float:
+    """The course over ground, compass degrees, of an ENU velocity."""
+    return compass_deg_from_enu_rad(math.atan2(vy_m_s, vx_m_s))
