@@ -27,6 +27,17 @@
 * An optional feed (:class:`sitl.detections.DetectionSource`-like: ``step(t_s, positions)``
   returning datagrams) is given each vehicle's local position and its datagrams are sent
   to ``feed_address``.
+* Radios (:mod:`sitl.radio`): ``radios`` gives vehicles a pair of SiK telemetry radios.
+  Such a vehicle's link is then one serial channel, as over a real radio: what it sends
+  (signed, as it would be) enters its radio's serial port, crosses the air in TDM slots and
+  comes out of the ground radio to every TCP client and UDP peer; the frames its TCP
+  clients and UDP peers send are merged into the ground radio's serial port, cross the
+  air, and are decoded on the vehicle's side (answers go back through the radio to every
+  client: one channel). The radios run on the simulated clock inside each tick: the vehicle
+  steps every 0.1 s of it, and hears each frame at the moment the radio delivers it, so the
+  link's timing does not depend on the speed-up. The radios' RADIO_STATUS (system 51)
+  reach the ground station and the vehicle. :meth:`SitlServer.radio_stats` gives each
+  link's figures. Without ``radios`` nothing changes, byte for byte.
 * The simulator's journal: what the vehicles record (:class:`sitl.vehicle.SimEvent`: a
   battery run flat, a fall, a recovery on deck, a turnaround) is collected in
   :attr:`SitlServer.events` and logged on the ``sitl.events`` logger (printed on stdout as
@@ -43,8 +54,10 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
+from domain.radio_spec import RadioSpec
 from groundstation.mavlink.codec import MavlinkDecoder, MavlinkEncoder
 from sitl.faults import VehicleFaults
+from sitl.radio import RadioEnd, SikRadioPair
 from sitl.ship import describe_watch
 from sitl.signing_endpoint import VehicleSigning
 from sitl.vehicle import SimEvent, SimVehicle, VehicleConfig
@@ -53,6 +66,10 @@ __all__ = ["Feed", "ServerOptions", "SitlServer"]
 
 _MAX_CLIENT_BUFFER = 1 << 20
 _EVENTS = logging.getLogger("sitl.events")
+_RADIO = "radio"
+"""The origin of what a vehicle hears through its radio (one channel: answers to all)."""
+VEHICLE_STEP_S = 0.1
+"""With a radio, the vehicle steps at most this far at once (its physics step)."""
 
 
 class Feed(Protocol):
@@ -78,6 +95,11 @@ class ServerOptions:
     feed_address: tuple[str, int] | None = None
     signing_keys: dict[int, bytes] = field(default_factory=dict, repr=False)
     """Key per system id the vehicles start with (no entry: unsigned until SETUP_SIGNING)."""
+    radios: dict[int, RadioSpec] = field(default_factory=dict)
+    """A SiK radio pair per system id on its link (no entry: plain sockets)."""
+    radio_seed: int = 0
+    """Vehicle ``sysid``'s radio loss is seeded ``radio_seed * 1000 + sysid`` (unless its
+    spec has a seed)."""
 
 
 @dataclass
@@ -92,6 +114,8 @@ class _Slot:
     port: int = 0
     clients: set[asyncio.StreamWriter] = field(default_factory=set)
     events_seen: int = 0
+    radio: SikRadioPair | None = None
+    radio_decoder: MavlinkDecoder = field(default_factory=MavlinkDecoder)
 
 
 class _Udp(asyncio.DatagramProtocol):
@@ -130,6 +154,11 @@ class SitlServer:
             )
             for i, c in enumerate(configs)
         ]
+        for slot in self.slots:
+            spec = options.radios.get(slot.config.system_id)
+            if spec is not None:
+                seed = options.radio_seed * 1000 + slot.config.system_id
+                slot.radio = SikRadioPair(spec, seed, 0.0)
         self.t_s = 0.0
         self._wall0 = 0.0
         self._last_wall = 0.0
@@ -202,6 +231,7 @@ class SitlServer:
         if self._feed_udp is not None and self.options.feed_address is not None:
             addr = self.options.feed_address
             lines.append(f"detection feed -> udp:{addr[0]}:{addr[1]}")
+        lines += self.describe_radios()
         if self.slots:
             c = self.slots[0].config
             lines += describe_watch(c.battery, c.ship, c.watch)
@@ -210,6 +240,27 @@ class SitlServer:
             + (", vehicles boot when a TCP client connects" if self.options.wait_for_client else "")
         )
         return lines
+
+    def describe_radios(self) -> list[str]:
+        """One line per distinct radio: which vehicles' links go through it."""
+        groups: dict[RadioSpec, list[int]] = {}
+        for s in self.slots:
+            if s.radio is not None:
+                groups.setdefault(s.radio.spec, []).append(s.config.system_id)
+        if not groups:
+            return []
+        every = len(self.slots)
+        return [
+            f"radio: {spec.describe()} "
+            + ("on every vehicle link" if len(ids) == every
+               else "on vehicle " + ", ".join(map(str, ids)))
+            for spec, ids in groups.items()
+        ]
+
+    def radio_stats(self) -> dict[int, dict[str, Any]]:
+        """Each radio link's figures by system id (:meth:`SikRadioPair.summary`: per
+        direction bytes offered/carried/dropped, packets lost, air time %, latency)."""
+        return {s.config.system_id: s.radio.summary() for s in self.slots if s.radio}
 
     def _boot(self, slot: _Slot) -> None:
         if slot.vehicle is None:
@@ -240,6 +291,10 @@ class SitlServer:
                     break
                 msgs = decoder.feed(data)
                 self.bad_frames = max(self.bad_frames, decoder.bad_frames)
+                if slot.radio is not None:  # into the ground radio's serial port
+                    for msg in msgs:
+                        slot.radio.write(RadioEnd.GROUND, bytes(msg.get_msgbuf()), self.t_s)
+                    continue
                 for msg in msgs:
                     self._inbound(slot, msg, writer)
                 self._service(slot)
@@ -256,11 +311,15 @@ class SitlServer:
             target = getattr(msg, "target_system", 0) or 0
             for slot in self.slots:
                 if slot.vehicle is not None and target in (0, slot.config.system_id):
-                    self._inbound(slot, msg, ("udp", addr))
+                    if slot.radio is not None:
+                        slot.radio.write(RadioEnd.GROUND, bytes(msg.get_msgbuf()), self.t_s)
+                    else:
+                        self._inbound(slot, msg, ("udp", addr))
         for slot in self.slots:
-            self._service(slot)
+            if slot.radio is None:
+                self._service(slot)
 
-    def _inbound(self, slot: _Slot, msg: Any, origin: Any) -> None:
+    def _inbound(self, slot: _Slot, msg: Any, origin: Any, t_s: float | None = None) -> None:
         self.messages_in += 1
         if not slot.signing.admit(bytes(msg.get_msgbuf()), time.time()):
             return
@@ -269,41 +328,48 @@ class SitlServer:
             armed = vehicle is not None and bool(vehicle.autopilot.armed)
             if slot.signing.setup(msg, armed):
                 return
-        slot.faults.send_up((msg, origin), self.t_s)
+        slot.faults.send_up((msg, origin), self.t_s if t_s is None else t_s)
 
     def signing_rejected(self) -> dict[int, dict[str, int]]:
         """Frames each vehicle dropped for failing the signature check, by reason."""
         return {s.config.system_id: dict(s.signing.rejected) for s in self.slots}
 
-    def _service(self, slot: _Slot) -> None:
-        """Deliver due uplink messages, run due faults, flush due downlink messages."""
+    def _service(self, slot: _Slot, t_s: float | None = None) -> None:
+        """Deliver due uplink messages, run due faults, flush due downlink messages (at
+        ``t_s``, default the server's time)."""
         vehicle = slot.vehicle
         if vehicle is None:
             return
-        t = self.t_s
+        t = self.t_s if t_s is None else t_s
         out: list[Any] = []
         for event in slot.faults.due_events(t):
             out += vehicle.apply_fault(event, t)
-        self._downlink(slot, out)
+        self._downlink(slot, out, None, t)
         for msg, origin in slot.faults.up.pop_due(t):
             # answers addressed to the requester (COMMAND_ACK, mission protocol) go back on
             # the link the request came from, as ArduPilot does; the rest to every link
             replies = vehicle.receive(msg, t)
-            self._downlink(slot, replies, origin)
+            self._downlink(slot, replies, origin, t)
 
-    def _downlink(self, slot: _Slot, msgs: list[Any], origin: Any = None) -> None:
+    def _downlink(
+        self, slot: _Slot, msgs: list[Any], origin: Any = None, t_s: float | None = None
+    ) -> None:
+        t = self.t_s if t_s is None else t_s
         faults = slot.faults
         for msg in msgs:
             private = origin is not None and bool(getattr(msg, "target_system", 0))
-            faults.send_down((msg, origin if private else None), self.t_s)
-        for msg, dest in faults.down.pop_due(self.t_s):
+            faults.send_down((msg, origin if private else None), t)
+        for msg, dest in faults.down.pop_due(t):
             try:
                 data = slot.encoder.encode(msg)
             except Exception:  # a message that cannot be packed is dropped, never fatal
                 continue
             if slot.signing.active:
                 data = slot.signing.sign(data, time.time())
-            self._send(slot, data, dest)
+            if slot.radio is not None:  # into the vehicle radio's serial port
+                slot.radio.write(RadioEnd.VEHICLE, data, t)
+            else:
+                self._send(slot, data, dest)
 
     def _send(self, slot: _Slot, data: bytes, dest: Any = None) -> None:
         if dest is not None:  # one link only
@@ -339,10 +405,13 @@ class SitlServer:
         self.t_s += min(want_s, cap_s)
         self._last_wall = now
         for slot in self.slots:
+            if slot.radio is not None:
+                self._tick_radio(slot, slot.radio, self.t_s)
             if slot.vehicle is None:
                 continue
-            self._service(slot)
-            self._downlink(slot, slot.vehicle.step(self.t_s))
+            if slot.radio is None:
+                self._service(slot)
+                self._downlink(slot, slot.vehicle.step(self.t_s))
             self._journal(slot)
             if not slot.vehicle.alive:
                 for writer in list(slot.clients):
@@ -357,6 +426,33 @@ class SitlServer:
             for datagram in self.feed.step(self.t_s, positions):
                 if self._feed_udp is not None:
                     self._feed_udp.sendto(datagram)
+
+    def _tick_radio(self, slot: _Slot, radio: SikRadioPair, t_end_s: float) -> None:
+        """Run a radio link to ``t_end_s``: the vehicle steps every
+        :data:`VEHICLE_STEP_S`, and hears what its radio delivers when it delivers it."""
+        vehicle = slot.vehicle
+        t_s = radio.t_s
+        while True:
+            step_to = t_end_s if vehicle is None else min(t_end_s, max(vehicle.t_s, t_s)
+                                                          + VEHICLE_STEP_S)
+            while True:
+                t_s = radio.advance(step_to, stop_on=RadioEnd.VEHICLE)
+                for data in radio.read(RadioEnd.VEHICLE):
+                    msgs = slot.radio_decoder.feed(data)
+                    if vehicle is None:
+                        continue
+                    for msg in msgs:
+                        self._inbound(slot, msg, _RADIO, t_s)
+                    self._service(slot, t_s)
+                for data in radio.read(RadioEnd.GROUND):
+                    self._send(slot, data)
+                if t_s >= step_to:
+                    break
+            if vehicle is not None:
+                self._service(slot, step_to)
+                self._downlink(slot, vehicle.step(step_to), None, step_to)
+            if step_to >= t_end_s:
+                return
 
     def _journal(self, slot: _Slot) -> None:
         """Collect and log what the vehicle recorded since the last tick."""

@@ -58,6 +58,8 @@ class SitlSetup:
     ship: BoatSpec | None = None
     """The ship the vehicles stand on (a watch launched from the boat; None: the ground)."""
     watch: WatchSpec | None = None
+    radio_specs: list[str] = field(default_factory=list)
+    """The scenario's ``radio:`` specs (a command line's come after them)."""
 
     def describe(self) -> list[str]:
         """What the watch makes the simulator do, one line each (none without a watch)."""
@@ -175,4 +177,5 @@ def scenario_setup(
         battery,
         ship,
         watch,
+        radio_specs=[str(spec) for spec in getattr(scenario, "radio", ()) or ()],
     )

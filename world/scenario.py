@@ -30,6 +30,7 @@ from domain.limits import (
     MAX_TARGETS,
     MAX_WIND_M_S,
 )
+from domain.radio_spec import parse_scenario_radio
 from domain.yaml_fields import FieldError, Fields, check_number, load_yaml_file, load_yaml_text
 from world.discovery_spec import AreaSpec, CameraSpec, PriorSpec, SearchSpec, parse_discovery
 from world.model import Boat
@@ -217,6 +218,8 @@ class Scenario:
     policy: PolicySpec
     events: tuple[ScriptedEvent, ...] = field(default=())
     faults: tuple[str, ...] = field(default=())
+    radio: tuple[str, ...] = field(default=())
+    """Telemetry-radio specs for the MAVLink simulator's links (docs/sitl.md)."""
     source: str = ""
     wind: WindSpec = field(default_factory=WindSpec)
     camera: CameraSpec = field(default_factory=CameraSpec)  # world/discovery_spec.py
@@ -305,6 +308,7 @@ def parse_scenario(data: Any, *, source: str = "") -> Scenario:
         _parse_event(Fields(item, f"events[{i}]")) for i, item in enumerate(top.items("events"))
     )
     faults = parse_scenario_faults(top.items("faults"))
+    radio = parse_scenario_radio(top.raw("radio"))
     wind = _parse_wind(top.sub("wind"))
     watch = _parse_watch(top.sub("watch")) if top.has("watch") else None
     top.raw("watch")
@@ -330,6 +334,7 @@ def parse_scenario(data: Any, *, source: str = "") -> Scenario:
         policy=policy,
         events=tuple(sorted(events, key=lambda e: e.t_s)),
         faults=faults,
+        radio=radio,
         source=source,
         wind=wind,
         camera=more.camera,

@@ -9,7 +9,9 @@ ordinary ``tcp:`` links, exactly as to ArduPilot SITL. Launch poses, origin and 
 from the scenario (``sitl.sitl_setup.scenario_setup``), whose scripted vehicle events
 become simulator faults (vehicle_lost -> link drop, override -> the operator switches to
 FBWA, resume -> AUTO, battery_low -> 10 %); ``sim.faults`` and ``sim.loss`` add more (one
-builder, :func:`sitl.faults.fault_specs`). The vehicles fly in
+builder, :func:`sitl.faults.fault_specs`). Links go through simulated SiK radios as the
+scenario's ``radio:`` and then ``sim.radio`` (``--sim-radio``) say (:mod:`sitl.radio`;
+:meth:`EmbeddedSim.radio_stats` gives their figures). The vehicles fly in
 ``WindField(wind, config.mission.seed)`` (the seed the daemon's world draws the icebergs
 with): ``wind`` as given, else the scenario's, else calm. The
 mission clock follows the simulator's simulated time. The simulator ticks every 5 ms and
@@ -22,9 +24,11 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from typing import Any
 
 from domain.errors import ConfigError
 from domain.geodesy import GeoOrigin
+from domain.radio_spec import RadioSpecError, radio_assignments
 from groundstation.commands.sitl_args import DEFAULT_HOME
 from groundstation.daemon.config import DaemonConfig, controller_settings
 from sitl.faults import FaultError, build_faults, fault_specs
@@ -50,6 +54,10 @@ class EmbeddedSim:
 
     def now_s(self) -> float:
         return self.server.t_s
+
+    def radio_stats(self) -> dict[int, dict[str, Any]]:
+        """Each radio link's figures by system id (none without radios)."""
+        return self.server.radio_stats()
 
     def link_urls(self) -> list[str]:
         return [f"tcp:127.0.0.1:{port}" for port in self.server.tcp_ports]
@@ -106,6 +114,12 @@ def build_embedded_sim(
     except FaultError as exc:
         raise ConfigError(f"sim_fault: {exc}") from None
 
+    try:
+        radios = radio_assignments([*setup.radio_specs, *config.sim.radio],
+                                   [c.system_id for c in configs])
+    except RadioSpecError as exc:
+        raise ConfigError(f"sim_radio: {exc}") from None
+
     speedup = config.speedup_x
     # The simulated clock is the daemon's mission clock: one tick must never move it more
     # than 0.5 s (ArduPlane answers within a 20 ms loop; a transfer times out after 1.5 s).
@@ -121,6 +135,8 @@ def build_embedded_sim(
         max_step_s=step_s,
         max_stall_s=tick_s,
         signing_keys=dict(signing_keys or {}),
+        radios=radios,
+        radio_seed=config.mission.seed,
     )
     flown = wind if wind is not None else scenario.wind if scenario is not None else WindSpec()
     return EmbeddedSim(SitlServer(configs, options, faults, None), setup.origin, specs, flown)

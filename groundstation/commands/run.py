@@ -167,6 +167,10 @@ def _parser() -> argparse.ArgumentParser:
     a("--sim-airborne", action="store_true", help="sim:N vehicles start flying in AUTO")
     a("--sim-loss", type=float, metavar="P", help="sim:N packet loss on every link")
     a("--sim-fault", action="append", metavar="SPEC", help="sim:N fault (gcs sitl --fault)")
+    a("--sim-radio", action="append", metavar="SPEC",
+      help="sim:N links through a simulated SiK telemetry radio: sik[,baud=,air=,loss=,"
+      "burst=,ecc=,window=,buffer=,seed=], [VEHICLES:]... for some vehicles, none (repeatable; "
+      "after the scenario's radio:)")
     a(
         "--signing-key",
         dest="signing_key_file",

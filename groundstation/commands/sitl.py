@@ -119,6 +119,15 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--reorder", type=float, default=None, help="reordering, all links (0-1)")
     p.add_argument("--delay-ms", type=float, default=None, help="delay, all links (ms)")
     p.add_argument(
+        "--sim-radio",
+        action="append",
+        default=[],
+        metavar="SPEC",
+        help="links through a simulated SiK telemetry radio pair: sik[,baud=57600,air=64,"
+        "loss=0.01,burst=3,ecc=0,window=131,buffer=1850,seed=N]; VEHICLES:sik,... for some "
+        "vehicles; none (repeatable, after the scenario's radio:; docs/sitl.md)",
+    )
+    p.add_argument(
         "--ardupilot",
         default=None,
         metavar="PATH",
@@ -194,6 +203,7 @@ def signing_key(options: SitlOptions, environ: dict[str, str] | None = None) -> 
 
 def build(options: SitlOptions) -> tuple[Any, ...]:
     """(configs, faults, feed, server options) for the built-in simulator."""
+    from domain.radio_spec import RadioSpecError, radio_assignments
     from sitl.faults import FaultError, build_faults, fault_specs
     from sitl.server import ServerOptions
     from sitl.sitl_setup import scenario_setup
@@ -220,6 +230,11 @@ def build(options: SitlOptions) -> tuple[Any, ...]:
         faults = build_faults(specs, [c.system_id for c in configs], options.seed)
     except FaultError as exc:
         raise UsageError(f"--fault: {exc}") from None
+    try:
+        radios = radio_assignments([*setup.radio_specs, *options.radio],
+                                   [c.system_id for c in configs])
+    except RadioSpecError as exc:
+        raise UsageError(f"--sim-radio: {exc}") from None
     feed = None
     if options.detections is not None:
         feed = setup.make_feed(options.seed, options.anonymous_detections)
@@ -230,6 +245,8 @@ def build(options: SitlOptions) -> tuple[Any, ...]:
         out=options.out,
         wait_for_client=options.wait_for_client,
         feed_address=options.detections,
+        radios=radios,
+        radio_seed=options.seed,
     )
     start_key = signing_key(options)
     if start_key is not None:

@@ -10,6 +10,7 @@ import math
 from dataclasses import dataclass
 
 from domain.errors import UsageError
+from domain.radio_spec import RadioSpecError, parse_radio_spec
 from groundstation.link.url import LinkKind, LinkUrlError, parse_out_url
 from world.wind import WindSpec, parse_wind_text
 
@@ -97,6 +98,7 @@ class SitlOptions:
     dup: float | None = None
     reorder: float | None = None
     delay_s: float | None = None
+    radio: tuple[str, ...] = ()
     ardupilot: str | None = None
     ardupilot_defaults: str | None = None
     camera_of: tuple[tuple[str, int], ...] | None = None
@@ -140,6 +142,14 @@ def sitl_options(args: argparse.Namespace) -> SitlOptions:
             raise UsageError(f"--{name}: expected a probability in [0, 1], got {value}")
     if args.delay_ms is not None and not (math.isfinite(args.delay_ms) and args.delay_ms >= 0):
         raise UsageError(f"--delay-ms: expected >= 0, got {args.delay_ms}")
+    for spec in args.sim_radio:
+        try:
+            parse_radio_spec(spec)
+        except RadioSpecError as exc:
+            raise UsageError(f"--sim-radio: {exc}") from None
+    if args.sim_radio and (args.ardupilot is not None or args.camera_of is not None):
+        raise UsageError("--sim-radio: only for the built-in vehicles (not --ardupilot "
+                         "or --camera-of)")
     if args.ardupilot is not None and (args.signing_key or args.signing_passphrase_file):
         raise UsageError("--signing-*: real ArduPilot SITL keeps its own key; "
                          "give it one with `gcs run --signing-setup`")
@@ -168,6 +178,7 @@ def sitl_options(args: argparse.Namespace) -> SitlOptions:
         dup=args.dup,
         reorder=args.reorder,
         delay_s=None if args.delay_ms is None else args.delay_ms / 1000.0,
+        radio=tuple(args.sim_radio),
         ardupilot=args.ardupilot,
         ardupilot_defaults=args.ardupilot_defaults,
         camera_of=_camera_of(args.camera_of) if args.camera_of is not None else None,

@@ -259,6 +259,8 @@ class SimConfig:
     fast_boot: bool = True
     loss: float = 0.0
     faults: tuple[str, ...] = ()
+    radio: tuple[str, ...] = ()
+    """Telemetry-radio specs (``sik,loss=0.05``; docs/sitl.md), after the scenario's."""
 
 
 @dataclass(frozen=True, slots=True)

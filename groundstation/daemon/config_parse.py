@@ -28,6 +28,7 @@ from typing import Any
 from domain.errors import ConfigError
 from domain.fault_spec import FaultError, parse_fault_spec
 from domain.geodesy import GeoOrigin
+from domain.radio_spec import RadioSpecError, parse_radio_spec
 from groundstation.daemon.config import (
     BatteryConfig,
     DaemonConfig,
@@ -104,6 +105,7 @@ ALIASES: dict[str, str] = {
     "sim_fast_boot": "sim.fast_boot",
     "sim_loss": "sim.loss",
     "sim_fault": "sim.faults",
+    "sim_radio": "sim.radio",
     "ship": "ship.url",
 }
 """The flat keys of earlier releases (still accepted) -> the nested field they set."""
@@ -144,6 +146,7 @@ FLAGS: dict[str, str] = {
     "--sim-airborne": "sim.airborne",
     "--sim-loss": "sim.loss",
     "--sim-fault": "sim.faults",
+    "--sim-radio": "sim.radio",
     "--speedup": "speedup",
     "--advisory": "advisory",
     "--status": "status",
@@ -476,3 +479,8 @@ def check_config(config: DaemonConfig, names: Mapping[str, str] | None = None) -
                 parse_fault_spec(spec, count)
             except FaultError as exc:
                 raise ConfigError(f"{names.get('sim.faults', 'sim.faults')}: {exc}") from None
+    for spec in config.sim.radio:
+        try:
+            parse_radio_spec(spec, count if count is not None else 255)
+        except RadioSpecError as exc:
+            raise ConfigError(f"{names.get('sim.radio', 'sim.radio')}: {exc}") from None
