@@ -96,6 +96,9 @@ def handle(v: VehicleView, msg: Any, t_s: float) -> list[Any]:
         if int(msg.tc1) != 0:
             return []
         return [M.MAVLink_timesync_message(int(v.t_s * 1e9), int(msg.ts1))]
+    if kind in ("RADIO_STATUS", "RADIO"):  # our radio's buffer: ArduPilot's flow control
+        v.streams.radio_status(int(msg.txbuf))
+        return []
     if kind == "REQUEST_DATA_STREAM":
         v.streams.set_group(
             int(msg.req_stream_id), float(msg.req_message_rate), bool(msg.start_stop), t_s

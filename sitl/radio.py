@@ -175,7 +175,8 @@ class RadioStats:
     bytes_offered: int = 0
     """Written to the sending radio's serial port."""
     bytes_carried: int = 0
-    """Delivered out of the receiving radio's serial port (RADIO_STATUS not counted)."""
+    """Received over the air and put out (or queued to go out at the serial rate) of the
+    receiving radio's serial port (its own RADIO_STATUS not counted)."""
     line_dropped: int = 0
     """Dropped before the radio: the sender's serial queue was over 64 KiB."""
     rx_overflow: int = 0
@@ -427,7 +428,7 @@ class SikRadioPair:
             elif kind == "empty" and owner:
                 r.bonus = True
             for t_write, data, whole in parts:
-                self._serial_out(receiver, data, arrive_s, t_write if whole else None)
+                self._serial_out(receiver, data, arrive_s, t_write if whole else None, True)
         if owner:
             e.noise = (self.rng.gauss(_NOISE_MEAN, 2.0) + 3 * e.noise) / 4
         self._cursor = c + ticks + tm.packet_latency
@@ -443,28 +444,28 @@ class SikRadioPair:
 
     def _serial_out(
         self, which: RadioEnd, data: bytes, t_s: float, t_write: float | None,
-    ) -> bool:
-        """Put bytes in ``which``'s serial transmit buffer at ``t_s``; ``t_write`` (a whole
-        frame's write time) records its latency. False if it did not fit whole."""
+        traffic: bool,
+    ) -> None:
+        """Put bytes in ``which``'s serial transmit buffer at ``t_s`` (what does not fit is
+        discarded); ``traffic``: data from the other radio (a RADIO_STATUS is not), counted;
+        ``t_write``: a whole frame's write time, its latency recorded."""
         e = self.ends[which]
-        sender = RadioEnd(1 - which)
-        free = TX_BUFFER_BYTES - self._tx_used(e, t_s)
-        fits = len(data) <= free
-        if not fits:
-            if t_write is not None:  # a RADIO_STATUS is not counted as traffic
-                self.stats[sender].tx_overflow += len(data) - max(free, 0)
-            data = data[: max(free, 0)]
+        stats = self.stats[RadioEnd(1 - which)]
+        free = max(TX_BUFFER_BYTES - self._tx_used(e, t_s), 0)
+        if len(data) > free:
+            if traffic:
+                stats.tx_overflow += len(data) - free
+            data = data[:free]
             t_write = None
         if not data:
-            return False
+            return
         e.tx_free_s = max(e.tx_free_s, t_s) + len(data) * self.byte_s
         e.txq.append((e.tx_free_s, data))
-        if t_write is not None:
-            stats = self.stats[sender]
+        if traffic:
             stats.bytes_carried += len(data)
+        if t_write is not None:
             stats.latency_bins[min(int((e.tx_free_s - t_write) / LATENCY_BIN_S),
                                    LATENCY_BINS)] += 1
-        return fits
 
     def _report(self, which: RadioEnd, t_s: float) -> None:
         """A pending RADIO_STATUS goes out once the serial transmit buffer has room."""
@@ -477,7 +478,7 @@ class SikRadioPair:
         e.seq = (e.seq + 1) & 0xFF
         e.report = 0
         e.reports += 1
-        self._serial_out(which, frame, t_s, None)
+        self._serial_out(which, frame, t_s, None, False)
 
     def radio_status_frame(self, which: RadioEnd) -> bytes:
         """The RADIO_STATUS ``which`` would send now, in its last heartbeat's version."""

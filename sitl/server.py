@@ -402,8 +402,12 @@ class SitlServer:
         cap_s = max(self.options.max_step_s, speedup * self.options.max_stall_s)
         want_s = (now - self._last_wall) * speedup
         self._behind = want_s > cap_s
-        self.t_s += min(want_s, cap_s)
         self._last_wall = now
+        self.advance(self.t_s + min(want_s, cap_s))
+
+    def advance(self, t_s: float) -> None:
+        """Run every vehicle, radio and the feed to simulated time ``t_s`` (never back)."""
+        self.t_s = max(self.t_s, t_s)
         for slot in self.slots:
             if slot.radio is not None:
                 self._tick_radio(slot, slot.radio, self.t_s)

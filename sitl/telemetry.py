@@ -8,6 +8,12 @@ ATTITUDE; EXTRA2 = VFR_HUD; EXTRA3 = SYSTEM_TIME, BATTERY_STATUS, WIND (ArduPlan
 STREAM_EXTRA3 has WIND, SR*_EXTRA3 1 Hz by default); ALL = every group);
 SET_MESSAGE_INTERVAL sets one message (interval -1 disables, 0 restores the default).
 HEARTBEAT is always 1 Hz.
+
+Adaptive flow control, as ArduPilot's ``GCS_MAVLINK::handle_radio_status``: each
+RADIO_STATUS (from the vehicle's own radio) moves ``slowdown_s`` by its ``txbuf`` (% free of
+the radio's serial buffer): < 20: +60 ms, < 50: +20 ms (up to 2 s), > 95: -40 ms (while
+above 0.2 s), > 90: -20 ms (not below 0); ``slowdown_s`` is added to every stream's
+interval (``get_reschedule_interval_ms``), HEARTBEAT excepted.
 """
 
 from __future__ import annotations
@@ -49,6 +55,22 @@ class StreamScheduler:
     def __init__(self, t_s: float) -> None:
         self.intervals_s: dict[int, float | None] = dict(DEFAULT_INTERVALS_S)
         self._next_s: dict[int, float] = {m: t_s for m in self.intervals_s}
+        self.slowdown_s = 0.0
+        """Added to every stream interval but HEARTBEAT's (ArduPilot's
+        ``stream_slowdown_ms``, driven by RADIO_STATUS)."""
+
+    def radio_status(self, txbuf_pct: int) -> None:
+        """ArduPilot's adaptive flow control on one RADIO_STATUS (see the module)."""
+        ms = round(self.slowdown_s * 1000)
+        if txbuf_pct < 20 and ms < 2000:
+            ms += 60
+        elif txbuf_pct < 50 and ms < 2000:
+            ms += 20
+        elif txbuf_pct > 95 and ms > 200:
+            ms -= 40
+        elif txbuf_pct > 90 and ms != 0:
+            ms = ms - 20 if ms > 20 else 0
+        self.slowdown_s = ms / 1000.0
 
     def set_interval(self, msg_id: int, interval_s: float | None, t_s: float) -> bool:
         """Set one message's interval (None disables); False for a message not streamable."""
@@ -83,6 +105,8 @@ class StreamScheduler:
             nxt = self._next_s.get(msg_id, t_s)
             if t_s + 1e-9 >= nxt:
                 out.append(msg_id)
+                if msg_id != HEARTBEAT:
+                    interval += self.slowdown_s
                 nxt += interval
                 if nxt <= t_s:
                     nxt = t_s + interval
