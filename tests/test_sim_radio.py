@@ -444,3 +444,60 @@ def test_gcs_sitl_and_gcs_run_take_sim_radio(capsys: pytest.CaptureFixture[str])
     assert parse_config({"vehicles": ["sim:1"], "sim_radio": "sik"}, {}).sim.radio == ("sik",)
     with pytest.raises(ConfigError, match=r"^sim_radio: radio 'sik,ecc=yes': ecc must be 0"):
         parse_config({"vehicles": ["sim:1"], "sim_radio": "sik,ecc=yes"}, {})
+
+
+def test_tcp_clients_and_udp_out_share_the_radio_over_real_sockets() -> None:
+    """Over 127.0.0.1 at 50x: a TCP client and the UDP ``out`` peer of one vehicle both hear
+    it through its radio; the UDP peer's request is answered to both (one channel), and the
+    ground radio's RADIO_STATUS reaches both."""
+    import asyncio
+    import socket
+
+    from domain.geodesy import GeoOrigin
+    from sitl.server import ServerOptions, SitlServer
+    from sitl.vehicle import VehicleConfig
+
+    async def main() -> tuple[list[Any], list[Any]]:
+        udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        udp.bind(("127.0.0.1", 0))
+        udp.setblocking(False)
+        config = VehicleConfig(system_id=1, origin=GeoOrigin(78.93, 11.92), home_lat_deg=78.93,
+                               home_lon_deg=11.92, airborne=True, fast_boot=True)
+        server = SitlServer([config], ServerOptions(
+            speedup=50.0, base_port=0, out=udp.getsockname(), radios={1: RadioSpec()}))
+        await server.start()
+        runner = asyncio.create_task(server.run(30.0))
+        reader, writer = await asyncio.open_connection("127.0.0.1", server.tcp_ports[0])
+        gcs = MavlinkEncoder(245, 190)
+        tcp_msgs: list[Any] = []
+        udp_msgs: list[Any] = []
+        tcp_dec, udp_dec = MavlinkDecoder(), MavlinkDecoder()
+        loop = asyncio.get_running_loop()
+        sent_s = -1.0
+        while not runner.done():
+            if server.t_s - sent_s >= 1.0:  # a heartbeat and a request a simulated second
+                sent_s = server.t_s
+                request = M.MAVLink_param_request_read_message(1, 1, b"WP_RADIUS", -1)
+                for data in (_heartbeat(gcs), gcs.encode(request)):
+                    await loop.sock_sendto(udp, data, ("127.0.0.1", server.udp_port or 0))
+            try:
+                data = await asyncio.wait_for(reader.read(65536), 0.01)
+                tcp_msgs += tcp_dec.feed(data)
+            except TimeoutError:
+                pass
+            while True:
+                try:
+                    udp_msgs += udp_dec.feed(udp.recv(65536))
+                except BlockingIOError:
+                    break
+        writer.close()
+        await server.close()
+        udp.close()
+        return tcp_msgs, udp_msgs
+
+    tcp_msgs, udp_msgs = asyncio.run(asyncio.wait_for(main(), 60.0))
+    for msgs in (tcp_msgs, udp_msgs):
+        kinds = [(m.get_srcSystem(), m.get_type()) for m in msgs]
+        assert kinds.count((51, "RADIO_STATUS")) >= 20
+        assert kinds.count((1, "PARAM_VALUE")) >= 20
+        assert kinds.count((1, "HEARTBEAT")) >= 25
