@@ -280,6 +280,12 @@ async def _serve(options: SitlOptions) -> int:
         await server.run(options.duration_s)
     finally:
         await server.close()
+    for sysid, link in server.radio_stats().items():
+        down, up = link["down"], link["up"]
+        print(f"gcs sitl: vehicle {sysid}'s radio: air busy {link['air_pct']:.1f} % (data "
+              f"{link['data_air_pct']:.1f} %), packets lost {down['packets_lost']} of "
+              f"{down['packets']} down, {up['packets_lost']} of {up['packets']} up, bytes "
+              f"dropped {down['bytes_dropped']} down, {up['bytes_dropped']} up", flush=True)
     for sysid, counts in server.signing_rejected().items():
         if counts:
             print(f"gcs sitl: vehicle {sysid} refused frames failing the signature check: "
