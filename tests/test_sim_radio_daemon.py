@@ -31,12 +31,15 @@ def test_gcs_run_flies_over_sik_radios(tmp_path: Path) -> None:
     assert not events(journal, "upload", ok=False)
     assert not events(journal, "link_lost")
     assert {e["vehicle"] for e in events(journal, "vehicle_seen")} == {"1", "2"}
-    # the tlog holds the ground radio's RADIO_STATUS, from 51/68, about one a second a link
+    # the tlog holds the ground radios' RADIO_STATUS, from 51/68: each radio answers every
+    # heartbeat floe sends on its link (about 1 Hz; more mission-time Hz on a loaded host,
+    # where floe's heartbeat keeps its wall-clock pace while the simulator slows down)
     frames = MavlinkDecoder().feed((daemon.run_dir / "flight.tlog").read_bytes())
     sources = Counter((m.get_srcSystem(), m.get_srcComponent(), m.get_type()) for m in frames)
     radio_status = sources[(51, 68, "RADIO_STATUS")]
-    mission_s = journal[-1]["t"]
-    assert 0.8 <= radio_status / (2 * mission_s) <= 1.5  # one per floe heartbeat
+    heartbeats = sum(n for (s, _, kind), n in sources.items() if (s, kind) == (245, "HEARTBEAT"))
+    assert radio_status >= 2 * 0.8 * journal[-1]["t"]
+    assert 0.8 <= radio_status / (2 * heartbeats) <= 1.05
     assert {s for s, _, _ in sources} == {1, 2, 51, 245}  # the vehicles, radios, floe
 
 
