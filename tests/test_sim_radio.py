@@ -503,3 +503,36 @@ def test_tcp_clients_and_udp_out_share_the_radio_over_real_sockets() -> None:
         assert kinds.count((51, "RADIO_STATUS")) >= 10
         assert kinds.count((1, "PARAM_VALUE")) >= 10
         assert kinds.count((1, "HEARTBEAT")) >= 25
+
+
+def test_a_vehicle_throttles_its_streams_when_its_radio_fills_up() -> None:
+    """Every stream at 10 Hz (REQUEST_DATA_STREAM ALL) over a 16 kbit/s radio: the
+    vehicle's radio overflows at first, its RADIO_STATUS (txbuf) slow the vehicle's streams
+    down as ArduPlane's do, and from then on nothing more is dropped."""
+    from domain.geodesy import GeoOrigin
+    from sitl.server import ServerOptions, SitlServer
+    from sitl.vehicle import SimVehicle, VehicleConfig
+
+    config = VehicleConfig(system_id=1, origin=GeoOrigin(78.93, 11.92), home_lat_deg=78.93,
+                           home_lon_deg=11.92, airborne=True, fast_boot=True)
+    server = SitlServer([config], ServerOptions(base_port=0, radios={
+        1: RadioSpec(air_kbps=16, loss=0.0)}))
+    slot = server.slots[0]
+    slot.vehicle = vehicle = SimVehicle(config, 0.0)
+    radio = slot.radio
+    assert radio is not None
+    gcs = MavlinkEncoder(245, 190)
+    radio.write(GROUND, gcs.encode(M.MAVLink_request_data_stream_message(1, 1, 0, 10, 1)), 0.0)
+    dropped: dict[int, int] = {}
+    t = 0.0
+    for step in range(1, 2401):
+        t = step * 0.05
+        if step % 20 == 0:
+            radio.write(GROUND, _heartbeat(gcs), server.t_s)
+        server.advance(t)
+        if step % 400 == 0:
+            dropped[step // 20] = radio.stats[VEHICLE].rx_overflow
+    assert dropped[20] > 1000  # it overflowed before the reports had their effect
+    assert vehicle.streams.slowdown_s >= 0.1
+    assert dropped[120] == dropped[40]  # then nothing more
+    assert radio.status(VEHICLE)["sent"] >= 100  # the vehicle heard its radio every second
