@@ -3,7 +3,9 @@
 The radio is the MAVLink simulator's (:mod:`sitl.radio` models it); the grammar lives in
 ``domain`` because ``gcs sitl``, ``gcs run --vehicles sim:N`` (its config's ``sim_radio``)
 and scenarios (``radio:``) all carry radio specs and check them when they are read, without
-importing the simulator.
+importing the simulator. :class:`SikTiming` is SiK's ``tdm_init`` arithmetic (packet
+overhead, window, silence in 16 us ticks): the simulator's radio runs on it, and a spec
+whose window cannot hold a single packet is refused here.
 
     sik                         a SiK radio pair at its defaults on every vehicle link
     sik,loss=0.05               ... losing 5 % of its air packets, in bursts
@@ -25,7 +27,7 @@ air         air data rate, kbit/s (rounded up to a Si1000 rate)         64
 loss        mean air-packet loss, [0, 1)                                0.01
 burst       mean length of a run of lost packets (>= 1)                 3
 ecc         1: Golay error-correcting code (twice the air bytes)        0
-window      MAX_WINDOW, ms: the longest transmit window (20..400)       131
+window      MAX_WINDOW, ms: the longest transmit window (20..131)       131
 buffer      serial receive buffer of each radio, bytes (256..65536)     1850
 seed        the loss process's seed (default: from the run's seed)      -
 ==========  =========================================================  ========
@@ -45,6 +47,7 @@ __all__ = [
     "SERIAL_BAUDS",
     "RadioSpec",
     "RadioSpecError",
+    "SikTiming",
     "parse_radio_spec",
     "parse_scenario_radio",
     "radio_assignments",
@@ -54,6 +57,15 @@ SERIAL_BAUDS = (1200, 2400, 4800, 9600, 19200, 38400, 57600, 115200, 230400)
 """The serial rates a SiK radio offers (SERIAL_SPEED 1, 2, 4, 9, 19, 38, 57, 115, 230)."""
 AIR_RATES_KBPS = (2, 4, 8, 16, 19, 24, 32, 48, 64, 96, 128, 192, 250)
 """The Si1000 air data rates SiK offers (kbit/s); AIR_SPEED is rounded up to one of them."""
+
+
+TICK_S = 16e-6
+"""SiK's timer2 tick."""
+MAX_PACKET_LENGTH = 252
+TRAILER_BYTES = 2
+PREAMBLE_NIBBLES = 16
+PACKET_OVERHEAD = TRAILER_BYTES + 16
+"""SiK sends nothing when fewer bytes than this fit in the time left (``tdm.c``)."""
 
 
 class RadioSpecError(ConfigError):
@@ -81,6 +93,51 @@ class RadioSpec:
             f" of {self.burst:g}, window {self.window_ms} ms, buffer {self.buffer_bytes} B"
             + (f", seed {self.seed}" if self.seed is not None else "")
         )
+
+
+@dataclass(frozen=True, slots=True)
+class SikTiming:
+    """SiK's TDM figures for one air rate (``tdm_init``), in 16 us ticks."""
+
+    ticks_per_byte: int
+    packet_latency: int
+    silence: int
+    window: int
+    max_data: int
+
+    @classmethod
+    def of(cls, spec: RadioSpec) -> SikTiming:
+        """``tdm_init``'s arithmetic (integer, as the firmware does it)."""
+        tpb = (8 + 8_000_000 // (spec.air_kbps * 1000)) // 16 + 1
+        latency = (8 + 10 // 2) * tpb + 13
+        if spec.ecc:
+            max_data = MAX_PACKET_LENGTH // 2 - (6 + TRAILER_BYTES)
+            tpb *= 2
+            latency += 4 * tpb
+        else:
+            max_data = MAX_PACKET_LENGTH - TRAILER_BYTES
+        silence = 2 * latency
+        window = 3 * (latency + max_data * tpb)
+        window = min(window, (1_000_000 // 16) * 4 // 10)  # 0.4 s, US rules when hopping
+        window = min(window, spec.window_ms * (1000 // 16), 0x1FFF)
+        latency += ((PREAMBLE_NIBBLES - 10) // 2) * tpb
+        return cls(tpb, latency, silence, window, max_data)
+
+    def flight_ticks(self, data_bytes: int) -> int:
+        """Air time of a packet with ``data_bytes`` (SiK's ``flight_time_estimate``)."""
+        return self.packet_latency + (data_bytes + TRAILER_BYTES) * self.ticks_per_byte
+
+    @property
+    def max_fit(self) -> int:
+        """The most data bytes one packet can carry in a whole window (a longer frame goes
+        raw, in pieces: SiK's ``packet_set_max_xmit``)."""
+        room = (self.window - self.packet_latency) // self.ticks_per_byte - (TRAILER_BYTES + 1)
+        return max(1, min(self.max_data, room))
+
+    @property
+    def round_s(self) -> float:
+        """Both windows and both silences."""
+        return 2 * (self.window + self.silence) * TICK_S
 
 
 def _number(spec: str, key: str, text: str) -> float:
@@ -128,7 +185,7 @@ def _option(spec: str, radio: RadioSpec, key: str, text: str) -> RadioSpec:
             raise RadioSpecError(f"radio {spec!r}: ecc must be 0 or 1")
         return replace(radio, ecc=text == "1")
     if key == "window":
-        return replace(radio, window_ms=_integer(spec, key, text, 20, 400))
+        return replace(radio, window_ms=_integer(spec, key, text, 20, 131))
     if key == "buffer":
         return replace(radio, buffer_bytes=_integer(spec, key, text, 256, 65536))
     if key == "seed":
@@ -180,6 +237,10 @@ def parse_radio_spec(spec: str, count: int = 255) -> tuple[list[int] | None, Rad
     if p_enter > 1.0:
         raise RadioSpecError(f"radio {spec!r}: loss={radio.loss:g} needs burst >= "
                              f"{radio.loss / (1.0 - radio.loss):.3g}")
+    timing = SikTiming.of(radio)
+    if (timing.window - timing.packet_latency) // timing.ticks_per_byte < PACKET_OVERHEAD:
+        raise RadioSpecError(f"radio {spec!r}: at {radio.air_kbps} kbit/s no packet fits a "
+                             f"{radio.window_ms} ms window; raise air or window")
     return vehicles, radio
 
 

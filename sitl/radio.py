@@ -14,7 +14,8 @@ the Si1000 boards (3DR/Holybro/mRo "SiK telemetry radio V2/V3"):
   counted (SiK's ``serial_rx_overflow``). What the radio receives over the air goes out of
   its serial port through ``tx_buf`` (``TX_BUFF_MAX`` 645 bytes): bytes that do not fit are
   discarded (``serial_tx_overflow``).
-* **TDM** (``tdm.c``, ``tdm_init``), in SiK's 16 us ticks: ``ticks_per_byte`` =
+* **TDM** (``tdm.c``, ``tdm_init``; :class:`domain.radio_spec.SikTiming`), in SiK's 16 us
+  ticks: ``ticks_per_byte`` =
   (8 + 8e6 / air_bps) // 16 + 1 (9 at 64 kbit/s); ``packet_latency`` (preamble, sync word,
   header and CRC, turnaround) = 13 bytes + 13 ticks, plus 3 bytes for the 16-nibble
   preamble (157 ticks, 2.5 ms); a packet of L data bytes plus the 2-byte TDM trailer takes
@@ -71,7 +72,13 @@ from dataclasses import dataclass, field
 from enum import IntEnum
 from typing import Any
 
-from domain.radio_spec import RadioSpec
+from domain.radio_spec import (
+    PACKET_OVERHEAD,
+    TICK_S,
+    TRAILER_BYTES,
+    RadioSpec,
+    SikTiming,
+)
 from groundstation.mavlink.codec import mavlink2
 
 __all__ = [
@@ -86,14 +93,9 @@ __all__ = [
 
 RADIO_SYSTEM_ID = 51  # '3'
 RADIO_COMPONENT_ID = 68  # 'D'
-TICK_S = 16e-6
-"""SiK's timer2 tick."""
-MAX_PACKET_LENGTH = 252
-TRAILER_BYTES = 2
 STATS_BYTES = 4
 STATS_PERIOD_S = 0.5
 TX_BUFFER_BYTES = 645
-PREAMBLE_NIBBLES = 16
 LINE_LIMIT_BYTES = 65536
 LATENCY_BIN_S = 0.001
 LATENCY_BINS = 5000
@@ -107,44 +109,6 @@ class RadioEnd(IntEnum):
 
     VEHICLE = 0
     GROUND = 1
-
-
-@dataclass(frozen=True, slots=True)
-class SikTiming:
-    """SiK's TDM figures for one air rate (``tdm_init``), in 16 us ticks."""
-
-    ticks_per_byte: int
-    packet_latency: int
-    silence: int
-    window: int
-    max_data: int
-
-    @classmethod
-    def of(cls, spec: RadioSpec) -> SikTiming:
-        """``tdm_init``'s arithmetic (integer, as the firmware does it)."""
-        tpb = (8 + 8_000_000 // (spec.air_kbps * 1000)) // 16 + 1
-        latency = (8 + 10 // 2) * tpb + 13
-        if spec.ecc:
-            max_data = MAX_PACKET_LENGTH // 2 - (6 + TRAILER_BYTES)
-            tpb *= 2
-            latency += 4 * tpb
-        else:
-            max_data = MAX_PACKET_LENGTH - TRAILER_BYTES
-        silence = 2 * latency
-        window = 3 * (latency + max_data * tpb)
-        window = min(window, (1_000_000 // 16) * 4 // 10)  # 0.4 s, US rules when hopping
-        window = min(window, spec.window_ms * (1000 // 16), 0x1FFF)
-        latency += ((PREAMBLE_NIBBLES - 10) // 2) * tpb
-        return cls(tpb, latency, silence, window, max_data)
-
-    def flight_ticks(self, data_bytes: int) -> int:
-        """Air time of a packet with ``data_bytes`` (SiK's ``flight_time_estimate``)."""
-        return self.packet_latency + (data_bytes + TRAILER_BYTES) * self.ticks_per_byte
-
-    @property
-    def round_s(self) -> float:
-        """Both windows and both silences."""
-        return 2 * (self.window + self.silence) * TICK_S
 
 
 class GilbertElliott:
@@ -357,7 +321,7 @@ class SikRadioPair:
             return
         remaining = k * half + tm.window - c
         max_xmit = (remaining - tm.packet_latency) // tm.ticks_per_byte
-        if remaining < tm.packet_latency or max_xmit < TRAILER_BYTES + 16:
+        if remaining < tm.packet_latency or max_xmit < PACKET_OVERHEAD:
             self._cursor = next_window
             return
         max_xmit = min(max_xmit - (TRAILER_BYTES + 1), tm.max_data)
@@ -371,7 +335,7 @@ class SikRadioPair:
         total = 0
         while e.rx:
             t_write, data, whole = e.rx[0]
-            if len(data) > self.timing.max_data:
+            if len(data) > self.timing.max_fit:
                 room = max_xmit - total
                 if room <= 0:
                     break
