@@ -14,7 +14,8 @@ interleaved (round 1: load A on before, A on after, B on before, ...):
 * ``slowloris``: 200 clients connect at once and send their headers one byte every 0.5 s
   (the server cuts them off after its 5 s header timeout);
 * ``ws``: 200 WebSocket pages (with permessage-deflate, as browsers ask) connect at once
-  and read for 4 s: 16 are served, 184 refused (503).
+  and read for 4 s: 16 are served, 184 refused (503);
+* ``idle``: no client for 6 s, the floor: what the machine and the daemon's own work give.
 
 Printed: the worst stall of each daemon's loop during each load (wall ms), per round, and
 the worst over the rounds. A stall also counts what the machine did to the process (other
@@ -191,8 +192,13 @@ async def websockets(url: str, clients: int) -> None:
         await asyncio.gather(*(one() for _ in range(clients)))
 
 
+async def idle(url: str, clients: int) -> None:
+    """No client for 6 s: the machine's own noise (other programs, the daemon's work)."""
+    await asyncio.sleep(6.0)
+
+
 LOADS: dict[str, Callable[[str, int], Awaitable[None]]] = {
-    "slow-read": slow_read, "slowloris": slowloris, "ws": websockets}
+    "idle": idle, "slow-read": slow_read, "slowloris": slowloris, "ws": websockets}
 
 
 def extract(revision: str, into: Path) -> Path:

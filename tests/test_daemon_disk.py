@@ -204,7 +204,10 @@ def test_run_folder_files_are_whole_and_control_json_is_private(tmp_path: Path) 
     assert told[0].split()[4:7] == [daemon.control_url, "token", control["token"]], told
     assert control["url"] == daemon.control_url
     assert yaml.safe_load((run_dir / "config.yaml").read_text())["mission"]["duration_s"] == 20
-    assert json.loads((run_dir / "metrics.json").read_text())["summary"]["mission_s"] >= 20
+    metrics = json.loads((run_dir / "metrics.json").read_text())
+    assert metrics["summary"]["mission_s"] >= 20
+    # the event loop's worst stall (loop_monitor.py), measured through the run
+    assert metrics["loop_stall_max_ms"] >= 0 and metrics["loop_stalls_over_100ms"] >= 0
     assert sorted(p.name for p in run_dir.iterdir()) == [
         "config.yaml", "control.json", "flight.tlog", "gcs.log", "journal.jsonl", "metrics.json"
     ]  # fmt: skip

@@ -245,10 +245,14 @@ class PageHub:
         if self.open >= self.max_clients:
             self.rejects.note("ws_clients_full", f"{self.open} pages connected",
                               time.monotonic())
-            return web.json_response(
+            refusal = web.json_response(
                 {"ok": False, "error": f"too many live pages (limit {self.max_clients}, "
                  "--http-max-ws-clients); close one and retry"},
                 status=503, headers={"Retry-After": "5", "Cache-Control": "no-store"})
+            # closed by us, within this request's unit of the turn budget: a refused crowd
+            # does not wake the loop all at once when it hangs up together
+            refusal.force_close()
+            return refusal
         self.open += 1
         try:
             return await self._serve(request)

@@ -294,8 +294,11 @@ class ControlServer:
         if not self._host_allowed(request):
             self.rejects.note("host_refused", "Host header is not a loopback address",
                               time.monotonic())
-            return _error(403, "Host header is not a loopback address (DNS rebinding?)")
+            refused = _error(403, "Host header is not a loopback address (DNS rebinding?)")
+            refused.force_close()  # a refused crowd is closed a few per turn, by us
+            return refused
         if (refused := self._origin_refusal(request)) is not None:
+            refused.force_close()
             return refused
         if request.method in WRITE_METHODS:
             self.document.invalidate()  # a write checks ids against the state as it is now
