@@ -294,9 +294,9 @@ class ControlServer:
         if not self._host_allowed(request):
             self.rejects.note("host_refused", "Host header is not a loopback address",
                               time.monotonic())
-            refused = _error(403, "Host header is not a loopback address (DNS rebinding?)")
-            refused.force_close()  # a refused crowd is closed a few per turn, by us
-            return refused
+            host_refusal = _error(403, "Host header is not a loopback address (DNS rebinding?)")
+            host_refusal.force_close()  # a refused crowd is closed a few per turn, by us
+            return host_refusal
         if (refused := self._origin_refusal(request)) is not None:
             refused.force_close()
             return refused
