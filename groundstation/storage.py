@@ -52,6 +52,9 @@ _PROBE = b"floe write probe\n"
 
 # the one place records reach the OS; tests replace it to simulate a full disk
 _os_write: Callable[[int, bytes], int] = os.write
+# where a reserve is allocated and released; tests replace them with their simulated disk
+_os_allocate: Callable[[int, int, int], None] = os.posix_fallocate
+_os_unlink: Callable[[str], None] = os.unlink
 
 
 class StorageError(Exception):
@@ -203,7 +206,17 @@ class AppendLog:
     * Held bytes are bounded by ``cap_bytes``: beyond it the oldest records appended with
       ``keep=False`` (telemetry) are dropped first and counted in :attr:`dropped`; records
       with ``keep=True`` (decisions) are dropped, oldest first, only when no other remains.
-    * :meth:`close` tries once more; what cannot be written then is reported and lost.
+    * A **vital** record (``append(..., vital=True)``: the journal's ``stop`` line and
+      summary) is never dropped by the cap.
+    * ``reserve_bytes`` > 0 (a regular file): a reserve of that many bytes is allocated at
+      once next to the file (``.NAME.reserve``, ``posix_fallocate``: real blocks), so a
+      full disk still has room at the end; it is removed on :meth:`close`. No room for it
+      is one warning, and the log goes on without.
+    * :meth:`close` with records held (the disk was full at the last try): the reserve is
+      released first. If the held records fit in it they are written in order; else the
+      vital records are written first, then the held records in order as long as space
+      allows. One line (:meth:`close_report`) says what was written and exactly how many
+      records (and bytes) of which file were not, and are lost.
     """
 
     def __init__(
@@ -216,6 +229,8 @@ class AppendLog:
         retry_s: float = DEFAULT_RETRY_S,
         monotonic: Callable[[], float] = time.monotonic,
         report: Report = _log_report,
+        reserve_bytes: int = 0,
+        vital_label: str = "vital records",
     ) -> None:
         self.path = os.fspath(path)
         self.name = name
@@ -231,6 +246,8 @@ class AppendLog:
         # pending records: (sequence number, data); two queues so telemetry drops first
         self._low: collections.deque[tuple[int, bytes]] = collections.deque()
         self._high: collections.deque[tuple[int, bytes]] = collections.deque()
+        self._vital: collections.deque[tuple[int, bytes]] = collections.deque()
+        self.vital_label = vital_label
         self._seq = 0
         self._head_done = 0  # bytes of the head record already in the file (a device)
         self.held_bytes = 0
@@ -243,11 +260,18 @@ class AppendLog:
         self.dropped = 0
         self.write_errors = 0
         self.last_error: str | None = None
+        self._closing = False
+        self.lost = 0
+        """Records not written at :meth:`close` (the disk still full): lost."""
+        self.reserve_path: str | None = None
+        self.reserve_bytes = 0
+        if reserve_bytes > 0 and self._regular:
+            self._allocate_reserve(reserve_bytes)
 
     @property
     def held(self) -> int:
         """Records waiting in memory."""
-        return len(self._low) + len(self._high)
+        return len(self._low) + len(self._high) + len(self._vital)
 
     @property
     def closed(self) -> bool:
@@ -258,12 +282,15 @@ class AppendLog:
         """The open file descriptor (None once closed)."""
         return self._fd
 
-    def append(self, data: bytes, *, keep: bool = False) -> bool:
-        """Append one record; True if it is in the file now, False if held or closed."""
+    def append(self, data: bytes, *, keep: bool = False, vital: bool = False) -> bool:
+        """Append one record; True if it is in the file now, False if held or closed.
+        ``keep``: dropped last over the cap; ``vital``: never dropped, and written first
+        at :meth:`close` on a full disk."""
         if self._fd is None:
             return False
         self._seq += 1
-        (self._high if keep else self._low).append((self._seq, data))
+        queue = self._vital if vital else self._high if keep else self._low
+        queue.append((self._seq, data))
         self.held_bytes += len(data)
         if self.failing:
             self._outage_held += 1
@@ -280,26 +307,115 @@ class AppendLog:
         return self.held == 0
 
     def close(self) -> None:
-        """Write what is held if possible, then close. Idempotent."""
+        """Write what is held if possible (the class docstring's order), then close and
+        remove the reserve. Idempotent."""
         if self._fd is None:
             return
         if self.held:
-            self._drain()
-        if self.held:
-            self._report(
-                logging.ERROR,
-                f"{self.name} {self.path}: closing with {self.held} records not written "
-                f"({self.last_error}); they are lost",
-            )
-            self._cut_back()
+            self._close_out()
+        self._release_reserve()
         fd, self._fd = self._fd, None
         os.close(fd)
 
+    def close_report(self, held: int, freed: int, vital_first: int) -> tuple[int, str]:
+        """The one line of a close with ``held`` records held (``freed``: the reserve's
+        bytes released; ``vital_first``: vital records written ahead of the others)."""
+        where = f"{self.name} {self.path}"
+        room = f"released its {freed}-byte reserve; " if freed else ""
+        first = (f"{self.vital_label} written first, then " if vital_first else "")
+        written = held - self.held - vital_first
+        if not self.held:
+            order = "in order" if not vital_first else "in order after them"
+            return logging.WARNING, (f"{where}: the disk was full at exit ({self.last_error}); "
+                                     f"{room}{first}all {written} held records written {order}")
+        lost_bytes = self.held_bytes
+        vital_lost = len(self._vital)
+        what = (f"{vital_lost} of them {self.vital_label}, " if vital_lost else "")
+        return logging.ERROR, (
+            f"{where}: the disk is still full at exit ({self.last_error}); {room}{first}"
+            f"{written} of {held - vital_first} held records written in order; {self.held} "
+            f"records not written ({what}{lost_bytes} bytes): they are lost")
+
     # ------------------------------------------------------------------ internals
+    def _close_out(self) -> None:
+        """Records are held at close: the reserve, then vital first unless all fit."""
+        held = self.held
+        self._closing = True  # the one close line below says it all
+        freed = self._release_reserve()
+        if not self._vital or not self.failing or freed >= self.held_bytes:
+            self._drain()  # in order: nothing vital, room after all, or the reserve is enough
+        vital_first = 0
+        if self.held and self._vital and not self._head_done:
+            while self._vital and self._write_whole(self._vital[0][1]):
+                _, data = self._vital.popleft()
+                self.held_bytes -= len(data)
+                vital_first += 1
+            if not self._vital:
+                self._drain()
+        self.lost = self.held
+        self._report(*self.close_report(held, freed, vital_first))
+        if self.held:
+            self._cut_back()
+
+    def _write_whole(self, data: bytes) -> bool:
+        """Write ``data`` now, whole or not at all (cut back on a regular file)."""
+        assert self._fd is not None
+        done = 0
+        while done < len(data):
+            try:
+                n = _os_write(self._fd, data[done:])
+                if n <= 0:
+                    raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+            except OSError as exc:
+                self.write_errors += 1
+                self.last_error = describe_os_error(exc)
+                if done and self._regular:
+                    with contextlib.suppress(OSError):
+                        os.ftruncate(self._fd, self._committed)
+                return False
+            done += n
+        self._committed += len(data)
+        self.records += 1
+        self.bytes_written += len(data)
+        return True
+
+    def _allocate_reserve(self, size: int) -> None:
+        """``.NAME.reserve`` beside the file with ``size`` bytes of real blocks."""
+        folder, name = os.path.split(self.path)
+        path = os.path.join(folder, f".{name}.reserve")
+        try:
+            fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+        except OSError as exc:
+            self._report(logging.WARNING, f"{self.name} {self.path}: no reserve for a full "
+                         f"disk ({describe_os_error(exc)})")
+            return
+        try:
+            _os_allocate(fd, 0, size)
+        except OSError as exc:
+            with contextlib.suppress(OSError):
+                os.unlink(path)
+            self._report(logging.WARNING, f"{self.name} {self.path}: no room for its "
+                         f"{size}-byte reserve ({describe_os_error(exc)}); going on without")
+            return
+        finally:
+            os.close(fd)
+        self.reserve_path, self.reserve_bytes = path, size
+
+    def _release_reserve(self) -> int:
+        """Remove the reserve; the bytes it freed (0 without one)."""
+        path, size = self.reserve_path, self.reserve_bytes
+        self.reserve_path, self.reserve_bytes = None, 0
+        if path is None:
+            return 0
+        try:
+            _os_unlink(path)
+        except OSError:
+            return 0
+        return size
+
     def _head(self) -> collections.deque[tuple[int, bytes]] | None:
-        if self._low and (not self._high or self._low[0][0] < self._high[0][0]):
-            return self._low
-        return self._high if self._high else None
+        queues = [q for q in (self._low, self._high, self._vital) if q]
+        return min(queues, key=lambda q: q[0][0]) if queues else None
 
     def _drain(self) -> None:
         assert self._fd is not None
@@ -324,6 +440,8 @@ class AppendLog:
             self.bytes_written += len(data)
         if self.failing:
             self.failing = False
+            if self._closing:
+                return
             self._report(
                 logging.WARNING,
                 f"{self.name} {self.path}: writing again; "
@@ -335,10 +453,12 @@ class AppendLog:
         self.write_errors += 1
         self.last_error = describe_os_error(exc)
         self._cut_back()
-        if not self.failing:
+        first = not self.failing
+        if first:
             self.failing = True
             self._outage_held = self.held
             self._outage_dropped = 0
+        if first and not self._closing:
             self._report(
                 logging.ERROR,
                 f"{self.name} {self.path}: cannot write ({self.last_error}); holding records "

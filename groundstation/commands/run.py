@@ -223,32 +223,11 @@ async def run_daemon(config: DaemonConfig, **options: Any) -> Daemon:
     return await run_bare(config, embedded=build_embedded_sim, **options)
 
 
-def run(argv: list[str]) -> int:
-    """Entry point of ``gcs run``; returns the exit status."""
-    from domain.errors import ConfigError
-    from groundstation.daemon.alerts import never_heard
-    from groundstation.daemon.startup import StartError
+def _print_summary(daemon: Daemon) -> None:
+    """The run's summary on the console, whatever became of the run's files (a full disk:
+    the journal's stop line may be lost, this line never is)."""
     from groundstation.daemon.status import link_lines
 
-    try:
-        config = build_config(argv)
-    except ConfigError as exc:
-        print(f"gcs run: error: {exc}", file=sys.stderr)
-        return 2
-    try:
-        daemon = run_async(lambda: run_daemon(config))
-    except (StartError, ConfigError) as exc:
-        print(f"gcs run: error: {exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        return 130
-    if daemon.internal_error is not None:
-        print(
-            f"gcs run: error: {daemon.internal_error} (a bug: please report it with "
-            f"{daemon.run_dir}/gcs.log and journal.jsonl; the vehicles keep their last mission)",
-            file=sys.stderr,
-        )
-        return 70
     summary = daemon.summary()
     mean = summary.get("mean_uncertainty")
     mean_text = f"{mean:.0f} m^2" if isinstance(mean, (int, float)) else "n/a"
@@ -261,6 +240,38 @@ def run(argv: list[str]) -> int:
     links = summary.get("links")
     for line in link_lines(links if isinstance(links, dict) else {}, only_trouble=True):
         print(f"gcs run: {line}")
+
+
+def run(argv: list[str]) -> int:
+    """Entry point of ``gcs run``; returns the exit status."""
+    from domain.errors import ConfigError
+    from groundstation.daemon.alerts import never_heard
+    from groundstation.daemon.startup import MetricsNotWritten, StartError
+
+    try:
+        config = build_config(argv)
+    except ConfigError as exc:
+        print(f"gcs run: error: {exc}", file=sys.stderr)
+        return 2
+    try:
+        daemon = run_async(lambda: run_daemon(config))
+    except MetricsNotWritten as exc:  # the run happened: its summary, then the error
+        _print_summary(exc.daemon)
+        print(f"gcs run: error: {exc}", file=sys.stderr)
+        return 2
+    except (StartError, ConfigError) as exc:
+        print(f"gcs run: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        return 130
+    if daemon.internal_error is not None:
+        print(
+            f"gcs run: error: {daemon.internal_error} (a bug: please report it with "
+            f"{daemon.run_dir}/gcs.log and journal.jsonl; the vehicles keep their last mission)",
+            file=sys.stderr,
+        )
+        return 70
+    _print_summary(daemon)
     silent = never_heard(daemon)
     if silent is not None:
         print(f"gcs run: error: {silent}; nothing was flown (see the warnings above and "

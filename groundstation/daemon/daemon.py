@@ -37,6 +37,7 @@ from groundstation.daemon.clock import MissionClock
 from groundstation.daemon.config import DaemonConfig, OnExit, OperatingCenter
 from groundstation.daemon.journal import Journal
 from groundstation.daemon.log_lines import describe_line, line_level
+from groundstation.daemon.loop_monitor import LoopMonitor
 from groundstation.daemon.planning import SolverRunner
 from groundstation.daemon.reports import LinkReporter, run_summary
 from groundstation.daemon.services import FnService, Service, TaskSet
@@ -180,6 +181,8 @@ class Daemon:
         self.watch_metrics = WatchMetrics()
         """The ship watch's figures (``core/watch_metrics.py``), when there is a watch."""
         self.world = world
+        self.loop_monitor = LoopMonitor()
+        """The event loop's worst stall (``loop_monitor.py``; in ``metrics.json``)."""
         self.control_url: str | None = None
         """The control API's address, once its server listens (the status display)."""
         self.wind_fallback_source = wind_fallback_source
@@ -501,6 +504,7 @@ class Daemon:
             FnService("ticker", self._tick_loop),
             FnService("heartbeat", self._heartbeat_loop),
             FnService("solver", self.solver.run),
+            FnService("loop-monitor", self.loop_monitor.run),
             *services,
         ])
         for session in self.sessions.values():
@@ -644,5 +648,6 @@ class Daemon:
         out = self.metrics.to_dict(wall)
         if self.core.watch is not None:
             out.update(self.watch_metrics.to_dict(self.metrics.series))
+        out.update(self.loop_monitor.to_dict())
         out["summary"] = self.summary()
         return out

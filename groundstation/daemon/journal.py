@@ -9,6 +9,14 @@ disk has room again, with one line saying so. Over the cap, telemetry-type lines
 (:data:`TELEMETRY_EVENTS`, inputs of kind :data:`TELEMETRY_INPUTS`) are dropped first,
 oldest first; decisions last. The file never holds half a line in the middle.
 
+The ``stop`` line (with the run's summary) is the most valuable line: it is never dropped,
+and a reserve of :data:`RESERVE_BYTES` is allocated beside the journal at start
+(``.journal.jsonl.reserve``) and released at the end if lines are still held. Then, if the
+held lines fit in the room made, they are written in order; else the ``stop`` line goes
+first and the held lines follow it in order as far as space allows (their ``t`` is earlier
+than the stop line's). One console line says what was written and how many lines were not
+(docs/daemon.md, A full disk).
+
 Live subscribers (the control API's event stream) get every line through a bounded queue;
 a slow subscriber loses lines, never blocks the daemon.
 """
@@ -29,6 +37,12 @@ from groundstation.storage import DEFAULT_CAP_BYTES, DEFAULT_RETRY_S, AppendLog
 __all__ = ["TELEMETRY_EVENTS", "TELEMETRY_INPUTS", "Journal", "is_telemetry", "read_journal"]
 
 log = logging.getLogger(__name__)
+
+#: Bytes set aside beside the journal for its last lines on a full disk (1 MiB: a stop line
+#: with its summary is a few kB, tens of kB after hours of many vehicles).
+RESERVE_BYTES = 1024 * 1024
+#: Events written first at the end of a run on a full disk (never dropped).
+VITAL_EVENTS = frozenset({"stop"})
 
 _RECENT = 200
 _SUBSCRIBER_QUEUE = 1000
@@ -70,6 +84,7 @@ class Journal:
         *,
         cap_bytes: int = DEFAULT_CAP_BYTES,
         retry_s: float = DEFAULT_RETRY_S,
+        reserve_bytes: int | None = None,
     ) -> None:
         self.path = Path(path) if path is not None else None
         self._now_s = now_s
@@ -77,7 +92,10 @@ class Journal:
         self.file: AppendLog | None = None
         if self.path is not None:
             self.path.parent.mkdir(parents=True, exist_ok=True)
-            self.file = AppendLog(self.path, "journal", cap_bytes=cap_bytes, retry_s=retry_s)
+            self.file = AppendLog(
+                self.path, "journal", cap_bytes=cap_bytes, retry_s=retry_s,
+                reserve_bytes=RESERVE_BYTES if reserve_bytes is None else reserve_bytes,
+                vital_label="the stop line and summary")
         self.recent: collections.deque[dict[str, Any]] = collections.deque(maxlen=_RECENT)
         self.counts: collections.Counter[str] = collections.Counter()
         self._subscribers: list[asyncio.Queue[dict[str, Any] | None]] = []
@@ -119,7 +137,8 @@ class Journal:
         except (TypeError, ValueError) as exc:  # cannot happen after _clean; never fatal
             log.error("journal: line not written: %s", exc)
             return
-        self.file.append(data, keep=not is_telemetry(line))
+        self.file.append(data, keep=not is_telemetry(line),
+                         vital=line.get("event") in VITAL_EVENTS)
 
     async def subscribe(self) -> AsyncIterator[dict[str, Any]]:
         """Every line written from now on, until :meth:`close`."""

@@ -65,7 +65,7 @@ if TYPE_CHECKING:
     from world.scenario import Scenario
     from world.wind import WindSpec
 
-__all__ = ["StartError", "core_config", "load_targets", "run_daemon"]
+__all__ = ["MetricsNotWritten", "StartError", "core_config", "load_targets", "run_daemon"]
 
 log = logging.getLogger(__name__)
 MIN_SOLVER_WALL_S = 0.05
@@ -429,10 +429,19 @@ def _install_signals(daemon: Daemon) -> None:
             loop.add_signal_handler(sig, daemon.request_stop, sig.name)
 
 
+class MetricsNotWritten(StartError):
+    """``metrics.json`` could not be written (a full disk at the very end): one line, exit
+    2; the run itself happened, and :attr:`daemon` has its summary for the console."""
+
+    def __init__(self, message: str, daemon: Daemon) -> None:
+        super().__init__(message)
+        self.daemon = daemon
+
+
 def _write_metrics(daemon: Daemon) -> None:
     try:
         atomic_write_text(
             daemon.run_dir / "metrics.json", json.dumps(daemon.metrics_dict(), indent=1) + "\n"
         )
     except StorageError as exc:
-        raise StartError(f"metrics.json: {exc}") from None
+        raise MetricsNotWritten(f"metrics.json: {exc}", daemon) from None

@@ -158,7 +158,9 @@ class WriteRateLimiter:
 
 class RejectLog:
     """Counts refused requests by kind and logs at most one warning per kind every
-    ``every_s`` seconds (saying how many were not logged), so a flood cannot fill the log."""
+    ``every_s`` seconds, so a flood cannot fill the log: a burst of refusals is its first
+    line at once and, when ``every_s`` has passed, one summary line saying how many more
+    were refused (:meth:`flush`, called about once a second; or the next refusal's line)."""
 
     def __init__(self, logger: logging.Logger, every_s: float = 10.0) -> None:
         self.logger = logger
@@ -177,3 +179,15 @@ class RejectLog:
         more = f" (+{unlogged} more not logged)" if unlogged else ""
         self.logger.warning("control API refused (%s): %s%s", kind, message, more)
         self._last_logged_s[kind] = now_s
+
+    def flush(self, now_s: float) -> None:
+        """Log the summary of each kind whose ``every_s`` window has closed with refusals
+        not logged: ``control API refused (KIND): N more in the last S s``."""
+        for kind, unlogged in list(self._unlogged.items()):
+            last_s = self._last_logged_s.get(kind, now_s)
+            if now_s - last_s < self.every_s:
+                continue
+            del self._unlogged[kind]
+            self.logger.warning("control API refused (%s): %d more in the last %.0f s",
+                                kind, unlogged, now_s - last_s)
+            self._last_logged_s[kind] = now_s

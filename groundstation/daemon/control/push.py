@@ -21,6 +21,13 @@ takes more than ``WS_SEND_TIMEOUT_S`` to accept one message, is closed with 1013
 later) and, if even the close does not go through within ``WS_CLOSE_TIMEOUT_S``, its
 connection is aborted: a page that never reads costs a bounded amount of memory for a
 bounded time.
+
+Load (``pacing.py``): a state message is serialised once per push for every page (the
+shared :class:`~groundstation.daemon.control.pacing.StateDocument`, also a connecting
+page's first state), the catch-up of pages connecting without ``since`` once per journal
+sequence number, and each message sent to a page first takes a unit of the server's
+:class:`~groundstation.daemon.control.pacing.TurnBudget`, so a push to many pages goes out a
+few pages per loop turn.
 """
 
 from __future__ import annotations
@@ -35,9 +42,9 @@ from typing import Any
 
 from aiohttp import WSCloseCode, WSMsgType, web
 
-from groundstation.daemon.control.bodies import jsonable
 from groundstation.daemon.control.contract import DaemonControl
 from groundstation.daemon.control.guard import RejectLog
+from groundstation.daemon.control.pacing import StateDocument, TurnBudget
 from groundstation.daemon.control.pages import EventBuffer, PageClient
 from groundstation.daemon.log_lines import line_level
 
@@ -56,8 +63,12 @@ class PageHub:
     """The WebSocket pages of one control server and what they are sent."""
 
     def __init__(self, control: DaemonControl, rejects: RejectLog, *, push_hz: float,
-                 tile_url: str | None, instance: str, max_clients: int) -> None:
+                 tile_url: str | None, instance: str, max_clients: int,
+                 budget: TurnBudget | None = None,
+                 document: StateDocument | None = None) -> None:
         self.control = control
+        self.budget = budget or TurnBudget()
+        self.document = document or StateDocument(control)
         self.rejects = rejects
         self.push_hz = push_hz
         self.tile_url = tile_url
@@ -69,6 +80,8 @@ class PageHub:
         self.stopping = False
         self._pending: list[dict[str, Any]] = []
         self._pending_dropped = 0
+        self._catch_up: tuple[int, list[str]] = (-1, [])
+        """The catch-up messages of a page connecting without ``since``, at a sequence."""
         self._tasks: list[asyncio.Task[None]] = []
         self._closing: set[asyncio.Task[None]] = set()
         self._group: asyncio.TaskGroup | None = None
@@ -162,9 +175,11 @@ class PageHub:
         failed = False
         while True:
             await asyncio.sleep(period_s)
+            self.rejects.flush(time.monotonic())  # a refusal burst's summary line, when due
             if not self.clients:
                 continue
             try:
+                self.document.invalidate()  # each push carries the state as it is now
                 msg = self.state_message()
                 failed = False
             except Exception:
@@ -175,8 +190,22 @@ class PageHub:
             self.broadcast(msg)
 
     def state_message(self) -> str:
-        return json.dumps({"type": "state", "state": jsonable(self.control.state()),
-                           "seq": self.buffer.seq})
+        """The state message: the shared document's text (built at most once per
+        ``StateDocument.max_age_s`` for every page and reader)."""
+        return f'{{"type": "state", "state": {self.document.text()}, "seq": {self.buffer.seq}}}'
+
+    def _catch_up_messages(self, since: int | None) -> list[str]:
+        """The ``events`` messages a connecting page is sent first; serialised once per
+        sequence number for pages connecting without ``since`` (a burst of pages)."""
+        if since is None and self._catch_up[0] == self.buffer.seq:
+            return self._catch_up[1]
+        backlog, missed = self.buffer.backlog(since, CATCH_UP_EVENTS)
+        messages = [json.dumps({"type": "events", "events": backlog[start:start + EVENT_BATCH_MAX],
+                                "dropped": missed if start == 0 else 0})
+                    for start in range(0, len(backlog), EVENT_BATCH_MAX)]
+        if since is None:
+            self._catch_up = (self.buffer.seq, messages)
+        return messages
 
     def broadcast(self, text: str) -> None:
         """Queue ``text`` for every page; pages whose queue overflows are dropped."""
@@ -216,10 +245,14 @@ class PageHub:
         if self.open >= self.max_clients:
             self.rejects.note("ws_clients_full", f"{self.open} pages connected",
                               time.monotonic())
-            return web.json_response(
+            refusal = web.json_response(
                 {"ok": False, "error": f"too many live pages (limit {self.max_clients}, "
                  "--http-max-ws-clients); close one and retry"},
                 status=503, headers={"Retry-After": "5", "Cache-Control": "no-store"})
+            # closed by us, within this request's unit of the turn budget: a refused crowd
+            # does not wake the loop all at once when it hangs up together
+            refusal.force_close()
+            return refusal
         self.open += 1
         try:
             return await self._serve(request)
@@ -243,11 +276,8 @@ class PageHub:
                                  "tile_url": self.tile_url, "instance": self.instance}))
         with contextlib.suppress(Exception):
             client.offer(self.state_message())
-        backlog, missed = self.buffer.backlog(since, CATCH_UP_EVENTS)
-        for start in range(0, len(backlog), EVENT_BATCH_MAX):
-            client.offer(json.dumps({"type": "events",
-                                     "events": backlog[start:start + EVENT_BATCH_MAX],
-                                     "dropped": missed if start == 0 else 0}))
+        for message in self._catch_up_messages(since):
+            client.offer(message)
         if self.stopping:
             await ws.close(code=WSCloseCode.GOING_AWAY)
             return ws
@@ -272,6 +302,9 @@ class PageHub:
         message (it does not read) is dropped."""
         while not client.ws.closed:
             text = await client.next()
+            await self.budget.take()  # a few pages per loop turn, however many there are
+            if client.ws.closed:
+                return
             try:
                 async with asyncio.timeout(WS_SEND_TIMEOUT_S):
                     await client.ws.send_str(text)

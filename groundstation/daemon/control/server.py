@@ -27,7 +27,10 @@ the WebSocket upgrade are refused 403 from a foreign ``Origin`` (``guard.py``);
 limits (``ControlLimits``) answer 409 (targets), 413 (body), 408 (slow body), 429 (write
 rate) and 503 (WebSocket pages); headers must arrive within ``header_timeout_s``.
 
-The WebSocket pages (messages, catch-up, bounds) are ``push.PageHub``'s.
+The WebSocket pages (messages, catch-up, bounds) are ``push.PageHub``'s. The loop is kept
+free (``pacing.py``): every request first takes a unit of the server's :class:`TurnBudget`
+(at most 8 per loop turn), and reads answer from the one shared :class:`StateDocument`
+(built at most every 0.1 s, made stale by every write).
 """
 
 from __future__ import annotations
@@ -60,6 +63,7 @@ from groundstation.daemon.control.guard import (
     WriteRateLimiter,
     is_loopback,
 )
+from groundstation.daemon.control.pacing import StateDocument, TurnBudget
 from groundstation.daemon.control.push import PageHub
 
 __all__ = [
@@ -152,12 +156,15 @@ class ControlServer:
     ``push_hz`` is the rate of full-state pushes to pages; ``tile_url`` an optional map tile
     URL template (``https://.../{z}/{x}/{y}.png``) handed to pages (no default: offline).
     ``allow_origins``: origins (``scheme://host[:port]``) allowed besides the page's own;
-    ``limits``: see :class:`ControlLimits`."""
+    ``limits``: see :class:`ControlLimits`; ``budget``: the work allowed per loop turn and
+    ``document``: the shared state document (``pacing.py``; by default 8 units per turn and
+    a document at most 0.1 s old)."""
 
     def __init__(self, control: DaemonControl, host: str = "127.0.0.1", port: int = 8080,
                  token: str | None = None, *, push_hz: float = 4.0,
                  tile_url: str | None = None, allow_origins: Iterable[str] = (),
-                 limits: ControlLimits | None = None) -> None:
+                 limits: ControlLimits | None = None, budget: TurnBudget | None = None,
+                 document: StateDocument | None = None) -> None:
         if token is not None and not token:
             raise ValueError("token must not be empty")
         if not (math.isfinite(push_hz) and 0.1 <= push_hz <= 50.0):
@@ -175,8 +182,11 @@ class ControlServer:
         self._runner: web.AppRunner | None = None
         self._url: str | None = None
         self.instance = secrets.token_hex(4)  # tells a page its daemon was restarted
+        self.budget = budget or TurnBudget()
+        self.document = document or StateDocument(control)
         self.pages = PageHub(control, self.rejects, push_hz=push_hz, tile_url=tile_url,
-                             instance=self.instance, max_clients=self.limits.max_ws_clients)
+                             instance=self.instance, max_clients=self.limits.max_ws_clients,
+                             budget=self.budget, document=self.document)
 
     # ----------------------------------------------------------------- lifecycle
 
@@ -280,12 +290,18 @@ class ControlServer:
 
     @web.middleware
     async def _middleware(self, request: web.Request, handler: Handler) -> web.StreamResponse:
+        await self.budget.take()  # at most budget.per_turn requests per loop turn
         if not self._host_allowed(request):
             self.rejects.note("host_refused", "Host header is not a loopback address",
                               time.monotonic())
-            return _error(403, "Host header is not a loopback address (DNS rebinding?)")
+            host_refusal = _error(403, "Host header is not a loopback address (DNS rebinding?)")
+            host_refusal.force_close()  # a refused crowd is closed a few per turn, by us
+            return host_refusal
         if (refused := self._origin_refusal(request)) is not None:
+            refused.force_close()
             return refused
+        if request.method in WRITE_METHODS:
+            self.document.invalidate()  # a write checks ids against the state as it is now
         try:
             response = await handler(request)
         except web.HTTPException as exc:
@@ -357,8 +373,8 @@ class ControlServer:
             raise RequestError(f"body: malformed JSON ({reason})") from None
 
     def _state(self) -> dict[str, Any]:
-        state = self.control.state()
-        return state if isinstance(state, dict) else {}
+        """The shared state document (``pacing.StateDocument``): do not change it."""
+        return self.document.doc()
 
     def _find(self, kind: str, wanted: str) -> dict[str, Any] | None:
         """A vehicle/target by id; vehicles also by name or system id."""
@@ -399,7 +415,8 @@ class ControlServer:
     # ----------------------------------------------------------------- reads
 
     async def _get_state(self, request: web.Request) -> web.Response:
-        return _json(self._state())
+        return web.Response(text=self.document.text(), content_type="application/json",
+                            headers={"Cache-Control": "no-store"})
 
     async def _get_session(self, request: web.Request) -> web.Response:
         return _json({"write": self.authorized(request), "push_hz": self.push_hz,
@@ -456,6 +473,7 @@ class ControlServer:
             return _error(409, f"targets: limit of {self.limits.max_targets} reached "
                           "(--http-max-targets); remove one first")
         reply = await self.control.add_target(target_id, **kwargs)
+        self.document.invalidate()
         return self._reply(reply, 201)
 
     async def _move_target(self, request: web.Request) -> web.Response:
@@ -465,7 +483,9 @@ class ControlServer:
         kwargs = parse_move_body(await self._body(request))
         if self._find("targets", target_id) is None:
             return _error(404, f"unknown target {target_id!r}")
-        return self._reply(await self.control.move_target(target_id, **kwargs))
+        reply = await self.control.move_target(target_id, **kwargs)
+        self.document.invalidate()
+        return self._reply(reply)
 
     async def _delete_target(self, request: web.Request) -> web.Response:
         if (denied := self._require_token(request)) is not None:
@@ -473,7 +493,9 @@ class ControlServer:
         target_id = request.match_info["id"]
         if self._find("targets", target_id) is None:
             return _error(404, f"unknown target {target_id!r}")
-        return self._reply(await self.control.remove_target(target_id))
+        reply = await self.control.remove_target(target_id)
+        self.document.invalidate()
+        return self._reply(reply)
 
     async def _vehicle_action(self, request: web.Request) -> web.Response:
         if (denied := self._require_token(request)) is not None:
@@ -485,4 +507,6 @@ class ControlServer:
         vehicle = self._find("vehicles", wanted)
         if vehicle is None:
             return _error(404, f"unknown vehicle {wanted!r}")
-        return self._reply(await self.control.vehicle_action(str(vehicle["id"]), action))
+        reply = await self.control.vehicle_action(str(vehicle["id"]), action)
+        self.document.invalidate()
+        return self._reply(reply)
