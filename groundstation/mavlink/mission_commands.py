@@ -45,9 +45,12 @@ A single ``MISSION_CURRENT`` on a later item is *not* taken as that evidence: li
 all keep the vehicle's order (UDP, a router or MAVProxy merging two masters such as radio
 and LTE can deliver an older frame late) and ``MISSION_CURRENT`` carries no time, so a
 vehicle that held item 2 of its previous mission could confirm a set-current 1 of the new
-one with a delayed ``MISSION_CURRENT 2`` (the sustained rule above needs the stream). A stale ``MISSION_ITEM_REACHED seq`` after the ACK would need a frame
-sent when an earlier item ``seq`` ended to be overtaken by the whole exchange; that is the
-residual risk of this rule. Before the ACK it is ignored like ``MISSION_CURRENT``.
+one with a delayed ``MISSION_CURRENT 2`` (the sustained rule above needs the stream). A
+stale ``MISSION_ITEM_REACHED seq`` after the ACK would need a frame sent when an earlier
+item ``seq`` ended to be overtaken by the whole exchange; that is the residual risk of this
+rule, as is a COMMAND_ACK of an earlier exchange delivered seconds late (then the stream
+of the previous mission past ``seq`` would confirm). Before the ACK it is ignored like
+``MISSION_CURRENT``.
 
 Any other command (:class:`CommandLong`) and PARAM_SET (:class:`ParamSet`) are in
 :mod:`groundstation.mavlink.vehicle_commands`.
