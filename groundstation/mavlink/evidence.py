@@ -8,8 +8,9 @@ parameters with defaults chosen for ~1 Hz HEARTBEAT / SYS_STATUS / MISSION_CURRE
 * :class:`Sustained` - a condition holds on ``min_frames`` consecutive frames spanning at
   least ``min_span_s``; one contrary frame starts the count again. Used for mode changes,
   disarm, landed and "flying".
-* :class:`RebootEvidence` - ``time_boot_ms`` going back is a reboot only when the frames
-  after it keep to the new timeline, or the autopilot says it is booting.
+* :class:`RebootEvidence` - ``time_boot_ms`` going back is a reboot, and one jumping
+  ahead of the receive clock is the timeline, only when the frames after it keep to the
+  new timeline (or, for a reboot, the autopilot says it is booting).
 * :class:`BatteryEvidence` - low readings sustained *and* confirmed by the autopilot
   (HEARTBEAT ``system_status`` CRITICAL, or its own RTL), or low for much longer.
 * :class:`LoiterEndEvidence` - a mission item's end needs agreeing signals over time.
@@ -93,25 +94,51 @@ class Sustained:
 
 
 @dataclass
-class _Candidate:
+class _Timeline:
+    """A run of frames off the accepted timeline that may be a new one: its first and
+    latest boot times, when it began, how many frames, and its own receive-clock anchor."""
+
     first_ms: int
     latest_ms: int
     since_s: float
     frames: int
+    anchor: tuple[int, float]
 
 
 class RebootEvidence:
-    """Tells a real autopilot restart from a stray frame with a small ``time_boot_ms``.
+    """Which ``time_boot_ms`` values are the autopilot's timeline, and when it restarted.
 
-    A value more than ``backstep_ms`` below the accepted timeline makes a *suspicion*. The
-    suspicion becomes a reboot when ``min_frames`` frames (the first included) keep to the
-    new timeline - never going back by more than ``jitter_ms``, all still below the old
-    one - over at least ``min_span_s``; or at once when the autopilot says it is booting
-    (:meth:`booting`: HEARTBEAT ``system_status`` MAV_STATE_BOOT or mode INITIALISING). A
-    frame on the old timeline clears the suspicion (counted in ``rejected``).
+    Two kinds of frame are held back (not accepted; :meth:`observe` says why) until the
+    frames after them show a consistent new timeline:
 
-    :meth:`observe` returns ``"ok"`` (accept the value), ``"suspect"`` (hold it back) or
-    ``"reboot"`` (confirmed; the caller resets what a reboot forgets).
+    * **a step back**: ``boot_ms`` more than ``backstep_ms`` below the accepted value (the
+      highest accepted so far). It is a *reboot* when ``min_frames`` frames (the first
+      included) keep to the new timeline over at least ``min_span_s``, or at once when the
+      autopilot says it is booting (:meth:`booting`: HEARTBEAT ``system_status``
+      MAV_STATE_BOOT or mode INITIALISING). ``"suspect"`` while it is not confirmed.
+    * **a jump ahead**: ``boot_ms`` beyond what the receive clock allows since the
+      accepted frames. With ``(b_a, t_a)`` the *anchor* (the accepted frame that arrived
+      latest relative to its own clock: the least of ``b_i - 1000 t_i`` over the accepted
+      frames ``i``, so late frames of a backlog only lower it and no frame can raise it),
+      a frame at receive time ``t`` may carry at most::
+
+          b_max(t) = b_a + 1000 (t - t_a) + min(drift 1000 (t - t_a), drift_cap_ms) + ahead_ms
+
+      (``ahead_ms`` covers latency that shrinks again after a backlog or a stall,
+      ``drift`` a vehicle clock a little faster than the receive clock). A frame beyond
+      it is ``"ahead"``: held back, never the timeline on its own. When ``min_frames``
+      such frames keep to one new timeline (never back by more than ``jitter_ms``, never
+      ahead of their own ``b_max``) over ``min_span_s`` it is ``"resync"``: the vehicle's
+      clock really moved on (a mission clock that paused, a backlog drained at once); the
+      caller accepts it, and nothing else changes (no reboot).
+
+    Anything else is ``"ok"`` (accept the value; the anchor may move down). A frame that
+    is neither back nor ahead clears both suspicions (counted in ``rejected``). So one
+    forged frame with a small or a large ``time_boot_ms`` changes nothing: it is held
+    back, and the next real frame clears it. An accepted value is at most ``ahead_ms +
+    drift_cap_ms`` ahead of the real timeline, which is less than ``backstep_ms``: the real
+    frames after it never look like a step back (the way a forged large frame used to be
+    accepted, and the real frames then "confirmed" a reboot).
     """
 
     def __init__(
@@ -120,46 +147,120 @@ class RebootEvidence:
         min_frames: int = 3,
         min_span_s: float = 1.0,
         jitter_ms: int = 500,
+        ahead_ms: int = 2000,
+        drift: float = 0.05,
+        drift_cap_ms: int = 500,
     ) -> None:
+        if ahead_ms + drift_cap_ms >= backstep_ms:
+            raise ValueError(
+                f"ahead_ms + drift_cap_ms ({ahead_ms + drift_cap_ms}) must be below "
+                f"backstep_ms ({backstep_ms}): an accepted frame ahead of the real timeline "
+                "would make the real frames look like a reboot"
+            )
         self.backstep_ms = backstep_ms
         self.min_frames = min_frames
         self.min_span_s = min_span_s
         self.jitter_ms = jitter_ms
+        self.ahead_ms = ahead_ms
+        self.drift = drift
+        self.drift_cap_ms = drift_cap_ms
         self.rejected = 0
-        self._candidate: _Candidate | None = None
+        """Suspicions (back or ahead) cleared by a frame on the accepted timeline."""
+        self.held_ahead = 0
+        """Frames held back as ahead of the receive clock."""
+        self.resyncs = 0
+        """New timelines ahead of the old one accepted (no reboot)."""
+        self._anchor: tuple[int, float] | None = None
+        self._back: _Timeline | None = None
+        self._ahead: _Timeline | None = None
 
     @property
     def suspected(self) -> bool:
-        return self._candidate is not None
+        """A step back (a possible reboot) is pending."""
+        return self._back is not None
+
+    @property
+    def ahead_suspected(self) -> bool:
+        """A jump ahead of the receive clock is pending."""
+        return self._ahead is not None
+
+    def limit_ms(self, t_s: float) -> int | None:
+        """``b_max(t)`` of the accepted timeline (None before its first frame)."""
+        return None if self._anchor is None else self._limit(self._anchor, t_s)
 
     def observe(self, accepted_ms: int | None, boot_ms: int, t_s: float) -> str:
-        cand = self._candidate
-        if accepted_ms is None or boot_ms >= accepted_ms - self.backstep_ms:
-            if cand is not None:
-                self.rejected += 1
-                self._candidate = None
+        """One frame's ``boot_ms`` received at ``t_s``, against ``accepted_ms`` (the highest
+        value accepted so far, None before the first): ``"ok"``, ``"suspect"``,
+        ``"reboot"``, ``"ahead"`` or ``"resync"`` (see the class docstring)."""
+        if accepted_ms is None:
+            self._restart((boot_ms, t_s))
             return "ok"
-        if cand is None or boot_ms < cand.latest_ms - self.jitter_ms:
-            self._candidate = _Candidate(boot_ms, boot_ms, t_s, 1)
-        else:
-            cand.latest_ms = max(cand.latest_ms, boot_ms)
-            cand.frames += 1
-        cand = self._candidate
-        assert cand is not None
-        if cand.frames >= self.min_frames and t_s - cand.since_s >= self.min_span_s - 1e-9:
-            self._candidate = None
-            return "reboot"
-        return "suspect"
+        if boot_ms < accepted_ms - self.backstep_ms:
+            self._back = self._extend(self._back, boot_ms, t_s)
+            if self._confirmed(self._back, t_s):
+                self._restart(self._back.anchor)
+                return "reboot"
+            return "suspect"
+        if self._anchor is not None and boot_ms > self._limit(self._anchor, t_s):
+            self.held_ahead += 1
+            self._ahead = self._extend(self._ahead, boot_ms, t_s)
+            if self._confirmed(self._ahead, t_s):
+                self.resyncs += 1
+                self._restart(self._ahead.anchor)
+                return "resync"
+            return "ahead"
+        if self._back is not None or self._ahead is not None:
+            self.rejected += 1
+            self._back = self._ahead = None
+        self._anchor = (boot_ms, t_s) if self._anchor is None else _lower(
+            self._anchor, boot_ms, t_s)
+        return "ok"
 
     def booting(self) -> bool:
-        """The autopilot says it is booting: a pending suspicion is confirmed (True)."""
-        if self._candidate is None:
+        """The autopilot says it is booting: a pending step back is confirmed (True)."""
+        if self._back is None:
             return False
-        self._candidate = None
+        self._restart(self._back.anchor)
         return True
 
     def latest_ms(self) -> int | None:
-        return None if self._candidate is None else self._candidate.latest_ms
+        """The latest boot time of the pending step back, if any."""
+        return None if self._back is None else self._back.latest_ms
+
+    def _limit(self, anchor: tuple[int, float], t_s: float) -> int:
+        boot_ms, at_s = anchor
+        elapsed_ms = max(0.0, t_s - at_s) * 1000.0
+        return int(boot_ms + elapsed_ms + min(self.drift * elapsed_ms, self.drift_cap_ms)
+                   + self.ahead_ms)
+
+    def _extend(self, run: _Timeline | None, boot_ms: int, t_s: float) -> _Timeline:
+        """``run`` with this frame if it keeps to it (not back by more than ``jitter_ms``,
+        not ahead of the run's own ``b_max``), else a new run from this frame."""
+        if (
+            run is None
+            or boot_ms < run.latest_ms - self.jitter_ms
+            or boot_ms > self._limit(run.anchor, t_s)
+        ):
+            return _Timeline(boot_ms, boot_ms, t_s, 1, (boot_ms, t_s))
+        run.latest_ms = max(run.latest_ms, boot_ms)
+        run.frames += 1
+        run.anchor = _lower(run.anchor, boot_ms, t_s)
+        return run
+
+    def _confirmed(self, run: _Timeline, t_s: float) -> bool:
+        return run.frames >= self.min_frames and t_s - run.since_s >= self.min_span_s - 1e-9
+
+    def _restart(self, anchor: tuple[int, float]) -> None:
+        self._anchor = anchor
+        self._back = self._ahead = None
+
+
+def _lower(anchor: tuple[int, float], boot_ms: int, t_s: float) -> tuple[int, float]:
+    """The anchor that arrived latest relative to its own clock: the frame with the least
+    ``boot_ms - 1000 t_s``."""
+    if boot_ms - 1000.0 * t_s < anchor[0] - 1000.0 * anchor[1]:
+        return (boot_ms, t_s)
+    return anchor
 
 
 class BatteryEvidence:
