@@ -15,7 +15,9 @@ parameters with defaults chosen for ~1 Hz HEARTBEAT / SYS_STATUS / MISSION_CURRE
   (HEARTBEAT ``system_status`` CRITICAL, or its own RTL), or low for much longer.
 * :class:`LoiterEndEvidence` - a mission item's end needs agreeing signals over time.
 * :class:`NewSystemEvidence` - a system id becomes a vehicle (a session) only after
-  consistent autopilot HEARTBEATs from one place over time.
+  consistent autopilot HEARTBEATs from one place over time, and, unless it is an expected
+  vehicle, while its link has made fewer than a few new vehicles in the last minute;
+  the others are summarised, one line per burst.
 * :class:`WindEvidence` - the vehicle's wind estimate is the median of its last WIND frames,
   and exists only after several of them over time.
 """
@@ -24,8 +26,8 @@ from __future__ import annotations
 
 import statistics
 from collections import deque
-from collections.abc import Hashable
-from dataclasses import dataclass
+from collections.abc import Hashable, Iterable
+from dataclasses import dataclass, field
 from typing import Any
 
 from groundstation.mavlink.codec import mavlink2
@@ -415,8 +417,23 @@ class _Newcomer:
     count: int = 1
 
 
+@dataclass
+class _Burst:
+    """Unknown system ids heard on one link since ``first_s`` (a burst ends after
+    ``quiet_s`` without any)."""
+
+    first_s: float
+    last_s: float
+    reported_s: float
+    ids: set[int] = field(default_factory=set)
+    heartbeats: int = 0
+    rate_limited: set[int] = field(default_factory=set)
+    joined: int = 0
+
+
 class NewSystemEvidence:
-    """When an unknown system id is a vehicle: consistent autopilot HEARTBEATs.
+    """When an unknown system id is a vehicle: consistent autopilot HEARTBEATs, and room
+    on its link for a new vehicle.
 
     Fed the autopilot HEARTBEATs (``type`` not GCS, ``autopilot`` not INVALID, component
     1: the caller filters) of system ids that have no session yet. A system id is
@@ -428,24 +445,60 @@ class NewSystemEvidence:
     and adds nothing. A real autopilot (1 Hz, its sequence number counting every frame it
     sends) is confirmed 2-3 s after it is first heard; random system ids in noise or
     fuzzed frames, which rarely repeat a signature and never over seconds with fresh
-    sequence numbers, are not. :meth:`heartbeat` returns True while the evidence is
-    sufficient; the caller :meth:`forget` s the system id once it made a session. At most
-    one candidate per system id (256) is kept.
+    sequence numbers, are not.
+
+    **Rate limit.** A confirmed system id that is not ``expected`` (the configured
+    vehicles: ``sim:N``'s 1..N, ``vehicle_settings``' ids) is *admitted* only while its
+    link admitted fewer than ``max_new_per_link`` unexpected system ids in the last
+    ``new_window_s``; else it waits (counted in ``rate_limited``) and is admitted when
+    the window frees, if its heartbeats go on. So one peer sending the heartbeats of 150
+    system ids makes at most ``max_new_per_link`` vehicles a minute, and a real newcomer
+    (one at a time) joins at once. :meth:`heartbeat` returns True while the system id is
+    confirmed and admitted; the caller :meth:`forget` s it once it made a session.
+
+    **Summary.** Unexpected system ids are gathered per link into *bursts*; a burst ends
+    after ``quiet_s`` without a heartbeat of one, and :meth:`reports` then gives one line
+    for it (``link``, ``systems``: how many ids never became vehicles, ``ids``: the first
+    10 of them, ``heartbeats``, ``rate_limited``, ``joined``: ids of it that did, ``since_t``)
+    - or every ``report_every_s`` while it lasts (``ongoing``). A burst whose every id
+    became a vehicle (a real newcomer) gives none. Candidates silent for longer than
+    ``max(max_gap_s, quiet_s)`` are dropped.
 
     Counters: ``heartbeats`` (fed), ``duplicates``, ``restarts`` (a candidate's count
-    started again).
+    started again), ``rate_limited`` (confirmed heartbeats not admitted), ``admitted``.
     """
 
+    SAMPLE_IDS = 10
+
     def __init__(
-        self, min_heartbeats: int = 3, min_span_s: float = 2.0, max_gap_s: float = 5.0
+        self,
+        min_heartbeats: int = 3,
+        min_span_s: float = 2.0,
+        max_gap_s: float = 5.0,
+        *,
+        expected: Iterable[int] = (),
+        max_new_per_link: int = 4,
+        new_window_s: float = 60.0,
+        quiet_s: float = 10.0,
+        report_every_s: float = 60.0,
     ) -> None:
         self.min_heartbeats = min_heartbeats
         self.min_span_s = min_span_s
         self.max_gap_s = max_gap_s
+        self.expected = frozenset(expected)
+        self.max_new_per_link = max_new_per_link
+        self.new_window_s = new_window_s
+        self.quiet_s = quiet_s
+        self.report_every_s = report_every_s
         self.heartbeats = 0
         self.duplicates = 0
         self.restarts = 0
+        self.rate_limited = 0
+        self.admitted = 0
         self._candidates: dict[int, _Newcomer] = {}
+        self._admitted_ids: set[int] = set()
+        self._admissions: dict[Hashable, deque[float]] = {}
+        self._bursts: dict[Hashable, _Burst] = {}
 
     @property
     def pending(self) -> int:
@@ -459,10 +512,95 @@ class NewSystemEvidence:
         signature: tuple[int, int],
         seq: int,
         t_s: float,
+        link: Hashable | None = None,
     ) -> bool:
-        """One autopilot HEARTBEAT of ``system_id`` from ``place`` (``signature``: its
-        ``(type, autopilot)``, ``seq``: its MAVLink sequence number) at ``t_s``."""
+        """One autopilot HEARTBEAT of ``system_id`` from ``place`` (on ``link``, default
+        ``place``; ``signature``: its ``(type, autopilot)``, ``seq``: its MAVLink sequence
+        number) at ``t_s``. True: confirmed and admitted (make the session)."""
         self.heartbeats += 1
+        link = place if link is None else link
+        expected = system_id in self.expected
+        burst = None if expected else self._burst(link, system_id, t_s)
+        if not self._confirmed(system_id, place, signature, seq, t_s):
+            return False
+        if expected or system_id in self._admitted_ids:
+            return True
+        if not self._admit(link, t_s):
+            self.rate_limited += 1
+            if burst is not None:
+                burst.rate_limited.add(system_id)
+            return False
+        self.admitted += 1
+        self._admitted_ids.add(system_id)
+        if burst is not None:
+            burst.ids.discard(system_id)
+            burst.rate_limited.discard(system_id)
+            burst.joined += 1
+        return True
+
+    def forget(self, system_id: int) -> None:
+        self._candidates.pop(system_id, None)
+        self._admitted_ids.discard(system_id)
+
+    def reports(self, t_s: float) -> list[dict[str, Any]]:
+        """The ``unknown_systems`` lines due at ``t_s`` (see the class docstring)."""
+        out: list[dict[str, Any]] = []
+        for link, burst in list(self._bursts.items()):
+            if t_s - burst.last_s >= self.quiet_s:
+                del self._bursts[link]
+                if burst.ids:
+                    out.append(self._line(link, burst, ongoing=False))
+            elif t_s - burst.reported_s >= self.report_every_s and burst.ids:
+                out.append(self._line(link, burst, ongoing=True))
+                self._bursts[link] = _Burst(t_s, burst.last_s, t_s)
+        stale_s = max(self.max_gap_s, self.quiet_s)
+        for sysid in [k for k, c in self._candidates.items() if t_s - c.last_s > stale_s]:
+            del self._candidates[sysid]
+            self._admitted_ids.discard(sysid)
+        return out
+
+    def flush(self) -> list[dict[str, Any]]:
+        """The lines of every burst still open (the run ends)."""
+        out = [self._line(link, b, ongoing=True) for link, b in self._bursts.items() if b.ids]
+        self._bursts.clear()
+        return out
+
+    def _line(self, link: Hashable, burst: _Burst, *, ongoing: bool) -> dict[str, Any]:
+        ids = sorted(burst.ids)
+        return {
+            "link": link,
+            "systems": len(ids),
+            "ids": ids[: self.SAMPLE_IDS],
+            "heartbeats": burst.heartbeats,
+            "rate_limited": len(burst.rate_limited),
+            "joined": burst.joined,
+            "since_t": round(burst.first_s, 3),
+            "ongoing": ongoing,
+        }
+
+    def _burst(self, link: Hashable, system_id: int, t_s: float) -> _Burst:
+        burst = self._bursts.get(link)
+        if burst is None:
+            burst = self._bursts[link] = _Burst(t_s, t_s, t_s)
+        burst.last_s = t_s
+        burst.heartbeats += 1
+        if system_id not in self._admitted_ids:
+            burst.ids.add(system_id)
+        return burst
+
+    def _admit(self, link: Hashable, t_s: float) -> bool:
+        times = self._admissions.setdefault(link, deque())
+        while times and t_s - times[0] >= self.new_window_s:
+            times.popleft()
+        if len(times) >= self.max_new_per_link:
+            return False
+        times.append(t_s)
+        return True
+
+    def _confirmed(
+        self, system_id: int, place: Hashable, signature: tuple[int, int], seq: int,
+        t_s: float,
+    ) -> bool:
         cand = self._candidates.get(system_id)
         if cand is not None and cand.place == place and cand.signature == signature:
             if seq == cand.last_seq:
@@ -477,9 +615,6 @@ class NewSystemEvidence:
             self.restarts += 1
         self._candidates[system_id] = _Newcomer(place, signature, t_s, t_s, seq)
         return self.min_heartbeats <= 1 and self.min_span_s <= 0.0
-
-    def forget(self, system_id: int) -> None:
-        self._candidates.pop(system_id, None)
 
     def _enough(self, cand: _Newcomer) -> bool:
         return (
