@@ -11,7 +11,10 @@ when the ACK was lost, but only if it is news: the vehicle was known to be on an
 (``known_current_seq``) or a ``MISSION_CURRENT`` with another seq was seen since start.
 (Re-sending the current seq reloads the item, design.md, so a stale ``MISSION_CURRENT``
 equal to ``seq`` must not count.) Silence before the ACK resends the command with
-``confirmation`` + 1. After the ACK the command is not resent (a resend would restart the
+``confirmation`` + 1, up to ``command_retries`` times (default twice ``retries``: at 20 %
+loss each way a round trip fails with probability 0.36, so 6 attempts failed 0.2 % of the
+set-currents whose vehicle was already on ``seq``, where no MISSION_CURRENT is news; 11
+fail 1e-5). After the ACK the command is not resent (a resend would restart the
 item): silence asks for the confirmation instead, ``COMMAND_LONG(MAV_CMD_REQUEST_MESSAGE,
 MISSION_CURRENT)`` (ArduPilot answers with a MISSION_CURRENT at once, besides its ~1 Hz
 stream), on the same timer. Defaults 1.0 s x 5: a 6 s window sees ~6 streamed
@@ -190,6 +193,7 @@ class MissionSetCurrent(TransferBase[SetCurrentState]):
         own_component: int | None = None,
         past_frames: int = 2,
         past_span_s: float = 0.8,
+        command_retries: int | None = None,
     ) -> None:
         super().__init__(
             target_system,
@@ -204,6 +208,7 @@ class MissionSetCurrent(TransferBase[SetCurrentState]):
             raise LocalProtocolError(f"seq must be in 0..65535, got {seq}")
         self.seq = seq
         self.use_command = use_command
+        self.command_retries = 2 * retries if command_retries is None else command_retries
         self.past_frames = past_frames
         self.past_span_s = past_span_s
         self._confirmation = 0
@@ -218,6 +223,7 @@ class MissionSetCurrent(TransferBase[SetCurrentState]):
     def start(self, now_s: float) -> list[Action]:
         """Begin: send the set-current command."""
         self._begin(now_s, SetCurrentState.SENDING_COMMAND)
+        self._retries_left = self.command_retries  # until the ACK (see the module docstring)
         return [Send(self._command())]
 
     def _on_silence(self, now_s: float, *, give_up: bool) -> list[Action]:
