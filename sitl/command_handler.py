@@ -9,9 +9,10 @@ COMMAND_ACK (UNSUPPORTED for unknown ones, FAILED/DENIED where ArduPlane refuses
   FAILED + "No such mode N"; without the custom-mode flag UNSUPPORTED; SET_MODE (message)
   is acked with command = 11 and no target, as ArduPilot does.
 * MISSION_START (-> AUTO), NAV_LOITER_UNLIM (-> LOITER), TIMESYNC requests answered;
-* DO_SET_MISSION_CURRENT, NAV_RETURN_TO_LAUNCH, DO_CHANGE_SPEED, SET_MESSAGE_INTERVAL,
-  REQUEST_MESSAGE, REQUEST_AUTOPILOT_CAPABILITIES, GET_HOME_POSITION,
-  PREFLIGHT_REBOOT_SHUTDOWN; DO_REPOSITION only as COMMAND_INT: ACCEPTED if param2 has
+* DO_SET_MISSION_CURRENT (COMMAND_ACK, then the queued MISSION_CURRENT),
+  NAV_RETURN_TO_LAUNCH, DO_CHANGE_SPEED, SET_MESSAGE_INTERVAL, REQUEST_MESSAGE,
+  REQUEST_AUTOPILOT_CAPABILITIES, GET_HOME_POSITION, PREFLIGHT_REBOOT_SHUTDOWN;
+  DO_REPOSITION only as COMMAND_INT: ACCEPTED if param2 has
   MAV_DO_REPOSITION_FLAGS_CHANGE_MODE or the vehicle already is in GUIDED, else FAILED;
   |lat| > 90 or |lon| > 180 -> DENIED.
 * DO_SET_HOME (GCS_MAVLINK::handle_command_do_set_home; COMMAND_LONG is handled as the
@@ -270,8 +271,12 @@ def _command(
         out = []
         if ok:
             ok, out = ap.set_current_item(int(p[0]), af)
-        result = M.MAV_RESULT_ACCEPTED if ok else M.MAV_RESULT_FAILED
-        return [*out, build_message(v, M.MAVLINK_MSG_ID_MISSION_CURRENT), _ack(msg, cmd, result)]
+        if not ok:
+            return [*out, _ack(msg, cmd, M.MAV_RESULT_FAILED)]
+        # GCS_MAVLINK::handle_command_do_set_mission_current queues MISSION_CURRENT
+        # (send_message: out at the channel's next update), after the ACK it returns
+        return [*out, _ack(msg, cmd, M.MAV_RESULT_ACCEPTED),
+                build_message(v, M.MAVLINK_MSG_ID_MISSION_CURRENT)]
     if cmd in (M.MAV_CMD_MISSION_START, M.MAV_CMD_NAV_LOITER_UNLIM):
         result, out = _set_mode(v, AUTO if cmd == M.MAV_CMD_MISSION_START else LOITER)
         return [*out, _ack(msg, cmd, result)]

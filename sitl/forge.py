@@ -4,7 +4,8 @@ Everything here returns bytes; nothing sends them. The kinds:
 
 * :func:`forged_frames`: single frames that would change what a ground station believes
   about a vehicle if it trusted them: a low battery (SYS_STATUS, BATTERY_STATUS), a smaller
-  ``time_boot_ms`` (SYSTEM_TIME, ATTITUDE, GLOBAL_POSITION_INT: a reboot), a HEARTBEAT in
+  ``time_boot_ms`` (SYSTEM_TIME, ATTITUDE, GLOBAL_POSITION_INT: a reboot), a far larger
+  one (SYSTEM_TIME, ATTITUDE at 4 000 000 000 ms: ``boot_time_ahead``), a HEARTBEAT in
   another mode (FBWA: an override), MISSION_ITEM_REACHED and MISSION_CURRENT (a loiter end),
   EXTENDED_SYS_STATE ON_GROUND (landed);
 * :func:`random_valid_frame`: a well-formed frame of a common type with random field values;
@@ -29,6 +30,7 @@ from domain.modes import ArduPlaneMode
 from groundstation.mavlink.codec import MavlinkEncoder, mavlink2
 
 __all__ = [
+    "AHEAD_BOOT_MS",
     "FORGED_KINDS",
     "flood_chunk",
     "forged_frames",
@@ -40,7 +42,11 @@ __all__ = [
 M = mavlink2
 _P = ArduPlaneMode
 _FORGED_MODES = (_P.FBWA, _P.RTL, _P.MANUAL, _P.LOITER)  # a forged mode switch: never floe's
-FORGED_KINDS = ("battery", "boot_time", "mode", "item_reached", "current", "landed")
+FORGED_KINDS = (
+    "battery", "boot_time", "mode", "item_reached", "current", "landed", "boot_time_ahead",
+)
+AHEAD_BOOT_MS = 4_000_000_000
+"""The large ``time_boot_ms`` of the ``boot_time_ahead`` kind (46 days of uptime)."""
 
 
 def _battery(rng: random.Random) -> list[Any]:
@@ -59,6 +65,15 @@ def _boot_time(rng: random.Random) -> list[Any]:
         M.MAVLink_system_time_message(int(1.7e15), boot_ms),
         M.MAVLink_attitude_message(boot_ms, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
         M.MAVLink_global_position_int_message(boot_ms, 0, 0, 0, 0, 0, 0, 0, 0),
+    ]
+
+
+def _boot_time_ahead() -> list[Any]:
+    """A ``time_boot_ms`` far beyond the vehicle's: taken as its timeline, the real frames
+    after it would look like a step back (a reboot)."""
+    return [
+        M.MAVLink_system_time_message(int(1.7e15), AHEAD_BOOT_MS),
+        M.MAVLink_attitude_message(AHEAD_BOOT_MS, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
     ]
 
 
@@ -117,6 +132,8 @@ def forged_frames(
             msgs += _current(seqs)
         elif kind == "landed":
             msgs += _landed()
+        elif kind == "boot_time_ahead":
+            msgs += _boot_time_ahead()
         else:
             raise ValueError(f"unknown forged kind {kind!r} (one of {', '.join(FORGED_KINDS)})")
     return [encoder.encode(m) for m in msgs]

@@ -679,8 +679,14 @@ class SimVehicle:
                 self.params.set("RALLY_TOTAL", rally)
             return out
         if kind == "MISSION_SET_CURRENT":
-            _ok, out = self.autopilot.set_current_item(int(msg.seq), self.airframe)
-            return [*out, build_message(self, M.MAVLINK_MSG_ID_MISSION_CURRENT)]
+            # GCS_MAVLINK::handle_mission_set_current: no ACK for a message, so ArduPilot
+            # answers with MISSION_CURRENT carrying exactly the seq asked for
+            ok, out = self.autopilot.set_current_item(int(msg.seq), self.airframe)
+            if not ok:
+                return out
+            answer = build_message(self, M.MAVLINK_MSG_ID_MISSION_CURRENT)
+            answer.seq = int(msg.seq)
+            return [*out, answer]
         return command_handler.handle(self, msg, t_s)
 
     def _log_command(self, msg: Any, kind: str, t_s: float) -> None:

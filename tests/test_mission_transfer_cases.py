@@ -412,10 +412,17 @@ def test_set_current_stale_mission_current_is_not_confirmation() -> None:
     plane = FakePlane(mission=mission(), current_seq=2)
     plane.receive = lambda msg, now: []  # type: ignore[method-assign]
     h = Harness(plane=plane)
-    result = h.run(MissionSetCurrent(VEH_SYS, VEH_COMP, 2, timeout_s=1.0, retries=2))
+    result = h.run(MissionSetCurrent(VEH_SYS, VEH_COMP, 2, timeout_s=1.0, retries=2,
+                                     command_retries=2))
     assert result.code is TransferCode.TIMEOUT
     assert len(h.sent("COMMAND_LONG")) == 3
     assert [m.confirmation for m in h.sent("COMMAND_LONG")] == [0, 1, 2]
+    # by default the command is tried twice as often as the retries (each try may be the
+    # one the vehicle hears: before its ACK nothing is news when it already shows seq)
+    h = Harness(plane=plane)
+    result = h.run(MissionSetCurrent(VEH_SYS, VEH_COMP, 2, timeout_s=1.0, retries=2))
+    assert result.code is TransferCode.TIMEOUT
+    assert [m.confirmation for m in h.sent("COMMAND_LONG")] == [0, 1, 2, 3, 4]
 
 
 def test_set_current_command_failed() -> None:

@@ -213,7 +213,10 @@ def test_clear_and_set_current_states() -> None:
     ack = M.MAVLink_command_ack_message(M.MAV_CMD_DO_SET_MISSION_CURRENT, 0, 0, 0, 255, 190)
     assert sc.receive(wire(ack), 0.1) == []
     assert sc.state is SetCurrentState.CONFIRMING
-    assert sc.poll(1.1) == []  # after the ACK nothing is resent
+    asked = sc.poll(1.1)  # after the ACK the command is not resent: MISSION_CURRENT asked
+    assert len(asked) == 1 and isinstance(asked[0], Send)
+    assert asked[0].msg.command == M.MAV_CMD_REQUEST_MESSAGE
+    assert asked[0].msg.param1 == M.MAVLINK_MSG_ID_MISSION_CURRENT
     sc.receive(wire(M.MAVLink_mission_current_message(2, 5)), 1.2)
     assert sc.state is SetCurrentState.DONE and sc.result is not None and sc.result.ok
 

@@ -89,15 +89,17 @@ def test_a_waypoint_passed_at_once_is_confirmed_at_once() -> None:
     assert "MISSION_ITEM_REACHED 1" in result.message
 
 
-def test_without_the_item_reached_it_waits_out_the_window() -> None:
-    # MISSION_ITEM_REACHED lost: the later MISSION_CURRENT alone is no confirmation; this is
-    # what the journal showed as "retries=5" (6 mission s, nothing resent)
+def test_without_the_item_reached_the_stream_confirms() -> None:
+    # MISSION_ITEM_REACHED lost (issue 28: every failed upload at 20 % loss): the vehicle
+    # was seen on item 1 during the exchange, then on 2 after the ACK: it started 1 and
+    # moved on. (Before, this waited out its 6 s and failed: "COMMAND_ACK ACCEPTED but
+    # MISSION_CURRENT never showed 1".)
     script = [(t, m) for t, m in passed_at_once() if m.get_type() != "MISSION_ITEM_REACHED"]
     sc = MissionSetCurrent(VEH_SYS, VEH_COMP, 1, known_current_seq=1, timeout_s=1.0, retries=5)
     result, end_s = run(sc, script)
-    assert result.code is TransferCode.TIMEOUT and result.remote_code == "MAV_RESULT_ACCEPTED"
-    assert result.retries_used == 5
-    assert end_s == pytest.approx(0.06 + 6 * 1.0)
+    assert result.ok and result.retries_used == 0, result
+    assert end_s == pytest.approx(0.06)
+    assert "MISSION_CURRENT 1 then 2" in result.message
 
 
 def test_a_stale_later_mission_current_after_the_ack_does_not_confirm() -> None:
@@ -111,10 +113,15 @@ def test_a_stale_later_mission_current_after_the_ack_does_not_confirm() -> None:
     result, end_s = run(sc, script)
     assert result.ok and "COMMAND_ACK and MISSION_CURRENT" in result.message
     assert end_s == pytest.approx(0.9)
-
+    # late frames in a burst are not the stream: no span
     sc = MissionSetCurrent(VEH_SYS, VEH_COMP, 1, known_current_seq=2, retries=2)
-    result, _ = run(sc, [(0.05, ack()), (0.08, current(2, 3)), (1.0, current(2, 3))])
+    result, _ = run(sc, [(0.05, ack()), (0.08, current(2, 3)), (0.1, current(2, 3))])
     assert result.code is TransferCode.TIMEOUT
+    # the stream showing item 2 over a second after the ACK: it started 1 and moved on
+    sc = MissionSetCurrent(VEH_SYS, VEH_COMP, 1, known_current_seq=2, retries=2)
+    result, end_s = run(sc, [(0.05, ack()), (0.08, current(2, 3)), (1.0, current(2, 3))])
+    assert result.ok and "2 MISSION_CURRENT past it" in result.message
+    assert end_s == pytest.approx(1.0)
 
 
 def test_item_reached_counts_only_after_the_ack_and_only_for_seq() -> None:
@@ -138,12 +145,13 @@ def test_a_later_item_before_the_ack_is_no_confirmation() -> None:
     assert result.code is TransferCode.TIMEOUT and result.remote_code is None
 
 
-@pytest.mark.parametrize("shown", [0, 2, 3, 7])
+@pytest.mark.parametrize("shown", [0, 3, 7])
 def test_after_the_ack_no_other_mission_current_confirms(shown: int) -> None:
-    # 0: before our item; 2: a later item (stale or not, it cannot tell); 3 and 7: beyond
-    # the 3 items we uploaded (an overwritten item still flown shows seq > total, design.md)
+    # 0: before our item; 3 and 7: beyond the 2 items (total, home excluded) we uploaded (an
+    # overwritten item still flown shows seq > total, design.md), however long it shows
     sc = MissionSetCurrent(VEH_SYS, VEH_COMP, 1, known_current_seq=2, retries=2)
-    result, _ = run(sc, [(0.05, ack()), (0.1, current(shown)), (1.0, current(shown))])
+    result, _ = run(sc, [(0.05, ack()), (0.1, current(shown)), (1.0, current(shown)),
+                         (2.0, current(shown))])
     assert result.code is TransferCode.TIMEOUT
     assert sc.state is SetCurrentState.DONE
 

@@ -70,6 +70,13 @@ MISSION_MESSAGES_FROM_GCS = frozenset(
 )
 
 
+def expected_system_ids(config: DaemonConfig) -> frozenset[int]:
+    """The vehicles floe is told about: ``sim:N``'s system ids 1..N and those of
+    ``vehicle_settings``. They join on evidence alone; others are also rate-limited."""
+    sim = range(1, (config.sim_count or 0) + 1)
+    return frozenset((*sim, *config.fleet.settings))
+
+
 @dataclass
 class _Due:
     """When the ticker's periodic duties are next due (mission s): the core's ``Tick``
@@ -167,8 +174,9 @@ class Daemon:
         for link in out_links:
             self.router.add_out_link(link)
         self.sessions: dict[int, VehicleSession] = {}
-        self.newcomers = NewSystemEvidence()
-        """Evidence before a system id gets a session (``vehicle_seen``)."""
+        self.newcomers = NewSystemEvidence(expected=expected_system_ids(config))
+        """Evidence before a system id gets a session (``vehicle_seen``); unexpected ones
+        rate-limited per link and summarised (``unknown_systems``)."""
         self.drops = DropCounts()
         self.by_name: dict[str, VehicleSession] = {}
         self.solver = SolverRunner(
@@ -401,7 +409,7 @@ class Daemon:
             signature = (int(msg.type), int(msg.autopilot))
             place = (rx.link_id, rx.peer)
             confirmed = self.newcomers.heartbeat(
-                sysid, place, signature, int(msg.get_seq()), self.clock.now_s()
+                sysid, place, signature, int(msg.get_seq()), self.clock.now_s(), rx.link_id
             )
             if not confirmed or self.origin_or_none is None:
                 return
@@ -541,6 +549,8 @@ class Daemon:
                 for _ in range(3):
                     session.port.fire_mode(ArduPlaneMode.RTL)
                 self.journal("rtl", vehicle=session.id, ok=None, reason="on exit")
+        for line in self.newcomers.flush():
+            self.journal("unknown_systems", **line)
         self.journal("stop", logged=False, reason=self._state.stop_reason, **self.summary())
 
     # ------------------------------------------------------------------ loops
@@ -602,6 +612,8 @@ class Daemon:
         if now >= due.link_report_s:
             due.link_report_s = now + LINK_REPORT_PERIOD_S
             self.report_links()
+        for line in self.newcomers.reports(now):  # one line per burst of unknown systems
+            self.journal("unknown_systems", **line)
         if now >= due.track_s:
             due.track_s = now + self.config.mission.track_period_s
             self.feed.journal_tracks()

@@ -94,6 +94,7 @@ PROBLEM_EVENTS = frozenset(
         "vehicle_fell",
         "home_set_failed",
         "ship_feed_silent",
+        "unknown_systems",
     }
 )
 """Operator events that report something wrong: logged at WARNING."""

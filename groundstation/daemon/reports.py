@@ -56,6 +56,7 @@ def run_summary(daemon: RunState, wall: float, cpu: float) -> dict[str, Any]:
             "heartbeats": daemon.newcomers.heartbeats,
             "duplicates": daemon.newcomers.duplicates,
             "pending": daemon.newcomers.pending,
+            "rate_limited": daemon.newcomers.rate_limited,
         },
     }
 

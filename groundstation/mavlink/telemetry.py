@@ -26,8 +26,11 @@ held back); it is a reboot when the following frames keep to the new timeline ov
 ``reboot_frames`` frames and ``reboot_span_s``, or at once when the HEARTBEAT says the
 autopilot is booting (``system_status`` MAV_STATE_BOOT or mode INITIALISING). Then
 :class:`Rebooted` is emitted and the mission progress forgotten; a frame back on the old
-timeline clears the suspicion (one stray frame is no reboot). (A reboot during a silence
-longer than the previous uptime is the case this cannot see.)
+timeline clears the suspicion (one stray frame is no reboot). A ``time_boot_ms`` ahead of
+what the receive clock allows since the accepted frames is held back too (no suspicion of
+a reboot; a GLOBAL_POSITION_INT carrying it does not set the order positions are kept in)
+until frames keep to it the same way (:class:`~.evidence.RebootEvidence`). (A reboot
+during a silence longer than the previous uptime is the case this cannot see.)
 
 HEARTBEAT ``system_status`` and EXTENDED_SYS_STATE ``landed_state`` are kept in the
 snapshot. Messages of the system from another component are counted
@@ -145,6 +148,8 @@ class VehicleTelemetry:
         self.messages = 0
         self.foreign_messages = 0
         self.reboot = RebootEvidence(reboot_backstep_ms, reboot_frames, reboot_span_s)
+        self._boot_verdict = "ok"
+        """The reboot rule's verdict on the current frame's ``time_boot_ms``."""
         self.wind = WindEvidence()
         self.bad_wind = 0
         """WIND messages refused (non-finite or absurd values), counted and dropped."""
@@ -192,6 +197,7 @@ class VehicleTelemetry:
         self._snap = replace(self._snap, last_heard_s=now_s)
         events: list[TelemetryEvent] = self._flush_statustext(now_s)
         boot_ms = getattr(msg, "time_boot_ms", None)
+        self._boot_verdict = "ok"
         if isinstance(boot_ms, int) and not isinstance(boot_ms, bool):
             events += self._on_boot_time(boot_ms, now_s)
         handler = _HANDLERS.get(kind)
@@ -207,13 +213,11 @@ class VehicleTelemetry:
     def _on_boot_time(self, boot_ms: int, now_s: float) -> list[TelemetryEvent]:
         last = self._snap.time_boot_ms
         verdict = self.reboot.observe(last, boot_ms, now_s)
+        self._boot_verdict = verdict
         if verdict == "reboot":
             return self._rebooted(boot_ms, now_s)
-        if verdict == "suspect":
-            self._snap = replace(self._snap, reboot_suspected=True)
-            return []
-        snap = replace(self._snap, reboot_suspected=False)
-        if last is None or boot_ms > last:
+        snap = replace(self._snap, reboot_suspected=self.reboot.suspected)
+        if verdict in ("ok", "resync") and (last is None or boot_ms > last):
             snap = replace(snap, time_boot_ms=boot_ms)
         self._snap = snap
         return []
@@ -269,7 +273,8 @@ class VehicleTelemetry:
         if self._last_position_boot_ms is not None and boot_ms < self._last_position_boot_ms:
             self.stale_messages += 1
             return events
-        self._last_position_boot_ms = boot_ms
+        if self._boot_verdict != "ahead":  # a held-back boot time orders nothing
+            self._last_position_boot_ms = boot_ms
         lat, lon = int(msg.lat), int(msg.lon)
         snap = self._snap
         if lat == 0 and lon == 0:
