@@ -11,7 +11,7 @@ from daemon_run import Journal, events, run_gcs
 
 from groundstation.commands.embedded_sim import build_embedded_sim
 from groundstation.commands.run import build_config
-from groundstation.mavlink.codec import MavlinkDecoder
+from groundstation.link.tlog import TlogReader
 from world.scenario import parse_scenario
 
 
@@ -34,7 +34,8 @@ def test_gcs_run_flies_over_sik_radios(tmp_path: Path) -> None:
     # the tlog holds the ground radios' RADIO_STATUS, from 51/68: each radio answers every
     # heartbeat floe sends on its link (about 1 Hz; more mission-time Hz on a loaded host,
     # where floe's heartbeat keeps its wall-clock pace while the simulator slows down)
-    frames = MavlinkDecoder().feed((daemon.run_dir / "flight.tlog").read_bytes())
+    # read as a tlog: fed raw to a decoder, the 8-byte timestamps can hold a chance frame
+    frames = [r.message for r in TlogReader(daemon.run_dir / "flight.tlog")]
     sources = Counter((m.get_srcSystem(), m.get_srcComponent(), m.get_type()) for m in frames)
     radio_status = sources[(51, 68, "RADIO_STATUS")]
     heartbeats = sum(n for (s, _, kind), n in sources.items() if (s, kind) == (245, "HEARTBEAT"))
