@@ -117,6 +117,16 @@ class VehicleSession:
         return self.controller.link
 
     @property
+    def telemetry_age_s(self) -> float | None:
+        """How old its newest position is, against its own clock (None: not known)."""
+        return self.controller.telemetry_age_s
+
+    @property
+    def lagging(self) -> bool:
+        """Its frames arrive but its newest position is too old (planned from a prediction)."""
+        return self.controller.lagging
+
+    @property
     def fly(self) -> FlyRecord | None:
         return self.controller.fly
 
@@ -177,7 +187,9 @@ class VehicleSession:
         self.port.deliver(msg)
         if self.telemetry.messages != before:
             snap = self.telemetry.snapshot()
-            self._feed(controller_io.AutopilotFrame(t_s, kind, snap, tuple(events)))
+            boot_ms = getattr(msg, "time_boot_ms", None)
+            clock = boot_ms if isinstance(boot_ms, int) and not isinstance(boot_ms, bool) else None
+            self._feed(controller_io.AutopilotFrame(t_s, kind, snap, tuple(events), clock))
         if kind == "GLOBAL_POSITION_INT":
             s = self.snapshot
             due = t_s - self._last_track_s >= TRACK_EVERY_S

@@ -29,6 +29,10 @@ autopilot is booting (``system_status`` MAV_STATE_BOOT or mode INITIALISING). Th
 timeline clears the suspicion (one stray frame is no reboot). (A reboot during a silence
 longer than the previous uptime is the case this cannot see.)
 
+RADIO_STATUS and RADIO describe a telemetry radio, never the vehicle (a SiK radio injects
+them, unsigned, with any system id): they are counted (``radio_messages``) and ignored, so
+they never make the vehicle "heard" (``last_heard_s``).
+
 HEARTBEAT ``system_status`` and EXTENDED_SYS_STATE ``landed_state`` are kept in the
 snapshot. Messages of the system from another component are counted
 (``foreign_messages``) and otherwise ignored.
@@ -98,6 +102,8 @@ _MISSION_STATE_MAX = 5  # MISSION_STATE_COMPLETE, the last MISSION_STATE value
 _STATUSTEXT_CHUNK = 50
 _MAX_SPEED_M_S = 150.0
 _MAX_ALT_M = 20_000.0
+RADIO_MESSAGES = frozenset({"RADIO_STATUS", "RADIO"})
+"""Messages of a telemetry radio, not of the vehicle (ignored by the reducer)."""
 
 
 # --------------------------------------------------------------------------- reducer
@@ -144,6 +150,7 @@ class VehicleTelemetry:
         self.stale_messages = 0
         self.messages = 0
         self.foreign_messages = 0
+        self.radio_messages = 0
         self.reboot = RebootEvidence(reboot_backstep_ms, reboot_frames, reboot_span_s)
         self.wind = WindEvidence()
         self.bad_wind = 0
@@ -176,6 +183,9 @@ class VehicleTelemetry:
         """Fold one message into the state; returns the events it caused. Never raises."""
         try:
             if msg.get_srcSystem() != self.system_id:
+                return []
+            if msg.get_type() in RADIO_MESSAGES:  # the radio's, whatever ids it claims
+                self.radio_messages += 1
                 return []
             if self.component_id is not None and msg.get_srcComponent() != self.component_id:
                 self.foreign_messages += 1
@@ -234,6 +244,7 @@ class VehicleTelemetry:
             wind_xy_m_s=None,
             home=None,
             home_xy_m=None,
+            position_boot_ms=None,
         )
         self._last_position_boot_ms = None
         self.wind.reset()  # the autopilot's wind estimate starts again too
@@ -278,7 +289,8 @@ class VehicleTelemetry:
             events.append(InvalidTelemetry(now_s, "GLOBAL_POSITION_INT", "lat/lon", (lat, lon)))
         else:
             x_m, y_m, _ = self.origin.to_local(lat * 1e-7, lon * 1e-7)
-            snap = replace(snap, x_m=x_m, y_m=y_m, last_position_s=now_s)
+            snap = replace(snap, x_m=x_m, y_m=y_m, last_position_s=now_s,
+                           position_boot_ms=boot_ms)
         alt_m = int(msg.relative_alt) / 1000.0
         if abs(alt_m) > _MAX_ALT_M:
             events.append(InvalidTelemetry(now_s, "GLOBAL_POSITION_INT", "relative_alt", alt_m))
