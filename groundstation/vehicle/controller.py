@@ -511,10 +511,12 @@ class VehicleController:
                 f"after {change.lagged_s:.1f} s lagging (worst {change.worst_age_s:.1f} s)"
             ))  # fmt: skip
         if (self.fresh.lagging and self.state in _POSE_STATES and self._restore is None
-                and self.link is not LinkState.LOST):
-            self._core_pose()
+                and self.link is not LinkState.LOST and self.fresh.stale(self.snap, t)):
+            self._core_pose()  # a prediction (a fresh fix goes to the core as it comes)
 
     def _check_clock(self, t: float) -> None:
+        if self.fresh.lagging:  # late frames would make its clock look slow: check later
+            return
         checked = self.watch.clock(self.snap, t)
         if checked is None:
             return

@@ -10,7 +10,7 @@ already dropped there), so in a backlog the newest position wins, however old.
 autopilot keep arriving (one was heard when that position was already more than
 ``lag_threshold_s`` old: a backlog, or a flood of frames that carry no position), and the
 link is not lost. A silent link is not lagging: it is degraded, then lost. It ends when a
-position at most ``lag_threshold_s`` old arrives.
+position at most half ``lag_threshold_s`` old arrives (:data:`FRESH_FRACTION`).
 
 **The prediction** (:meth:`Freshness.predict`), the pose the core is given instead of a
 fix older than ``lag_threshold_s``: the fix moved on for its age (at most
@@ -35,7 +35,11 @@ from dataclasses import dataclass
 from groundstation.mavlink.telemetry_age import TelemetryAge, TelemetryAgeSettings
 from groundstation.mavlink.telemetry_events import VehicleSnapshot
 
-__all__ = ["Freshness", "FreshnessChange", "PredictedPose"]
+__all__ = ["FRESH_FRACTION", "Freshness", "FreshnessChange", "PredictedPose"]
+
+FRESH_FRACTION = 0.5
+"""Lagging ends on a position at most this fraction of ``lag_threshold_s`` old (hysteresis:
+a backlog's bursts must not make it start and end at every burst)."""
 
 
 @dataclass(frozen=True)
@@ -114,7 +118,7 @@ class Freshness:
         if self.lagging:
             if age is not None:
                 self._worst_s = max(self._worst_s, age)
-            if age is None or age <= self.lag_threshold_s:
+            if age is None or age <= self.lag_threshold_s * FRESH_FRACTION:
                 self.lagging = False
                 return FreshnessChange(now_s, False, age or 0.0, now_s - self._since_s,
                                        self._worst_s)
