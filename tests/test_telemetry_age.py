@@ -4,6 +4,7 @@ pause, reboot, forged clocks, and the prediction a lagging vehicle is planned fr
 
 from __future__ import annotations
 
+import itertools
 import math
 import random
 from dataclasses import replace
@@ -159,3 +160,53 @@ def test_prediction_dead_reckons_and_goes_to_the_loiter() -> None:
     assert there is not None and there.how == "loiter"
     assert (there.x_m, there.y_m) == (0.0, 250.0) and there.sigma_m >= 100.0
     assert fresh.predict(snap, 101.0) is None  # 1 s old: the fix itself is used
+
+
+# ------------------------------------------------------------------ the controller
+def test_controller_plans_a_lagging_vehicle_from_a_prediction() -> None:
+    """Sans-IO (the controller rig of ``test_vehicle_controller``): fresh fixes go to the
+    core as they come; when the positions arrive ever later (a backlog: frames keep
+    arriving) the controller says so once, gives the core predictions (at most one per
+    mission second), never the stale fix, and says when it is fresh again."""
+    from test_vehicle_controller import active_rig
+
+    from groundstation.core import events as ev
+    from groundstation.vehicle import controller_io as vio
+
+    rig = active_rig()
+    x0 = rig.snap.x_m or 0.0
+
+    def position(boot_s: float, x_m: float) -> None:
+        boot_ms = round(boot_s * 1000)
+        rig.snap = replace(rig.snap, last_heard_s=rig.t, x_m=x_m, ve_m_s=20.0, vn_m_s=0.0,
+                           position_boot_ms=boot_ms)
+        rig.feed(vio.AutopilotFrame(rig.t, "GLOBAL_POSITION_INT", rig.snap, (), boot_ms))
+        rig.feed(vio.TimePassed(rig.t))
+
+    while rig.t < 10.0:  # fresh: vehicle clock = mission clock + 100 s
+        rig.t = round(rig.t + 0.1, 6)
+        position(rig.t + 100.0, x0 + 20.0 * rig.t)
+    fresh_poses = rig.core(ev.Telemetry)
+    assert fresh_poses and all(p.fix_age_s is None for p in fresh_poses)
+    n_fresh = len(fresh_poses)
+    while rig.t < 30.0:  # a backlog: each fix made 0.5 s of vehicle time per s, then 0.1 s
+        rig.t = round(rig.t + 0.1, 6)
+        made = 10.0 + 0.5 * (rig.t - 10.0)
+        position(made + 100.0, x0 + 20.0 * made)
+    [lagging] = rig.journal("telemetry_lagging")
+    assert lagging.logged and 2.0 < lagging.fields["age_s"] < 3.0
+    backlog = rig.core(ev.Telemetry)[n_fresh:]
+    raw = [p for p in backlog if p.fix_age_s is None]
+    assert all(p.t_s <= 14.2 for p in raw)  # fixes while they were at most 2 s old
+    predicted = [p for p in backlog if p.fix_age_s is not None]
+    assert len(predicted) >= 14 and max(p.fix_age_s for p in predicted) > 9.0
+    assert all(b.t_s - a.t_s >= 1.0 - 1e-9 for a, b in itertools.pairwise(predicted))
+    for p in predicted:  # dead reckoning at its 20 m/s: where it really is (less the creep)
+        assert abs(p.x_m - (x0 + 20.0 * p.t_s)) < 0.01 * (p.t_s - 10.0) * 20.0 + 2.5
+    assert not rig.journal("telemetry_fresh")
+    rig.t = round(rig.t + 0.1, 6)
+    position(rig.t + 100.0, x0 + 20.0 * rig.t)  # the backlog drained: fresh again
+    rig.feed(vio.TimePassed(rig.t))
+    [fresh] = rig.journal("telemetry_fresh")
+    assert fresh.fields["worst_age_s"] > 9.0 and rig.core(ev.Telemetry)[-1].fix_age_s is None
+    assert not rig.journal("link_lost")
