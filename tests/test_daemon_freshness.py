@@ -240,13 +240,19 @@ class _RadioBridge:
 
 
 @pytest.mark.timeout(120)
-def test_radio_reports_keep_no_dead_vehicle_alive(tmp_path: Path) -> None:
+@pytest.mark.parametrize("signed", [False, True], ids=["unsigned", "signing"])
+def test_radio_reports_keep_no_dead_vehicle_alive(tmp_path: Path, signed: bool) -> None:
+    """With signing on too: the unsigned radio reports are let through (a SiK radio cannot
+    sign), and still keep nothing alive."""
     t_kill = 40.0
     gcs = str(Path(sys.executable).parent / "gcs")
+    phrase = tmp_path / "phrase"
+    phrase.write_text("radio test passphrase\n")
+    signing = ["--signing-passphrase-file", str(phrase)] if signed else []
     sim, lines = _start(
         [gcs, "sitl", "--count", "2", "--base-port", "0", "--scenario", "default",
          "--airborne", "--speedup", f"{SPEEDUP:g}", "--detections", "none",
-         "--duration", "5000", "--fault", f"1:kill:at={t_kill:g},for=1000"],
+         "--duration", "5000", "--fault", f"1:kill:at={t_kill:g},for=1000", *signing],
         "system id", 2, 30.0,
     )  # fmt: skip
     ports = [int(x.rsplit(":", 1)[1]) for x in lines if "system id" in x]
@@ -256,7 +262,7 @@ def test_radio_reports_keep_no_dead_vehicle_alive(tmp_path: Path) -> None:
         bridge = _RadioBridge(ports[0], None)
         server = await bridge.start()
         config = _config(tmp_path, [f"tcp:127.0.0.1:{bridge.port}",
-                                    f"tcp:127.0.0.1:{ports[1]}"], "--duration", "400")
+                                    f"tcp:127.0.0.1:{ports[1]}"], "--duration", "400", *signing)
 
         def started(daemon: Daemon) -> None:
             bridge.clock = daemon.clock.now_s
@@ -291,3 +297,6 @@ def test_radio_reports_keep_no_dead_vehicle_alive(tmp_path: Path) -> None:
     assert link.counters.radio_frames >= bridge.reports - 10
     assert link.radio is not None and link.radio.rssi == 180
     assert 51 not in daemon.router.routes and 51 not in daemon.sessions
+    if signed:  # the vehicles really spoke signed, and the radio's reports passed unsigned
+        assert daemon.signing is not None
+        assert events(journal, "vehicle_seen", system_id=1)
