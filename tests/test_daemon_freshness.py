@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from daemon_run import events, stop_when
+from daemon_run import events, status_text, stop_when
 
 from groundstation.commands.run import build_config, run_daemon
 from groundstation.daemon.daemon import Daemon
@@ -119,6 +119,7 @@ def test_flood_backlog_is_drained_without_being_believed(
         "listening", 1, 30.0,
     )  # fmt: skip
     flood_rx: list[float] = []  # mission times floe received flood frames at
+    shown: list[Any] = []  # while it lagged: the status table, the API's prediction
 
     def watch(daemon: Daemon) -> None:
         deliver = daemon.router.on_vehicle_frame
@@ -132,6 +133,9 @@ def test_flood_backlog_is_drained_without_being_believed(
         daemon.router.on_vehicle_frame = recording
 
         def done(journal: list[dict[str, Any]]) -> bool:  # fresh again, then 20 s more
+            session = daemon.sessions.get(1)
+            if not shown and session is not None and session.lagging:
+                shown.extend([status_text(daemon), session.prediction()])
             fresh = [e for e in journal if e["event"] == "telemetry_fresh"]
             return bool(fresh) and len(flood_rx) == 2 and daemon.clock.now_s() > max(
                 fresh[-1]["t"], flood_rx[-1]) + 20.0
@@ -165,6 +169,9 @@ def test_flood_backlog_is_drained_without_being_believed(
     assert len([x for x in console if "vehicle 1: telemetry lagging" in x]) == len(lagging)
     assert len([x for x in console if "vehicle 1: telemetry fresh again" in x]) == len(fresh)
     assert not events(journal, "telemetry_lagging", vehicle="2")
+    table, prediction = shown
+    assert [line for line in table.splitlines() if " lag " in line], table  # its link column
+    assert prediction is not None and prediction["sigma_m"] > 0
     # what the core planned vehicle 1 from: never a stale fix; a prediction while it lagged
     poses = [e for e in journal if e["event"] == "input" and e["kind"] == "Telemetry"
              and e["vehicle"] == "1"]  # fmt: skip

@@ -126,6 +126,12 @@ class VehicleSession:
         """Its frames arrive but its newest position is too old (planned from a prediction)."""
         return self.controller.lagging
 
+    def prediction(self) -> dict[str, float] | None:
+        """Where it is predicted to be while its fix is stale (the API's ``prediction``)."""
+        p = self.controller.prediction()
+        return None if p is None else {"x_m": p.x_m, "y_m": p.y_m, "sigma_m": p.sigma_m,
+                                       "fix_age_s": p.fix_age_s}
+
     @property
     def fly(self) -> FlyRecord | None:
         return self.controller.fly

@@ -58,7 +58,7 @@ from groundstation.mavlink.telemetry_events import (
     WindReported,
 )
 from groundstation.vehicle import controller_io
-from groundstation.vehicle.freshness import Freshness
+from groundstation.vehicle.freshness import Freshness, PredictedPose
 from groundstation.vehicle.jobs import (
     Job,
     JobRunner,
@@ -192,6 +192,15 @@ class VehicleController:
     def lagging(self) -> bool:
         """Its frames arrive, but its newest position is older than ``lag_threshold_s``."""
         return self.fresh.lagging
+
+    def prediction(self) -> PredictedPose | None:
+        """Where it is predicted to be now, while its newest fix is too old to plan from
+        (None: the fix is fresh): towards the aim point of floe's verified mission, else
+        dead reckoning (:meth:`.freshness.Freshness.predict`)."""
+        fly = self.fly
+        aim = (fly.x_m, fly.y_m) if (fly is not None and fly.verified_t_s is not None
+                                     and self.state is S.ACTIVE) else None
+        return self.fresh.predict(self.snap, self.t_s, aim, self.loiter_radius_m())
 
     def flying(self) -> bool:
         """Sustained evidence that it flies (see ControllerSettings)."""
@@ -773,11 +782,8 @@ class VehicleController:
             return None
         heading = s.heading_rad if s.heading_rad is not None else 0.0
         speed = self.cruise_speed_m_s or self.s.speed_m_s or 22.0
-        fly = self.fly
-        aim = (fly.x_m, fly.y_m) if (fly is not None and fly.verified_t_s is not None
-                                     and self.state is S.ACTIVE) else None
         # a fix older than lag_threshold_s is never planned from as it is: predicted to now
-        p = self.fresh.predict(s, self.t_s, aim, self.loiter_radius_m())
+        p = self.prediction()
         if p is None:
             cls = ev.VehicleJoined if joined else ev.Telemetry
             return cls(self.t_s, self.vehicle, s.x_m, s.y_m, heading, speed)

@@ -96,6 +96,7 @@ class DaemonController:
                     "link": s.link,
                     "telemetry_age_s": s.telemetry_age_s,
                     "lagging": s.lagging,
+                    "prediction": s.prediction(),
                     "battery_pct": snap.battery_remaining_pct,
                     "target": s.fly.target if s.fly else None,
                     "route": list(s.fly.route) if s.fly else [],

@@ -636,6 +636,16 @@
         ctx.stroke();
       }
       const [sx, sy] = toScreen(v.x_m, v.y_m);
+      // lagging: where it is predicted to be now (dashed circle of its uncertainty), from
+      // the stale fix the icon shows
+      const pr = v.prediction;
+      if (pr && num(pr.x_m) && num(pr.y_m) && num(pr.sigma_m)) {
+        const [px, py] = toScreen(pr.x_m, pr.y_m);
+        ctx.strokeStyle = colour; ctx.lineWidth = 1.5; ctx.setLineDash([6, 4]);
+        ctx.beginPath(); ctx.moveTo(sx, sy); ctx.lineTo(px, py); ctx.stroke();
+        ctx.beginPath(); ctx.arc(px, py, Math.max(3, pr.sigma_m * app.view.scale), 0, 2 * Math.PI);
+        ctx.stroke(); ctx.setLineDash([]);
+      }
       // planned sequence: aim point, then the route's targets (dotted)
       const path = [[sx, sy]];
       if (Array.isArray(v.aim) && num(v.aim[0]) && num(v.aim[1])) path.push(toScreen(v.aim[0], v.aim[1]));
