@@ -42,19 +42,22 @@ def test_fresh_frames_with_jitter_are_fresh() -> None:
 
 def test_a_backlog_is_measured_and_drains() -> None:
     """10 s of fresh frames, then a stall that delivers each frame later and later (the
-    lag grows 1 s per s for 20 s), then the backlog drained in 1 s, then fresh again."""
+    lag grows 1 s per s for 20 s; the frames come in bursts between the flood's, every
+    3 s), then the backlog drained in 1 s, then fresh again."""
     est = TelemetryAge()
     feed(est, 0.0, 10.0, 10)
     ages = []
     for k in range(200):  # made 10..30 s, arriving at 10 + 2 * (made - 10) (growing lag)
         made = 10.0 + k * 0.1
-        ages.append(est.observe(round((made - OFFSET_S) * 1000), 10.0 + 2.0 * (made - 10.0)))
-    assert ages[-1] == pytest.approx(19.9, abs=0.5)  # creep: 1 % of 20 s at most
+        burst = 3.0 * math.ceil((10.0 + 2.0 * (made - 10.0)) / 3.0)
+        ages.append(est.observe(round((made - OFFSET_S) * 1000), burst))
+    assert ages[-1] == pytest.approx(21.1, abs=0.6)  # creep: 1 % of 21 s at most
+    assert est.resyncs == 0
     drained = []
     for k in range(100):  # made 30..40 s, all delivered between 50 and 51 s
         made = 30.0 + k * 0.1
         drained.append(est.observe(round((made - OFFSET_S) * 1000), 50.0 + k * 0.01))
-    assert drained[0] == pytest.approx(20.0, abs=0.5)
+    assert drained[0] == pytest.approx(20.0, abs=0.6)
     assert drained[-1] == pytest.approx(11.0, abs=0.5)  # made at 39.9, read at 50.99
     assert feed(est, 51.0, 55.0, 10) == pytest.approx(0.0, abs=0.3)  # the baseline held
 
@@ -99,7 +102,8 @@ def test_first_heard_through_a_backlog_corrected_by_fresher_frames() -> None:
 
 def test_a_step_that_stays_is_followed() -> None:
     """The clock moved by 40 s (a reboot unseen during a long silence): after resync_after_s
-    of steady frames the baseline follows; a growing backlog never resyncs."""
+    of steady frames the baseline follows; a growing backlog (frames in bursts between a
+    flood's) never resyncs."""
     est = TelemetryAge()
     feed(est, 0.0, 10.0, 10)
     assert feed(est, 60.0, 80.0, 10, offset_s=OFFSET_S + 40.0) > 39.0
@@ -107,9 +111,10 @@ def test_a_step_that_stays_is_followed() -> None:
     assert est.resyncs == 1
     grow = TelemetryAge()
     feed(grow, 0.0, 10.0, 10)
-    for k in range(600):  # 60 s of a lag growing at 0.5 s per s
+    for k in range(600):  # 60 s of a lag growing at 0.5 s per s, in bursts every 3 s
         made = 10.0 + k * 0.1
-        grow.observe(round((made - OFFSET_S) * 1000), 10.0 + 1.5 * (made - 10.0))
+        burst = 3.0 * math.ceil((10.0 + 1.5 * (made - 10.0)) / 3.0)
+        grow.observe(round((made - OFFSET_S) * 1000), burst)
     assert grow.resyncs == 0
 
 
@@ -210,3 +215,16 @@ def test_controller_plans_a_lagging_vehicle_from_a_prediction() -> None:
     [fresh] = rig.journal("telemetry_fresh")
     assert fresh.fields["worst_age_s"] > 9.0 and rig.core(ev.Telemetry)[-1].fix_age_s is None
     assert not rig.journal("link_lost")
+
+
+def test_a_clock_measured_slow_is_no_backlog() -> None:
+    """A simulator that keeps only 0.44 of its speed-up: frames arrive regularly, their
+    offsets grow 0.56 s per s; after resync_after_s the estimator takes it for the clock."""
+    est = TelemetryAge()
+    ages = []
+    for k in range(600):  # 60 s at 10 Hz
+        t = k * 0.1
+        ages.append(est.observe(round((0.44 * t + 5.0) * 1000), t))
+    assert max(a for a in ages if a is not None) > 10.0
+    assert est.resyncs == 1 and est.creep_s_per_s == pytest.approx(0.56, abs=0.01)
+    assert ages[-1] is not None and ages[-1] < 0.3

@@ -28,12 +28,15 @@ Guards, so that neither a stale backlog nor one forged frame can move the baseli
   Smaller improvements (within the jitter) lower it at once.
 * A **reboot** (the reducer's ``Rebooted``: the clock restarted) or a new session:
   :meth:`reset`; the next frame starts a new baseline.
-* A **step that stays**: when every frame for ``resync_after_s`` of mission time kept to
-  one offset level (within ``tolerance_s``) above the baseline by more than
-  ``tolerance_s``, the clock has moved (a reboot during a silence longer than the previous
-  uptime, which the reducer cannot see, or another route to the vehicle) and the baseline
-  follows it. A backlog that grows or drains changes its offset every frame and never
-  resyncs; a lag that stays exactly constant for that long is forgotten.
+* A **trend that stays**: when for ``resync_after_s`` of mission time frames kept arriving
+  regularly (no gap over ``regular_gap_s``) with offsets on one straight line (within
+  ``tolerance_s``) above the baseline, level or rising, that is the clock, not a backlog:
+  a step (a reboot during a silence longer than the previous uptime, which the reducer
+  cannot see) or a vehicle clock slower than the mission clock (a simulator that cannot
+  keep its speed-up, a wrong ``--speedup``). The baseline follows it and the creep takes
+  its slope. A flood holds the vehicle's frames back (gaps), a drain brings them faster
+  than they were made (falling offsets): neither resyncs. A lag that stays level, or grows
+  steadily while frames keep arriving regularly, for that long is forgotten.
 
 No clock is read and nothing raises: times are given by the caller, in mission seconds.
 """
@@ -55,6 +58,7 @@ class TelemetryAgeSettings:
     corroborate_frames: int = 3
     corroborate_span_s: float = 1.0
     resync_after_s: float = 30.0
+    regular_gap_s: float = 2.0
     nominal_latency_s: float = 0.0
 
 
@@ -66,10 +70,13 @@ class TelemetryAge:
         self._base_offset_s: float | None = None
         self._base_t_s = 0.0
         self._candidates: list[tuple[float, float]] = []  # (t_s, offset_s) fresher than base
-        self._step: tuple[float, float, float] | None = None  # (since_s, level_s, lowest_s)
+        self._step: tuple[float, float, float, float] | None = None
+        """A trend of offsets: (first t_s, its offset, last t_s, its offset)."""
+        self.creep_s_per_s = self.s.creep_s_per_s
+        """The creep in use: the setting's, or a trend's slope (a slower vehicle clock)."""
         self.samples = 0
         self.resyncs = 0
-        """Times the baseline followed a step that stayed (``resync_after_s``)."""
+        """Times the baseline followed a trend that stayed (``resync_after_s``)."""
 
     @property
     def known(self) -> bool:
@@ -87,7 +94,7 @@ class TelemetryAge:
         base = self._base_offset_s
         if base is None:
             return None
-        return base + self.s.creep_s_per_s * max(0.0, t_s - self._base_t_s)
+        return base + self.creep_s_per_s * max(0.0, t_s - self._base_t_s)
 
     def produced_s(self, boot_ms: int, t_s: float) -> float | None:
         """The mission time at which the vehicle made a frame stamped ``boot_ms`` (the
@@ -141,19 +148,26 @@ class TelemetryAge:
             self._set_base(min(o for _, o in kept), t_s)
 
     def _watch_step(self, offset: float, base: float, t_s: float) -> None:
-        """A frame at or above the baseline: part of a step that stays, or not."""
+        """A frame at or above the baseline: part of a trend that stays, or not. A trend
+        is a run of frames arriving regularly (no gap over ``regular_gap_s``) whose offsets
+        keep to one straight line (within ``tolerance_s``): level (a clock step) or rising
+        (a clock slower than the mission clock). Held for ``resync_after_s`` it is the
+        clock, not a backlog: the baseline follows it, and the creep takes its slope."""
         tol = self.s.tolerance_s
         if offset - base <= tol:
-            self._step = None  # keeps to the baseline: no step, and no fresher claim stands
+            self._step = None  # keeps to the baseline: no trend, and no fresher claim stands
             self._candidates.clear()
             return
         step = self._step
-        if step is None or abs(offset - step[1]) > tol:
-            self._step = (t_s, offset, offset)
-            return
-        since, level, lowest = step
-        lowest = min(lowest, offset)
-        self._step = (since, level, lowest)
-        if t_s - since >= self.s.resync_after_s:
-            self.resyncs += 1
-            self._set_base(lowest, t_s)
+        if step is not None:
+            t0, o0, t_prev, o_prev = step
+            slope = (o_prev - o0) / (t_prev - t0) if t_prev > t0 else 0.0
+            on_line = abs(offset - (o0 + slope * (t_s - t0))) <= tol
+            if t_s - t_prev <= self.s.regular_gap_s and on_line and slope >= -1e-9:
+                self._step = (t0, o0, t_s, offset)
+                if t_s - t0 >= self.s.resync_after_s:
+                    self.resyncs += 1
+                    self.creep_s_per_s = max(self.creep_s_per_s, slope)
+                    self._set_base(offset, t_s)
+                return
+        self._step = (t_s, offset, t_s, offset)
