@@ -145,6 +145,15 @@ def _parser() -> argparse.ArgumentParser:
         help="declare a silent vehicle lost after S mission seconds (default 5)",
     )
     a(
+        "--lag-threshold",
+        dest="lag_threshold_s",
+        type=float,
+        metavar="S",
+        help="a vehicle whose newest position is older than S mission seconds (against its "
+        "own clock) while its frames keep arriving is lagging: warned, planned from a "
+        "prediction (default 2)",
+    )
+    a(
         "--rebind-after",
         dest="rebind_after_s",
         type=float,

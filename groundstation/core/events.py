@@ -47,7 +47,11 @@ class Tick:
 
 @dataclass(frozen=True)
 class Telemetry:
-    """A vehicle's planar pose and airspeed (local ENU, heading CCW from east)."""
+    """A vehicle's planar pose and airspeed (local ENU, heading CCW from east).
+
+    ``fix_age_s``: None for a fix (fresh telemetry); for a vehicle whose telemetry lags,
+    the age of the fix this pose was predicted from, with ``sigma_m`` its uncertainty
+    (``groundstation/vehicle/freshness.py``). Journals written before have neither."""
 
     t_s: float
     vehicle: str
@@ -55,6 +59,8 @@ class Telemetry:
     y_m: float
     heading_rad: float
     speed_m_s: float
+    fix_age_s: float | None = None
+    sigma_m: float | None = None
 
 
 @dataclass(frozen=True)

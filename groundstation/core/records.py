@@ -59,6 +59,9 @@ __all__ = [
 SEARCH_RECORD_S = 10.0
 """Mission seconds between two ``search`` journal lines."""
 
+_OPTIONAL_TELEMETRY = frozenset({"fix_age_s", "sigma_m"})
+"""Telemetry fields written only when set (a predicted pose)."""
+
 _EVENT_TYPES: dict[str, type] = {cls.__name__: cls for cls in get_args(Event)}
 
 
@@ -107,6 +110,8 @@ def event_to_record(event: Event) -> dict[str, Any]:
         value = getattr(event, f.name)
         if f.name == "prior" and value is False:
             continue  # TargetAdded lines read as before priors existed
+        if f.name in _OPTIONAL_TELEMETRY and value is None:
+            continue  # a fix's Telemetry line reads as before predictions existed
         record[f.name] = result_to_record(value) if isinstance(value, PlanResult) else value
     return record
 

@@ -192,6 +192,7 @@ class FleetConfig:
     altitude_step_m: float = 15.0
     launch: bool | None = None
     lost_after_s: float = 5.0
+    lag_threshold_s: float = 2.0
     override_grace_s: float = 2.0
     progress_timeout_s: float = 120.0
     telemetry_rate_hz: float = 2.0
@@ -426,6 +427,12 @@ def load_config_file(path: str) -> dict[str, Any]:
     return data
 
 
+LAG_WALL_FLOOR_S = 0.3
+"""The least lag threshold in wall seconds: at a speed-up of K a vehicle is lagging only
+beyond ``max(lag_threshold_s, 0.3 K)`` mission s (a host that pauses the daemon for 40 ms
+at 50x is not a backlog on the link)."""
+
+
 def controller_settings(
     config: DaemonConfig, vehicle: VehicleSettings, index: int,
     planned_speed_m_s: float | None = None, watch: WatchConfig | None = None,
@@ -442,6 +449,7 @@ def controller_settings(
         launch=bool(fleet.launch),
         advisory=config.advisory,
         lost_after_s=fleet.lost_after_s,
+        lag_threshold_s=max(fleet.lag_threshold_s, LAG_WALL_FLOOR_S * config.speedup_x),
         override_grace_s=fleet.override_grace_s,
         battery_low_pct=fleet.battery.low_pct,
         telemetry_rate_hz=fleet.telemetry_rate_hz,

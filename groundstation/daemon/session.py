@@ -117,6 +117,22 @@ class VehicleSession:
         return self.controller.link
 
     @property
+    def telemetry_age_s(self) -> float | None:
+        """How old its newest position is, against its own clock (None: not known)."""
+        return self.controller.telemetry_age_s
+
+    @property
+    def lagging(self) -> bool:
+        """Its frames arrive but its newest position is too old (planned from a prediction)."""
+        return self.controller.lagging
+
+    def prediction(self) -> dict[str, float] | None:
+        """Where it is predicted to be while its fix is stale (the API's ``prediction``)."""
+        p = self.controller.prediction()
+        return None if p is None else {"x_m": p.x_m, "y_m": p.y_m, "sigma_m": p.sigma_m,
+                                       "fix_age_s": p.fix_age_s}
+
+    @property
     def fly(self) -> FlyRecord | None:
         return self.controller.fly
 
@@ -177,7 +193,9 @@ class VehicleSession:
         self.port.deliver(msg)
         if self.telemetry.messages != before:
             snap = self.telemetry.snapshot()
-            self._feed(controller_io.AutopilotFrame(t_s, kind, snap, tuple(events)))
+            boot_ms = getattr(msg, "time_boot_ms", None)
+            clock = boot_ms if isinstance(boot_ms, int) and not isinstance(boot_ms, bool) else None
+            self._feed(controller_io.AutopilotFrame(t_s, kind, snap, tuple(events), clock))
         if kind == "GLOBAL_POSITION_INT":
             s = self.snapshot
             due = t_s - self._last_track_s >= TRACK_EVERY_S

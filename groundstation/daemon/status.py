@@ -5,8 +5,9 @@ token is** (``RUN/control.json``), the newest plan as readable routes
 (``1 -> T5, T6 | 2 -> T2``), the wind the core plans with (``wind 12.0 m/s from 270°
 (vehicles 1,2,3)``, or its fallback's source: ``config``, ``scenario``, ``none``), links
 that heard no vehicle, dropped detections and signing refusals. Then one row per vehicle
-(id, system id, status, mode, armed, altitude, target, battery, link, uploads ok/failed,
-upload retries, its own wind estimate as ``speed/from``), the tracker's counts
+(id, system id, status, mode, armed, altitude, target, battery, link (``lag N s`` while its
+telemetry lags: docs/links.md), uploads ok/failed, upload retries, its own wind estimate
+as ``speed/from``), the tracker's counts
 (``tracks: 9 confirmed, 3 tentative, 1 prior; 100 search cells``), one row per confirmed or
 prior target (id, position, sigma, lost, last seen, status; tentative tracks are only
 counted: clutter makes many), one line per link (frames received, dropped unread, bad, foreign)
@@ -163,6 +164,14 @@ def _table(*columns: str) -> Table:
     return table
 
 
+def _link_cell(link: LinkState, lagging: bool, age_s: float | None) -> Text:
+    """The link's state, or ``lag N s`` while the vehicle's telemetry lags (its frames
+    arrive, its newest position is old: planned from a prediction)."""
+    if lagging and age_s is not None:
+        return Text(f"lag {age_s:.0f} s", style="bold yellow")
+    return Text(link, style=_LINK_STYLE.get(link, "yellow"))
+
+
 def _vehicles(daemon: Daemon) -> Table:
     table = _table("vehicle", "sysid>", "status", "mode", "armed", "alt m>", "target",
                    "batt %>", "link", "uploads>", "retries>", "wind>")
@@ -173,7 +182,7 @@ def _vehicles(daemon: Daemon) -> Table:
             s.id, str(s.system_id), s.status, _fmt(snap.mode_name), _fmt(snap.armed),
             _fmt(snap.alt_m, ".0f"), _fmt(s.fly.target if s.fly else None),
             _fmt(snap.battery_remaining_pct, ".0f"),
-            Text(s.link, style=_LINK_STYLE.get(s.link, "yellow")),
+            _link_cell(s.link, s.lagging, s.telemetry_age_s),
             Text(f"{s.uploads_ok}/{s.uploads_failed}",
                  style="red" if s.uploads_failed else ""),
             Text(str(retries), style="yellow" if retries else ""), _own_wind(snap),

@@ -37,6 +37,7 @@ from groundstation.link.binding import (
     PeerTable,
 )
 from groundstation.link.inbox import Inbox, RawChunk, peek_frames
+from groundstation.link.radio import RadioReport, is_radio_message
 from groundstation.link.url import LinkSpec
 from groundstation.mavlink.codec import MavlinkDecoder
 from groundstation.mavlink.evidence import is_autopilot_heartbeat
@@ -100,7 +101,8 @@ class LinkCounters:
     frames dropped unread from a full inbox (telemetry / protocol messages, oldest first);
     ``bad_frames``/``bad_bytes`` failed checksums and garbage; ``foreign`` frames of a system
     id bound to another link or peer; ``rx_overflow`` frames a full ``frames()`` iterator
-    missed; ``rx_paused`` times a stream was paused for back-pressure.
+    missed; ``rx_paused`` times a stream was paused for back-pressure; ``radio_frames``
+    RADIO_STATUS / RADIO reports of a telemetry radio (``groundstation.link.radio``).
     Sending: ``frames_out``, ``frames_dropped`` (could not send), ``send_errors``.
     """
 
@@ -117,6 +119,7 @@ class LinkCounters:
     foreign: int = 0
     rx_overflow: int = 0
     rx_paused: int = 0
+    radio_frames: int = 0
     reconnects: int = 0
     connects: int = 0
 
@@ -210,6 +213,8 @@ class Link(ABC):
         self.on_receive = on_receive
         self.options = options or LinkOptions()
         self.counters = LinkCounters()
+        self.radio: RadioReport | None = None
+        """The latest RADIO_STATUS / RADIO a radio on this link sent (the router sets it)."""
         self.now_s: Callable[[], float] = time.monotonic
         self.on_notice: Callable[[str, dict[str, Any]], None] | None = None
         self._decoders: dict[Peer | None, MavlinkDecoder] = {}
@@ -248,6 +253,7 @@ class Link(ABC):
             "running": self._running,
             "connected": self.connected,
             **self.counters.as_dict(),
+            "radio": None if self.radio is None else self.radio.as_dict(),
         }
 
     @property
@@ -503,8 +509,8 @@ class Link(ABC):
 
     def _bind_peer(self, peers: PeerTable, rx: Received) -> Received:
         """Apply the peer binding rules to ``rx`` (listening links)."""
-        if rx.peer is None:
-            return rx
+        if rx.peer is None or is_radio_message(rx.message):
+            return rx  # a radio's report binds nothing and keeps no binding alive
         previous = peers.binder.place_of(rx.system_id)
         verdict = peers.heard(
             rx.system_id, rx.peer, is_autopilot_heartbeat(rx.message), self.now_s()

@@ -22,6 +22,11 @@
 
 Time for the binding rules comes from ``now_s`` (the daemon passes its mission clock).
 
+A radio's own reports (RADIO_STATUS, RADIO: ``groundstation.link.radio``) are recorded and
+forwarded like every frame, then kept as the link's ``radio`` and counted
+(``radio_frames``); they never reach the binding table or ``on_vehicle_frame``: they
+describe the radio, not a vehicle, so they bind no system id and keep none alive.
+
 The router decides nothing about the vehicles; it only moves frames. Two optional hooks
 let MAVLink 2 signing sit at its edge (``groundstation.daemon.signing_gate``): ``admit``
 sees every vehicle frame first and may refuse it (then it is counted in ``refused`` and goes
@@ -41,6 +46,7 @@ from typing import Any
 
 from groundstation.link.base import Link, ReceiveCallback, Received
 from groundstation.link.binding import Binder, BindingRules, BindingVerdict
+from groundstation.link.radio import is_radio_message, radio_report
 from groundstation.link.tlog import TlogWriter
 from groundstation.mavlink.evidence import is_autopilot_heartbeat
 
@@ -65,6 +71,7 @@ class RouterCounters:
     refused: int = 0
     foreign: int = 0
     rebinds: int = 0
+    radio: int = 0
 
 
 def target_system_of(rx: Received) -> int:
@@ -244,6 +251,11 @@ class Router:
         for out in self.out_links:
             if out.send(rx.raw, None):
                 self.counters.forwarded_to_out += 1
+        if is_radio_message(rx.message):  # the radio's, not a vehicle's: recorded, kept
+            link.counters.radio_frames += 1
+            self.counters.radio += 1
+            link.radio = radio_report(rx.message, rx.t_unix_s) or link.radio
+            return
         if rx.foreign:  # bound to another peer of this link: the link counted it
             self.counters.foreign += 1
             return

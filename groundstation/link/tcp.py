@@ -25,12 +25,20 @@ _KEEPALIVE_IDLE_S = 10
 _KEEPALIVE_INTERVAL_S = 5
 _KEEPALIVE_COUNT = 3
 _USER_TIMEOUT_MS = 30_000
+RECEIVE_BUFFER_BYTES = 256 * 1024
+"""The kernel's receive buffer of a vehicle's TCP connection. Left to itself Linux grows it
+up to ``tcp_rmem`` (32 MiB here) while floe's back-pressure pauses reading: a flood then
+parks a minute of stale frames in floe's own socket. Capped, the sender's buffers fill
+instead (ArduPilot then skips telemetry itself) and a backlog drains sooner."""
 
 
 def _tune_socket(sock: socket.socket | None) -> None:
-    """Keep-alive and unacknowledged-data timeout, where the platform has them."""
+    """Keep-alive, unacknowledged-data timeout (where the platform has them), and a
+    bounded receive buffer (:data:`RECEIVE_BUFFER_BYTES`)."""
     if sock is None:
         return
+    with contextlib.suppress(OSError):
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, RECEIVE_BUFFER_BYTES)
     with contextlib.suppress(OSError):
         sock.setsockopt(socket.SOL_SOCKET, socket.SO_KEEPALIVE, 1)
         for name, value in (

@@ -177,6 +177,9 @@ class VehicleSnapshot:
     last_heard_s: float | None = None
     last_heartbeat_s: float | None = None
     last_position_s: float | None = None
+    position_boot_ms: int | None = None
+    """The ``time_boot_ms`` of the position (``x_m``, ``y_m``): the vehicle's own time of the
+    fix, which telemetry age is measured with (None after a reboot until the next fix)."""
     time_boot_ms: int | None = None
     system_status: int | None = None
     landed_state: int | None = None

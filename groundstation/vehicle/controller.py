@@ -58,6 +58,7 @@ from groundstation.mavlink.telemetry_events import (
     WindReported,
 )
 from groundstation.vehicle import controller_io
+from groundstation.vehicle.freshness import Freshness, PredictedPose
 from groundstation.vehicle.jobs import (
     Job,
     JobRunner,
@@ -165,6 +166,9 @@ class VehicleController:
         self._wind_sent_s = -math.inf
         self._wind_since_s: float | None = None  # active and reporting since
         self.airspeed = AirspeedHealth(settings.evidence_frames, settings.evidence_span_s)
+        self.fresh = Freshness(settings.lag_threshold_s, loiter_margin_m=settings.progress_margin_m)
+        """Its telemetry's age against its own clock, lagging, predictions (:mod:`.freshness`)."""
+        self._predicted_at_s = -math.inf  # when the core was last given a predicted pose
 
     # ------------------------------------------------------------------ reading
     @property
@@ -178,6 +182,25 @@ class VehicleController:
     @property
     def busy(self) -> bool:
         return self._jobs.busy
+
+    @property
+    def telemetry_age_s(self) -> float | None:
+        """How old its newest position is now, against its own clock (None: not known)."""
+        return self.fresh.fix_age_s(self.snap, self.t_s)
+
+    @property
+    def lagging(self) -> bool:
+        """Its frames arrive, but its newest position is older than ``lag_threshold_s``."""
+        return self.fresh.lagging
+
+    def prediction(self) -> PredictedPose | None:
+        """Where it is predicted to be now, while its newest fix is too old to plan from
+        (None: the fix is fresh): towards the aim point of floe's verified mission, else
+        dead reckoning (:meth:`.freshness.Freshness.predict`)."""
+        fly = self.fly
+        aim = (fly.x_m, fly.y_m) if (fly is not None and fly.verified_t_s is not None
+                                     and self.state is S.ACTIVE) else None
+        return self.fresh.predict(self.snap, self.t_s, aim, self.loiter_radius_m())
 
     def flying(self) -> bool:
         """Sustained evidence that it flies (see ControllerSettings)."""
@@ -247,6 +270,10 @@ class VehicleController:
     def _on_frame(self, frame: controller_io.AutopilotFrame) -> None:
         self.snap = s = frame.snapshot
         t = frame.t_s
+        if any(isinstance(event, Rebooted) for event in frame.events):
+            self.fresh.reset()  # its clock started again: this frame starts the new one
+        if frame.time_boot_ms is not None:
+            self.fresh.frame(frame.time_boot_ms, t)
         if self.link is LinkState.LOST:
             self.link = LinkState.OK
             self.journal("link_restored")
@@ -444,6 +471,7 @@ class VehicleController:
         else:
             degraded = silent_s > min(2.5, self.s.lost_after_s / 2.0)
             self.link = LinkState.DEGRADED if degraded else LinkState.OK
+        self._freshness(t)
         self._resolve_mode_change(t)
         progress = self.watch.stalled(t)
         if (
@@ -472,7 +500,32 @@ class VehicleController:
             self.journal("launch_timeout", altitude_m=self.snap.alt_m)
             self.state = S.CONNECTING
 
+    def _freshness(self, t: float) -> None:
+        """Lagging starts or ends (one journal line and one console line each); while it
+        lasts the core gets the predicted pose now and then, positions or not."""
+        change = self.fresh.assess(self.snap, t, self.link is LinkState.LOST)
+        if change is not None and change.lagging:
+            self.journal("telemetry_lagging", age_s=round(change.age_s, 2), logged=True)
+            self._out.append(controller_io.Warn(
+                f"vehicle {self.vehicle}: telemetry lagging: its newest position is "
+                f"{change.age_s:.1f} s old although its frames keep arriving; planned from "
+                "a prediction until it is fresh"
+            ))  # fmt: skip
+        elif change is not None:
+            self.journal("telemetry_fresh", age_s=round(change.age_s, 2),
+                         lagged_s=round(change.lagged_s, 2),
+                         worst_age_s=round(change.worst_age_s, 2), logged=True)
+            self._out.append(controller_io.Warn(
+                f"vehicle {self.vehicle}: telemetry fresh again ({change.age_s:.1f} s old) "
+                f"after {change.lagged_s:.1f} s lagging (worst {change.worst_age_s:.1f} s)"
+            ))  # fmt: skip
+        if (self.fresh.lagging and self.state in _POSE_STATES and self._restore is None
+                and self.link is not LinkState.LOST and self.fresh.stale(self.snap, t)):
+            self._core_pose()  # a prediction (a fresh fix goes to the core as it comes)
+
     def _check_clock(self, t: float) -> None:
+        if self.fresh.lagging:  # late frames would make its clock look slow: check later
+            return
         checked = self.watch.clock(self.snap, t)
         if checked is None:
             return
@@ -729,13 +782,27 @@ class VehicleController:
             return None
         heading = s.heading_rad if s.heading_rad is not None else 0.0
         speed = self.cruise_speed_m_s or self.s.speed_m_s or 22.0
-        cls = ev.VehicleJoined if joined else ev.Telemetry
-        return cls(self.t_s, self.vehicle, s.x_m, s.y_m, heading, speed)
+        # a fix older than lag_threshold_s is never planned from as it is: predicted to now
+        p = self.prediction()
+        if p is None:
+            cls = ev.VehicleJoined if joined else ev.Telemetry
+            return cls(self.t_s, self.vehicle, s.x_m, s.y_m, heading, speed)
+        if joined:
+            return ev.VehicleJoined(self.t_s, self.vehicle, p.x_m, p.y_m, p.heading_rad, speed)
+        return ev.Telemetry(self.t_s, self.vehicle, p.x_m, p.y_m, p.heading_rad, speed,
+                            fix_age_s=p.fix_age_s, sigma_m=p.sigma_m)
 
     def _core_pose(self) -> None:
+        """The pose for the core: a fix as it comes; a prediction (from a stale fix) at
+        most every ``lag_pose_every_s``, so a backlog drained at once is not a burst."""
         pose = self._pose()
-        if pose is not None:
-            self._core(pose)
+        if pose is None:
+            return
+        if isinstance(pose, ev.Telemetry) and pose.fix_age_s is not None:
+            if self.t_s - self._predicted_at_s < self.s.lag_pose_every_s - 1e-9:
+                return
+            self._predicted_at_s = self.t_s
+        self._core(pose)
 
     def _battery_low(self, t: float) -> None:
         if self._battery_reported:

@@ -69,6 +69,8 @@ class AutopilotFrame:
     kind: str
     snapshot: VehicleSnapshot
     events: tuple[TelemetryEvent, ...] = ()
+    time_boot_ms: int | None = None
+    """The frame's own ``time_boot_ms``, if it carries one (its telemetry age)."""
 
 
 @dataclass(frozen=True)

@@ -29,6 +29,10 @@ class ControllerSettings:
     ``speed_m_s``: the configured airspeed (the vehicle's own setting, else the core's),
     planned with only when the vehicle's cruise airspeed parameter cannot be read.
 
+    ``lag_threshold_s``: a vehicle whose newest position is older than this (against its
+    own clock) while its frames keep arriving is *lagging* (:mod:`.freshness`): the core is
+    given a prediction instead of the stale fix, at most every ``lag_pose_every_s``.
+
     The ship watch (docs/ship.md): ``battery_report_s`` / ``battery_report_pct``:
     a ``BatteryReport`` goes to the core at most every this many mission seconds, or at once
     when the remaining charge moved by this many points. ``ready_pct``: the watch's
@@ -70,3 +74,5 @@ class ControllerSettings:
     battery_report_pct: float = 1.0
     ready_pct: float | None = None
     launch_on_order: bool = False
+    lag_threshold_s: float = 2.0
+    lag_pose_every_s: float = 1.0

@@ -94,6 +94,9 @@ class DaemonController:
                     "home": (list(s.controller.home_xy_m)
                              if s.controller.home_xy_m is not None else None),
                     "link": s.link,
+                    "telemetry_age_s": s.telemetry_age_s,
+                    "lagging": s.lagging,
+                    "prediction": s.prediction(),
                     "battery_pct": snap.battery_remaining_pct,
                     "target": s.fly.target if s.fly else None,
                     "route": list(s.fly.route) if s.fly else [],

@@ -270,7 +270,12 @@
       c[1].title = (num(v.alt_m) ? "alt " + fmt(v.alt_m) + " m, " : "") +
         (num(v.speed_m_s) ? fmt(v.speed_m_s, 1) + " m/s" : "");
       setCell(c[2], v.status || "–", "st-" + (v.status || ""));
-      setCell(c[3], v.link || "–", "st-" + (v.link === "ok" ? "active" : v.link || ""));
+      setCell(c[3], v.lagging && num(v.telemetry_age_s)
+        ? "lagging " + fmt(v.telemetry_age_s, 1) + " s" : v.link || "–",
+        v.lagging ? "st-lost" : "st-" + (v.link === "ok" ? "active" : v.link || ""));
+      c[3].title = num(v.telemetry_age_s)
+        ? "newest position " + fmt(v.telemetry_age_s, 1) + " s old" +
+          (v.lagging ? ": planned from a prediction" : "") : "";
       const energy = doc.watch && doc.watch.energy ? doc.watch.energy[v.id] : null;
       setCell(c[4], (num(v.battery_pct) ? fmt(v.battery_pct) + "%" : "–") +
         (energy && num(energy.endurance_left_s)
@@ -618,7 +623,7 @@
     (doc.vehicles || []).forEach((v, index) => {
       if (!num(v.x_m) || !num(v.y_m)) return;
       const colour = colourOf(index);
-      const faded = v.status === "lost" || v.link === "lost";
+      const faded = v.status === "lost" || v.link === "lost" || v.lagging === true;
       // recent track
       if (Array.isArray(v.track) && v.track.length > 1) {
         ctx.strokeStyle = colour + "88"; ctx.lineWidth = 1.5;
@@ -631,6 +636,16 @@
         ctx.stroke();
       }
       const [sx, sy] = toScreen(v.x_m, v.y_m);
+      // lagging: where it is predicted to be now (dashed circle of its uncertainty), from
+      // the stale fix the icon shows
+      const pr = v.prediction;
+      if (pr && num(pr.x_m) && num(pr.y_m) && num(pr.sigma_m)) {
+        const [px, py] = toScreen(pr.x_m, pr.y_m);
+        ctx.strokeStyle = colour; ctx.lineWidth = 1.5; ctx.setLineDash([6, 4]);
+        ctx.beginPath(); ctx.moveTo(sx, sy); ctx.lineTo(px, py); ctx.stroke();
+        ctx.beginPath(); ctx.arc(px, py, Math.max(3, pr.sigma_m * app.view.scale), 0, 2 * Math.PI);
+        ctx.stroke(); ctx.setLineDash([]);
+      }
       // planned sequence: aim point, then the route's targets (dotted)
       const path = [[sx, sy]];
       if (Array.isArray(v.aim) && num(v.aim[0]) && num(v.aim[1])) path.push(toScreen(v.aim[0], v.aim[1]));
@@ -658,7 +673,8 @@
       ctx.strokeStyle = "#fff"; ctx.lineWidth = 1.2; ctx.stroke();
       ctx.restore();
       ctx.fillStyle = "#1d2630"; ctx.font = "12px system-ui, sans-serif";
-      const label = (v.name || v.id) + (v.status && v.status !== "active" ? " · " + v.status : "");
+      const label = (v.name || v.id) + (v.status && v.status !== "active" ? " · " + v.status : "") +
+        (v.lagging && num(v.telemetry_age_s) ? " · lagging " + fmt(v.telemetry_age_s, 1) + " s" : "");
       ctx.fillText(label, sx + 12, sy + 16);
     });
   }
