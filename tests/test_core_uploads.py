@@ -3,6 +3,13 @@ commands out, on mission time only."""
 
 from __future__ import annotations
 
+import itertools
+import json
+from importlib import resources
+from pathlib import Path
+
+from simulate_run import simulate_text
+
 from groundstation.core.commands import (
     Command,
     FlyToTarget,
@@ -137,3 +144,26 @@ def test_journals_from_before_the_rule_replay_as_they_ran() -> None:
     assert config.revisit_growth is None
     assert config.retarget_m == 50.0
     assert CoreConfig().retarget_m == CoreConfig().loiter_radius_m
+
+
+def test_gcs_simulate_discovery_keeps_each_vehicle_under_sixty_uploads_an_hour(
+        tmp_path: Path) -> None:
+    """End to end: ``gcs simulate`` discovery, 3 vehicles, 640 mission s with the
+    scenario's policy at a 65 s minimum interval: every vehicle's FlyToTargets (metrics.json
+    ``uploads``, the journal's ``fly`` lines) stay at most 60 an hour; on main the same run
+    sent each 150-200 an hour."""
+    text = resources.files("world").joinpath("scenarios/discovery.yaml").read_text()
+    policy = next(line for line in text.splitlines() if line.startswith("policy:"))
+    text = text.replace(policy, "policy: {replan: both, period_s: 10.0, "
+                                "upload_min_interval_s: 65.0}")
+    out = simulate_text(tmp_path, text, "--duration", "640", "--seed", "0")
+    metrics = json.loads((out / "metrics.json").read_text())
+    flies = [json.loads(line) for line in (out / "journal.jsonl").read_text().splitlines()
+             if '"event": "fly"' in line]
+    per_vehicle = {v: sum(1 for f in flies if f["vehicle"] == v) for v in ("1", "2", "3")}
+    assert metrics["uploads"] == per_vehicle and min(per_vehicle.values()) > 0
+    assert set(metrics["uploads_per_hour"]) == {"1", "2", "3"}
+    assert max(metrics["uploads_per_hour"].values()) <= 60.0
+    for v in ("1", "2", "3"):
+        times = [f["t"] for f in flies if f["vehicle"] == v]
+        assert all(b - a >= 65.0 - 1e-6 for a, b in itertools.pairwise(times))
