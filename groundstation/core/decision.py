@@ -519,8 +519,9 @@ class DecisionCore:
     def _search_cells(self, t_s: float, covered: set[str]) -> list[SearchCell]:
         """The plan's search cells: the ``max_cells`` most valuable, and (``keep_held_cells``,
         without commitment) every cell an active vehicle is flying to, so a cell does not
-        leave the problem (and its vehicle turned away) only because others grew past it:
-        on discovery that was 89 of 240 uploads (``core/uploads.py``)."""
+        leave the problem (and its vehicle turned away) only because others grew past it
+        (``core/uploads.py``; on discovery seeds 0-1 it changed no upload: there a cell
+        leaves the problem when its vehicle's own footprint covers it)."""
         assert self.search is not None
         cells = self.search.top(t_s, exclude=covered)
         if self.config.keep_held_cells and not self.config.policy.commit:
