@@ -181,6 +181,10 @@ class SearchGrid:
                 count += 1
         return count
 
+    def last_covered_s(self, cell_id: str) -> float | None:
+        """When a footprint last covered the cell's centre (None: never)."""
+        return self._last[self._index[cell_id]]
+
     def value_m2(self, cell_id: str, t_s: float) -> float:
         k = self._index[cell_id]
         return self._value(k, t_s)

@@ -6,6 +6,9 @@ Facts reproduced (design.md, "MAVLink facts"; ArduPlane's commands_logic.cpp):
   MISSION_ITEM_REACHED N once;
 * NAV_WAYPOINT ends within WP_RADIUS (or param2 if > 0) - "Reached waypoint #N dist Xm" -
   or when the finish line through the point is crossed - "Passed waypoint #N dist Xm";
+  the line is normal to the leg from the previous waypoint, unless the vehicle is already
+  past it when the leg starts (a jump, a set-current, a new mission): then the leg starts
+  where the vehicle is (ArduPlane's ``set_next_WP``), so a waypoint is never passed at once;
 * NAV_LOITER_TIME flies WP_LOITER_RAD (param3 only gives the sense: < 0 counter-clockwise),
   its timer starts once on the circle, end "Loiter time complete";
   NAV_LOITER_UNLIM honours param3 and never ends; NAV_LOITER_TURNS param1 turns at param3;
@@ -279,7 +282,9 @@ class Autopilot:
             return out + self._start_rtl(af)
         x_m, y_m, alt_m = self._item_xy_alt(item, af)
         prev = (af.x_m, af.y_m)  # the finish line is through the point, normal to prev->point
-        if self.nav is not None and self.nav.kind == "waypoint":
+        if self.nav is not None and self.nav.kind == "waypoint" and not _past_finish_line(
+            (af.x_m, af.y_m), (self.nav.x_m, self.nav.y_m), (x_m, y_m)
+        ):
             prev = (self.nav.x_m, self.nav.y_m)
         nav = NavTarget("waypoint", seq, x_m, y_m, alt_m, prev_x_m=prev[0], prev_y_m=prev[1])
         cmd = item.command
@@ -352,8 +357,8 @@ class Autopilot:
                     *self._texts(f"Reached waypoint #{nav.seq} dist {dist_m:.0f}m"),
                     *self._advance(af),
                 ]
-            lx, ly = nav.x_m - nav.prev_x_m, nav.y_m - nav.prev_y_m
-            if math.hypot(lx, ly) > 1.0 and lx * (af.x_m - nav.x_m) + ly * (af.y_m - nav.y_m) > 0:
+            if _past_finish_line((af.x_m, af.y_m), (nav.prev_x_m, nav.prev_y_m),
+                                 (nav.x_m, nav.y_m)):
                 return [
                     *self._texts(f"Passed waypoint #{nav.seq} dist {dist_m:.0f}m"),
                     *self._advance(af),
@@ -415,3 +420,11 @@ class Autopilot:
         if nav.kind == "landing":
             return Guidance("point", nav.x_m, nav.y_m), 0.0
         return Guidance("point", nav.x_m, nav.y_m), nav.alt_m
+
+
+def _past_finish_line(pos: tuple[float, float], prev: tuple[float, float],
+                      point: tuple[float, float]) -> bool:
+    """Whether ``pos`` is past the line through ``point`` normal to ``prev -> point``:
+    ``(point - prev) . (pos - point) > 0`` (False for a leg shorter than 1 m)."""
+    lx, ly = point[0] - prev[0], point[1] - prev[1]
+    return math.hypot(lx, ly) > 1.0 and lx * (pos[0] - point[0]) + ly * (pos[1] - point[1]) > 0

@@ -150,7 +150,10 @@ def test_every_scalar_of_metrics_json_has_a_column(scenario: str) -> None:
             continue
         if key in ARRIVAL_SUMMARIES:  # None when no arrival was counted
             assert {f"{key}_{inner}" for inner in ARRIVAL_SUMMARIES[key]} <= set(columns)
-        elif isinstance(value, dict) and key not in ("solve_time_s", "max_estimation_error_m"):
+        elif key == "uploads_per_hour":  # per vehicle: its maximum
+            assert "uploads_per_hour_max" in columns
+        elif isinstance(value, dict) and key not in ("solve_time_s", "max_estimation_error_m",
+                                                     "uploads"):
             assert all(f"{key}_{inner}" in columns for inner in value), key
         else:
             assert key in columns or key == "solve_time_s", f"metrics.json {key} has no column"

@@ -173,10 +173,12 @@ def test_reboot_mid_upload(boot_s: float, code: TransferCode) -> None:
 
 
 def test_set_current_on_a_waypoint_passed_at_once_is_confirmed_at_once() -> None:
-    """Issue 11 on the simulator: re-upload while flying to A=(0, 1500) a waypoint B=(0, 600)
-    that the plane (near y=300, heading north) is already past, seen from A (ArduPlane
-    cross-tracks from the previous waypoint); set current 1 is confirmed by the vehicle's
-    MISSION_ITEM_REACHED 1 after its ACK, without waiting out the 6 s window."""
+    """Issue 11 on the simulator: re-upload while flying to A=(0, 1500) a waypoint B just
+    ahead of the plane (near y=300, heading north), within WP_RADIUS (90 m), so it is reached
+    as soon as it starts; set current 1 is confirmed by the vehicle's MISSION_ITEM_REACHED 1
+    after its ACK, without waiting out the 6 s window. (A waypoint behind the line through it
+    normal to the old leg is not passed at once: ArduPlane's set_next_WP then starts the leg
+    where the plane is; tests/test_sitl_mission.py.)"""
     lb = make()
     tel = VehicleTelemetry(1, ORIGIN)
 
@@ -192,7 +194,7 @@ def test_set_current_on_a_waypoint_passed_at_once_is_confirmed_at_once() -> None
         for msg in lb.advance(0.5, 0.1):
             tel.receive(msg, lb.t_s)
     assert tel.snapshot().mission_current_seq == 1
-    items = to(0.0, 600.0)
+    items = to(0.0, (tel.snapshot().y_m or 0.0) + 60.0)
     assert drive(lb, MissionUpload(1, 1, items), tel).ok
     t0_s = lb.t_s
     original = tel.receive
@@ -207,6 +209,6 @@ def test_set_current_on_a_waypoint_passed_at_once_is_confirmed_at_once() -> None
     assert sc.ok and sc.retries_used == 0, sc
     assert lb.t_s - t0_s < 0.5
     for msg in lb.advance(0.5, 0.1):  # ArduPlane's ACK and queued MISSION_CURRENT 1 came
-        keep_texts(msg, lb.t_s)  # first: the pass follows in the next navigation steps
-    assert any(t.startswith("Passed waypoint #1") for t in texts), texts
+        keep_texts(msg, lb.t_s)  # first: the waypoint is reached in the next navigation steps
+    assert any(t.startswith("Reached waypoint #1") for t in texts), texts
     assert tel.snapshot().mission_current_seq == 2

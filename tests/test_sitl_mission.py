@@ -487,3 +487,24 @@ def test_loiter_sense_follows_the_sign_of_the_radius() -> None:
     lb.send(M.MAVLink_mission_set_current_message(1, 1, 1))
     lb.advance(150.0)
     assert lb.take("ATTITUDE")[-1].roll > 0.1
+
+
+def test_a_new_leg_already_past_its_finish_line_starts_where_the_vehicle_is() -> None:
+    """ArduPlane's set_next_WP: a leg from the previous waypoint whose finish line the
+    vehicle has already crossed starts at the vehicle instead, so the new waypoint is flown
+    to, not 'passed' at once (the daemon's runs looped loiter_end -> upload every 0.3 s)."""
+    lb = make()
+    upload(lb, [HOME, item(1, 16, 0, 3000), item(2, M.MAV_CMD_NAV_LOITER_UNLIM, 0, 3000)])
+    lb.send(M.MAVLink_mission_set_current_message(1, 1, 1))
+    lb.advance(10.0)
+    y_m = lb.vehicle.airframe.y_m
+    assert 0.0 < y_m < 1000.0  # flying north, short of the new waypoint
+    # the new waypoint lies between the vehicle and the old one: past the old leg's line
+    upload(lb, [HOME, item(1, 16, 0, 1000), item(2, M.MAV_CMD_NAV_LOITER_UNLIM, 0, 1000)])
+    lb.inbox.clear()
+    lb.send(M.MAVLink_mission_set_current_message(1, 1, 1))
+    lb.advance(2.0)
+    assert reached(lb) == [] and not any(t.startswith("Passed waypoint") for t in lb.texts())
+    lb.run_until(lambda m: m.get_type() == "MISSION_ITEM_REACHED", 120)
+    assert reached(lb) == [1]
+    assert abs(lb.vehicle.airframe.y_m - 1000.0) < 200.0

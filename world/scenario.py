@@ -192,6 +192,9 @@ class PolicySpec:
     replan: str = "event"
     period_s: float | None = None
     commit: bool = True
+    upload_min_interval_s: float | None = None
+    """At most one new mission per vehicle per this many mission s
+    (``groundstation/core/uploads.py``; 0: no minimum); None: the core's default."""
 
 
 @dataclass(frozen=True)
@@ -536,8 +539,10 @@ def _parse_policy(f: Fields) -> PolicySpec:
     if replan in ("period", "both") and period is None:
         raise FieldError(f.path_of("period_s"), f"is required when replan is {replan!r}")
     commit = f.boolean("commit", replan == "event")
+    interval = f.optional_number("upload_min_interval_s", minimum=0.0)
     f.done()
-    return PolicySpec(replan=replan, period_s=period, commit=commit)
+    return PolicySpec(replan=replan, period_s=period, commit=commit,
+                      upload_min_interval_s=interval)
 
 
 def _parse_wind(f: Fields) -> WindSpec:

@@ -164,6 +164,9 @@ def _parser() -> argparse.ArgumentParser:
     a("--replan", choices=[m.value for m in ReplanTrigger], help="replanning trigger")
     a("--objective", choices=[m.value for m in Objective], help="planner objective (scenario's)")
     a("--period", dest="period_s", type=float, metavar="S", help="replan period")
+    a("--upload-min-interval", dest="upload_min_interval_s", type=float, metavar="S",
+      help="send a vehicle at most one new mission per S mission seconds; safety "
+           "commands are never delayed (scenario's, else 15; 0: none; docs/planner.md)")
     a("--commit", dest="commit", action="store_true", help="keep vehicles on their target")
     a("--no-commit", dest="commit", action="store_false", help="let replans redirect")
     a(

@@ -131,7 +131,23 @@ class CoreConfig:
     objective: Objective = Objective.LATENCY  # docs/planner.md, "Choosing the objective"
     time_limit_s: float = 2.0
     min_sigma_fraction: float = 0.1
-    retarget_threshold_m: float = 50.0
+    retarget_threshold_m: float | None = None
+    """A vehicle flying to a target is sent there again only when the aim point moved
+    farther than this (m); None: the loiter radius (``core/uploads.py``). Journals written
+    before the upload rule hold 50."""
+    upload_min_interval_s: float | None = 15.0
+    """At most one FlyToTarget (a mission upload) per vehicle per this many mission s; a
+    sooner one is deferred and replanned when the interval has passed. Safety commands are
+    never delayed (``core/uploads.py``). None: no minimum (journals written before the rule
+    read as None, so they replay as they ran)."""
+    keep_held_cells: bool = True
+    """Without commitment, a search cell an active vehicle flies to stays in the planning
+    problem even when it is no longer among the ``max_cells`` most valuable
+    (``core/uploads.py``). False: journals written before (they replay as they ran)."""
+    revisit_growth: float | None = 2.0
+    """A target a vehicle's visit did not see is not given to that vehicle again at the same
+    place until its value (sigma, m^2) grew by this factor or its aim moved farther than the
+    retarget threshold (``core/uploads.py``). None: off (journals written before the rule)."""
     battery_low_action: BatteryAction = BatteryAction.RTL
     priority_gain: float = 0.0
     priority_near_m: float = 300.0
@@ -204,6 +220,20 @@ class CoreConfig:
             ):
                 raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
             object.__setattr__(self, name, float(value))
+        for name, value, low in (("retarget_threshold_m", self.retarget_threshold_m, 0.0),
+                                 ("upload_min_interval_s", self.upload_min_interval_s, 0.0),
+                                 ("revisit_growth", self.revisit_growth, 1.0)):
+            if value is None:
+                continue
+            if isinstance(value, bool) or not isinstance(value, int | float) or not (
+                math.isfinite(value) and value >= low
+            ):
+                raise ValueError(f"{name} must be a finite number >= {low:g} or null, "
+                                 f"got {value!r}")
+            object.__setattr__(self, name, float(value))
+        if not isinstance(self.keep_held_cells, bool):
+            raise ValueError(f"keep_held_cells must be true or false, got "
+                             f"{self.keep_held_cells!r}")
         if self.area_m is not None:
             try:
                 area = tuple(float(c) for c in self.area_m)
@@ -222,6 +252,14 @@ class CoreConfig:
             math.isfinite(w) and w >= 0
         ):
             raise ValueError(f"tentative_weight must be finite and >= 0, got {w!r}")
+
+    @property
+    def retarget_m(self) -> float:
+        """The same-leg threshold in force: ``retarget_threshold_m``, else the loiter
+        radius."""
+        if self.retarget_threshold_m is None:
+            return self.loiter_radius_m
+        return self.retarget_threshold_m
 
     @property
     def tick_s(self) -> float:
@@ -250,6 +288,10 @@ def config_from_dict(data: Mapping[str, Any]) -> CoreConfig:
         raise ValueError(f"core config: unknown key {unknown[0]!r}")
     values = dict(data)
     values.setdefault("wind_replan_m_s", None)  # written before the rule: it was off
+    values.setdefault("upload_min_interval_s", None)  # likewise (core/uploads.py)
+    values.setdefault("revisit_growth", None)
+    values.setdefault("keep_held_cells", False)
+    values.setdefault("retarget_threshold_m", 50.0)  # the default before the rule
     try:
         if "policy" in values:
             values["policy"] = ReplanPolicy(**values["policy"])

@@ -72,6 +72,7 @@ from groundstation.core.intercept import intercept, travel_time_s
 from groundstation.core.planning_targets import build_problem, search_targets, track_targets
 from groundstation.core.ship import ShipTrack
 from groundstation.core.tracking import TrackBook, TrackerFactory
+from groundstation.core.uploads import UploadRule
 from groundstation.core.views import (
     CoreView,
     SearchCellView,
@@ -85,7 +86,7 @@ from groundstation.core.wind_replan import WindReplan
 from observer import UNCONFIRMED, Observer, boat_priority_q
 from planner import PlanningProblem, PlanResult, UavPose
 from planner.problem import wind_problem
-from planner.search_cells import SearchGrid
+from planner.search_cells import SearchCell, SearchGrid
 
 __all__ = ["DecisionCore", "VehicleRecord"]
 
@@ -112,6 +113,9 @@ class DecisionCore:
         """The vehicles' wind estimate, combined (``core/wind_estimate.py``)."""
         self.wind_replan = WindReplan(config.wind_replan_m_s, config.wind_replan_margin_s,
                                       config.observer.fov_radius_m)
+        self.uploads = UploadRule(config.upload_min_interval_s, config.retarget_m,
+                                  config.revisit_growth)
+        """When a vehicle is sent a new mission (``core/uploads.py``)."""
         self.ship = ShipTrack()
         """The ship's track from every ``BoatPosition`` (``core/ship.py``): the watch's
         homes and returns, the daemon's beacon and the displays read it."""
@@ -172,6 +176,10 @@ class DecisionCore:
                 if any(isinstance(c, SendHome) for c in watch):
                     self._mark_dirty("vehicle sent home")
                 out += watch
+            if self.uploads.due(event.t_s):
+                self._mark_dirty("upload interval passed")
+            if self.uploads.review(self._value_now, self._last_seen_s):
+                self._mark_dirty("revisit worth it")
             # Events only mark the plan dirty; the next tick replans once for all of them,
             # so a burst (several targets added at once) gives one plan, not one each.
             out += self._maybe_replan(event.t_s)
@@ -254,6 +262,8 @@ class DecisionCore:
             legs = self.wind_replan.legs(t_s, state.xy_m_s, state.source,
                                          self.active_vehicles(), self._leg_time_s)
             notes = self.wind_replan.replan(t_s, legs, self.config.policy.commit)
+            for leg in legs:  # bounded by its own rule (a 2 m/s change): not delayed
+                self.uploads.reset(leg.vehicle.id)
             if notes:
                 self._mark_dirty("wind changed")
                 out += notes
@@ -332,6 +342,7 @@ class DecisionCore:
                 return out
             self.tracks.remove(event.target)
             free_vehicles(self.vehicles.values(), event.target)
+            self.uploads.seen(event.target)
             self._mark_dirty("target removed")
         elif isinstance(event, VehicleJoined):
             record = self.vehicles.get(event.vehicle)
@@ -340,6 +351,7 @@ class DecisionCore:
                                        event.speed_m_s, event.t_s)
                 self.vehicles[event.vehicle] = record
             record.status, record.busy, record.target = FleetStatus.ACTIVE, False, None
+            self.uploads.reset(event.vehicle)
             self._on_pose(event.vehicle, event.t_s, event.x_m, event.y_m, event.heading_rad,
                           event.speed_m_s)
             if self.watch is not None:
@@ -360,19 +372,76 @@ class DecisionCore:
             return []
         record.busy = False
         self._mark_dirty("loiter ended")
+        out = self._visit_ended(event.t_s, record)
         if self.config.policy.commit or record.target not in record.route:
-            return []
+            return out
         rest = record.route[record.route.index(record.target) + 1:]
         known = self._known_targets()
         rest = tuple(t for t in rest if t in known)
-        if not rest:
-            return []
-        leg = self.intercept(record, rest[0])
+        pick = self._first_worth_a_visit(record, rest)
+        if pick is None:
+            return out
+        target, rest, leg = pick
         home = self._unflyable(event.t_s, record, leg)
         if home:
-            return home
-        command = self._fly(event.t_s, record, rest[0], rest, leg)
-        return [command] if command is not None else []
+            return out + home
+        command = self._fly(event.t_s, record, target, rest, leg)
+        return [*out, command] if command is not None else out
+
+    def _visit_ended(self, t_s: float, record: VehicleRecord) -> list[Command]:
+        """A loiter (or pass) of ``record`` ended: if its target was not seen since the
+        leg was sent, that visit missed (``core/uploads.py``); a ``visit_missed`` note."""
+        target, aim, leg_t_s = record.target, record.aim_xy_m, record.leg_t_s
+        if target is None or aim is None or leg_t_s is None:
+            return []
+        if target not in self._known_targets():
+            return []
+        last = self._last_seen_s(target)
+        if last is not None and last >= leg_t_s:
+            self.uploads.seen(target)
+            return []
+        value = self._value_m2(target, t_s)
+        if not self.uploads.missed(t_s, record.id, target, aim, value):
+            return []
+        return [Note(t_s, "visit_missed", record.id, target,
+                     f"not seen since {leg_t_s:.1f} s; not sent back there until it moves "
+                     f"{self.config.retarget_m:.0f} m or its value grows "
+                     f"{self.config.revisit_growth:g}x")]
+
+    def _value_now(self, target: str) -> float | None:
+        """A target's planning value now; None when it is gone."""
+        if (self.search is not None and target in self.search) or (
+                target in self.observer.target_ids):
+            return self._value_m2(target, self.t_s)
+        return None
+
+    def _last_seen_s(self, target: str) -> float | None:
+        """When a track was last measured or a search cell last covered (None: never)."""
+        if self.search is not None and target in self.search:
+            return self.search.last_covered_s(target)
+        if target in self.observer.target_ids:
+            return self.observer.track(target).last_seen_s
+        return None
+
+    def _value_m2(self, target: str, t_s: float) -> float:
+        """A target's planning value now: a search cell's, else the track's sigma."""
+        if self.search is not None and target in self.search:
+            return self.search.value_m2(target, t_s)
+        return self.observer.track(target).sigma
+
+    def _first_worth_a_visit(self, record: VehicleRecord, route: tuple[str, ...]
+                             ) -> tuple[str, tuple[str, ...], tuple[float, float, float]] | None:
+        """The first target of ``route`` that ``record`` did not just miss at the same
+        place (``core/uploads.py``), the route from it, and its leg; None: none is."""
+        known = self._known_targets()
+        for k, target in enumerate(route):
+            if target not in known:
+                continue
+            leg = self.intercept(record, target)
+            if not self.uploads.blocked(record.id, target, (leg[0], leg[1]),
+                                        self._value_m2(target, self.t_s)):
+                return target, route[k:], leg
+        return None
 
     def _on_status_change(self, event: Event) -> list[Command]:
         vehicle = getattr(event, "vehicle", None)
@@ -381,6 +450,7 @@ class DecisionCore:
             return []
         out, reason = status_change(record, event, self.config.battery_low_action)
         if reason is not None:
+            self.uploads.reset(record.id)  # its next leg is not delayed
             self._mark_dirty(reason)
         return out
 
@@ -432,7 +502,7 @@ class DecisionCore:
         targets = track_targets(self.observer.tracks(), self.tracks.status, covered,
                                 self.config.tentative_weight, self.tracks.existence)
         if self.search is not None:
-            targets += search_targets(self.search.top(t_s, exclude=covered))
+            targets += search_targets(self._search_cells(t_s, covered))
         if not vehicles or not targets:
             return out
         wind = self._problem_wind(t_s, out)
@@ -445,6 +515,22 @@ class DecisionCore:
         self._pending = request
         out.append(request)
         return out
+
+    def _search_cells(self, t_s: float, covered: set[str]) -> list[SearchCell]:
+        """The plan's search cells: the ``max_cells`` most valuable, and (``keep_held_cells``,
+        without commitment) every cell an active vehicle is flying to, so a cell does not
+        leave the problem (and its vehicle turned away) only because others grew past it
+        (``core/uploads.py``; on discovery seeds 0-1 it changed no upload: there a cell
+        leaves the problem when its vehicle's own footprint covers it)."""
+        assert self.search is not None
+        cells = self.search.top(t_s, exclude=covered)
+        if self.config.keep_held_cells and not self.config.policy.commit:
+            held = {v.target for v in self.active_vehicles()
+                    if v.busy and v.target is not None and v.target in self.search}
+            held -= {c.id for c in cells}
+            if held:
+                cells += [c for c in self.search.values(t_s) if c.id in held and c.value_m2 > 0]
+        return cells
 
     def _problem_wind(self, t_s: float, out: list[Command]) -> tuple[float, float] | None:
         """The planning problem's wind: None in still air (the problem then reads as
@@ -487,20 +573,23 @@ class DecisionCore:
         for uav in request.problem.uavs:
             record = self.vehicles.get(uav.id)
             route = result.routes.get(uav.id, [])
-            target = route[0] if route else result.idle.get(uav.id)
-            if record is None or target is None or target not in known:
+            first = route[0] if route else result.idle.get(uav.id)
+            if record is None or first is None or first not in known:
                 continue
             if record.status is not FleetStatus.ACTIVE or (
                 self.config.policy.commit and record.busy
             ):
                 continue
-            leg = self.intercept(record, target)
+            pick = self._first_worth_a_visit(record, tuple(route) if route else (first,))
+            if pick is None:
+                continue
+            target, legs, leg = pick
             home = self._unflyable(event.t_s, record, leg)
             if home:
                 fly += home
                 continue
             assignments[uav.id] = target
-            command = self._fly(event.t_s, record, target, tuple(route), leg)
+            command = self._fly(event.t_s, record, target, legs if route else (), leg)
             if command is not None:
                 fly.append(command)
         adopted = PlanAdopted(event.t_s, request.request_id, request.problem, result,
@@ -523,17 +612,22 @@ class DecisionCore:
 
     def _fly(self, t_s: float, record: VehicleRecord, target: str,
              route: tuple[str, ...], leg: tuple[float, float, float]) -> FlyToTarget | None:
-        """Send ``record`` to ``target`` along ``leg`` (its :meth:`intercept`)."""
+        """Send ``record`` to ``target`` along ``leg`` (its :meth:`intercept`), when it
+        matters (``core/uploads.py``): not again to the same leg without commitment, and
+        not within the minimum interval (deferred: the vehicle keeps what it flies)."""
         x_m, y_m, t_arr_s = leg
         aim = (x_m, y_m)
-        unchanged = (
-            record.target == target and record.aim_xy_m is not None
-            and math.dist(record.aim_xy_m, aim) < self.config.retarget_threshold_m
-        )
+        unchanged = self.uploads.same_leg(record.target, record.aim_xy_m, target, aim)
+        if unchanged and not self.config.policy.commit:
+            record.route = route
+            record.busy = True
+            return None
+        if self.uploads.too_soon(record.id, t_s):
+            return None
         record.route = route
         record.busy = True
-        if unchanged and not self.config.policy.commit:
-            return None
+        self.uploads.sent(record.id, t_s)
+        record.leg_t_s = t_s
         record.target, record.aim_xy_m, record.eta_s = target, aim, t_s + t_arr_s
         record.leg_wind_xy_m_s = self.planning_wind_m_s()
         record.leg_wind_source = self.wind.current.source
@@ -589,6 +683,7 @@ class DecisionCore:
                 elif ev.kind == "deleted":  # the tracker removed it from the observer
                     held = any(ev.track_id in v.route for v in self.vehicles.values())
                     freed = free_vehicles(self.vehicles.values(), ev.track_id)
+                    self.uploads.seen(ev.track_id)
                     if freed or held or ev.reason != UNCONFIRMED:
                         self._mark_dirty("track deleted")
         return out

@@ -61,6 +61,9 @@ class VehicleRecord:
     route: tuple[str, ...] = field(default=())
     eta_s: float | None = None
     """The predicted arrival of the leg last commanded (``FlyToTarget.eta_s``)."""
+    leg_t_s: float | None = None
+    """When the leg last commanded was sent: its target seen since then was seen on the
+    visit (``core/uploads.py``)."""
     leg_wind_xy_m_s: tuple[float, float] | None = None
     leg_wind_source: str | None = None
     """The wind that leg was predicted in, and its source (``core/wind_replan.py``)."""

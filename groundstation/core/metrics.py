@@ -28,6 +28,9 @@
   ``arrival_bias_later_s``); frontends
   feed it with :meth:`MetricsRecorder.fly`, :meth:`~MetricsRecorder.position` and
   :meth:`~MetricsRecorder.abandoned`.
+* ``uploads``: per vehicle, the FlyToTarget commands it was given (each one mission upload;
+  ``core/uploads.py`` decides when one is worth it), and ``uploads_per_hour`` the same per
+  hour of the run: ``3600 n / T``, ``T`` the mission time of the last sample (s).
 """
 
 from __future__ import annotations
@@ -136,6 +139,7 @@ class MetricsRecorder:
     solve_times_s: list[float] = field(default_factory=list)
     plans: int = 0
     arrivals: ArrivalTracker = field(default_factory=ArrivalTracker)
+    uploads: dict[str, int] = field(default_factory=dict)
     _last_seen_s: dict[str, float] = field(default_factory=dict)
 
     def sample(self, t_s: float, sigmas: Iterable[float]) -> None:
@@ -174,7 +178,8 @@ class MetricsRecorder:
 
     def fly(self, t_s: float, vehicle: str, target: str, x_m: float, y_m: float,
             eta_s: float | None, fov_radius_m: float) -> None:
-        """A FlyToTarget the vehicle was actually given (arrival error)."""
+        """A FlyToTarget the vehicle was actually given (arrival error, uploads)."""
+        self.uploads[vehicle] = self.uploads.get(vehicle, 0) + 1
         self.arrivals.commanded(t_s, vehicle, target, x_m, y_m, eta_s, fov_radius_m)
 
     def position(self, t_s: float, vehicle: str, x_m: float, y_m: float) -> None:
@@ -212,4 +217,14 @@ class MetricsRecorder:
             "trend": trend if trend is not None and math.isfinite(trend) else None,
             "bounded_trend": None if trend is None else trend <= TREND_BOUND,
             **self.arrivals.to_dict(),
+            "uploads": dict(sorted(self.uploads.items())),
+            "uploads_per_hour": self.uploads_per_hour(),
         }
+
+    def uploads_per_hour(self) -> dict[str, float]:
+        """Each vehicle's FlyToTargets per hour of the run (module docstring); empty before
+        the first sample."""
+        t_end_s = self.series[-1][0] if self.series else 0.0
+        if t_end_s <= 0.0:
+            return {}
+        return {v: n * 3600.0 / t_end_s for v, n in sorted(self.uploads.items())}

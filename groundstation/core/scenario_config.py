@@ -9,6 +9,9 @@ the scenario's ``search:`` over its ``area:``.
 
 from __future__ import annotations
 
+import dataclasses
+from typing import Any
+
 from groundstation.core.config import CoreConfig, ReplanPolicy, WatchConfig
 from observer import ObserverConfig, TrackerConfig
 from planner import Objective
@@ -34,6 +37,14 @@ def tracker_config_for(scenario: Scenario) -> TrackerConfig:
 def core_config_for(scenario: Scenario, objective: str | None = None) -> CoreConfig:
     """The decision core's configuration as a scenario describes it."""
     obs = scenario.observer
+    config = _core_config(scenario, obs, objective)
+    interval = scenario.policy.upload_min_interval_s  # core/uploads.py; None: the default
+    if interval is None:
+        return config
+    return dataclasses.replace(config, upload_min_interval_s=interval)
+
+
+def _core_config(scenario: Scenario, obs: Any, objective: str | None) -> CoreConfig:
     return CoreConfig(
         policy=ReplanPolicy.from_names(
             scenario.policy.replan, scenario.policy.period_s, scenario.policy.commit

@@ -220,6 +220,9 @@ class PlannerConfig:
     wind_replan_m_s: float | None = None
     wind_replan_margin_s: float | None = None
     """The core's wind-replan settings (docs/wind.md, "The first leg"); None: its defaults."""
+    upload_min_interval_s: float | None = None
+    """At most one new mission per vehicle per this many mission s (``core/uploads.py``,
+    docs/planner.md; 0: no minimum); None: the scenario's, else the core's default."""
 
 
 @dataclass(frozen=True, slots=True)

@@ -132,6 +132,7 @@ FLAGS: dict[str, str] = {
     "--num-workers": "planner.num_workers",
     "--replan": "planner.replan",
     "--period": "planner.period_s",
+    "--upload-min-interval": "planner.upload_min_interval_s",
     "--commit": "planner.commit",
     "--http": "http.bind",
     "--http-allow-origin": "http.allow_origins",
@@ -434,6 +435,8 @@ _CHECKS: dict[str, Check] = {
     "planner.period_s": _positive(optional=True),
     "planner.wind_replan_m_s": _positive(optional=True),
     "planner.wind_replan_margin_s": _positive(optional=True),
+    "planner.upload_min_interval_s": lambda v: None if v is None else _between(
+        0, 3600, "0..3600 s")(v),
     "mission.operating_radius_m": _positive(optional=True),
     "mission.loiter_s": lambda v: None if v is None else _between(0, 65535, "0..65535 s")(v),
     "fleet.altitude_step_m": _between(0, math.inf, ">= 0"),

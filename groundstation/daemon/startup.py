@@ -108,8 +108,11 @@ def core_config(config: DaemonConfig, scenario: Any, speedup: float) -> CoreConf
     wind_replan_m_s = (
         None if planner.wind_replan is False else planner.wind_replan_m_s or base.wind_replan_m_s
     )
+    interval = planner.upload_min_interval_s  # core/uploads.py; None: the scenario's
     return dataclasses.replace(
         base,
+        upload_min_interval_s=(base.upload_min_interval_s if interval is None
+                               else interval),
         wind_replan_m_s=wind_replan_m_s,
         wind_replan_margin_s=planner.wind_replan_margin_s or base.wind_replan_margin_s,
         policy=policy,

@@ -145,7 +145,9 @@ def flatten_metrics(metrics: Mapping[str, Any]) -> dict[str, Any]:
     lists become counts (``visits``, ``lost_targets``), ``hourly_mean_uncertainty`` its first
     and last hours (``first_hour_uncertainty``, ``last_hour_uncertainty``), ``solve_time_s`` becomes
     ``solve_time_median_s`` / ``solve_time_max_s``, ``max_estimation_error_m`` ({target:
-    m}) its maximum over the targets, other nested scalar mappings ``outer_inner``."""
+    m}) its maximum over the targets, ``uploads`` ({vehicle: n}) their sum,
+    ``uploads_per_hour`` its maximum over the vehicles (``uploads_per_hour_max``), other
+    nested scalar mappings ``outer_inner``."""
     flat: dict[str, Any] = {}
     for key, value in metrics.items():
         if key == "solve_time_s":
@@ -153,6 +155,10 @@ def flatten_metrics(metrics: Mapping[str, Any]) -> dict[str, Any]:
             flat["solve_time_max_s"] = value["max"]
         elif key == "max_estimation_error_m":
             flat[key] = max(value.values()) if value else None
+        elif key == "uploads":  # {vehicle: n}: the fleet's total
+            flat[key] = sum(value.values())
+        elif key == "uploads_per_hour":  # {vehicle: per hour}: the busiest vehicle's
+            flat["uploads_per_hour_max"] = max(value.values()) if value else None
         elif key in ("visits", "lost_targets"):
             flat[key] = len(value)
         elif key == "hourly_mean_uncertainty":

@@ -45,6 +45,8 @@ _METRICS: dict[str, str] = {
     "visits": "int64",
     "lost_targets": "int64",
     "max_estimation_error_m": "float64",
+    "uploads": "int64",
+    "uploads_per_hour_max": "float64",
     "duration_s": "float64",
     "realtime_factor": "float64",
     "wall_time_s": "float64",
