@@ -164,6 +164,9 @@ def test_gcs_simulate_discovery_keeps_each_vehicle_under_sixty_uploads_an_hour(
     assert metrics["uploads"] == per_vehicle and min(per_vehicle.values()) > 0
     assert set(metrics["uploads_per_hour"]) == {"1", "2", "3"}
     assert max(metrics["uploads_per_hour"].values()) <= 60.0
+    links = {e["vehicle"]: e for e in metrics["links"]}  # the same under links, no link
+    assert {v: e["uploads"] for v, e in links.items()} == per_vehicle
+    assert all(e["link"] is None and e["upload_ok_pct"] == 100.0 for e in links.values())
     for v in ("1", "2", "3"):
         times = [f["t"] for f in flies if f["vehicle"] == v]
         assert all(b - a >= 65.0 - 1e-6 for a, b in itertools.pairwise(times))

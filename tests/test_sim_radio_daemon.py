@@ -4,6 +4,7 @@ radios, and the ground station hears the radios' RADIO_STATUS (system 51)."""
 
 from __future__ import annotations
 
+import json
 from collections import Counter
 from pathlib import Path
 
@@ -42,6 +43,23 @@ def test_gcs_run_flies_over_sik_radios(tmp_path: Path) -> None:
     assert radio_status >= 2 * 0.8 * journal[-1]["t"]
     assert 0.8 <= radio_status / (2 * heartbeats) <= 1.05
     assert {s for s, _, _ in sources} == {1, 2, 51, 245}  # the vehicles, radios, floe
+    # metrics.json's links: the radios' own air time, the uploads as the journal has them,
+    # and the telemetry's age against each vehicle's clock
+    links = {e["vehicle"]: e for e in json.loads((daemon.run_dir / "metrics.json").read_text())[
+        "links"]}
+    assert set(links) == {"1", "2"}
+    model = daemon.link_model() if daemon.link_model is not None else {}
+    for vehicle, entry in links.items():
+        uploads = events(journal, "upload", vehicle=vehicle)
+        assert entry["airtime_source"] == "radio model"
+        assert entry["airtime_pct"] == round(model[int(vehicle)]["air_pct"], 2)
+        assert 5.0 < entry["airtime_pct"] < 60.0
+        assert entry["uploads"] == len(uploads) and entry["upload_ok_pct"] == 100.0
+        assert entry["link"].startswith("tcp:127.0.0.1:")
+        latency = entry["upload_latency_s"]
+        assert 0.2 < latency["p50"] <= latency["p95"] < 10.0  # a radio's round trips
+        age = entry["telemetry_age_s"]
+        assert 0.0 <= age["p50"] <= age["p95"] < 2.0
 
 
 def test_the_command_line_radio_wins_over_the_scenarios() -> None:

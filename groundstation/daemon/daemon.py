@@ -18,10 +18,10 @@ import functools
 import logging
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TypedDict
+from typing import Any, TypedDict
 
 from domain.geodesy import GeoOrigin
 from domain.modes import ArduPlaneMode
@@ -30,6 +30,7 @@ from groundstation.core import events as ev
 from groundstation.core.area import OperatingArea
 from groundstation.core.config import CoreConfig
 from groundstation.core.decision import DecisionCore
+from groundstation.core.link_metrics import LinkUse, link_entries
 from groundstation.core.metrics import MetricsRecorder
 from groundstation.core.records import command_to_record, event_to_record
 from groundstation.core.watch_metrics import WatchMetrics
@@ -148,6 +149,7 @@ class Daemon:
         signing: SigningGate | None = None,
         world: ScenarioWorld | None = None,
         wind_fallback_source: str = "none",
+        link_model: Callable[[], Mapping[int, Mapping[str, Any]]] | None = None,
     ) -> None:
         self.config = config
         self.clock = clock
@@ -194,6 +196,9 @@ class Daemon:
         self.control_url: str | None = None
         """The control API's address, once its server listens (the status display)."""
         self.wind_fallback_source = wind_fallback_source
+        self.link_model = link_model
+        """What a link model measured per system id (the built-in simulator's radios: their
+        ``air_pct``), for the ``links`` figures; None: real links."""
         """Where the core's fallback wind came from: config, scenario or none (start-up)."""
         self.feed = WorldFeed(self)
         self.area = OperatingArea(
@@ -661,5 +666,28 @@ class Daemon:
         if self.core.watch is not None:
             out.update(self.watch_metrics.to_dict(self.metrics.series))
         out.update(self.loop_monitor.to_dict())
+        out["links"] = self.link_figures()
         out["summary"] = self.summary()
         return out
+
+    def link_figures(self) -> list[dict[str, object]]:
+        """Each vehicle link's figures (``daemon/link_metrics.py``), by vehicle."""
+        model = self.link_model() if self.link_model is not None else {}
+        uses = []
+        for system_id, session in sorted(self.sessions.items()):
+            link = self.router.link_for(system_id)
+            uploads = session.controller.link_uploads
+            modelled = model.get(system_id, {}).get("air_pct")
+            uses.append(LinkUse(
+                vehicle=session.id,
+                link=None if link is None else link.spec.canonical,
+                uploads_ok=sum(ok for ok, _ in uploads),
+                uploads_failed=sum(not ok for ok, _ in uploads),
+                upload_latencies_s=[took for _, took in uploads],
+                telemetry_ages_s=session.controller.telemetry_ages_s,
+                bytes_in=0 if link is None else link.counters.bytes_in,
+                bytes_out=0 if link is None else link.counters.bytes_out,
+                rate_bps=None if link is None or link.spec.baud is None else float(link.spec.baud),
+                model_airtime_pct=None if modelled is None else float(modelled),
+            ))  # fmt: skip
+        return link_entries(uses, self.clock.now_s())

@@ -10,7 +10,7 @@ asks them where the airborne vehicles are (the scenario's camera sees from there
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 if TYPE_CHECKING:
     from domain.geodesy import GeoOrigin
@@ -40,6 +40,11 @@ class EmbeddedVehicles(Protocol):
 
     def airborne_positions(self) -> dict[int, tuple[float, float]]:
         """System id -> true local (x, y) m of every vehicle in the air."""
+
+    def radio_stats(self) -> dict[int, dict[str, Any]]:
+        """Each simulated radio's figures by system id (``--sim-radio``; {} without
+        radios): at least ``air_pct``, the air time its two radios used, in % of the
+        elapsed time."""
 
     async def start(self) -> None:
         """Open the vehicles' ports (OSError if one cannot be opened)."""

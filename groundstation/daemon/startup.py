@@ -363,7 +363,8 @@ def _build_daemon(setup: _Setup, files: RunFiles, urls: list[str]) -> Daemon:
         setup.scenario, config.mission.seed, camera_positions(setup.sim, sessions)))
     daemon = Daemon(config, setup.core, setup.clock, files.run_dir, setup.origin,
                     files.journal, files.tlog, links=links, out_links=outs, signing=signing,
-                    world=world, wind_fallback_source=setup.wind_source)
+                    world=world, wind_fallback_source=setup.wind_source,
+                    link_model=None if setup.sim is None else setup.sim.radio_stats)
     return daemon
 
 

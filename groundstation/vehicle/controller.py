@@ -142,6 +142,12 @@ class VehicleController:
         self.upload_retries = 0
         """Retries of every upload job (transfers and set-currents), for the table."""
         self.upload_delays_s: list[float] = []
+        self.link_uploads: list[tuple[bool, float]] = []
+        """Every mission upload of the vehicle (any purpose): verified, and the mission
+        seconds from its first frame to its verdict (the ``links`` figures)."""
+        self.telemetry_ages_s: list[float] = []
+        """Its newest position's age, sampled once a mission second while it had one."""
+        self._age_sampled_s = -math.inf
         self.last_loiter_end_s: float | None = None
         self.foreign_frames = 0
         self._out: list[controller_io.Output] = []
@@ -503,6 +509,11 @@ class VehicleController:
     def _freshness(self, t: float) -> None:
         """Lagging starts or ends (one journal line and one console line each); while it
         lasts the core gets the predicted pose now and then, positions or not."""
+        if t - self._age_sampled_s >= 1.0:
+            age = self.fresh.fix_age_s(self.snap, t)
+            if age is not None and self.link is not LinkState.LOST:
+                self.telemetry_ages_s.append(age)
+                self._age_sampled_s = t
         change = self.fresh.assess(self.snap, t, self.link is LinkState.LOST)
         if change is not None and change.lagging:
             self.journal("telemetry_lagging", age_s=round(change.age_s, 2), logged=True)
@@ -1073,6 +1084,9 @@ class VehicleController:
 
     def count_retries(self, retries: int) -> None:
         self.upload_retries += retries
+
+    def upload_done(self, ok: bool, took_s: float) -> None:
+        self.link_uploads.append((ok, took_s))
 
     def target_failed(self, fly: controller_io.Fly) -> bool:
         """Whether to try again: not when overtaken, out of the plan or link lost."""

@@ -92,6 +92,7 @@ class JobHost(Protocol):
     def loiter_radius_m(self, fallback_m: float | None = None) -> float: ...
     def journal(self, event: str, **fields: Any) -> None: ...
     def count_retries(self, retries: int) -> None: ...
+    def upload_done(self, ok: bool, took_s: float) -> None: ...
     def expect_mode(self, mode: int) -> None: ...
     def arm_loiter_end(self, seq: int) -> None: ...
     def disarm_loiter_end(self) -> None: ...
@@ -117,6 +118,7 @@ def mission_job(
     set-current machine itself confirms a waypoint passed at once (MISSION_ITEM_REACHED of
     it after its ACK); its result decides, on its code, never on its message."""
     host.disarm_loiter_end()
+    started_s = host.t_s
     up: UploadOutcome = yield UploadMission(tuple(steps), purpose, target)
     ok, retries, error = up.ok, up.retries, up.error or ""
     if ok and current is not None:
@@ -134,6 +136,7 @@ def mission_job(
         if not ok:
             host.disarm_loiter_end()
     host.count_retries(retries)
+    host.upload_done(ok, host.t_s - started_s)
     host.journal(
         "upload", ok=ok, purpose=purpose, target=target, retries=retries, items=up.items,
         error=error or None,

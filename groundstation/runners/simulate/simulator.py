@@ -66,6 +66,7 @@ from groundstation.core.events import (
     VehicleReturned,
     WindReport,
 )
+from groundstation.core.link_metrics import offline_link_entries
 from groundstation.core.metrics import MetricsRecorder
 from groundstation.core.mission import target_mission
 from groundstation.core.records import (
@@ -429,6 +430,9 @@ class _Simulation:
         metrics["objective"] = self.core.config.objective
         metrics["wind"] = wind_record(self.scenario.wind)
         metrics["observer_counters"] = dict(self.core.view().observer_counters)
+        metrics["links"] = offline_link_entries(
+            sorted(self.vehicles), self.metrics.uploads, self.duration_s
+        )
         if self.discovery is not None:
             metrics.update(self.discovery.metrics(self.duration_s))
         if self.deck is not None:
