@@ -136,7 +136,7 @@ def mission_job(
     host.count_retries(retries)
     host.journal(
         "upload", ok=ok, purpose=purpose, target=target, retries=retries, items=up.items,
-        error=error or None,
+        error=error or None, took_s=None if up.took_s is None else round(up.took_s, 3),
     )  # fmt: skip
     return ok
 
