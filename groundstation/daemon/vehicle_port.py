@@ -35,6 +35,7 @@ from __future__ import annotations
 import asyncio
 import collections
 import contextlib
+import math
 from collections.abc import AsyncIterator, Callable, Sequence
 from typing import Any, Protocol
 
@@ -63,6 +64,9 @@ _IDLE_WAIT_S = 0.5
 running; this only bounds a wait should a machine ever lack one)."""
 _MIN_WALL_WAIT_S = 0.001
 """Shortest wall-clock wait, so a deadline a rounding error away never spins the loop."""
+ACK_WAIT_S = 2.0
+"""Mission seconds an upload on a constrained link waits for a lost final ACK before its
+verifying download reads what the vehicle holds."""
 RATES_REFRESH_CALLS = 4
 """On a constrained link an unchanged stream plan is sent again only every this many
 requests (the session asks every ``rates_every_s``): ~16 frames up and 11 COMMAND_ACKs
@@ -253,11 +257,15 @@ class VehiclePort:
                 self._perform(machine.cancel(self.clock.now_s()))
             raise
 
-    def _ack_retries(self) -> int | None:
-        """Silent timeouts an upload waits for its final ACK: 1 on a constrained link
-        (:class:`MissionUpload`'s ``ack_retries``), else as many as its other waits."""
+    def _ack_retries(self, timeout_s: float) -> int | None:
+        """Silent timeouts an upload waits for its final ACK (:class:`MissionUpload`'s
+        ``ack_retries``): on a constrained link as few as cover ``ACK_WAIT_S`` (ArduPlane
+        re-requests a lost last item after 1 s; the wait must outlast that and its way
+        back), at least 1; else as many as its other waits (None)."""
         budget = self._budget()
-        return None if budget is None or budget.capacity_bps is None else 1
+        if budget is None or budget.capacity_bps is None:
+            return None
+        return max(1, math.ceil(ACK_WAIT_S / timeout_s) - 1)
 
     def _pipeline(self) -> int:
         budget = self._budget()
@@ -281,13 +289,14 @@ class VehiclePort:
         return self.encoder.component_id
 
     async def upload(self, items: Sequence[MissionItem]) -> TransferResult:
+        timeout_s = self.transfer_timeout_s()
         return await self.run(
             MissionUpload(
                 self.system_id,
                 self.component_id,
                 items,
-                timeout_s=self.transfer_timeout_s(),
-                ack_retries=self._ack_retries(),
+                timeout_s=timeout_s,
+                ack_retries=self._ack_retries(timeout_s),
                 retries=self.retries,
                 own_system=self._own_system,
                 own_component=self._own_component,
