@@ -222,8 +222,9 @@ class VehiclePort:
             budget.held_s += now_s - start_s
 
     def transfer_timeout_s(self) -> float:
-        """The per-attempt timeout of a mission transfer now: from the link's measured
-        round-trip time (RFC 6298), never below the configured ``timeout_s``."""
+        """The per-attempt timeout of a mission transfer now, from the link's measured
+        round-trip time (:meth:`LinkBudget.transfer_timeout_s`: the configured
+        ``timeout_s`` or a longer RTO; on a constrained link the RTO, at least 0.5 s)."""
         budget = self._budget()
         return self.timeout_s if budget is None else budget.transfer_timeout_s(self.timeout_s)
 
