@@ -64,7 +64,7 @@ _IDLE_WAIT_S = 0.5
 running; this only bounds a wait should a machine ever lack one)."""
 _MIN_WALL_WAIT_S = 0.001
 """Shortest wall-clock wait, so a deadline a rounding error away never spins the loop."""
-ACK_WAIT_S = 2.0
+ACK_WAIT_S = 1.5
 """Mission seconds an upload on a constrained link waits for a lost final ACK before its
 verifying download reads what the vehicle holds."""
 RATES_REFRESH_CALLS = 4
