@@ -33,9 +33,9 @@ def test_gcs_run_flies_over_sik_radios(tmp_path: Path) -> None:
     assert not events(journal, "link_lost")
     assert {e["vehicle"] for e in events(journal, "vehicle_seen")} == {"1", "2"}
     # the tlog holds the ground radios' RADIO_STATUS, from 51/68: each radio answers every
-    # heartbeat floe sends on its link (about 1 Hz; more mission-time Hz on a loaded host,
-    # where floe's heartbeat keeps its wall-clock pace while the simulator slows down)
-    # read as a tlog: fed raw to a decoder, the 8-byte timestamps can hold a chance frame
+    # heartbeat floe sends on its link (1 Hz of mission time, however slowly the simulator
+    # runs: tests/test_radio_budget_daemon.py); read as a tlog: fed raw to a decoder, the
+    # 8-byte timestamps can hold a chance frame
     frames = [r.message for r in TlogReader(daemon.run_dir / "flight.tlog")]
     sources = Counter((m.get_srcSystem(), m.get_srcComponent(), m.get_type()) for m in frames)
     radio_status = sources[(51, 68, "RADIO_STATUS")]

@@ -68,7 +68,7 @@ class Port:
         self.calls.append(f"read {name}")
         return 22.0 if name == "AIRSPEED_CRUISE" else None
 
-    async def download(self) -> TransferResult:
+    async def download(self, expect_count: int | None = None) -> TransferResult:
         self.calls.append("download")
         return TransferResult(True, TransferCode.SUCCESS, "ok", items=())
 

@@ -161,6 +161,15 @@ def _parser() -> argparse.ArgumentParser:
         help="a vehicle's link or address may change only after it was silent there for S "
         "mission seconds and its heartbeats came consistently on the new one (default 10)",
     )
+    a(
+        "--link-rate",
+        dest="link_rate",
+        action="append",
+        metavar="URL=BPS",
+        help="what a vehicle link carries, bit/s (k: x1000): telemetry and uploads are kept "
+        "within it (e.g. tcp:10.0.0.5:5760=64k); a serial link: its baud rate; others "
+        "unlimited until a radio reports RADIO_STATUS (docs/links.md)",
+    )
     a("--replan", choices=[m.value for m in ReplanTrigger], help="replanning trigger")
     a("--objective", choices=[m.value for m in Objective], help="planner objective (scenario's)")
     a("--period", dest="period_s", type=float, metavar="S", help="replan period")

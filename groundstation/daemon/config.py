@@ -138,10 +138,17 @@ class LinksConfig:
     gcs_system_id: int = 245
     transfer_timeout_s: float = 1.5
     transfer_retries: int = 5
+    link_rate: tuple[str, ...] = ()
+    """``URL=BPS``: what the vehicle link URL carries, bit/s (docs/links.md, "Over a
+    telemetry radio"); a link not named: its serial baud rate, else unlimited."""
     ship_beacon: int | None = 17
     """The ship's MAVLink system id: its GLOBAL_POSITION_INT goes to every vehicle link at
     1 Hz while the ship's position is known (ArduPilot's ``FOLL_SYSID``; docs/
     ship.md). None (``off``): no beacon."""
+
+    def link_rates(self) -> list[tuple[str, float]]:
+        """``link_rate`` as (canonical URL, bit/s); raises ValueError naming a bad entry."""
+        return [parse_link_rate(text) for text in self.link_rate]
 
     @property
     def sim_count(self) -> int | None:
@@ -397,6 +404,34 @@ def resolve(config: DaemonConfig) -> DaemonConfig:
     return dataclasses.replace(
         config, speedup=config.speedup_x, mission=mission, fleet=fleet, detections=detections
     )
+
+
+MAX_LINK_RATE_BPS = 1e9
+
+
+def parse_link_rate(text: str) -> tuple[str, float]:
+    """``URL=BPS`` (``--link-rate``): a vehicle link URL and what it carries, bit/s, a
+    positive number with an optional ``k`` (x 1000): ``tcp:127.0.0.1:5760=64k``. Returns
+    (the URL's canonical spelling, bit/s); ValueError with one line on anything else."""
+    from groundstation.link.url import LinkUrlError, parse_link_url
+
+    url, sep, rate = text.rpartition("=")
+    if not sep or not url:
+        raise ValueError(f"link rate {text!r}: expected URL=BPS, e.g. tcp:10.0.0.5:5760=64k")
+    scale = 1000.0 if rate.lower().endswith("k") else 1.0
+    number = rate[:-1] if scale > 1.0 else rate
+    try:
+        bps = float(number) * scale
+    except ValueError:
+        bps = math.nan
+    if not (math.isfinite(bps) and 0 < bps <= MAX_LINK_RATE_BPS):
+        raise ValueError(f"link rate {text!r}: {rate!r} is not a rate in bit/s "
+                         f"(0 < BPS <= {MAX_LINK_RATE_BPS:g})")
+    try:
+        spec = parse_link_url(url)
+    except LinkUrlError as exc:
+        raise ValueError(f"link rate {text!r}: {exc}") from None
+    return spec.canonical, bps
 
 
 def parse_hostport(text: str, key: str) -> tuple[str, int]:

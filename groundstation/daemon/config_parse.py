@@ -47,6 +47,7 @@ from groundstation.daemon.config import (
     WatchSettings,
     parse_hostport,
     parse_latlon,
+    parse_link_rate,
 )
 from world.wind import WindSpec, parse_wind_text
 
@@ -64,6 +65,7 @@ ALIASES: dict[str, str] = {
     "gcs_system_id": "links.gcs_system_id",
     "transfer_timeout_s": "links.transfer_timeout_s",
     "transfer_retries": "links.transfer_retries",
+    "link_rate": "links.link_rate",
     "scenario": "mission.scenario",
     "targets": "mission.targets",
     "duration": "mission.duration_s",
@@ -115,6 +117,7 @@ FLAGS: dict[str, str] = {
     "--vehicles": "links.vehicles",
     "--out": "links.out",
     "--rebind-after": "links.rebind_after_s",
+    "--link-rate": "links.link_rate",
     "--gcs-system-id": "links.gcs_system_id",
     "--ship-beacon": "links.ship_beacon",
     "--scenario": "mission.scenario",
@@ -409,6 +412,15 @@ def _origins(values: tuple[str, ...]) -> str | None:
     return None
 
 
+def _link_rates(values: tuple[str, ...]) -> str | None:
+    for text in values:
+        try:
+            parse_link_rate(text)
+        except ValueError as exc:
+            return str(exc)
+    return None
+
+
 def _altitudes(settings: Mapping[int, VehicleSettings]) -> str | None:
     alts = [s.altitude_m for s in settings.values() if s.altitude_m is not None]
     return "two vehicles share an altitude_m" if len(alts) != len(set(alts)) else None
@@ -442,6 +454,7 @@ _CHECKS: dict[str, Check] = {
     "fleet.altitude_step_m": _between(0, math.inf, ">= 0"),
     "fleet.battery.low_pct": _between(0, 100, "0..100"),
     "links.transfer_retries": _between(0, 50, "0..50"),
+    "links.link_rate": _link_rates,
     "sim.loss": _loss,
     "http.allow_origins": _origins,
     "http.max_targets": _between(1, 100_000, "1..100000"),

@@ -37,6 +37,7 @@ from groundstation.core.watch_metrics import WatchMetrics
 from groundstation.daemon.clock import MissionClock
 from groundstation.daemon.config import DaemonConfig, OnExit, OperatingCenter
 from groundstation.daemon.journal import Journal
+from groundstation.daemon.link_budgets import LinkBudgets
 from groundstation.daemon.log_lines import describe_line, line_level
 from groundstation.daemon.loop_monitor import LoopMonitor
 from groundstation.daemon.planning import SolverRunner
@@ -61,6 +62,8 @@ __all__ = ["Daemon"]
 log = logging.getLogger(__name__)
 M = mavlink2
 MIN_WAKE_WALL_S = 0.01
+HEARTBEAT_PERIOD_S = 1.0
+"""The GCS heartbeat's period, mission seconds (MAVLink's 1 Hz)."""
 MAX_TICKS_PER_WAKE = 100
 SIGNING_REPORT_S = 5.0
 """Mission seconds between two ``signing_rejected`` journal lines of one vehicle/link."""
@@ -175,6 +178,11 @@ class Daemon:
             self.router.add_vehicle_link(link)
         for link in out_links:
             self.router.add_out_link(link)
+        self.budgets = LinkBudgets(
+            links, self.router.link_for, timeout_floor_s=config.links.transfer_timeout_s,
+            rates_bps=dict(config.links.link_rates()),
+        )
+        """Each vehicle link's traffic budget (docs/links.md, "Over a telemetry radio")."""
         self.sessions: dict[int, VehicleSession] = {}
         self.newcomers = NewSystemEvidence(expected=expected_system_ids(config))
         """Evidence before a system id gets a session (``vehicle_seen``); unexpected ones
@@ -395,6 +403,8 @@ class Daemon:
     def _on_vehicle_frame(self, rx: Received) -> None:
         msg = rx.message
         sysid = rx.system_id
+        if msg.get_type() == "RADIO_STATUS":  # the link's radio: its buffer and errors
+            self.budgets.on_radio_status(rx.link_id, self.clock.now_s(), msg)
         if sysid == self.config.links.gcs_system_id:
             return
         session = self.sessions.get(sysid)
@@ -435,6 +445,7 @@ class Daemon:
             self.clock,
             timeout_s=self.config.links.transfer_timeout_s,
             retries=self.config.links.transfer_retries,
+            budget=functools.partial(self.budgets.for_system, sysid),
         )
         index = sysid - 1 if self.config.sim_count else len(self.sessions)
         session = VehicleSession(
@@ -563,6 +574,7 @@ class Daemon:
         msg = M.MAVLink_heartbeat_message(
             M.MAV_TYPE_GCS, M.MAV_AUTOPILOT_INVALID, 0, 0, M.MAV_STATE_ACTIVE, 3
         )
+        due_s = self.clock.now_s()
         while not self._state.finished:
             frame = self.encoder.encode(msg)
             self.router.broadcast(frame)
@@ -570,7 +582,15 @@ class Daemon:
                 for sysid in self.signing.keyed_only():
                     if self.router.link_for(sysid) is not None:
                         self.router.send_to(sysid, frame)
-            await asyncio.sleep(max(0.02, self.clock.wall_s(1.0)))
+            # 1 Hz of *mission* time: the clock may run slower than the speed-up (a loaded
+            # host slows the simulator, which the mission clock follows)
+            now_s = self.clock.now_s()
+            due_s += HEARTBEAT_PERIOD_S
+            if due_s <= now_s:  # late by a whole period: the next one a period from now
+                due_s = now_s + HEARTBEAT_PERIOD_S
+            while not self._state.finished and now_s < due_s:
+                await asyncio.sleep(max(MIN_WAKE_WALL_S, self.clock.wall_s(due_s - now_s)))
+                now_s = self.clock.now_s()
 
     async def _tick_loop(self) -> None:
         while not self.stopping:

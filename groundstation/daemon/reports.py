@@ -30,6 +30,8 @@ class RunState(Protocol):
     def newcomers(self) -> Any: ...
     @property
     def unknown_frames(self) -> int: ...
+    @property
+    def budgets(self) -> Any: ...
 
 
 def run_summary(daemon: RunState, wall: float, cpu: float) -> dict[str, Any]:
@@ -51,6 +53,7 @@ def run_summary(daemon: RunState, wall: float, cpu: float) -> dict[str, Any]:
         "visits": len(metrics.get("visits", [])),
         **({"signing": daemon.signing.summary()} if daemon.signing is not None else {}),
         "links": daemon.router.link_stats(),
+        "link_budgets": daemon.budgets.summary(),
         "unknown_systems": {
             "frames": daemon.unknown_frames,
             "heartbeats": daemon.newcomers.heartbeats,

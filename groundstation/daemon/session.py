@@ -349,6 +349,7 @@ class VehicleSession:
             items = build_mission_items(list(request.steps), self.host.origin)
         except ValueError as exc:
             return controller_io.UploadOutcome(False, 0, str(exc), 0)
+        t0_s = self.clock.now_s()
         retries = 0
         last = ""
         for attempt in range(self.config.links.transfer_retries + 1):
@@ -366,7 +367,7 @@ class VehicleSession:
                 continue
             if not self.controller.wants(request):
                 return controller_io.UploadOutcome(False, retries, "no longer wanted", len(items))
-            down = await self.port.download()
+            down = await self.port.download(expect_count=len(items))
             retries += down.retries_used
             if not down.ok or down.items is None:
                 last = f"download {down.code.value}: {down.message}"
@@ -375,5 +376,7 @@ class VehicleSession:
             if diff:
                 last = f"verify: {diff[0]}"
                 continue
-            return controller_io.UploadOutcome(True, retries, None, len(items))
-        return controller_io.UploadOutcome(False, retries, last, len(items))
+            return controller_io.UploadOutcome(True, retries, None, len(items),
+                                               self.clock.now_s() - t0_s)
+        return controller_io.UploadOutcome(False, retries, last, len(items),
+                                           self.clock.now_s() - t0_s)

@@ -35,10 +35,12 @@ from __future__ import annotations
 import asyncio
 import collections
 import contextlib
+import math
 from collections.abc import AsyncIterator, Callable, Sequence
 from typing import Any, Protocol
 
 from groundstation.mavlink.codec import MavlinkEncoder, MAVLinkMessage, mavlink2
+from groundstation.mavlink.link_budget import MAX_HOLD_S, LinkBudget, StreamPlan, stream_plan
 from groundstation.mavlink.mission_commands import MissionSetCurrent
 from groundstation.mavlink.mission_download import MissionDownload
 from groundstation.mavlink.mission_items import MissionItem
@@ -62,6 +64,15 @@ _IDLE_WAIT_S = 0.5
 running; this only bounds a wait should a machine ever lack one)."""
 _MIN_WALL_WAIT_S = 0.001
 """Shortest wall-clock wait, so a deadline a rounding error away never spins the loop."""
+ACK_WAIT_S = 1.5
+"""Mission seconds an upload on a constrained link waits for a lost final ACK before its
+verifying download reads what the vehicle holds."""
+RATES_REFRESH_CALLS = 4
+"""On a constrained link an unchanged stream plan is sent again only every this many
+requests (the session asks every ``rates_every_s``): ~16 frames up and 11 COMMAND_ACKs
+down each time, on a link that carries ~3 kB/s."""
+_HOLD_POLL_S = 0.1
+"""Mission seconds between looks at the radio's buffer while an exchange is held."""
 
 
 class PortClock(Protocol):
@@ -86,6 +97,7 @@ class VehiclePort:
         retries: int = 5,
         component_id: int = 1,
         queue_size: int = QUEUE_SIZE,
+        budget: Callable[[], LinkBudget | None] | None = None,
     ) -> None:
         if queue_size < 1:
             raise ValueError(f"queue_size must be >= 1, got {queue_size}")
@@ -97,6 +109,8 @@ class VehiclePort:
         self.timeout_s = timeout_s
         self.retries = retries
         self.queue_size = queue_size
+        self._budget = budget or (lambda: None)
+        """The budget of the link the vehicle is bound to now (None: unknown, unlimited)."""
         self._lock = asyncio.Lock()
         self._users = 0  # exchanges running or waiting for their turn
         self._inbox: collections.deque[MAVLinkMessage] | None = None  # None: no exchange
@@ -104,6 +118,8 @@ class VehiclePort:
         self._wake = asyncio.Event()
         self.sent = 0
         """Frames sent to this vehicle."""
+        self._rate_calls = 0
+        self._rates_sent: StreamPlan | None = None
         self.dropped = 0
         """Messages dropped because the running exchange's queue was full (oldest first)."""
 
@@ -179,13 +195,38 @@ class VehiclePort:
             async with asyncio.timeout(wall_s):
                 await self._wake.wait()
 
-    async def run(self, machine: TransferBase[Any]) -> TransferResult:
+    async def run(self, machine: TransferBase[Any], *, safety: bool = False) -> TransferResult:
         """Run ``machine`` to its end, after the exchanges before it (see module docstring).
 
-        Cancelling the calling task cancels the exchange politely and re-raises.
+        A non-safety exchange first waits while the link's radio reports its buffer low
+        (:meth:`LinkBudget.congested`, at most ``MAX_HOLD_S``); a safety one (a mode change,
+        a home move) never waits for the radio. Cancelling the calling task cancels the
+        exchange politely and re-raises.
         """
         async with self._exchange():
+            if not safety:
+                await self._hold()
             return await self._drive(machine)
+
+    async def _hold(self) -> None:
+        """Wait while the link's ground radio says its buffer is low (module docstring)."""
+        budget = self._budget()
+        if budget is None:
+            return
+        start_s = now_s = self.clock.now_s()
+        while budget.congested(now_s) and now_s - start_s < MAX_HOLD_S:
+            await asyncio.sleep(max(_MIN_WALL_WAIT_S, self.clock.wall_s(_HOLD_POLL_S)))
+            now_s = self.clock.now_s()
+        if now_s > start_s:
+            budget.holds += 1
+            budget.held_s += now_s - start_s
+
+    def transfer_timeout_s(self) -> float:
+        """The per-attempt timeout of a mission transfer now, from the link's measured
+        round-trip time (:meth:`LinkBudget.transfer_timeout_s`: the configured
+        ``timeout_s`` or a longer RTO; on a constrained link the RTO, at least 0.5 s)."""
+        budget = self._budget()
+        return self.timeout_s if budget is None else budget.transfer_timeout_s(self.timeout_s)
 
     async def _drive(self, machine: TransferBase[Any]) -> TransferResult:
         """The one owner of ``machine``: every call to it happens here."""
@@ -205,6 +246,8 @@ class VehiclePort:
                     actions = machine.notify_vehicle_rebooted(now_s)
                 elif self._inbox:
                     actions = machine.receive(self._inbox.popleft(), now_s)
+                    if machine.rtt_samples_s:
+                        self._feed_rtt(machine.rtt_samples_s)
                 elif deadline_s is not None and now_s >= deadline_s:
                     actions = machine.poll(now_s)
                 else:
@@ -214,6 +257,28 @@ class VehiclePort:
             with contextlib.suppress(Exception):
                 self._perform(machine.cancel(self.clock.now_s()))
             raise
+
+    def _ack_retries(self, timeout_s: float) -> int | None:
+        """Silent timeouts an upload waits for its final ACK (:class:`MissionUpload`'s
+        ``ack_retries``): on a constrained link as few as cover ``ACK_WAIT_S`` (ArduPlane
+        re-requests a lost last item after 1 s; the wait must outlast that and its way
+        back), at least 1; else as many as its other waits (None)."""
+        budget = self._budget()
+        if budget is None or budget.capacity_bps is None:
+            return None
+        return max(1, math.ceil(ACK_WAIT_S / timeout_s) - 1)
+
+    def _pipeline(self) -> int:
+        budget = self._budget()
+        return 1 if budget is None else budget.pipeline
+
+    def _feed_rtt(self, samples: list[float]) -> None:
+        """Hand the machine's new round-trip samples to the link's estimator."""
+        budget = self._budget()
+        if budget is not None:
+            for rtt_s in samples:
+                budget.rtt.sample(rtt_s)
+        samples.clear()
 
     # ------------------------------------------------------------------ missions
     @property
@@ -225,24 +290,30 @@ class VehiclePort:
         return self.encoder.component_id
 
     async def upload(self, items: Sequence[MissionItem]) -> TransferResult:
+        timeout_s = self.transfer_timeout_s()
         return await self.run(
             MissionUpload(
                 self.system_id,
                 self.component_id,
                 items,
-                timeout_s=self.timeout_s,
+                timeout_s=timeout_s,
+                ack_retries=self._ack_retries(timeout_s),
                 retries=self.retries,
                 own_system=self._own_system,
                 own_component=self._own_component,
             )
         )
 
-    async def download(self) -> TransferResult:
+    async def download(self, expect_count: int | None = None) -> TransferResult:
+        """Read the mission back; ``expect_count`` (the count just uploaded) lets a
+        constrained link ask for the items with the list request itself."""
         return await self.run(
             MissionDownload(
                 self.system_id,
                 self.component_id,
-                timeout_s=self.timeout_s,
+                window=self._pipeline(),
+                expect_count=expect_count,
+                timeout_s=self.transfer_timeout_s(),
                 retries=self.retries,
                 own_system=self._own_system,
                 own_component=self._own_component,
@@ -256,7 +327,7 @@ class VehiclePort:
                 self.component_id,
                 seq,
                 known_current_seq=known_current_seq,
-                timeout_s=max(1.0, self.timeout_s * 2 / 3),
+                timeout_s=max(1.0, self.transfer_timeout_s() * 2 / 3),
                 retries=self.retries,
                 own_system=self._own_system,
                 own_component=self._own_component,
@@ -265,9 +336,11 @@ class VehiclePort:
 
     # ------------------------------------------------------------------ commands
     async def command(
-        self, command: int, params: Sequence[float], timeout_s: float = 1.0, retries: int = 5
+        self, command: int, params: Sequence[float], timeout_s: float = 1.0, retries: int = 5,
+        *, safety: bool = False,
     ) -> int | None:
-        """COMMAND_LONG until its COMMAND_ACK: the MAV_RESULT, or None on silence or reboot."""
+        """COMMAND_LONG until its COMMAND_ACK: the MAV_RESULT, or None on silence or reboot
+        (``safety``: never held for the radio's buffer)."""
         machine = CommandLong(
             self.system_id,
             self.component_id,
@@ -277,13 +350,14 @@ class VehiclePort:
             retries=retries,
             own_system=self._own_system,
         )
-        await self.run(machine)
+        await self.run(machine, safety=safety)
         return machine.ack_result
 
     async def set_mode(self, mode: int) -> int | None:
-        """MAV_CMD_DO_SET_MODE (custom mode); the MAV_RESULT, or None on silence."""
+        """MAV_CMD_DO_SET_MODE (custom mode); the MAV_RESULT, or None on silence. A safety
+        exchange: never held for the radio's buffer."""
         return await self.command(
-            M.MAV_CMD_DO_SET_MODE, [M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, mode]
+            M.MAV_CMD_DO_SET_MODE, [M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, mode], safety=True
         )
 
     async def arm(self) -> int | None:
@@ -338,43 +412,39 @@ class VehiclePort:
             retries=retries,
             own_system=self._own_system,
         )
-        result = await self.run(machine)
+        result = await self.run(machine, safety=True)  # a return's home: never held
         return machine, result
 
     def request_rates(self, position_hz: float) -> None:
         """Ask for the telemetry the daemon needs (fire and forget; repeated by the session).
 
-        REQUEST_DATA_STREAM for the groups (older autopilots, ArduPilot's SRx) and
-        SET_MESSAGE_INTERVAL for the position, which the planner and the camera need most.
+        REQUEST_DATA_STREAM for the groups (older autopilots, ArduPilot's SRx), then
+        SET_MESSAGE_INTERVAL per message (:func:`~groundstation.mavlink.link_budget.stream_plan`):
+        on an unlimited link only the position, which the planner and the camera need most;
+        on a constrained one (a radio, a serial port, ``--link-rate``) what floe reads at
+        rates within a share of the capacity, and what it does not read off.
         """
-        groups = (
-            (M.MAV_DATA_STREAM_EXTENDED_STATUS, 1),
-            (M.MAV_DATA_STREAM_EXTRA1, 1),
-            (M.MAV_DATA_STREAM_EXTRA2, 1),
-            (M.MAV_DATA_STREAM_EXTRA3, 1),
-            (M.MAV_DATA_STREAM_POSITION, max(1, round(position_hz))),
-        )
-        for stream_id, rate in groups:
+        budget = self._budget()
+        plan = (stream_plan(position_hz, None) if budget is None
+                else budget.streams(position_hz))
+        self._rate_calls += 1
+        if (budget is not None and budget.capacity_bps is not None
+                and plan == self._rates_sent and self._rate_calls % RATES_REFRESH_CALLS):
+            return  # a constrained link: the same plan again only every few calls
+        self._rates_sent = plan
+        for stream_id, rate in plan.groups:
             self.send(
                 M.MAVLink_request_data_stream_message(
                     self.system_id, self.component_id, stream_id, rate, 1
                 )
             )
-        self.send(
-            M.MAVLink_command_long_message(
-                self.system_id,
-                self.component_id,
-                M.MAV_CMD_SET_MESSAGE_INTERVAL,
-                0,
-                M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
-                1e6 / position_hz,
-                0,
-                0,
-                0,
-                0,
-                0,
+        for msg_id, hz in plan.intervals:
+            self.send(
+                M.MAVLink_command_long_message(
+                    self.system_id, self.component_id, M.MAV_CMD_SET_MESSAGE_INTERVAL, 0,
+                    msg_id, 1e6 / hz if hz > 0 else -1, 0, 0, 0, 0, 0,
+                )
             )
-        )
 
     def fire_mode(self, mode: int) -> None:
         """Send a mode change once without waiting (used on exit)."""

@@ -16,15 +16,28 @@ same n (an answer to a resent REQUEST_LIST) is ignored, with another n it is a
 PROTOCOL_ERROR (the mission changed under us). ``MISSION_ITEM`` (float) answers are accepted
 too. An error MISSION_ACK from the vehicle ends the download with its code. A count of 0
 ends at once (we still send the final ACK).
+
+``window`` > 1 (a slow link: docs/protocol.md, "Over a telemetry radio") keeps that many
+item requests outstanding instead of one: after MISSION_COUNT, REQUEST_INT(0..window-1)
+go together, each item received asks for the next one not yet asked for, and silence
+resends every outstanding request. ArduPlane (and the built-in simulator) answer every
+MISSION_REQUEST_INT on its own, so a 3-item mission reads back in two round trips instead
+of four; what is read back, and checked, is the same whole mission. With ``expect_count``
+(the count just uploaded) the first requests go with MISSION_REQUEST_LIST itself: one
+round trip. Items that arrive before the count are kept; a count below what was asked
+drops the excess (the vehicle answers their requests with an error ACK, which ends the
+download: the verification fails, as it must for a mission of another length).
 """
 
 from __future__ import annotations
 
 import enum
 
+from domain.errors import LocalProtocolError
 from groundstation.mavlink.codec import MAVLinkMessage, mavlink2
 from groundstation.mavlink.mission_items import MissionItem
 from groundstation.mavlink.mission_transfer import (
+    DEFAULT_RETRIES,
     Action,
     Send,
     TransferBase,
@@ -66,11 +79,53 @@ class MissionDownload(TransferBase[DownloadState]):
         """The vehicle's item count once known."""
         return self._count
 
+    def __init__(
+        self,
+        target_system: int,
+        target_component: int,
+        *,
+        mission_type: int = mavlink2.MAV_MISSION_TYPE_MISSION,
+        timeout_s: float | None = None,
+        retries: int = DEFAULT_RETRIES,
+        own_system: int | None = None,
+        own_component: int | None = None,
+        window: int = 1,
+        expect_count: int | None = None,
+    ) -> None:
+        super().__init__(target_system, target_component, mission_type=mission_type,
+                         timeout_s=timeout_s, retries=retries, own_system=own_system,
+                         own_component=own_component)
+        if not 1 <= window <= _UINT16_MAX:
+            raise LocalProtocolError(f"window must be 1..{_UINT16_MAX}, got {window}")
+        if expect_count is not None and not 0 <= expect_count <= _UINT16_MAX:
+            raise LocalProtocolError(f"expect_count must be 0..{_UINT16_MAX}")
+        self.window = window
+        self.expect_count = expect_count
+        self._got: dict[int, MissionItem] = {}
+        self._asked = 0  # items 0..asked-1 have been requested
+
     def start(self, now_s: float) -> list[Action]:
-        """Begin: send MISSION_REQUEST_LIST."""
+        """Begin: send MISSION_REQUEST_LIST (and, pipelined with an expected count, the
+        first ``window`` item requests with it)."""
         self._begin(now_s, DownloadState.REQUESTING_LIST)
-        self._items: list[MissionItem] = []
-        return [Send(self._request_list())]
+        out: list[Action] = [Send(self._request_list())]
+        if self.window > 1 and self.expect_count:
+            self._asked = min(self.window, self.expect_count)
+            out += [Send(self._request_item(seq)) for seq in range(self._asked)]
+        return out
+
+    def _outstanding(self) -> list[int]:
+        """Items asked for and not received, in order."""
+        return [seq for seq in range(self._asked) if seq not in self._got]
+
+    def _ask_more(self) -> list[Action]:
+        """Fill the window with requests for the next items not yet asked for."""
+        assert self._count is not None
+        out: list[Action] = []
+        while self._asked < self._count and len(self._outstanding()) < self.window:
+            out.append(Send(self._request_item(self._asked)))
+            self._asked += 1
+        return out
 
     # -- internals ------------------------------------------------------------------------
 
@@ -80,15 +135,17 @@ class MissionDownload(TransferBase[DownloadState]):
             if self._state is DownloadState.REQUESTING_LIST:
                 what = f"no MISSION_COUNT after {self.retries + 1} MISSION_REQUEST_LIST"
             else:
-                what = f"no MISSION_ITEM_INT {len(self._items)} of {self._count}"
+                missing = self._outstanding()
+                what = f"no MISSION_ITEM_INT {missing[0] if missing else 0} of {self._count}"
             return self._finish(
                 TransferCode.TIMEOUT,
                 f"{what} ({self.timeout_s:g} s each)",
                 send=self._mission_ack(mavlink2.MAV_MISSION_OPERATION_CANCELLED),
             )
+        out: list[Action] = []
         if self._state is DownloadState.REQUESTING_LIST:
-            return [Send(self._request_list())]
-        return [Send(self._request_item(len(self._items)))]
+            out.append(Send(self._request_list()))
+        return out + [Send(self._request_item(seq)) for seq in self._outstanding()]
 
     def _on_message(self, kind: str, msg: MAVLinkMessage, now_s: float) -> list[Action]:
         mismatch = self._mission_type_mismatch(kind, msg)
@@ -142,6 +199,12 @@ class MissionDownload(TransferBase[DownloadState]):
                 send=self._mission_ack(mavlink2.MAV_MISSION_OPERATION_CANCELLED),
             )
         self._count = count
+        self._answered(now_s)
+        self._asked = min(self._asked, count)  # asked ahead for more than it holds
+        for seq in [seq for seq in self._got if seq >= count]:
+            del self._got[seq]
+        if count and len(self._got) == count:
+            return self._complete()
         if count == 0:
             return self._finish(
                 TransferCode.SUCCESS,
@@ -151,28 +214,37 @@ class MissionDownload(TransferBase[DownloadState]):
             )
         self._state = DownloadState.REQUESTING_ITEMS
         self._arm(now_s)
-        return [Send(self._request_item(0))]
+        return self._ask_more()
 
     def _on_item(self, msg: MAVLinkMessage, now_s: float) -> list[Action]:
-        if self._state is not DownloadState.REQUESTING_ITEMS or self._count is None:
-            return []
-        expected = len(self._items)
-        if int_field(msg, "seq") != expected:
-            return []  # late duplicate or stray; silence resends the pending request
+        if self._count is None and not self._asked:
+            return []  # nothing asked for yet
+        seq = int_field(msg, "seq")
+        if seq is None or seq >= self._asked or seq in self._got:
+            return []  # late duplicate or stray; silence resends the pending requests
         item = MissionItem.from_message(msg)
+        if self.window == 1 or not self._got:  # pipelined: only the first is a round trip
+            self._answered(now_s)
         if item is None:
             return self._finish(
                 TransferCode.PROTOCOL_ERROR,
-                f"item {expected} is unreadable",
+                f"item {seq} is unreadable",
                 send=self._mission_ack(mavlink2.MAV_MISSION_OPERATION_CANCELLED),
             )
-        self._items.append(item)
-        if len(self._items) == self._count:
-            return self._finish(
-                TransferCode.SUCCESS,
-                f"{self._count} items downloaded",
-                items=tuple(self._items),
-                send=self._mission_ack(mavlink2.MAV_MISSION_ACCEPTED),
-            )
+        self._got[seq] = item
+        if self._count is None:  # asked ahead: the count is still to come
+            self._arm(now_s)
+            return []
+        if len(self._got) == self._count:
+            return self._complete()
         self._arm(now_s)
-        return [Send(self._request_item(len(self._items)))]
+        return self._ask_more()
+
+    def _complete(self) -> list[Action]:
+        assert self._count is not None
+        return self._finish(
+            TransferCode.SUCCESS,
+            f"{self._count} items downloaded",
+            items=tuple(self._got[i] for i in range(self._count)),
+            send=self._mission_ack(mavlink2.MAV_MISSION_ACCEPTED),
+        )

@@ -313,6 +313,11 @@ class TransferBase(abc.ABC, Generic[S]):
         self._retries_left = retries
         self._retries_used = 0
         self._notes: list[str] = []
+        self._sent_s: float | None = None  # when the request now awaiting an answer went
+        self._resent = False  # it went more than once (Karn: its answer is no sample)
+        self.rtt_samples_s: list[float] = []
+        """Round trips measured so far (request sent once -> its answer, mission s); the
+        driver feeds them to the link's :class:`~groundstation.mavlink.link_budget.RttEstimator`."""
 
     # -- public interface -----------------------------------------------------------------
 
@@ -348,14 +353,20 @@ class TransferBase(abc.ABC, Generic[S]):
         kind = message_type(msg)
         if kind is None or kind not in self._HANDLED or not self._from_vehicle(msg):
             return []
-        return self._on_message(kind, msg, now_s)
+        actions = self._on_message(kind, msg, now_s)
+        if any(isinstance(a, Send) for a in actions):
+            self._sent_s, self._resent = now_s, False
+        return actions
 
     def poll(self, now_s: float) -> list[Action]:
         """Handle the timer: resend, or give up (TIMEOUT) once the retries are spent."""
         due = self._timed_out(now_s)
         if due is None:
             return []
-        return self._on_silence(now_s, give_up=due)
+        actions = self._on_silence(now_s, give_up=due)
+        if any(isinstance(a, Send) for a in actions):
+            self._sent_s, self._resent = now_s, True
+        return actions
 
     def cancel(self, now_s: float) -> list[Action]:
         """Abandon the transfer (CANCELLED), telling the vehicle where the protocol says so."""
@@ -391,7 +402,15 @@ class TransferBase(abc.ABC, Generic[S]):
         if self._state is not self._IDLE:
             raise LocalProtocolError(f"{type(self).__name__}.start() called twice")
         self._state = state
+        self._sent_s, self._resent = now_s, False
         self._arm(now_s)
+
+    def _answered(self, now_s: float) -> None:
+        """The vehicle answered the request awaiting an answer: one round-trip sample,
+        unless that request was resent (Karn's rule); either way it is answered."""
+        if self._sent_s is not None and not self._resent:
+            self.rtt_samples_s.append(now_s - self._sent_s)
+        self._sent_s = None
 
     def _arm(self, now_s: float, *, reset_retries: bool = True) -> None:
         """(Re)start the silence timer; progress resets the retry budget."""

@@ -25,6 +25,11 @@ Rules (MAVSDK's MissionTransferClient semantics, adapted to ArduPlane):
 * A request or ACK for another mission type (addressed to us) ends it with
   MISSION_TYPE_MISMATCH, as MAVSDK does.
 * ``cancel`` sends MISSION_ACK OPERATION_CANCELLED and ends with CANCELLED.
+* ``ack_retries`` (default: ``retries``) bounds the silent timeouts once every item was
+  requested: ArduPlane sends its final ACK once, so when it is lost nothing more comes. A
+  slow link passes 1: after two timeouts (longer than ArduPlane's 1 s re-request of a lost
+  last item) the upload ends as TIMEOUT with ``maybe_stored``, and the verifying download
+  reads what the vehicle holds, instead of waiting ``retries`` timeouts for nothing.
 
 Remember (design.md): ArduPlane truncates its stored mission as soon as MISSION_COUNT
 arrives, so a failed upload leaves a partial mission; retry until verified by download.
@@ -83,6 +88,7 @@ class MissionUpload(TransferBase[UploadState]):
         retries: int = DEFAULT_RETRIES,
         own_system: int | None = None,
         own_component: int | None = None,
+        ack_retries: int | None = None,
     ) -> None:
         super().__init__(
             target_system,
@@ -97,6 +103,7 @@ class MissionUpload(TransferBase[UploadState]):
         self.items: tuple[MissionItem, ...] = tuple(items)
         self._requested: set[int] = set()
         self.items_sent = 0  # MISSION_ITEM_INT answers sent, duplicates included
+        self.ack_retries = retries if ack_retries is None else min(ack_retries, retries)
 
     @property
     def requested_seqs(self) -> frozenset[int]:
@@ -157,6 +164,8 @@ class MissionUpload(TransferBase[UploadState]):
             )
         if seq in self._requested:
             self._notes.append(f"duplicate {kind} for item {seq} at t={now_s:.3f}s")
+        else:  # a new request answers our count or our last item
+            self._answered(now_s)
         self._requested.add(seq)
         self._state = (
             UploadState.WAITING_ACK
@@ -164,6 +173,8 @@ class MissionUpload(TransferBase[UploadState]):
             else UploadState.SENDING_ITEMS
         )
         self._arm(now_s)
+        if self._state is UploadState.WAITING_ACK:
+            self._retries_left = self.ack_retries
         self.items_sent += 1
         return [Send(self.items[seq].to_message(self.target_system, self.target_component))]
 
@@ -181,6 +192,7 @@ class MissionUpload(TransferBase[UploadState]):
                     "requested: the vehicle may hold a partial mission",
                     remote_code=mission_result_name(ack_type),
                 )
+            self._answered(now_s)
             return self._finish(
                 TransferCode.SUCCESS,
                 f"{len(self.items)} items accepted",

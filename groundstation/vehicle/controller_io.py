@@ -139,6 +139,8 @@ class UploadOutcome:
     retries: int = 0
     error: str | None = None
     items: int = 0
+    took_s: float | None = None
+    """Mission seconds from the first MISSION_COUNT to the verdict (None: not timed)."""
 
 
 @dataclass(frozen=True)

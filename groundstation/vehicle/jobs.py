@@ -139,7 +139,7 @@ def mission_job(
     host.upload_done(ok, host.t_s - started_s)
     host.journal(
         "upload", ok=ok, purpose=purpose, target=target, retries=retries, items=up.items,
-        error=error or None,
+        error=error or None, took_s=None if up.took_s is None else round(up.took_s, 3),
     )  # fmt: skip
     return ok
 
