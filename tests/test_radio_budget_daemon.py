@@ -12,7 +12,7 @@ from pathlib import Path
 
 from daemon_run import events, run_gcs
 
-from groundstation.mavlink.codec import MavlinkDecoder
+from groundstation.link.tlog import TlogReader
 
 
 def test_gcs_run_keeps_its_budget_over_lossy_radios(tmp_path: Path) -> None:
@@ -25,7 +25,7 @@ def test_gcs_run_keeps_its_budget_over_lossy_radios(tmp_path: Path) -> None:
     assert daemon.stop_reason == "duration", daemon.stop_reason
     assert not events(journal, "task_error") and not events(journal, "core_error")
     mission_s = journal[-1]["t"]
-    frames = MavlinkDecoder().feed((daemon.run_dir / "flight.tlog").read_bytes())
+    frames = [r.message for r in TlogReader(daemon.run_dir / "flight.tlog")]
     sent = Counter(m.get_type() for m in frames if m.get_srcSystem() == 245)
     # the heartbeat (and so the radios' RADIO_STATUS) at 1 Hz of mission time
     assert 0.85 <= sent["HEARTBEAT"] / mission_s <= 1.1, sent["HEARTBEAT"] / mission_s

@@ -13,8 +13,9 @@ One entry per vehicle, for the link it was bound to at the end:
 * ``uploads`` and ``uploads_per_hour``: mission uploads sent on the link (every purpose:
   targets, parks, homes), ``uploads * 3600 / mission_s``; ``upload_ok_pct``: the share
   verified (None without an upload).
-* ``upload_latency_s``: ``{p50, p95}`` of the mission seconds from an upload's first frame
-  to its verdict (verified, current item set and AUTO, or failed).
+* ``upload_latency_s``: ``{p50, p95}`` of the mission seconds from an upload's first
+  MISSION_COUNT to the verdict of its verifying download (the journal's ``upload`` line's
+  ``took_s``; the set-current and mode change that follow are not in it).
 * ``telemetry_age_s``: ``{p50, p95}`` of the age of the vehicle's newest position, sampled
   once a mission second while it had one and its link was not lost (against its own clock:
   :mod:`groundstation.vehicle.freshness`).

@@ -173,6 +173,8 @@ class Daemon:
             on_notice=lambda event, fields: self.journal(event, **fields),
             admit=signing.admit if signing is not None else None,
             sign=signing.sign if signing is not None else None,
+            on_radio=lambda link, rx: self.budgets.on_radio_status(
+                link.link_id, clock.now_s(), rx.message),
         )
         for link in links:
             self.router.add_vehicle_link(link)
@@ -403,8 +405,6 @@ class Daemon:
     def _on_vehicle_frame(self, rx: Received) -> None:
         msg = rx.message
         sysid = rx.system_id
-        if msg.get_type() == "RADIO_STATUS":  # the link's radio: its buffer and errors
-            self.budgets.on_radio_status(rx.link_id, self.clock.now_s(), msg)
         if sysid == self.config.links.gcs_system_id:
             return
         session = self.sessions.get(sysid)
@@ -703,7 +703,7 @@ class Daemon:
                 link=None if link is None else link.spec.canonical,
                 uploads_ok=sum(ok for ok, _ in uploads),
                 uploads_failed=sum(not ok for ok, _ in uploads),
-                upload_latencies_s=[took for _, took in uploads],
+                upload_latencies_s=[took for _, took in uploads if took is not None],
                 telemetry_ages_s=session.controller.telemetry_ages_s,
                 bytes_in=0 if link is None else link.counters.bytes_in,
                 bytes_out=0 if link is None else link.counters.bytes_out,

@@ -23,9 +23,10 @@
 Time for the binding rules comes from ``now_s`` (the daemon passes its mission clock).
 
 A radio's own reports (RADIO_STATUS, RADIO: ``groundstation.link.radio``) are recorded and
-forwarded like every frame, then kept as the link's ``radio`` and counted
-(``radio_frames``); they never reach the binding table or ``on_vehicle_frame``: they
-describe the radio, not a vehicle, so they bind no system id and keep none alive.
+forwarded like every frame, then kept as the link's ``radio``, counted (``radio_frames``)
+and handed to ``on_radio`` (the link's traffic budget); they never reach the binding table
+or ``on_vehicle_frame``: they describe the radio, not a vehicle, so they bind no system id
+and keep none alive.
 
 The router decides nothing about the vehicles; it only moves frames. Two optional hooks
 let MAVLink 2 signing sit at its edge (``groundstation.daemon.signing_gate``): ``admit``
@@ -94,6 +95,7 @@ class Router:
         on_notice: Callable[[str, dict[str, Any]], None] | None = None,
         admit: Callable[[Link, int, Received], bool] | None = None,
         sign: Callable[[int | None, int, bytes], bytes] | None = None,
+        on_radio: Callable[[Link, Received], None] | None = None,
     ) -> None:
         self.on_vehicle_frame = on_vehicle_frame
         self.on_out_frame = on_out_frame
@@ -109,6 +111,8 @@ class Router:
         """Signing check: (link, vehicle link index, frame) -> let it through?"""
         self.sign = sign
         """Signing: (system id or None for broadcast, vehicle link index, frame) -> frame."""
+        self.on_radio = on_radio
+        """A radio's report on a vehicle link (the link's traffic budget hears it)."""
 
     @property
     def routes(self) -> dict[int, Link]:
@@ -255,6 +259,8 @@ class Router:
             link.counters.radio_frames += 1
             self.counters.radio += 1
             link.radio = radio_report(rx.message, rx.t_unix_s) or link.radio
+            if self.on_radio is not None:
+                self.on_radio(link, rx)
             return
         if rx.foreign:  # bound to another peer of this link: the link counted it
             self.counters.foreign += 1

@@ -38,7 +38,7 @@ __all__ = [
     "TELEMETRY_SHARE",
     "TXBUF_HOLD_PCT",
     "LinkBudget",
-    "RadioReport",
+    "RadioReading",
     "RttEstimator",
     "StreamPlan",
     "stream_plan",
@@ -116,7 +116,7 @@ class RttEstimator:
 
 
 @dataclass(frozen=True)
-class RadioReport:
+class RadioReading:
     """The ground radio's RADIO_STATUS as floe reads it."""
 
     t_s: float
@@ -134,7 +134,7 @@ class LinkBudget:
     configured_bps: float | None = None
     """From configuration (``--link-rate``) or the serial port's baud rate."""
     rtt: RttEstimator = field(init=False)
-    radio: RadioReport | None = None
+    radio: RadioReading | None = None
     held_s: float = 0.0
     """Mission seconds exchanges spent waiting for the radio's buffer."""
     holds: int = 0
@@ -152,7 +152,7 @@ class LinkBudget:
             return SIK_DOWNLINK_BPS
         return None
 
-    def on_radio_status(self, t_s: float, msg: object) -> RadioReport | None:
+    def on_radio_status(self, t_s: float, msg: object) -> RadioReading | None:
         """A RADIO_STATUS (or RADIO) from the link's ground radio: remembered; unreadable
         fields leave the last report as it was."""
         values = []
@@ -163,7 +163,7 @@ class LinkBudget:
             values.append(value)
         if not 0 <= values[0] <= 100:
             return None
-        self.radio = RadioReport(t_s, values[0], values[1], values[2], values[3])
+        self.radio = RadioReading(t_s, values[0], values[1], values[2], values[3])
         return self.radio
 
     def congested(self, t_s: float) -> bool:

@@ -142,9 +142,10 @@ class VehicleController:
         self.upload_retries = 0
         """Retries of every upload job (transfers and set-currents), for the table."""
         self.upload_delays_s: list[float] = []
-        self.link_uploads: list[tuple[bool, float]] = []
+        self.link_uploads: list[tuple[bool, float | None]] = []
         """Every mission upload of the vehicle (any purpose): verified, and the mission
-        seconds from its first frame to its verdict (the ``links`` figures)."""
+        seconds from its first MISSION_COUNT to the verdict of its verifying download (None:
+        not timed) (the ``links`` figures)."""
         self.telemetry_ages_s: list[float] = []
         """Its newest position's age, sampled once a mission second while it had one."""
         self._age_sampled_s = -math.inf
@@ -1085,7 +1086,7 @@ class VehicleController:
     def count_retries(self, retries: int) -> None:
         self.upload_retries += retries
 
-    def upload_done(self, ok: bool, took_s: float) -> None:
+    def upload_done(self, ok: bool, took_s: float | None) -> None:
         self.link_uploads.append((ok, took_s))
 
     def target_failed(self, fly: controller_io.Fly) -> bool:
