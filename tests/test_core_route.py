@@ -15,6 +15,7 @@ from groundstation.core.events import (
     Tick,
     VehicleJoined,
 )
+from groundstation.vehicle.state import FlyRecord
 from observer import ObserverConfig
 from planner import solve_plan
 from planner.search_cells import SearchConfig
@@ -116,3 +117,17 @@ def test_journals_from_before_routes_replay_as_they_ran() -> None:
         core.handle(TargetAdded(0.0, target, x_m, 0.0, sigma0=100.0))
     sent = fly_to(core, 0.0, 1.0, 0.0, 22.0)
     assert [(f.target, f.through) for f in sent] == [("A", ())]
+
+
+def test_the_no_progress_watch_follows_the_point_the_vehicle_flies_to() -> None:
+    """The controller measures progress to the point of the route the vehicle flies to
+    now (MISSION_CURRENT: item 1 the aim, items 2.. the points flown through, the last
+    item at the last point), and a MISSION_CURRENT going back (a stray frame) does not
+    move it back."""
+    fly = FlyRecord("A", 1000.0, 0.0, ("A", "B", "C"),
+                    through=((2000.0, 0.0), (3000.0, 0.0), (3000.0, 0.0)))
+    assert fly.aim_now(1) == (1000.0, 0.0)
+    assert fly.aim_now(2) == (2000.0, 0.0)
+    assert fly.aim_now(1) == (2000.0, 0.0)  # never back
+    assert fly.aim_now(None) == (2000.0, 0.0)
+    assert fly.aim_now(5) == (3000.0, 0.0)  # the unlimited loiter at the last point
