@@ -633,7 +633,9 @@ class DecisionCore:
                 self._move_on(t_s, record, k, (aim, t_arr_s))
                 record.route = route
                 return None
-        ahead = record.busy and bool(record.through)  # it keeps flying its route meanwhile
+        # points of its route still ahead (not the repeats of where it flies to now): it
+        # keeps flying them meanwhile
+        ahead = record.busy and any(t != record.target for t in record.through)
         if self.uploads.too_soon(record.id, t_s,
                                  self.config.route_min_interval_s if ahead else None):
             return None
@@ -655,12 +657,17 @@ class DecisionCore:
         """The targets a pass to ``route[0]`` (at ``aim_xy_m``, ``t_arr_s`` s from now)
         flies through after it (``core/route.py``); none when the visit loiters, routes
         are off, or the run has no search cells (tracking alone, e.g. paper-boat's 5 s
-        sample-based replanning of 3 m/s icebergs, keeps one target per mission)."""
+        sample-based replanning of 3 m/s icebergs, keeps one target per mission). Always
+        ``route_cells`` points, the last one (or the head) repeated when the route has
+        fewer: ArduPlane reaches a repeated point at once, and the mission's length never
+        changes between uploads (``vehicle/jobs.py``)."""
         if (self.search is None or self.config.loiter_s >= MIN_LOITER_S or not route
                 or not self.config.route_cells):
             return ()
-        return through_points(route, self.config.route_cells, aim_xy_m, t_arr_s,
-                              self.config.speed_m_s, self._where)
+        points = through_points(route, self.config.route_cells, aim_xy_m, t_arr_s,
+                                self.config.speed_m_s, self._where)
+        last = points[-1] if points else ThroughPoint(route[0], *aim_xy_m)
+        return points + (last,) * (self.config.route_cells - len(points))
 
     def _where(self, target: str) -> tuple[tuple[float, float], tuple[float, float]] | None:
         """A target's position and drift velocity now (None: gone)."""

@@ -23,9 +23,9 @@ __all__ = ["MIN_LOITER_S", "ROUTE_POINTS_MAX", "TargetMission", "target_mission"
 
 ROUTE_POINTS_MAX = 3
 """The most points a pass flies through after its aim point (``CoreConfig.route_cells``
-is at most this). ArduPlane's pass missions always hold this many, the last point
-repeated when there are fewer (reached at once, within ``WP_RADIUS``), so the mission's
-length never changes between uploads (``vehicle/jobs.py``)."""
+is at most this). A routing core sends always ``route_cells`` of them, the last point
+repeated when there are fewer (ArduPlane reaches it at once, within ``WP_RADIUS``), so
+the mission's length never changes between uploads (``core/route.py``)."""
 
 MIN_LOITER_S = 1.0
 """The shortest timed loiter; a shorter one is a pass over the aim point."""

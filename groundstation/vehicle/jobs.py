@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from typing import Any, Protocol
 
 from domain.modes import ArduPlaneMode
-from groundstation.core.mission import ROUTE_POINTS_MAX, target_mission
+from groundstation.core.mission import target_mission
 from groundstation.mavlink.codec import mavlink2
 from groundstation.mavlink.mission_items import (
     LoiterTime,
@@ -217,10 +217,9 @@ def target_job(host: JobHost, fly: Fly) -> Job:
     else:
         first = Waypoint(fly.x_m, fly.y_m, host.alt_m)
     steps: list[MissionStep] = [first]
-    if mission.pass_over:  # always ROUTE_POINTS_MAX more: the mission length never changes
-        points = [*mission.through][:ROUTE_POINTS_MAX]
-        points += [mission.end_xy_m] * (ROUTE_POINTS_MAX - len(points))
-        steps += [Waypoint(x_m, y_m, host.alt_m) for x_m, y_m in points]
+    # a routing core sends a pass always route_cells points (the last one repeated), so
+    # the mission's length never changes between uploads (core/route.py)
+    steps += [Waypoint(x_m, y_m, host.alt_m) for x_m, y_m in mission.through]
     steps.append(LoiterUnlimited(*mission.end_xy_m, host.alt_m, radius))
     while True:
         ok = yield from mission_job(host, steps, 1, "target", command.target,

@@ -97,6 +97,10 @@ class OfflineVehicle:
                 if math.dist((self.state.x_m, self.state.y_m), self.aim_xy_m) <= (
                     self.arrival_radius_m
                 ):
+                    here = (self.state.x_m, self.state.y_m)
+                    while self.through and math.dist(here, self.through[0]) <= (
+                            self.arrival_radius_m):  # reached at once (a repeated point)
+                        self.aim_xy_m, self.through = self.through[0], self.through[1:]
                     if self.through:  # on to the next waypoint of the mission
                         self.aim_xy_m, self.through = self.through[0], self.through[1:]
                     else:
