@@ -19,6 +19,7 @@ __all__ = [
     "SendHome",
     "SetHome",
     "SolveRequest",
+    "ThroughPoint",
     "Verdict",
     "WindEstimate",
 ]
@@ -60,9 +61,22 @@ class PlanAdopted:
 
 
 @dataclass(frozen=True)
+class ThroughPoint:
+    """A search cell a mission flies through after its head: its id and centre (m)."""
+
+    target: str
+    x_m: float
+    y_m: float
+
+
+@dataclass(frozen=True)
 class FlyToTarget:
     """Fly to the aim point (the target predicted at arrival), loiter, then hold there.
 
+    ``through`` are the search cells of the planned route that follow ``target``, flown
+    through in the same mission as plain waypoints (``core/route.py``: a vehicle moving on
+    to the next cell of its route needs no new mission); empty: the mission ends at
+    ``target`` (journals written before routes, and every loitering visit).
     ``route`` is the rest of the vehicle's planned sequence, for display only. ``eta_s`` is
     the mission time the core predicts the vehicle reaches the aim point (the intercept's
     arrival time; None where unknown, e.g. a command built outside the core); the run's
@@ -78,6 +92,7 @@ class FlyToTarget:
     loiter_radius_m: float
     route: tuple[str, ...] = field(default=())
     eta_s: float | None = None
+    through: tuple[ThroughPoint, ...] = field(default=())
 
 
 @dataclass(frozen=True)

@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 from enum import StrEnum
 from typing import Any
 
+from groundstation.core.mission import ROUTE_POINTS_MAX
 from observer import ObserverConfig, TrackerConfig
 from planner import Objective
 from planner.search_cells import SearchConfig
@@ -144,6 +145,15 @@ class CoreConfig:
     """Without commitment, a search cell an active vehicle flies to stays in the planning
     problem even when it is no longer among the ``max_cells`` most valuable
     (``core/uploads.py``). False: journals written before (they replay as they ran)."""
+    route_cells: int | None = 3
+    """A mission flies through up to this many search cells of the vehicle's planned route
+    after its head (plain waypoints); the vehicle moving on to the next of them needs no
+    new mission (``core/route.py``). None or 0: a mission ends at its head (journals
+    written before routes read as None, so they replay as they ran)."""
+    route_min_interval_s: float | None = 60.0
+    """The minimum interval for a vehicle that still has points of its mission's route
+    ahead (it keeps flying them while a new head waits; ``core/route.py``); at least
+    ``upload_min_interval_s``. None: that interval for every vehicle (journals before)."""
     revisit_growth: float | None = 2.0
     """A target a vehicle's visit did not see is not given to that vehicle again at the same
     place until its value (sigma, m^2) grew by this factor or its aim moved farther than the
@@ -222,6 +232,7 @@ class CoreConfig:
             object.__setattr__(self, name, float(value))
         for name, value, low in (("retarget_threshold_m", self.retarget_threshold_m, 0.0),
                                  ("upload_min_interval_s", self.upload_min_interval_s, 0.0),
+                                 ("route_min_interval_s", self.route_min_interval_s, 0.0),
                                  ("revisit_growth", self.revisit_growth, 1.0)):
             if value is None:
                 continue
@@ -231,6 +242,12 @@ class CoreConfig:
                 raise ValueError(f"{name} must be a finite number >= {low:g} or null, "
                                  f"got {value!r}")
             object.__setattr__(self, name, float(value))
+        if self.route_cells is not None and (
+                isinstance(self.route_cells, bool) or not isinstance(self.route_cells, int)
+                or not 0 <= self.route_cells <= ROUTE_POINTS_MAX):
+            raise ValueError(f"route_cells must be a whole number in [0, {ROUTE_POINTS_MAX}] "
+                             f"or null, "
+                             f"got {self.route_cells!r}")
         if not isinstance(self.keep_held_cells, bool):
             raise ValueError(f"keep_held_cells must be true or false, got "
                              f"{self.keep_held_cells!r}")
@@ -291,6 +308,8 @@ def config_from_dict(data: Mapping[str, Any]) -> CoreConfig:
     values.setdefault("upload_min_interval_s", None)  # likewise (core/uploads.py)
     values.setdefault("revisit_growth", None)
     values.setdefault("keep_held_cells", False)
+    values.setdefault("route_cells", None)  # written before routes (core/route.py)
+    values.setdefault("route_min_interval_s", None)
     values.setdefault("retarget_threshold_m", 50.0)  # the default before the rule
     try:
         if "policy" in values:

@@ -46,6 +46,7 @@ from groundstation.core.commands import (
     PlanAdopted,
     SendHome,
     SolveRequest,
+    ThroughPoint,
     Verdict,
 )
 from groundstation.core.config import CoreConfig
@@ -69,7 +70,9 @@ from groundstation.core.events import (
 )
 from groundstation.core.fleet import FleetStatus, VehicleRecord, free_vehicles, status_change
 from groundstation.core.intercept import intercept, travel_time_s
+from groundstation.core.mission import MIN_LOITER_S
 from groundstation.core.planning_targets import build_problem, search_targets, track_targets
+from groundstation.core.route import moved_on, through_points
 from groundstation.core.ship import ShipTrack
 from groundstation.core.tracking import TrackBook, TrackerFactory
 from groundstation.core.uploads import UploadRule
@@ -372,6 +375,8 @@ class DecisionCore:
             return []
         record.busy = False
         self._mark_dirty("loiter ended")
+        if record.through:  # the mission's end: it flew through every cell (core/route.py)
+            self._move_on(event.t_s, record, len(record.through), None)
         out = self._visit_ended(event.t_s, record)
         if self.config.policy.commit or record.target not in record.route:
             return out
@@ -525,8 +530,8 @@ class DecisionCore:
         assert self.search is not None
         cells = self.search.top(t_s, exclude=covered)
         if self.config.keep_held_cells and not self.config.policy.commit:
-            held = {v.target for v in self.active_vehicles()
-                    if v.busy and v.target is not None and v.target in self.search}
+            held = {t for v in self.active_vehicles() if v.busy
+                    for t in (v.target, *v.through) if t is not None and t in self.search}
             held -= {c.id for c in cells}
             if held:
                 cells += [c for c in self.search.values(t_s) if c.id in held and c.value_m2 > 0]
@@ -622,7 +627,17 @@ class DecisionCore:
             record.route = route
             record.busy = True
             return None
-        if self.uploads.too_soon(record.id, t_s):
+        if not self.config.policy.commit and record.busy:
+            k = moved_on(record.target, record.through, target, self._seen_since_leg(record))
+            if k is not None:  # along the mission it has: no new one (core/route.py)
+                self._move_on(t_s, record, k, (aim, t_arr_s))
+                record.route = route
+                return None
+        # points of its route still ahead (not the repeats of where it flies to now): it
+        # keeps flying them meanwhile
+        ahead = record.busy and any(t != record.target for t in record.through)
+        if self.uploads.too_soon(record.id, t_s,
+                                 self.config.route_min_interval_s if ahead else None):
             return None
         record.route = route
         record.busy = True
@@ -631,8 +646,63 @@ class DecisionCore:
         record.target, record.aim_xy_m, record.eta_s = target, aim, t_s + t_arr_s
         record.leg_wind_xy_m_s = self.planning_wind_m_s()
         record.leg_wind_source = self.wind.current.source
+        through = self._through(route, aim, t_arr_s)
+        record.through = tuple(c.target for c in through)
         return FlyToTarget(t_s, record.id, target, aim[0], aim[1], self.config.loiter_s,
-                           self.config.loiter_radius_m, route, eta_s=t_s + t_arr_s)
+                           self.config.loiter_radius_m, route, eta_s=t_s + t_arr_s,
+                           through=through)
+
+    def _through(self, route: tuple[str, ...], aim_xy_m: tuple[float, float],
+                 t_arr_s: float) -> tuple[ThroughPoint, ...]:
+        """The targets a pass to ``route[0]`` (at ``aim_xy_m``, ``t_arr_s`` s from now)
+        flies through after it (``core/route.py``); none when the visit loiters, routes
+        are off, or the run has no search cells (tracking alone, e.g. paper-boat's 5 s
+        sample-based replanning of 3 m/s icebergs, keeps one target per mission). Always
+        ``route_cells`` points, the last one (or the head) repeated when the route has
+        fewer: ArduPlane reaches a repeated point at once, and the mission's length never
+        changes between uploads (``vehicle/jobs.py``)."""
+        if (self.search is None or self.config.loiter_s >= MIN_LOITER_S or not route
+                or not self.config.route_cells):
+            return ()
+        points = through_points(route, self.config.route_cells, aim_xy_m, t_arr_s,
+                                self.config.speed_m_s, self._where)
+        last = points[-1] if points else ThroughPoint(route[0], *aim_xy_m)
+        return points + (last,) * (self.config.route_cells - len(points))
+
+    def _where(self, target: str) -> tuple[tuple[float, float], tuple[float, float]] | None:
+        """A target's position and drift velocity now (None: gone)."""
+        if self.search is not None and target in self.search:
+            return self.search.centre(target), (0.0, 0.0)
+        if target in self.observer.target_ids:
+            track = self.observer.track(target)
+            return (track.x_m, track.y_m), (track.vx_m_s, track.vy_m_s)
+        return None
+
+    def _seen_since_leg(self, record: VehicleRecord) -> Callable[[str], bool]:
+        """Whether a target was seen since ``record``'s mission was sent (a target that is
+        gone counts as seen: nothing is left to look at)."""
+        def seen(target: str) -> bool:
+            if target not in self._known_targets():
+                return True
+            last = self._last_seen_s(target)
+            return last is not None and record.leg_t_s is not None and last >= record.leg_t_s
+        return seen
+
+    def _move_on(self, t_s: float, record: VehicleRecord, k: int,
+                 leg: tuple[tuple[float, float], float] | None) -> None:
+        """``record`` moved on to item ``k`` of its mission's ``through`` cells: its target
+        and aim are that cell's (``leg``: its aim and flight time; None: the vehicle is
+        there), the cells before it are done."""
+        target = record.through[k - 1]
+        record.through = record.through[k:]
+        if leg is None:
+            where = self._where(target)
+            aim = where[0] if where is not None else record.aim_xy_m
+            t_arr_s = 0.0
+        else:
+            aim, t_arr_s = leg
+        record.target, record.aim_xy_m, record.eta_s = target, aim, t_s + t_arr_s
+        self._count("route_moved_on")
 
     def travel_time_s(self, record: VehicleRecord, x_m: float, y_m: float) -> float:
         """Predicted time (s) for ``record`` to fly from its pose to (x_m, y_m) in still air

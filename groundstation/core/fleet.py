@@ -59,6 +59,9 @@ class VehicleRecord:
     busy: bool = False
     aim_xy_m: tuple[float, float] | None = None
     route: tuple[str, ...] = field(default=())
+    through: tuple[str, ...] = field(default=())
+    """The search cells the vehicle's mission flies through after ``target``
+    (``core/route.py``)."""
     eta_s: float | None = None
     """The predicted arrival of the leg last commanded (``FlyToTarget.eta_s``)."""
     leg_t_s: float | None = None

@@ -7,7 +7,10 @@ simulator's UAV (``runners/simulate/vehicle.py``).
   starts on reaching the circle, and its end is the ``LoiterEnded`` the core hears;
 * ``loiter_s < 1``: the paper's pass-over: fly to the aim point itself (a waypoint);
   arriving ends the leg;
-* then hold: circle the aim point for ever (``NAV_LOITER_UNLIM``) until the next command.
+* a pass with ``through`` cells (``core/route.py``) flies on through each of them as a
+  plain waypoint (``NAV_WAYPOINT``: reached within ``WP_RADIUS`` or on passing the line
+  normal to the leg); reaching the last one ends the leg;
+* then hold: circle the last point for ever (``NAV_LOITER_UNLIM``) until the next command.
 """
 
 from __future__ import annotations
@@ -16,7 +19,13 @@ from dataclasses import dataclass
 
 from groundstation.core.commands import FlyToTarget
 
-__all__ = ["MIN_LOITER_S", "TargetMission", "target_mission"]
+__all__ = ["MIN_LOITER_S", "ROUTE_POINTS_MAX", "TargetMission", "target_mission"]
+
+ROUTE_POINTS_MAX = 3
+"""The most points a pass flies through after its aim point (``CoreConfig.route_cells``
+is at most this). A routing core sends always ``route_cells`` of them, the last point
+repeated when there are fewer (ArduPlane reaches it at once, within ``WP_RADIUS``), so
+the mission's length never changes between uploads (``core/route.py``)."""
 
 MIN_LOITER_S = 1.0
 """The shortest timed loiter; a shorter one is a pass over the aim point."""
@@ -31,10 +40,18 @@ class TargetMission:
     y_m: float
     loiter_s: int
     loiter_radius_m: float
+    through: tuple[tuple[float, float], ...] = ()
+    """The centres (m) of the cells a pass flies through after the aim point (empty when
+    the visit loiters)."""
 
     @property
     def pass_over(self) -> bool:
         return self.loiter_s == 0
+
+    @property
+    def end_xy_m(self) -> tuple[float, float]:
+        """Where the flight ends and holds: the last cell flown through, else the aim."""
+        return self.through[-1] if self.through else (self.x_m, self.y_m)
 
 
 def target_mission(command: FlyToTarget, aim_xy_m: tuple[float, float] | None = None,
@@ -44,4 +61,5 @@ def target_mission(command: FlyToTarget, aim_xy_m: tuple[float, float] | None = 
     x_m, y_m = aim_xy_m if aim_xy_m is not None else (command.x_m, command.y_m)
     radius = command.loiter_radius_m if loiter_radius_m is None else loiter_radius_m
     loiter_s = round(command.loiter_s) if command.loiter_s >= MIN_LOITER_S else 0
-    return TargetMission(command.target, x_m, y_m, loiter_s, radius)
+    through = tuple((c.x_m, c.y_m) for c in command.through) if loiter_s == 0 else ()
+    return TargetMission(command.target, x_m, y_m, loiter_s, radius, through)

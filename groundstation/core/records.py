@@ -167,6 +167,8 @@ def command_to_record(command: Command) -> dict[str, Any]:
             "target": command.target, "x_m": command.x_m, "y_m": command.y_m,
             "loiter_s": command.loiter_s, "loiter_radius_m": command.loiter_radius_m,
             "route": list(command.route), "eta_s": command.eta_s,
+            **({"through": [[c.target, c.x_m, c.y_m] for c in command.through]}
+               if command.through else {}),
         }
     if isinstance(command, ReleaseVehicle):
         return {"event": "release", "t": command.t_s, "vehicle": command.vehicle,

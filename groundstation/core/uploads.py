@@ -75,14 +75,19 @@ class UploadRule:
                 and math.dist(aim_xy_m, new_aim_xy_m) < self.retarget_m)
 
     # ------------------------------------------------------------------ interval
-    def too_soon(self, vehicle: str, t_s: float) -> bool:
-        """A FlyToTarget to ``vehicle`` now would come within the minimum interval; the
-        caller defers it and :meth:`due` asks for a replan when the interval has passed."""
+    def too_soon(self, vehicle: str, t_s: float, interval_s: float | None = None) -> bool:
+        """A FlyToTarget to ``vehicle`` now would come within the minimum interval (or
+        ``interval_s``, a longer one: a vehicle with points of its route still ahead,
+        ``core/route.py``); the caller defers it and :meth:`due` asks for a replan when
+        the interval has passed."""
         last = self._sent_s.get(vehicle)
-        if self.min_interval_s is None or last is None or (
-                t_s - last >= self.min_interval_s - 1e-9):
+        if self.min_interval_s is None:
             return False
-        self._due_s[vehicle] = last + self.min_interval_s
+        interval_s = self.min_interval_s if interval_s is None else max(
+            interval_s, self.min_interval_s)
+        if last is None or t_s - last >= interval_s - 1e-9:
+            return False
+        self._due_s[vehicle] = last + interval_s
         self.deferred += 1
         return True
 

@@ -43,6 +43,7 @@ from typing import Any
 
 from domain.modes import TAKEN_MODES, ArduPlaneMode
 from groundstation.core import events as ev
+from groundstation.core.mission import target_mission
 from groundstation.mavlink.airspeed_health import AirspeedChange, AirspeedHealth
 from groundstation.mavlink.evidence import LoiterEndEvidence
 from groundstation.mavlink.telemetry_events import (
@@ -317,7 +318,11 @@ class VehicleController:
             fly = self.fly
             if fly is not None and fly.verified_t_s is not None:
                 near_m = self.loiter_radius_m() + self.s.progress_margin_m
-                self.watch.position(s, (fly.x_m, fly.y_m), near_m, t)
+                item = fly.item
+                aim = fly.aim_now(s.mission_current_seq)  # a route: the point it flies to
+                if fly.item != item:  # on to the next point: progress towards it afresh
+                    self.watch.reset_progress()
+                self.watch.position(s, aim, near_m, t)
         up = s.alt_m is not None and s.alt_m >= self.alt_m - LAUNCHED_MARGIN_M
         if self.state is S.LAUNCHING and self._launch_deadline_s is not None and up:
             self._launch_deadline_s = None
@@ -744,7 +749,8 @@ class VehicleController:
         fly = self._pending_fly
         if fly is not None and self.commanded:
             self._pending_fly = None
-            self.fly = FlyRecord(fly.command.target, fly.x_m, fly.y_m, fly.command.route)
+            self.fly = FlyRecord(fly.command.target, fly.x_m, fly.y_m, fly.command.route,
+                                 through=target_mission(fly.command).through)
             self._start(target_job(self, fly))
             return True
         if fly is not None and self.s.advisory:

@@ -110,11 +110,12 @@ class JobHost(Protocol):
 
 def mission_job(
     host: JobHost, steps: list[MissionStep], current: int | None, purpose: str,
-    target: str | None = None,
+    target: str | None = None, end_seq: int | None = None,
 ) -> Generator[Exchange | Pause, Any, bool]:
     """Upload ``steps`` verified; then set ``current`` and make sure of AUTO.
 
-    The loiter end of a target mission is watched from the verified upload on. The
+    The loiter end of a target mission (item ``end_seq``, by default ``current``: the
+    last item a route flies through) is watched from the verified upload on. The
     set-current machine itself confirms a waypoint passed at once (MISSION_ITEM_REACHED of
     it after its ACK); its result decides, on its code, never on its message."""
     host.disarm_loiter_end()
@@ -126,7 +127,7 @@ def mission_job(
         ok = result.ok
         error = "" if ok else f"set current {result.code.value}: {result.message}"
         if ok and purpose == "target":
-            host.arm_loiter_end(current)
+            host.arm_loiter_end(current if end_seq is None else end_seq)
         if ok and host.mode() != ArduPlaneMode.AUTO:
             host.expect_mode(ArduPlaneMode.AUTO)
             answer = yield SetMode(ArduPlaneMode.AUTO)
@@ -197,9 +198,10 @@ def launch_job(host: JobHost, heading_rad: float) -> Job:
 
 
 def target_job(host: JobHost, fly: Fly) -> Job:
-    """Fly to a target: [timed loiter (or a waypoint for a pass) at the aim point, unlimited
-    loiter there] (``core/mission.py``), WP_LOITER_RAD set first; retried until verified,
-    or overtaken."""
+    """Fly to a target: [timed loiter (or a waypoint for a pass) at the aim point, a
+    waypoint per point the pass flies through, unlimited loiter at the last point]
+    (``core/mission.py``), WP_LOITER_RAD set first; retried until verified, or overtaken.
+    The loiter end watched is the last item before the unlimited loiter."""
     command = fly.command
     radius = host.loiter_radius_m(command.loiter_radius_m)
     mission = target_mission(command, (fly.x_m, fly.y_m), radius)
@@ -213,9 +215,14 @@ def target_job(host: JobHost, fly: Fly) -> Job:
                 host.journal("param_set", ok=False, name="WP_LOITER_RAD", value=radius)
     else:
         first = Waypoint(fly.x_m, fly.y_m, host.alt_m)
-    steps: list[MissionStep] = [first, LoiterUnlimited(fly.x_m, fly.y_m, host.alt_m, radius)]
+    steps: list[MissionStep] = [first]
+    # a routing core sends a pass always route_cells points (the last one repeated), so
+    # the mission's length never changes between uploads (core/route.py)
+    steps += [Waypoint(x_m, y_m, host.alt_m) for x_m, y_m in mission.through]
+    steps.append(LoiterUnlimited(*mission.end_xy_m, host.alt_m, radius))
     while True:
-        ok = yield from mission_job(host, steps, 1, "target", command.target)
+        ok = yield from mission_job(host, steps, 1, "target", command.target,
+                                    end_seq=len(steps) - 1)
         if ok:
             host.target_verified(fly)
             return

@@ -48,3 +48,15 @@ class FlyRecord:
     y_m: float
     route: tuple[str, ...] = field(default=())
     verified_t_s: float | None = None
+    through: tuple[tuple[float, float], ...] = ()
+    """The points the mission flies through after the aim (``core/route.py``)."""
+    item: int = 1
+    """The furthest mission item it was seen flying to (MISSION_CURRENT)."""
+
+    def aim_now(self, seq: int | None) -> tuple[float, float]:
+        """Where it flies now: item 1 is the aim, items 2.. the points flown through, the
+        last (the unlimited loiter) at the last point. ``seq`` only moves it forward."""
+        if seq is not None and seq > self.item:
+            self.item = seq
+        points = ((self.x_m, self.y_m), *self.through)
+        return points[min(max(self.item - 1, 0), len(points) - 1)]

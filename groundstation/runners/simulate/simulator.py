@@ -241,7 +241,9 @@ class _Simulation:
             vehicle = self.vehicles[command.vehicle]
             if vehicle.commanded:
                 x_m, y_m, _ = self.area.clip(command.x_m, command.y_m)
-                vehicle.command_fly(target_mission(command, (x_m, y_m)))
+                mission = target_mission(command, (x_m, y_m))
+                through = tuple(self.area.clip(*xy)[:2] for xy in mission.through)
+                vehicle.command_fly(replace(mission, through=through))
                 self.metrics.fly(command.t_s, command.vehicle, command.target, command.x_m,
                                  command.y_m, command.eta_s, self.fov_radius_m)
         elif isinstance(command, SendHome):

@@ -53,9 +53,12 @@ class OfflineVehicle:
     target: str | None = None
     commanded: bool = True
     lost: bool = False
+    through: tuple[tuple[float, float], ...] = ()
+    """The waypoints still to fly through after the aim point (``core/route.py``)."""
 
     def command_fly(self, mission: TargetMission) -> None:
         self.aim_xy_m = (mission.x_m, mission.y_m)
+        self.through = mission.through
         self.loiter_s = float(mission.loiter_s)
         self.loiter_radius_m = mission.loiter_radius_m
         self.loiter_end_s = None
@@ -68,11 +71,13 @@ class OfflineVehicle:
         self.loiter_radius_m = loiter_radius_m
         self.phase = "hold"
         self.target = None
+        self.through = ()
 
     def step(self, t_s: float, dt_s: float,
              wind_xy_m_s: tuple[float, float] = CALM) -> bool:
         """Advance by ``dt_s`` ending at ``t_s + dt_s`` in the wind ``wind_xy_m_s`` (ENU,
-        constant over the step); True when a loiter (or pass) ended."""
+        constant over the step); True when a loiter (or pass) ended: a pass through
+        waypoints ends at the last one, as ArduPlane's mission reaches its final loiter."""
         ended = False
         s = self.state
         if self.aim_xy_m is None:
@@ -92,7 +97,14 @@ class OfflineVehicle:
                 if math.dist((self.state.x_m, self.state.y_m), self.aim_xy_m) <= (
                     self.arrival_radius_m
                 ):
-                    self.phase, ended = "hold", True
+                    here = (self.state.x_m, self.state.y_m)
+                    while self.through and math.dist(here, self.through[0]) <= (
+                            self.arrival_radius_m):  # reached at once (a repeated point)
+                        self.aim_xy_m, self.through = self.through[0], self.through[1:]
+                    if self.through:  # on to the next waypoint of the mission
+                        self.aim_xy_m, self.through = self.through[0], self.through[1:]
+                    else:
+                        self.phase, ended = "hold", True
             else:
                 circle = LoiterCommand(*self.aim_xy_m, self.loiter_radius_m)
                 if distance_to_circle_m(self.state, circle, self.turn_radius_m) <= (
