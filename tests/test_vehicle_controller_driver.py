@@ -207,3 +207,32 @@ def test_an_upload_ended_by_a_reboot_is_not_retried_to_the_rebooted_vehicle() ->
     assert session.status == "on_ground"  # re-assessed: the rebooted plane sits disarmed
     assert port.reboots == 1
     assert port.calls.count("upload") == 1  # no retry to a vehicle that just rebooted
+
+
+def test_a_routes_points_are_clipped_into_the_operating_area_with_its_aim() -> None:
+    """Every point a pass flies through is moved onto the operating area's edge, as its aim
+    point is (a predicted iceberg may drift out of the area before the vehicle gets there)."""
+    from groundstation.core.commands import FlyToTarget, ThroughPoint
+    from groundstation.vehicle import controller_io
+
+    class Edge(Host):
+        def clip(self, x_m: float, y_m: float) -> tuple[float, float, bool]:
+            return (min(x_m, 1000.0), y_m, x_m > 1000.0)
+
+    clock = MissionClock(1.0, source=lambda: 5.0)
+    session = VehicleSession(
+        1, "v1", 0, Edge(), parse_config({"vehicles": ["sim:1"]}, {}), VehicleSettings(),  # type: ignore[arg-type]
+        Port(), clock,  # type: ignore[arg-type]
+    )  # fmt: skip
+    fed: list[Any] = []
+    session._feed = fed.append  # type: ignore[method-assign]
+    inside = ThroughPoint("C2", 900.0, 50.0)
+    command = FlyToTarget(5.0, "v1", "C1", 800.0, 0.0, 0.0, 120.0,
+                          through=(inside, ThroughPoint("C3", 1400.0, 100.0)))
+    session.command_fly(command)
+    (fly,) = fed
+    assert isinstance(fly, controller_io.Fly) and fly.clipped
+    assert (fly.x_m, fly.y_m) == (800.0, 0.0)
+    assert fly.command.through == (inside, ThroughPoint("C3", 1000.0, 100.0))
+    session.command_fly(FlyToTarget(6.0, "v1", "C1", 800.0, 0.0, 0.0, 120.0, through=(inside,)))
+    assert not fed[-1].clipped and fed[-1].command.through == (inside,)

@@ -17,6 +17,7 @@ from __future__ import annotations
 import asyncio
 import collections
 import contextlib
+import dataclasses
 import logging
 import math
 from typing import Any, Protocol
@@ -204,8 +205,16 @@ class VehicleSession:
                 self._last_track_s = t_s
 
     def command_fly(self, command: FlyToTarget) -> None:
-        """Core said: fly to a target (clipped into the operating area here)."""
+        """Core said: fly to a target (clipped into the operating area here: its aim point
+        and every point of the route it flies through)."""
         x_m, y_m, clipped = self.host.clip(command.x_m, command.y_m)
+        through = []
+        for point in command.through:
+            px_m, py_m, moved = self.host.clip(point.x_m, point.y_m)
+            through.append(dataclasses.replace(point, x_m=px_m, y_m=py_m) if moved else point)
+            clipped = clipped or moved
+        if tuple(through) != command.through:
+            command = dataclasses.replace(command, through=tuple(through))
         self._feed(controller_io.Fly(self.clock.now_s(), command, x_m, y_m, clipped))
 
     def release(self, reason: str, home: bool = False) -> None:
