@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 import pytest
+from core_run import solve_all
 
 from groundstation.core.commands import (
     CancelSolve,
@@ -51,17 +52,6 @@ def of_type(commands: list[Command], kind: type) -> list:
     return [c for c in commands if isinstance(c, kind)]
 
 
-def solve_all(core: DecisionCore, commands: list[Command]) -> list[Command]:
-    """Solve every request inline, like the offline runner; return all resulting commands."""
-    out: list[Command] = []
-    queue = list(commands)
-    while queue:
-        command = queue.pop(0)
-        out.append(command)
-        if isinstance(command, SolveRequest):
-            result = solve_plan(command.problem, command.hint)
-            queue.extend(core.handle(PlanSolved(command.t_s, command.request_id, result)))
-    return out
 
 
 def join(core: DecisionCore, vehicle: str, x_m: float = 0.0, y_m: float = 0.0) -> None:

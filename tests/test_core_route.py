@@ -3,13 +3,14 @@
 
 from __future__ import annotations
 
-from groundstation.core.commands import Command, FlyToTarget, SolveRequest
+from core_run import solve_all
+
+from groundstation.core.commands import Command, FlyToTarget
 from groundstation.core.config import CoreConfig, ReplanPolicy, config_from_dict
 from groundstation.core.decision import DecisionCore
 from groundstation.core.events import (
     Detection,
     LoiterEnded,
-    PlanSolved,
     TargetAdded,
     Telemetry,
     Tick,
@@ -17,20 +18,7 @@ from groundstation.core.events import (
 )
 from groundstation.vehicle.state import FlyRecord
 from observer import ObserverConfig
-from planner import solve_plan
 from planner.search_cells import SearchConfig
-
-
-def solve_all(core: DecisionCore, commands: list[Command]) -> list[Command]:
-    out: list[Command] = []
-    queue = list(commands)
-    while queue:
-        command = queue.pop(0)
-        out.append(command)
-        if isinstance(command, SolveRequest):
-            result = solve_plan(command.problem, command.hint)
-            queue.extend(core.handle(PlanSolved(command.t_s, command.request_id, result)))
-    return out
 
 
 def fly_to(core: DecisionCore, t0_s: float, t1_s: float, x0_m: float, x1_m: float

@@ -8,6 +8,7 @@ import json
 from importlib import resources
 from pathlib import Path
 
+from core_run import solve_all
 from simulate_run import simulate_text
 
 from groundstation.core.commands import (
@@ -24,26 +25,11 @@ from groundstation.core.events import (
     BatteryLow,
     LoiterEnded,
     OperatorOverride,
-    PlanSolved,
     TargetAdded,
     Tick,
     VehicleJoined,
 )
 from observer import ObserverConfig
-from planner import solve_plan
-
-
-def solve_all(core: DecisionCore, commands: list[Command]) -> list[Command]:
-    """Solve every request inline (the offline runner's way); all resulting commands."""
-    out: list[Command] = []
-    queue = list(commands)
-    while queue:
-        command = queue.pop(0)
-        out.append(command)
-        if isinstance(command, SolveRequest):
-            result = solve_plan(command.problem, command.hint)
-            queue.extend(core.handle(PlanSolved(command.t_s, command.request_id, result)))
-    return out
 
 
 def flies(commands: list[Command]) -> list[FlyToTarget]:
