@@ -31,7 +31,8 @@ from typing import Any
 
 from domain.geodesy import GeoOrigin
 from domain.radio_spec import parse_radio_spec
-from groundstation.mavlink.codec import MavlinkDecoder, MavlinkEncoder, mavlink2
+from groundstation.mavlink.codec import MavlinkEncoder, mavlink2
+from sitl.loopback import MemoryClient
 from sitl.radio import RadioEnd
 from sitl.server import ServerOptions, SitlServer
 from sitl.vehicle import SimVehicle, VehicleConfig
@@ -41,28 +42,7 @@ STEP_S = 0.02
 RETRY_S = 1.5
 
 
-class _Ground:
-    """A TCP client's writer as the server sees it, and a scripted ground station."""
-
-    def __init__(self) -> None:
-        self.decoder = MavlinkDecoder()
-        self.inbox: list[Any] = []
-        self.transport = self
-
-    def get_write_buffer_size(self) -> int:
-        return 0
-
-    def is_closing(self) -> bool:
-        return False
-
-    def write(self, data: bytes) -> None:
-        self.inbox += self.decoder.feed(data)
-
-    def close(self) -> None:
-        pass
-
-
-def _server(count: int, radio: str) -> tuple[SitlServer, list[_Ground]]:
+def _server(count: int, radio: str) -> tuple[SitlServer, list[MemoryClient]]:
     _, spec = parse_radio_spec(radio, count)
     assert spec is not None, "a radio is needed"
     origin = GeoOrigin(78.93, 11.92)
@@ -74,7 +54,7 @@ def _server(count: int, radio: str) -> tuple[SitlServer, list[_Ground]]:
     grounds = []
     for slot in server.slots:
         slot.vehicle = SimVehicle(slot.config, 0.0)
-        ground = _Ground()
+        ground = MemoryClient()
         slot.clients.add(ground)  # type: ignore[arg-type]
         grounds.append(ground)
     return server, grounds
@@ -165,13 +145,13 @@ def run(radio: str, duration_s: float, uploads: int, seed: int) -> dict[str, Any
                     upload = _Upload(enc, t)
                     frames.append(upload.start(t))
                 if upload is not None:
-                    for msg in ground.inbox:
+                    for msg in ground.msgs:
                         frames += upload.on(msg, t)
                     frames += upload.retry(t)
                     if upload.done_s is not None:
                         done.append(upload)
                         upload = None
-            ground.inbox.clear()
+            ground.msgs.clear()
             for data in frames:
                 slot.radio.write(RadioEnd.GROUND, data, server.t_s)
         server.advance(t)

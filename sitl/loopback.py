@@ -12,7 +12,7 @@ from typing import Any
 from groundstation.mavlink.codec import MavlinkDecoder, MavlinkEncoder
 from sitl.vehicle import SimVehicle
 
-__all__ = ["Loopback"]
+__all__ = ["Loopback", "MemoryClient"]
 
 
 class Loopback:
@@ -83,3 +83,26 @@ class Loopback:
     def texts(self) -> list[str]:
         """Texts of the queued STATUSTEXTs (not removed)."""
         return [m.text for m in self.inbox if m.get_type() == "STATUSTEXT"]
+
+
+class MemoryClient:
+    """A TCP client of a :class:`~sitl.server.SitlServer` held in memory (tests, benches):
+    the writer the server sees (add it to a slot's ``clients``), keeping what it was sent,
+    decoded, in :attr:`msgs`."""
+
+    def __init__(self) -> None:
+        self.decoder = MavlinkDecoder()
+        self.msgs: list[Any] = []
+        self.transport = self
+
+    def get_write_buffer_size(self) -> int:
+        return 0
+
+    def is_closing(self) -> bool:
+        return False
+
+    def write(self, data: bytes) -> None:
+        self.msgs += self.decoder.feed(data)
+
+    def close(self) -> None:
+        pass

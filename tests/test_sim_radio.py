@@ -18,6 +18,7 @@ from domain.radio_spec import (
 )
 from domain.yaml_fields import FieldError
 from groundstation.mavlink.codec import MavlinkDecoder, MavlinkEncoder, mavlink2
+from sitl.loopback import MemoryClient
 from sitl.radio import GilbertElliott, RadioEnd, SikRadioPair, SikTiming
 from sitl.telemetry import StreamScheduler
 
@@ -333,27 +334,6 @@ def test_scenario_radio_field() -> None:
 
 
 # ---------------------------------------------------------------------- the simulator
-class _Client:
-    """A TCP client's writer as the server sees it: what it was sent, decoded."""
-
-    def __init__(self) -> None:
-        self.decoder = MavlinkDecoder()
-        self.msgs: list[Any] = []
-        self.transport = self
-
-    def get_write_buffer_size(self) -> int:
-        return 0
-
-    def is_closing(self) -> bool:
-        return False
-
-    def write(self, data: bytes) -> None:
-        self.msgs += self.decoder.feed(data)
-
-    def close(self) -> None:
-        pass
-
-
 def _served(radios: dict[int, RadioSpec], tick_s: float, until_s: float = 120.0) -> Any:
     """One airborne vehicle served through ``radios`` and advanced in ``tick_s`` steps of
     simulated time (5 ms: the 1x server; 0.5 s: 100x), a ground station on it sending a
@@ -366,7 +346,7 @@ def _served(radios: dict[int, RadioSpec], tick_s: float, until_s: float = 120.0)
                            home_lon_deg=11.92, airborne=True, fast_boot=True)
     server = SitlServer([config], ServerOptions(base_port=0, radios=radios))
     slot = server.slots[0]
-    client = _Client()
+    client = MemoryClient()
     slot.clients.add(client)  # type: ignore[arg-type]
     slot.vehicle = SimVehicle(config, 0.0)
     gcs = MavlinkEncoder(245, 190)
