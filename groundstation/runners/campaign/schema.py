@@ -96,9 +96,11 @@ ARRIVAL_SUMMARIES: dict[str, tuple[str, ...]] = {
 """metrics.json's arrival summaries (None when no arrival was counted) and their keys:
 one column ``{key}_{inner}`` each, null for a None summary."""
 
-COORDINATE_METRICS = ("scenario", "uavs", "seed", "objective", "uncertainty_series")
+COORDINATE_METRICS = ("scenario", "uavs", "seed", "objective", "uncertainty_series", "links")
 """metrics.json keys that are not metric columns: the grid columns hold the first four
-(``scenario`` as the grid names it), ``series_t_s``/``series_mean_sigma`` the series."""
+(``scenario`` as the grid names it), ``series_t_s``/``series_mean_sigma`` the series;
+``links`` is per vehicle link, and a campaign's runs (``gcs simulate``) have no link: their
+uploads are the ``uploads`` and ``uploads_per_hour_max`` columns."""
 
 WALL_CLOCK_COLUMNS = (
     "wall_s", "cpu_s", "worker", "realtime_factor", "wall_time_s", "solve_time_median_s",
