@@ -323,3 +323,20 @@ def test_ship_beacon_is_a_system_id_or_off_and_round_trips(tmp_path: Path) -> No
         build_config(["--vehicles", "sim:1", "--ship-beacon", "245"])
     with pytest.raises(UsageError, match=r"links\.ship_beacon: expected an integer"):
         parse_config({"links": {"vehicles": ["sim:1"], "ship_beacon": "on"}}, {})
+
+
+def test_a_link_rate_must_name_a_vehicle_link() -> None:
+    """--link-rate for a link floe does not open would be ignored: one line instead; sim:N's
+    links are the simulator's; the same URL spelt another way is the same link."""
+    from groundstation.daemon.config_parse import check_config
+
+    ok = build_config(["--vehicles", "tcp:localhost:5760", "/dev/ttyUSB0,57600",
+                       "--link-rate", "tcp://localhost:5760=64k"])
+    check_config(ok)
+    assert dict(ok.links.link_rates()) == {"tcp:localhost:5760": 64000.0}
+    with pytest.raises(ConfigError, match=r"names no vehicle link \(the links are: "):
+        check_config(build_config(["--vehicles", "tcp:localhost:5760",
+                                   "--link-rate", "tcp:localhost:5770=64k"]))
+    with pytest.raises(ConfigError, match="give them a radio with --sim-radio"):
+        check_config(build_config(["--vehicles", "sim:2", "--link-rate",
+                                   "tcp:localhost:5760=64k"]))

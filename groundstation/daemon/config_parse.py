@@ -421,6 +421,32 @@ def _link_rates(values: tuple[str, ...]) -> str | None:
     return None
 
 
+def _check_link_rates_name_vehicles(config: DaemonConfig, name: str) -> None:
+    """A ``--link-rate`` must name one of the vehicle links (a rate for a link floe does
+    not open would be ignored); ``sim:N``'s links are the simulator's (``--sim-radio``)."""
+    from groundstation.link.url import LinkUrlError, parse_link_url
+
+    if not config.links.link_rate:
+        return
+    if config.sim_count is not None:
+        raise ConfigError(f"{name}: sim:N's links are the built-in simulator's: give them "
+                          "a radio with --sim-radio")
+    vehicles = set()
+    for url in config.links.vehicles:
+        try:
+            vehicles.add(parse_link_url(url).canonical)
+        except LinkUrlError:
+            return  # the vehicles' own check names the bad URL
+    for text in config.links.link_rate:
+        try:
+            url, _ = parse_link_rate(text)
+        except ValueError:
+            return  # the field's own check names it
+        if url not in vehicles:
+            raise ConfigError(f"{name}: {text!r} names no vehicle link (the links are: "
+                              f"{', '.join(sorted(vehicles))})")
+
+
 def _altitudes(settings: Mapping[int, VehicleSettings]) -> str | None:
     alts = [s.altitude_m for s in settings.values() if s.altitude_m is not None]
     return "two vehicles share an altitude_m" if len(alts) != len(set(alts)) else None
@@ -498,6 +524,7 @@ def check_config(config: DaemonConfig, names: Mapping[str, str] | None = None) -
                 parse_fault_spec(spec, count)
             except FaultError as exc:
                 raise ConfigError(f"{names.get('sim.faults', 'sim.faults')}: {exc}") from None
+    _check_link_rates_name_vehicles(config, names.get("links.link_rate", "links.link_rate"))
     for spec in config.sim.radio:
         try:
             parse_radio_spec(spec, count if count is not None else 255)
