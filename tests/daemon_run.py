@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import asyncio
 import json
+import subprocess
+import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -117,3 +119,20 @@ def status_text(daemon: Daemon, width: int = 160) -> str:
                       highlight=False)
     console.print(render_status(daemon, EventTally.from_lines(daemon.journal_file.recent)))
     return buffer.getvalue()
+
+
+def start_helper(cmd: list[str], pattern: str, count: int,
+                 timeout_s: float) -> tuple[Any, list[str]]:
+    """Start a helper process (``gcs sitl``, a flood proxy); read its stdout until ``count``
+    lines hold ``pattern`` (or ``timeout_s``); the process and the lines read."""
+    proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                            stderr=subprocess.DEVNULL, text=True)
+    lines: list[str] = []
+    end = time.monotonic() + timeout_s
+    assert proc.stdout is not None
+    while len([x for x in lines if pattern in x]) < count and time.monotonic() < end:
+        line = proc.stdout.readline()
+        if not line:
+            break
+        lines.append(line.strip())
+    return proc, lines

@@ -18,14 +18,12 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
-import subprocess
 import sys
-import time
 from pathlib import Path
 from typing import Any
 
 import pytest
-from daemon_run import events, status_text, stop_when
+from daemon_run import events, start_helper, status_text, stop_when
 
 from groundstation.commands.run import build_config, run_daemon
 from groundstation.daemon.daemon import Daemon
@@ -38,24 +36,11 @@ SPEEDUP = 5.0
 LAG_S = 2.0
 
 
-def _start(cmd: list[str], pattern: str, count: int, timeout_s: float) -> tuple[Any, list[str]]:
-    """Start a helper process; read its stdout until ``count`` lines hold ``pattern``."""
-    proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                            stderr=subprocess.DEVNULL, text=True)
-    lines: list[str] = []
-    end = time.monotonic() + timeout_s
-    assert proc.stdout is not None
-    while len([x for x in lines if pattern in x]) < count and time.monotonic() < end:
-        line = proc.stdout.readline()
-        if not line:
-            break
-        lines.append(line.strip())
-    return proc, lines
 
 
 def _sitl(count: int) -> tuple[Any, list[int]]:
     gcs = str(Path(sys.executable).parent / "gcs")
-    sim, lines = _start(
+    sim, lines = start_helper(
         [gcs, "sitl", "--count", str(count), "--base-port", "0", "--scenario", "default",
          "--airborne", "--speedup", f"{SPEEDUP:g}", "--detections", "none",
          "--duration", "5000"],
@@ -112,7 +97,7 @@ def test_flood_backlog_is_drained_without_being_believed(
     tmp_path: Path, caplog: pytest.LogCaptureFixture
 ) -> None:
     sim, ports = _sitl(2)
-    proxy, plines = _start(
+    proxy, plines = start_helper(
         [sys.executable, "-m", "sitl.flood_proxy", "--upstream", str(ports[0]),
          "--rate", "100000", "--at", "6", "--for", "10", "--sysid", "1", "--compid", "1",
          "--mix", "flood"],
@@ -256,7 +241,7 @@ def test_radio_reports_keep_no_dead_vehicle_alive(tmp_path: Path, signed: bool) 
     phrase = tmp_path / "phrase"
     phrase.write_text("radio test passphrase\n")
     signing = ["--signing-passphrase-file", str(phrase)] if signed else []
-    sim, lines = _start(
+    sim, lines = start_helper(
         [gcs, "sitl", "--count", "2", "--base-port", "0", "--scenario", "default",
          "--airborne", "--speedup", f"{SPEEDUP:g}", "--detections", "none",
          "--duration", "5000", "--fault", f"1:kill:at={t_kill:g},for=1000", *signing],

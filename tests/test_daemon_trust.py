@@ -15,7 +15,6 @@ import itertools
 import math
 import random
 import socket
-import subprocess
 import sys
 import time
 from collections.abc import Callable
@@ -23,7 +22,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from daemon_run import Journal, events
+from daemon_run import Journal, events, start_helper
 
 from groundstation.commands.embedded_sim import EmbeddedSim, build_embedded_sim
 from groundstation.commands.run import build_config, run_daemon
@@ -338,21 +337,6 @@ def test_stray_system_ids_make_no_vehicle_but_a_steady_new_autopilot_does(
 
 
 # ------------------------------------------------------------------------ flood
-def _start(cmd: list[str], pattern: str, count: int, timeout_s: float) -> tuple[Any, list[str]]:
-    """Start a helper process and read its stdout until ``count`` lines hold ``pattern``."""
-    proc = subprocess.Popen(
-        cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
-        text=True,
-    )  # fmt: skip
-    lines: list[str] = []
-    end = time.monotonic() + timeout_s
-    assert proc.stdout is not None
-    while len([x for x in lines if pattern in x]) < count and time.monotonic() < end:
-        line = proc.stdout.readline()
-        if not line:
-            break
-        lines.append(line.strip())
-    return proc, lines
 
 
 async def _sample_cpu(cpu: list[tuple[float, float]]) -> None:
@@ -426,14 +410,14 @@ def test_flood_on_one_link_does_not_starve_the_others(tmp_path: Path) -> None:
     ~110 ms: no link is read, no garbage collection runs; that is not the flood's doing,
     and on an idle host wall and CPU time agree)."""
     gcs = str(Path(sys.executable).parent / "gcs")
-    sim, lines = _start(
+    sim, lines = start_helper(
         [gcs, "sitl", "--count", "3", "--base-port", "0", "--scenario", "default",
          "--airborne", "--speedup", "10", "--detections", "none", "--duration", "2000"],
         "system id", 3, 30.0,
     )  # fmt: skip
     ports = [int(x.rsplit(":", 1)[1]) for x in lines if "system id" in x]
     assert len(ports) == 3, lines
-    proxy, plines = _start(
+    proxy, plines = start_helper(
         [sys.executable, "-m", "sitl.flood_proxy", "--upstream", str(ports[0]),
          "--rate", "22000", "--at", "8", "--for", "4", "--sysid", "1"],
         "listening", 1, 30.0,
