@@ -206,10 +206,10 @@ class Daemon:
         self.control_url: str | None = None
         """The control API's address, once its server listens (the status display)."""
         self.wind_fallback_source = wind_fallback_source
+        """Where the core's fallback wind came from: config, scenario or none (start-up)."""
         self.link_model = link_model
         """What a link model measured per system id (the built-in simulator's radios: their
         ``air_pct``), for the ``links`` figures; None: real links."""
-        """Where the core's fallback wind came from: config, scenario or none (start-up)."""
         self.feed = WorldFeed(self)
         self.area = OperatingArea(
             config.mission.operating_radius_m,
@@ -217,7 +217,6 @@ class Daemon:
         )
         self.stopping = False
         self.last_plan: LastPlan | None = None
-        """The ship's last fix the core was given (the ship beacon sends it)."""
         self._due = _Due()
         self._state = _RunState()
         supervisor = Supervisor(clock.now_s, self.journal, self._on_bug)
@@ -691,11 +690,13 @@ class Daemon:
         return out
 
     def link_figures(self) -> list[dict[str, object]]:
-        """Each vehicle link's figures (``daemon/link_metrics.py``), by vehicle."""
+        """Each vehicle link's figures (``core/link_metrics.py``), by vehicle; a link's rate
+        is its budget's configured one (``--link-rate``, a serial link's baud)."""
         model = self.link_model() if self.link_model is not None else {}
         uses = []
         for system_id, session in sorted(self.sessions.items()):
             link = self.router.link_for(system_id)
+            budget = self.budgets.for_system(system_id)
             uploads = session.controller.link_uploads
             modelled = model.get(system_id, {}).get("air_pct")
             uses.append(LinkUse(
@@ -707,7 +708,7 @@ class Daemon:
                 telemetry_ages_s=session.controller.telemetry_ages_s,
                 bytes_in=0 if link is None else link.counters.bytes_in,
                 bytes_out=0 if link is None else link.counters.bytes_out,
-                rate_bps=None if link is None or link.spec.baud is None else float(link.spec.baud),
+                rate_bps=None if budget is None else budget.configured_bps,
                 model_airtime_pct=None if modelled is None else float(modelled),
             ))  # fmt: skip
         return link_entries(uses, self.clock.now_s())
