@@ -268,6 +268,12 @@ class VehiclePort:
             return None
         return max(1, math.ceil(ACK_WAIT_S / timeout_s) - 1)
 
+    def _constrained(self) -> bool:
+        """The link has a known capacity (a radio, a serial port, ``--link-rate``): an
+        upload resends a lost item itself (:class:`MissionUpload`'s ``resend_items``)."""
+        budget = self._budget()
+        return budget is not None and budget.capacity_bps is not None
+
     def _pipeline(self) -> int:
         budget = self._budget()
         return 1 if budget is None else budget.pipeline
@@ -298,6 +304,7 @@ class VehiclePort:
                 items,
                 timeout_s=timeout_s,
                 ack_retries=self._ack_retries(timeout_s),
+                resend_items=self._constrained(),
                 retries=self.retries,
                 own_system=self._own_system,
                 own_component=self._own_component,

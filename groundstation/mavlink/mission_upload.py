@@ -25,6 +25,20 @@ Rules (MAVSDK's MissionTransferClient semantics, adapted to ArduPlane):
 * A request or ACK for another mission type (addressed to us) ends it with
   MISSION_TYPE_MISMATCH, as MAVSDK does.
 * ``cancel`` sends MISSION_ACK OPERATION_CANCELLED and ends with CANCELLED.
+* ``resend_items`` (a constrained link; off by default, as MAVSDK): silence after the
+  vehicle asked for item k resends item k, once per timeout, from the retry budget,
+  instead of waiting for ArduPlane's own re-request (every ``1 s + stream slowdown``,
+  ``MissionItemProtocol::update``; on a SiK link that is ~1.2 s a loss, the time of
+  four round trips). Either item k was lost, and the vehicle takes the copy and asks for
+  k + 1; or its request for k + 1 was, and it answers the copy with MISSION_ACK
+  INVALID_SEQUENCE (``handle_mission_item``: ``seq != request_i``; not fatal). That
+  answer, while k is still the newest item asked for, says the vehicle holds k and waits
+  for k + 1 (it advances only on the item it asked for, and the radio keeps order: a
+  request for k + 1 sent before it would have come first), so item k + 1 is sent at once,
+  as if asked for. The item's own request, when it comes late, is answered as a
+  duplicate (INVALID_SEQUENCE again, noted). The last item is never resent once every
+  item was asked for: ArduPlane, done with the upload, does not take a stray item
+  (``ack_retries`` and the verifying download cover a lost final ACK).
 * ``ack_retries`` (default: ``retries``) bounds the silent timeouts once every item was
   requested: ArduPlane sends its final ACK once, so when it is lost nothing more comes. A
   slow link passes 1: after two timeouts (longer than ArduPlane's 1 s re-request of a lost
@@ -89,6 +103,7 @@ class MissionUpload(TransferBase[UploadState]):
         own_system: int | None = None,
         own_component: int | None = None,
         ack_retries: int | None = None,
+        resend_items: bool = False,
     ) -> None:
         super().__init__(
             target_system,
@@ -104,6 +119,12 @@ class MissionUpload(TransferBase[UploadState]):
         self._requested: set[int] = set()
         self.items_sent = 0  # MISSION_ITEM_INT answers sent, duplicates included
         self.ack_retries = retries if ack_retries is None else min(ack_retries, retries)
+        self.resend_items = resend_items
+        self._newest: int | None = None  # the newest item the vehicle asked for
+        self._resent_seq: int | None = None  # _newest, resent on silence
+        self.items_pushed = 0
+        """Items sent unasked after an INVALID_SEQUENCE answered a resent one (module
+        docstring, ``resend_items``)."""
 
     @property
     def requested_seqs(self) -> frozenset[int]:
@@ -127,7 +148,15 @@ class MissionUpload(TransferBase[UploadState]):
             )
         if self._state is UploadState.SENDING_COUNT:
             return [Send(self._count_message())]
+        if (self.resend_items and self._state is UploadState.SENDING_ITEMS
+                and self._newest is not None):
+            self._resent_seq = self._newest
+            self.items_sent += 1
+            return [Send(self._item_message(self._newest))]
         return []
+
+    def _item_message(self, seq: int) -> MAVLinkMessage:
+        return self.items[seq].to_message(self.target_system, self.target_component)
 
     def _on_message(self, kind: str, msg: MAVLinkMessage, now_s: float) -> list[Action]:
         mismatch = self._mission_type_mismatch(kind, msg)
@@ -166,7 +195,13 @@ class MissionUpload(TransferBase[UploadState]):
             self._notes.append(f"duplicate {kind} for item {seq} at t={now_s:.3f}s")
         else:  # a new request answers our count or our last item
             self._answered(now_s)
+        return self._send_item(seq, now_s)
+
+    def _send_item(self, seq: int, now_s: float) -> list[Action]:
+        """Item ``seq``, asked for (or known to be awaited): the state follows."""
         self._requested.add(seq)
+        if self._newest is None or seq > self._newest:
+            self._newest, self._resent_seq = seq, None
         self._state = (
             UploadState.WAITING_ACK
             if len(self._requested) == len(self.items)
@@ -176,7 +211,7 @@ class MissionUpload(TransferBase[UploadState]):
         if self._state is UploadState.WAITING_ACK:
             self._retries_left = self.ack_retries
         self.items_sent += 1
-        return [Send(self.items[seq].to_message(self.target_system, self.target_component))]
+        return [Send(self._item_message(seq))]
 
     def _on_ack(self, msg: MAVLinkMessage, now_s: float) -> list[Action]:
         ack_type = int_field(msg, "type", 0, _UINT8_MAX)
@@ -201,6 +236,13 @@ class MissionUpload(TransferBase[UploadState]):
         if ack_type == mavlink2.MAV_MISSION_INVALID_SEQUENCE:
             # ArduPlane: an item arrived out of order; it will ask again. Not fatal.
             self._notes.append(f"MAV_MISSION_INVALID_SEQUENCE at t={now_s:.3f}s (not fatal)")
+            resent = self._resent_seq
+            if resent is not None and resent == self._newest and resent + 1 < len(self.items):
+                # it holds the item we resent and waits for the next (module docstring)
+                self._resent_seq = None
+                self._answered(now_s)
+                self.items_pushed += 1
+                return self._send_item(resent + 1, now_s)
             self._arm(now_s, reset_retries=False)
             return []
         return self._finish_for_ack(ack_type, "to the upload")
