@@ -12,7 +12,8 @@ unsupported frame, lat/lon out of range) -> its result code, upload ends; too ma
 storage not ready -> NO_SPACE ("Only N items are supported"); another ground station
 (sysid/compid) starting an upload during one -> DENIED; an item with no upload -> ERROR.
 
-Download: MISSION_REQUEST_LIST -> MISSION_COUNT; MISSION_REQUEST_INT -> MISSION_ITEM_INT
+Download: MISSION_REQUEST_LIST -> MISSION_COUNT (DENIED during an upload, as
+``MissionItemProtocol::handle_mission_request_list``); MISSION_REQUEST_INT -> MISSION_ITEM_INT
 (DENIED during an upload; a seq beyond the end gets MISSION_COUNT then INVALID_SEQUENCE)
 and MISSION_REQUEST -> MISSION_ITEM; item 0 is home. MISSION_CLEAR_ALL keeps home only
 (ERROR during an upload). As ArduPilot, the first MISSION_REQUEST and the first MISSION_ITEM
@@ -93,6 +94,9 @@ class MissionServer:
                 return [self._ack(peer, M.MAV_MISSION_UNSUPPORTED, mission_type)]
             return self._on_item(msg, peer, t_s, events)
         if kind == "MISSION_REQUEST_LIST":
+            if mission_type == M.MAV_MISSION_TYPE_MISSION and self.receiving:
+                # handle_mission_request_list: no listing while an upload is received
+                return [self._ack(peer, M.MAV_MISSION_DENIED, mission_type)]
             count = len(self.store) if mission_type == M.MAV_MISSION_TYPE_MISSION else 0
             return [M.MAVLink_mission_count_message(peer[0], peer[1], count, mission_type)]
         if kind in ("MISSION_REQUEST", "MISSION_REQUEST_INT"):

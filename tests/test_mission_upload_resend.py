@@ -107,14 +107,75 @@ def test_invalid_sequence_without_a_resend_pushes_nothing() -> None:
     assert up.items_pushed == 0
 
 
-def test_the_last_item_is_never_resent_once_every_item_was_asked_for() -> None:
-    """ArduPlane done with the upload takes no stray item: a lost final ACK is waited
-    for (``ack_retries``) and the verifying download reads what the vehicle holds."""
-    up = upload(True)
+def all_asked(up: MissionUpload) -> float:
+    """Every item asked for and sent; the mission time of the last."""
     up.start(0.0)
     for seq in range(5):
         up.receive(request(seq), 0.1 * (seq + 1))
-    assert sent_seqs(up.poll(0.91)) == []
+    return 0.5
+
+
+def sends(actions: list[Action]) -> list[str]:
+    return [a.msg.get_type() for a in actions if isinstance(a, Send)]
+
+
+def test_silence_after_the_last_item_asks_with_a_list_request_not_a_stray_item() -> None:
+    """ArduPlane done with the upload takes no stray item: silence there sends a
+    MISSION_REQUEST_LIST (without ``resend_items``: nothing, as before)."""
+    up = upload(True)
+    t = all_asked(up)
+    assert sends(up.poll(t + 0.41)) == ["MISSION_REQUEST_LIST"]
+    quiet = upload(False)
+    t = all_asked(quiet)
+    assert sends(quiet.poll(t + 0.41)) == []
+
+
+def test_a_count_answering_the_probe_ends_the_upload_as_maybe_stored() -> None:
+    up = upload(True)
+    t = all_asked(up)
+    up.poll(t + 0.41)
+    count = via_wire(M.MAVLink_mission_count_message(GCS_SYS, GCS_COMP, 5, 0), VEH_SYS,
+                     VEH_COMP)
+    up.receive(count, t + 0.6)
+    assert up.result is not None and up.result.code is TransferCode.TIMEOUT
+    assert up.result.maybe_stored and "final MISSION_ACK was lost" in up.result.message
+
+
+def test_denied_answering_the_probe_resends_the_last_item() -> None:
+    up = upload(True)
+    t = all_asked(up)
+    up.poll(t + 0.41)
+    assert sent_seqs(up.receive(ack(M.MAV_MISSION_DENIED), t + 0.6)) == [4]
+    up.receive(ack(M.MAV_MISSION_ACCEPTED), t + 0.8)
+    assert up.result is not None and up.result.code is TransferCode.SUCCESS
+
+
+def test_denied_after_the_vehicle_asked_again_is_only_noted() -> None:
+    """The vehicle re-requested the last item before it answered the probe: the item went
+    already; the DENIED sends nothing and does not end the upload."""
+    up = upload(True)
+    t = all_asked(up)
+    up.poll(t + 0.41)
+    assert sent_seqs(up.receive(request(4), t + 0.5)) == [4]
+    assert sends(up.receive(ack(M.MAV_MISSION_DENIED), t + 0.6)) == []
+    assert not up.done
+    up.receive(ack(M.MAV_MISSION_ACCEPTED), t + 0.8)
+    assert up.result is not None and up.result.code is TransferCode.SUCCESS
+
+
+def test_denied_without_a_probe_still_ends_the_upload() -> None:
+    up = upload(True)
+    all_asked(up)
+    up.receive(ack(M.MAV_MISSION_DENIED), 0.6)
+    assert up.result is not None and up.result.code is not TransferCode.SUCCESS
+
+
+def test_a_count_without_a_probe_is_ignored() -> None:
+    up = upload(True)
+    t = all_asked(up)
+    count = via_wire(M.MAVLink_mission_count_message(GCS_SYS, GCS_COMP, 5, 0), VEH_SYS,
+                     VEH_COMP)
+    assert up.receive(count, t + 0.1) == [] and not up.done
 
 
 def test_resends_use_the_retry_budget() -> None:
@@ -169,7 +230,7 @@ def lose_once(kind: str, seq: int, from_gcs: bool) -> Drop:
     lost: list[bool] = []
 
     def drop(msg: Any, gcs: bool) -> bool:
-        if (gcs == from_gcs and msg.get_type() == kind and int(msg.seq) == seq
+        if (gcs == from_gcs and msg.get_type() == kind and getattr(msg, "seq", 0) == seq
                 and not lost):
             lost.append(True)
             return True
@@ -207,3 +268,25 @@ def test_a_lost_request_is_found_out_by_invalid_sequence_and_the_next_item_pushe
         assert up.items_pushed == (1 if resend else 0)
         assert verified(lb)
     assert took[False] >= 1.0 and took[True] <= took[False] - 0.5, took
+
+
+def test_a_lost_final_ack_costs_one_timeout() -> None:
+    took = {}
+    for resend in (False, True):
+        lb = sim()
+        up = MissionUpload(VEH_SYS, VEH_COMP, items(), timeout_s=0.3, ack_retries=4,
+                           own_system=GCS_SYS, own_component=GCS_COMP, resend_items=resend)
+        took[resend] = run(lb, up, lose_once("MISSION_ACK", 0, from_gcs=False))
+        assert up.result is not None and up.result.maybe_stored, up.result
+        assert verified(lb)
+    # without the probe: ack_retries + 1 timeouts; with it: one, and the COUNT's way back
+    assert took[False] >= 1.5 and took[True] <= 0.8, took
+
+
+def test_a_lost_last_item_is_sent_again_on_the_probes_denied() -> None:
+    lb = sim()
+    up = upload(True, timeout_s=0.3)
+    took = run(lb, up, lose_once("MISSION_ITEM_INT", 4, from_gcs=True))
+    assert up.result is not None and up.result.ok, up.result
+    assert any("probe answered DENIED" in note for note in up.result.notes), up.result
+    assert took < 1.0 and verified(lb)

@@ -36,9 +36,16 @@ Rules (MAVSDK's MissionTransferClient semantics, adapted to ArduPlane):
   for k + 1 (it advances only on the item it asked for, and the radio keeps order: a
   request for k + 1 sent before it would have come first), so item k + 1 is sent at once,
   as if asked for. The item's own request, when it comes late, is answered as a
-  duplicate (INVALID_SEQUENCE again, noted). The last item is never resent once every
-  item was asked for: ArduPlane, done with the upload, does not take a stray item
-  (``ack_retries`` and the verifying download cover a lost final ACK).
+  duplicate (INVALID_SEQUENCE again, noted).
+
+  Once every item was asked for, the last one is never resent blindly: ArduPlane, done
+  with the upload, takes no stray item (some versions raise an internal error on one).
+  Silence there asks instead, with MISSION_REQUEST_LIST, which ArduPlane answers with
+  MISSION_ACK DENIED while it still receives (``handle_mission_request_list``: the last
+  item, or its re-request, was lost: the item is sent again) and with MISSION_COUNT once
+  it is done (the final ACK was lost: the upload ends as TIMEOUT with ``maybe_stored``,
+  for the verifying download to read). Either costs one timeout, not ``ack_retries`` of
+  them; the probe's answer is no round-trip sample (Karn).
 * ``ack_retries`` (default: ``retries``) bounds the silent timeouts once every item was
   requested: ArduPlane sends its final ACK once, so when it is lost nothing more comes. A
   slow link passes 1: after two timeouts (longer than ArduPlane's 1 s re-request of a lost
@@ -88,7 +95,8 @@ class MissionUpload(TransferBase[UploadState]):
 
     _IDLE = UploadState.IDLE
     _DONE = UploadState.DONE
-    _HANDLED = frozenset({"MISSION_REQUEST", "MISSION_REQUEST_INT", "MISSION_ACK"})
+    _HANDLED = frozenset({"MISSION_REQUEST", "MISSION_REQUEST_INT", "MISSION_ACK",
+                          "MISSION_COUNT"})
     _WHAT = "upload"
 
     def __init__(
@@ -122,6 +130,8 @@ class MissionUpload(TransferBase[UploadState]):
         self.resend_items = resend_items
         self._newest: int | None = None  # the newest item the vehicle asked for
         self._resent_seq: int | None = None  # _newest, resent on silence
+        self._probes_out = 0  # MISSION_REQUEST_LISTs asking whether the upload is over
+        self._probing = False  # one went after the last item we sent
         self.items_pushed = 0
         """Items sent unasked after an INVALID_SEQUENCE answered a resent one (module
         docstring, ``resend_items``)."""
@@ -148,12 +158,16 @@ class MissionUpload(TransferBase[UploadState]):
             )
         if self._state is UploadState.SENDING_COUNT:
             return [Send(self._count_message())]
-        if (self.resend_items and self._state is UploadState.SENDING_ITEMS
-                and self._newest is not None):
-            self._resent_seq = self._newest
-            self.items_sent += 1
-            return [Send(self._item_message(self._newest))]
-        return []
+        if not self.resend_items or self._newest is None:
+            return []
+        if self._state is UploadState.WAITING_ACK:
+            self._probing = True
+            self._probes_out += 1
+            return [Send(mavlink2.MAVLink_mission_request_list_message(
+                self.target_system, self.target_component, self.mission_type))]
+        self._resent_seq = self._newest
+        self.items_sent += 1
+        return [Send(self._item_message(self._newest))]
 
     def _item_message(self, seq: int) -> MAVLinkMessage:
         return self.items[seq].to_message(self.target_system, self.target_component)
@@ -164,7 +178,23 @@ class MissionUpload(TransferBase[UploadState]):
             return mismatch
         if kind == "MISSION_ACK":
             return self._on_ack(msg, now_s)
+        if kind == "MISSION_COUNT":
+            return self._on_count(msg, now_s)
         return self._on_request(msg, kind, now_s)
+
+    def _on_count(self, msg: MAVLinkMessage, now_s: float) -> list[Action]:
+        """The answer to a probe (module docstring): the vehicle is done with the upload
+        and its final ACK was lost."""
+        if not self._probes_out:
+            self._notes.append(f"MISSION_COUNT ignored at t={now_s:.3f}s (no probe)")
+            return []
+        count = int_field(msg, "count", 0, _UINT16_MAX)
+        return self._finish(
+            TransferCode.TIMEOUT,
+            f"the final MISSION_ACK was lost: the vehicle holds {count} items "
+            "(verify by download)",
+            maybe_stored=True,
+        )
 
     def _cancel_actions(self, now_s: float) -> list[Action]:
         """Abandon the upload, telling the vehicle (MISSION_ACK OPERATION_CANCELLED)."""
@@ -200,6 +230,7 @@ class MissionUpload(TransferBase[UploadState]):
     def _send_item(self, seq: int, now_s: float) -> list[Action]:
         """Item ``seq``, asked for (or known to be awaited): the state follows."""
         self._requested.add(seq)
+        self._probing = False
         if self._newest is None or seq > self._newest:
             self._newest, self._resent_seq = seq, None
         self._state = (
@@ -233,6 +264,15 @@ class MissionUpload(TransferBase[UploadState]):
                 f"{len(self.items)} items accepted",
                 remote_code=mission_result_name(ack_type),
             )
+        if ack_type == mavlink2.MAV_MISSION_DENIED and self._probes_out:
+            # still receiving: the last item (or its re-request) was lost, unless an item
+            # went since the probe (the vehicle asked again meanwhile)
+            self._probes_out -= 1
+            if self._probing and self._newest is not None:
+                self._notes.append(f"probe answered DENIED at t={now_s:.3f}s: item resent")
+                return self._send_item(self._newest, now_s)
+            self._notes.append(f"probe answered DENIED at t={now_s:.3f}s (item sent since)")
+            return []
         if ack_type == mavlink2.MAV_MISSION_INVALID_SEQUENCE:
             # ArduPlane: an item arrived out of order; it will ask again. Not fatal.
             self._notes.append(f"MAV_MISSION_INVALID_SEQUENCE at t={now_s:.3f}s (not fatal)")
