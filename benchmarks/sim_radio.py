@@ -1,6 +1,7 @@
 """What a SiK radio link costs floe's traffic, in the built-in simulator (simulated time).
 
-    python benchmarks/sim_radio.py [--radio sik] [--duration 600] [--uploads 40] [--daemon]
+    python benchmarks/sim_radio.py [--radio sik] [--duration 600] [--uploads 40]
+        [--items 3 6] [--daemon]
 
 1. **Telemetry.** Three airborne vehicles, each on its own radio pair (``--radio``, default
    ``sik``: 57 600 baud, 64 kbit/s air, 1 % loss in bursts of 3), streaming ArduPlane's
@@ -9,11 +10,12 @@
    time used (% of the elapsed time: every packet of both radios, and the share carrying
    data), serial capacity used (% of 5 760 B/s each way), latency serial in -> serial out
    p50/p95 each way, drops and lost packets.
-2. **A target upload**, as floe sends one (MISSION_COUNT 3, the items on request, the ACK,
-   then the verifying download: REQUEST_LIST, COUNT, each item, ACK) on one of those
-   links while its telemetry runs: ``--uploads`` of them at random times; frames each way
-   and seconds from MISSION_COUNT to the last ACK (p50/p95), a request repeated after
-   1.5 s of silence (floe's ``transfer_timeout_s``).
+2. **A target upload**, through floe's own sans-IO machines with the daemon's settings on a
+   constrained link (``_Upload``): ``--uploads`` of them at random times on link 1 while its
+   telemetry runs, for each mission length of ``--items`` (3: paper-boat's target mission;
+   6: a discovery pass through 3 more cells), each with floe's upload rule before issue 28's
+   resends and now (a lost item resent after one timeout, a lost final ACK probed for):
+   frames each way and seconds from MISSION_COUNT to the verified read-back (p50/p95/max).
 3. With ``--daemon``: ``gcs run --vehicles sim:3 --scenario paper-boat --sim-radio RADIO
    --speedup 20 --duration 300`` in this process; the radios' figures from
    ``SitlServer.radio_stats()`` and the run's uploads.
@@ -25,13 +27,21 @@ depend on the host. Prints a table.
 from __future__ import annotations
 
 import argparse
+import math
 import random
 import statistics
 from typing import Any
 
 from domain.geodesy import GeoOrigin
 from domain.radio_spec import parse_radio_spec
+from groundstation.daemon.vehicle_port import ACK_WAIT_S
 from groundstation.mavlink.codec import MavlinkEncoder, mavlink2
+from groundstation.mavlink.link_budget import PIPELINE_ITEMS, SIK_DOWNLINK_BPS, LinkBudget
+from groundstation.mavlink.mission_download import MissionDownload
+from groundstation.mavlink.mission_items import LoiterUnlimited, Waypoint, build_mission_items
+from groundstation.mavlink.mission_transfer import Send
+from groundstation.mavlink.mission_upload import MissionUpload
+from groundstation.mavlink.mission_verify import compare_missions
 from sitl.loopback import MemoryClient
 from sitl.radio import RadioEnd
 from sitl.server import ServerOptions, SitlServer
@@ -39,7 +49,7 @@ from sitl.vehicle import SimVehicle, VehicleConfig
 
 M = mavlink2
 STEP_S = 0.02
-RETRY_S = 1.5
+ORIGIN = GeoOrigin(78.93, 11.92)
 
 
 def _server(count: int, radio: str) -> tuple[SitlServer, list[MemoryClient]]:
@@ -61,72 +71,95 @@ def _server(count: int, radio: str) -> tuple[SitlServer, list[MemoryClient]]:
 
 
 class _Upload:
-    """floe's target upload and verifying download, scripted (3 items)."""
+    """floe's upload and verifying download of an ``items``-item mission, through its own
+    sans-IO machines (:class:`MissionUpload`, :class:`MissionDownload`) with the settings the
+    daemon uses on a constrained link (``daemon/vehicle_port.py``): timeouts from the link's
+    RTT estimate (:class:`LinkBudget`), ``ack_retries`` for 1.5 s, the pipelined download of
+    the count just uploaded, and, unless ``resend`` is False (floe before issue 28's
+    resends), a lost item resent after one timeout and a lost final ACK probed for. A
+    failed round is tried again after floe's retry pause, as the session does."""
 
-    def __init__(self, enc: MavlinkEncoder, t_s: float) -> None:
-        self.enc = enc
-        self.t0_s = self.last_s = t_s
-        self.phase = "upload"
-        self.sent = 0
-        self.received = 0
+    RETRY_PAUSE_S = 0.5
+
+    def __init__(self, enc: MavlinkEncoder, budget: LinkBudget, t_s: float, count: int,
+                 resend: bool) -> None:
+        self.enc, self.budget, self.resend = enc, budget, resend
+        self.t0_s = t_s
+        self.items = _mission(count)
+        self.sent = self.received = 0
         self.done_s: float | None = None
-        self.count = 3
-        self.last: bytes = b""
+        self.machine: Any = None
+        self.wait_until_s: float | None = None
+        self.out: list[bytes] = []
 
-    def _send(self, msg: Any, t_s: float) -> bytes:
-        self.sent += 1
-        self.last_s = t_s
-        self.last = self.enc.encode(msg)
-        return self.last
+    def _run(self, machine: Any, t_s: float) -> None:
+        self.machine = machine
+        self._act(machine.start(t_s), t_s)
 
-    def start(self, t_s: float) -> bytes:
-        return self._send(M.MAVLink_mission_count_message(1, 1, self.count, 0), t_s)
+    def start(self, t_s: float) -> None:
+        timeout_s = self.budget.transfer_timeout_s()
+        self._run(MissionUpload(1, 1, self.items, timeout_s=timeout_s, own_system=245,
+                                own_component=190, resend_items=self.resend,
+                                ack_retries=max(1, math.ceil(ACK_WAIT_S / timeout_s) - 1)),
+                  t_s)
 
-    def item(self, seq: int) -> Any:
-        if seq == 0:
-            return M.MAVLink_mission_item_int_message(1, 1, 0, 0, 16, 0, 1, 0, 0, 0, 0,
-                                                      789300000, 119200000, 0.0, 0)
-        return M.MAVLink_mission_item_int_message(1, 1, seq, 3, 19 if seq == 1 else 16, 0, 1,
-                                                  60.0 if seq == 1 else 0.0, 0, 120.0, 0,
-                                                  789300000 + 9000 * seq, 119200000, 100.0, 0)
+    def _act(self, actions: list[Any], t_s: float) -> None:
+        for action in actions:
+            if isinstance(action, Send):
+                self.sent += 1
+                self.out.append(self.enc.encode(action.msg))
+        machine = self.machine
+        if machine is None or not machine.done:
+            return
+        for rtt_s in machine.rtt_samples_s:
+            self.budget.rtt.sample(rtt_s)
+        machine.rtt_samples_s.clear()
+        result = machine.result
+        if isinstance(machine, MissionUpload):
+            if result.ok or result.maybe_stored:
+                self._run(MissionDownload(1, 1, window=PIPELINE_ITEMS,
+                                          expect_count=len(self.items),
+                                          timeout_s=self.budget.transfer_timeout_s(),
+                                          own_system=245, own_component=190), t_s)
+                return
+        elif result.ok and result.items is not None and not compare_missions(
+                self.items, result.items):
+            self.done_s, self.machine = t_s, None
+            return
+        self.machine, self.wait_until_s = None, t_s + self.RETRY_PAUSE_S
 
-    def on(self, msg: Any, t_s: float) -> list[bytes]:
-        """Answer one frame from the vehicle."""
-        kind = msg.get_type()
-        if kind not in ("MISSION_REQUEST", "MISSION_REQUEST_INT", "MISSION_ACK",
-                        "MISSION_COUNT", "MISSION_ITEM_INT"):
-            return []
-        self.received += 1
-        if self.phase == "upload":
-            if kind in ("MISSION_REQUEST", "MISSION_REQUEST_INT"):
-                return [self._send(self.item(int(msg.seq)), t_s)]
-            if kind == "MISSION_ACK":
-                self.phase = "download"
-                return [self._send(M.MAVLink_mission_request_list_message(1, 1, 0), t_s)]
-        elif self.phase == "download":
-            if kind == "MISSION_COUNT":
-                return [self._send(M.MAVLink_mission_request_int_message(1, 1, 0, 0), t_s)]
-            if kind == "MISSION_ITEM_INT":
-                seq = int(msg.seq)
-                if seq + 1 < self.count:
-                    return [self._send(M.MAVLink_mission_request_int_message(1, 1, seq + 1, 0),
-                                       t_s)]
-                self.phase = "done"
-                self.done_s = t_s
-                return [self._send(M.MAVLink_mission_ack_message(1, 1, 0, 0), t_s)]
-        return []
+    def on(self, msg: Any, t_s: float) -> None:
+        """One frame from the vehicle."""
+        if self.machine is not None:
+            before = self.sent
+            self._act(self.machine.receive(msg, t_s), t_s)
+            if msg.get_type().startswith("MISSION") or self.sent != before:
+                self.received += 1
 
-    def retry(self, t_s: float) -> list[bytes]:
-        if self.phase != "done" and t_s - self.last_s > RETRY_S:
-            self.sent += 1
-            self.last_s = t_s
-            return [self.last]
-        return []
+    def tick(self, t_s: float) -> list[bytes]:
+        if self.machine is not None:
+            self._act(self.machine.poll(t_s), t_s)
+        elif self.done_s is None and self.wait_until_s is not None and t_s >= self.wait_until_s:
+            self.wait_until_s = None
+            self.start(t_s)
+        out, self.out = self.out, []
+        return out
 
 
-def run(radio: str, duration_s: float, uploads: int, seed: int) -> dict[str, Any]:
+def _mission(count: int) -> list[Any]:
+    """A target mission as floe uploads one: home, ``count - 2`` points to fly through (a
+    discovery pass: the aim and the route's next cells), the hold over the last."""
+    points = [Waypoint(900.0 + 300.0 * k, 400.0 * (k % 2), 100.0) for k in range(count - 2)]
+    last = points[-1]
+    return build_mission_items(
+        [*points, LoiterUnlimited(last.x_m, last.y_m, 100.0, radius_m=120)], ORIGIN)
+
+
+def run(radio: str, duration_s: float, uploads: int, seed: int, count: int = 3,
+        resend: bool = True) -> dict[str, Any]:
     server, grounds = _server(3, radio)
     encoders = [MavlinkEncoder(245, 190) for _ in grounds]
+    budget = LinkBudget(configured_bps=SIK_DOWNLINK_BPS)
     rng = random.Random(seed)
     starts = sorted(rng.uniform(30.0, duration_s - 20.0) for _ in range(uploads))
     upload: _Upload | None = None
@@ -142,12 +175,12 @@ def run(radio: str, duration_s: float, uploads: int, seed: int) -> dict[str, Any
             if slot.index == 0:
                 if upload is None and starts and t >= starts[0]:
                     starts.pop(0)
-                    upload = _Upload(enc, t)
-                    frames.append(upload.start(t))
+                    upload = _Upload(enc, budget, t, count, resend)
+                    upload.start(t)
                 if upload is not None:
                     for msg in ground.msgs:
-                        frames += upload.on(msg, t)
-                    frames += upload.retry(t)
+                        upload.on(msg, t)
+                    frames += upload.tick(t)
                     if upload.done_s is not None:
                         done.append(upload)
                         upload = None
@@ -214,19 +247,33 @@ def main() -> None:
     p.add_argument("--radio", default="sik")
     p.add_argument("--duration", type=float, default=600.0)
     p.add_argument("--uploads", type=int, default=40)
+    p.add_argument("--items", type=int, nargs="+", default=[3, 6])
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--daemon", action="store_true")
     args = p.parse_args()
-    result = run(args.radio, args.duration, args.uploads, args.seed)
     print(f"radio {args.radio}: 3 airborne vehicles, default telemetry, {args.duration:g} "
           "simulated s")
-    _print_links(result["links"])
-    done: list[_Upload] = result["uploads"]
-    seconds = [u.done_s - u.t0_s for u in done if u.done_s is not None]
-    print(f"\ntarget upload + verifying download (3 items), link 1, {len(done)} of "
-          f"{args.uploads}: frames up {statistics.mean(u.sent for u in done):.1f}, down "
-          f"{statistics.mean(u.received for u in done):.1f} (mean); seconds p50 "
-          f"{_pct(0.5, seconds):.2f}, p95 {_pct(0.95, seconds):.2f}, max {max(seconds):.2f}")
+    first = True
+    rows = []
+    for count in args.items:
+        for resend in (False, True):
+            result = run(args.radio, args.duration, args.uploads, args.seed, count, resend)
+            if first:
+                _print_links(result["links"])
+                first = False
+            done: list[_Upload] = result["uploads"]
+            seconds = [u.done_s - u.t0_s for u in done if u.done_s is not None]
+            rows.append((count, "now" if resend else "before", len(done), done, seconds))
+    print(f"\ntarget upload + verifying download, link 1, {args.uploads} at random times "
+          "(s from MISSION_COUNT to the verified read-back; floe's own machines):")
+    print("items  upload rule  done   frames up/down   p50 s   p95 s   max s")
+    for count, rule, n, done, seconds in rows:
+        if not seconds:
+            print(f"{count:5d}  {rule:<11}  {n:4d}   (none finished)")
+            continue
+        print(f"{count:5d}  {rule:<11}  {n:4d}   {statistics.mean(u.sent for u in done):5.1f} / "
+              f"{statistics.mean(u.received for u in done):5.1f}    {_pct(0.5, seconds):5.2f}"
+              f"   {_pct(0.95, seconds):5.2f}   {max(seconds):5.2f}")
     if args.daemon:
         _daemon(args.radio)
 
