@@ -72,18 +72,19 @@ a vehicle that never sets it is reported breached on every connection."""
 def _sys_status(v: VehicleView) -> Any:
     flags = v.ready_flags
     health = _SENSORS & ~(M.MAV_SYS_STATUS_SENSOR_GPS | M.MAV_SYS_STATUS_AHRS | PREARM_BIT)
-    health |= GEOFENCE_HEALTH
+    present, fence_enabled, fence_health = v.fence.status_bits()
+    health |= fence_health
     if flags["gps"]:
         health |= M.MAV_SYS_STATUS_SENSOR_GPS
     if flags["ekf"]:
         health |= M.MAV_SYS_STATUS_AHRS
     if v.prearm_ok:
         health |= PREARM_BIT
-    enabled = _SENSORS
+    enabled = _SENSORS | fence_enabled
     if not v.airspeed_sensor.in_use:  # disabled by the health check: present, healthy
         enabled &= ~M.MAV_SYS_STATUS_SENSOR_DIFFERENTIAL_PRESSURE
     return M.MAVLink_sys_status_message(
-        _SENSORS,
+        _SENSORS | present,
         enabled,
         health,
         200,

@@ -289,13 +289,17 @@ class VehiclePort:
     def _own_component(self) -> int:
         return self.encoder.component_id
 
-    async def upload(self, items: Sequence[MissionItem]) -> TransferResult:
+    async def upload(
+        self, items: Sequence[MissionItem], mission_type: int = M.MAV_MISSION_TYPE_MISSION
+    ) -> TransferResult:
+        """Upload ``items`` of ``mission_type`` (the mission, or the fence)."""
         timeout_s = self.transfer_timeout_s()
         return await self.run(
             MissionUpload(
                 self.system_id,
                 self.component_id,
                 items,
+                mission_type=mission_type,
                 timeout_s=timeout_s,
                 ack_retries=self._ack_retries(timeout_s),
                 retries=self.retries,
@@ -304,13 +308,17 @@ class VehiclePort:
             )
         )
 
-    async def download(self, expect_count: int | None = None) -> TransferResult:
-        """Read the mission back; ``expect_count`` (the count just uploaded) lets a
-        constrained link ask for the items with the list request itself."""
+    async def download(
+        self, expect_count: int | None = None, mission_type: int = M.MAV_MISSION_TYPE_MISSION
+    ) -> TransferResult:
+        """Read the mission (or the fence: ``mission_type``) back; ``expect_count`` (the
+        count just uploaded) lets a constrained link ask for the items with the list
+        request itself."""
         return await self.run(
             MissionDownload(
                 self.system_id,
                 self.component_id,
+                mission_type=mission_type,
                 window=self._pipeline(),
                 expect_count=expect_count,
                 timeout_s=self.transfer_timeout_s(),

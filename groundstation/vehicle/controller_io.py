@@ -24,6 +24,7 @@ from typing import Any
 
 from groundstation.core import events as ev
 from groundstation.core.commands import FlyToTarget
+from groundstation.mavlink.fence_items import FenceCircle
 from groundstation.mavlink.mission_items import MissionStep
 from groundstation.mavlink.telemetry_events import TelemetryEvent, VehicleSnapshot
 
@@ -35,6 +36,8 @@ __all__ = [
     "Download",
     "Exchange",
     "ExchangeDone",
+    "FenceParam",
+    "FenceWanted",
     "Fly",
     "ForeignFrame",
     "HomeOutcome",
@@ -53,6 +56,7 @@ __all__ = [
     "SetParam",
     "Stop",
     "TimePassed",
+    "UploadFence",
     "UploadMission",
     "UploadOutcome",
     "Warn",
@@ -127,6 +131,15 @@ class LaunchWanted:
 
 
 @dataclass(frozen=True)
+class FenceWanted:
+    """The fence the vehicle should hold: the operating area's (``fence_items.py``), sent
+    at join and whenever the area moved; None: no area, nothing fenced."""
+
+    t_s: float
+    fence: FenceCircle | None
+
+
+@dataclass(frozen=True)
 class Stop:
     t_s: float
 
@@ -170,7 +183,7 @@ class ExchangeDone:
 
 Input = (
     AutopilotFrame | ForeignFrame | TimePassed | Fly | Release | Stop | ExchangeDone | NewHome
-    | LaunchWanted
+    | LaunchWanted | FenceWanted
 )
 
 
@@ -183,6 +196,14 @@ class UploadMission:
     steps: tuple[MissionStep, ...]
     purpose: str
     target: str | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class UploadFence:
+    """Upload ``fence`` as fence items (mission type FENCE), read them back and compare;
+    retried up to the transfer retries, as a mission is: an :class:`UploadOutcome`."""
+
+    fence: FenceCircle
 
 
 @dataclass(frozen=True, eq=False)
@@ -215,6 +236,13 @@ class SetParam:
 
 
 @dataclass(frozen=True, eq=False)
+class FenceParam(SetParam):
+    """A SetParam of the fence's (FENCE_TYPE, FENCE_ACTION, FENCE_ENABLE): it commands the
+    vehicle's behaviour, so it waits, as an upload does, while a mode change is not yet
+    attributed, and is never sent to a vehicle its pilot took over."""
+
+
+@dataclass(frozen=True, eq=False)
 class ReadParam:
     """Read parameter ``name`` (PARAM_REQUEST_READ by name; the driver retries a silence a
     bounded number of times): the value, or None when the vehicle does not answer."""
@@ -232,7 +260,8 @@ class MoveHome:
 
 
 Exchange = (
-    UploadMission | Download | SetCurrent | SetMode | Arm | SetParam | ReadParam | MoveHome
+    UploadMission | UploadFence | Download | SetCurrent | SetMode | Arm | SetParam | ReadParam
+    | MoveHome
 )
 
 

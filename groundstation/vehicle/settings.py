@@ -64,6 +64,8 @@ class ControllerSettings:
     rates_every_s: float = 30.0
     retry_pause_s: float = 1.0
     retry_assess_s: float = 5.0
+    fence_retry_s: float = 30.0
+    """Mission seconds before a geofence that could not be set is tried again."""
     expect_mode_s: float = 15.0
     launch_timeout_s: float = 180.0
     clock_check_s: float = 30.0
