@@ -50,6 +50,9 @@ class Host:
     def mission_verified(self, vehicle: str, purpose: str, items: Any) -> None:
         pass
 
+    def params_read(self, vehicle: str, values: Any) -> None:
+        pass
+
 
 class Port:
     """Downloads answer at once; uploads hang until cancelled."""
@@ -73,6 +76,10 @@ class Port:
     async def param_read(self, name: str) -> float | None:
         self.calls.append(f"read {name}")
         return 22.0 if name == "AIRSPEED_CRUISE" else None
+
+    async def param_list(self) -> tuple[dict[str, float], TransferResult]:
+        self.calls.append("param list")
+        return {"AIRSPEED_CRUISE": 22.0}, TransferResult(True, TransferCode.SUCCESS, "ok")
 
     async def download(self, expect_count: int | None = None, mission_type: int = 0
                        ) -> TransferResult:

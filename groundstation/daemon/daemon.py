@@ -322,6 +322,10 @@ class Daemon:
         """A verified mission: its QGC WPL 110 file in the run folder (SessionHost)."""
         self.vehicle_files.mission(vehicle, purpose, items)
 
+    def params_read(self, vehicle: str, values: dict[str, float]) -> None:
+        """A vehicle's parameters: its ``.parm`` snapshot in the run folder (SessionHost)."""
+        self.vehicle_files.params(vehicle, values)
+
     def inside_area(self, x_m: float, y_m: float) -> bool:
         return self.area.contains(x_m, y_m)
 

@@ -68,6 +68,10 @@ class SessionHost(Protocol):
         """A mission was uploaded and verified by read-back (its WPL file is written)."""
         ...
 
+    def params_read(self, vehicle: str, values: dict[str, float]) -> None:
+        """The vehicle's parameters, read at join (its ``.parm`` snapshot is written)."""
+        ...
+
 
 class VehicleSession:
     """See the module docstring."""
@@ -292,6 +296,8 @@ class VehicleSession:
                 self.port.request_rates(out.position_hz)
             elif isinstance(out, controller_io.NotifyRebooted):
                 self.port.notify_rebooted()
+            elif isinstance(out, controller_io.ParamsRead):
+                self.host.params_read(self.id, out.values)
             elif isinstance(out, controller_io.CancelExchange):
                 if self._exchange_task is not None:
                     self._exchange_task.cancel()
@@ -347,6 +353,8 @@ class VehicleSession:
             return await port.arm()
         if isinstance(request, controller_io.ReadParam):
             return await port.param_read(request.name)
+        if isinstance(request, controller_io.ReadAllParams):
+            return await port.param_list()
         if isinstance(request, controller_io.MoveHome):
             return await self._move_home(request)
         return await port.param_set(request.name, request.value)

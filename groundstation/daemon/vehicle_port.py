@@ -52,6 +52,7 @@ from groundstation.mavlink.mission_transfer import (
     TransferResult,
 )
 from groundstation.mavlink.mission_upload import MissionUpload
+from groundstation.mavlink.param_list import ParamList
 from groundstation.mavlink.vehicle_commands import CommandLong, HomeSet, ParamRead, ParamSet
 
 __all__ = ["PortClock", "VehiclePort"]
@@ -402,6 +403,20 @@ class VehiclePort:
         )
         await self.run(machine)
         return machine.value
+
+    async def param_list(self) -> tuple[dict[str, float], TransferResult]:
+        """Every parameter (PARAM_REQUEST_LIST, the missing ones re-read by index:
+        :class:`ParamList`): what came, and how the download ended. Not a safety
+        exchange: it waits while the radio's buffer is low, as a mission does."""
+        machine = ParamList(
+            self.system_id,
+            self.component_id,
+            timeout_s=self.transfer_timeout_s(),
+            retries=self.retries,
+            own_system=self._own_system,
+        )
+        result = await self.run(machine)
+        return machine.values, result
 
     async def set_home(
         self, lat_deg: float, lon_deg: float, alt_m: float | None, timeout_s: float = 1.0,

@@ -68,6 +68,7 @@ from groundstation.vehicle.jobs import (
     fence_job,
     home_job,
     launch_job,
+    params_job,
     park_job,
     set_home_job,
     target_job,
@@ -89,6 +90,8 @@ S = VehicleState
 
 
 
+PARAMS_TRIES = 3
+"""Parameter downloads tried per session before the snapshot is given up (journalled)."""
 _POSE_STATES = (S.ACTIVE, S.HOME, S.OVERRIDDEN)
 """Whose position the core hears: in the plan, sent home, or taken over (the ship watch
 aims the homes and returns of all three; ``core/watch.py``)."""
@@ -184,6 +187,10 @@ class VehicleController:
         self.fence_held: FenceCircle | None = None
         """The fence the vehicle was last verified to hold, enabled (None: none yet)."""
         self._fence_retry_at_s = 0.0  # no new fence job before (after a failed one)
+        self.params_snapshot = False
+        """Its parameters were read once (the ``.parm`` snapshot is written)."""
+        self._params_tries = 0
+        self._params_retry_at_s = 0.0
 
     # ------------------------------------------------------------------ reading
     @property
@@ -770,7 +777,21 @@ class VehicleController:
             return True
         if fly is not None and self.s.advisory:
             self._pending_fly = None
+        if self._params_due():
+            self._start(params_job(self))
+            return True
         return False
+
+    def _params_due(self) -> bool:
+        """The parameter snapshot is read once the vehicle was assessed (its cruise speed
+        known), when nothing else waits: the lowest priority of all, so a target mission
+        is never queued behind it. Reading commands nothing, so it is read in any state
+        (a vehicle its pilot flies included); not in advisory mode (floe sends nothing but
+        heartbeats there). A failed download is tried again ``fence_retry_s`` later, at
+        most :data:`PARAMS_TRIES` times."""
+        return (self.s.params_snapshot and not self.params_snapshot and not self.s.advisory
+                and self.cruise_source is not None and self._params_tries < PARAMS_TRIES
+                and self.t_s >= self._params_retry_at_s)
 
     def _fence_due(self) -> bool:
         """The area's fence goes to a vehicle floe commands (joined, in the plan, not
@@ -1166,6 +1187,14 @@ class VehicleController:
         self.journal("rtl", ok=ok)
         if not ok:
             self._pending_home = True
+
+    def params_read(self, values: dict[str, float] | None) -> None:
+        self._params_tries += 1
+        if values is None:
+            self._params_retry_at_s = self.t_s + self.s.fence_retry_s
+            return
+        self.params_snapshot = True
+        self._out.append(controller_io.ParamsRead(values))
 
     def fence_done(self, fence: FenceCircle, ok: bool) -> None:
         """The fence job's end: held (verified and enabled), or tried again

@@ -48,6 +48,8 @@ __all__ = [
     "NewHome",
     "NotifyRebooted",
     "Output",
+    "ParamsRead",
+    "ReadAllParams",
     "ReadParam",
     "Release",
     "RequestRates",
@@ -251,6 +253,11 @@ class ReadParam:
 
 
 @dataclass(frozen=True, eq=False)
+class ReadAllParams:
+    """Read every parameter (the ``.parm`` snapshot): a ``(values, TransferResult)``."""
+
+
+@dataclass(frozen=True, eq=False)
 class MoveHome:
     """Move the home to (x_m, y_m) (local ENU; the driver converts with the mission origin
     and keeps the home's altitude), verified by HOME_POSITION: a :class:`HomeOutcome`."""
@@ -261,13 +268,20 @@ class MoveHome:
 
 Exchange = (
     UploadMission | UploadFence | Download | SetCurrent | SetMode | Arm | SetParam | ReadParam
-    | MoveHome
+    | MoveHome | ReadAllParams
 )
 
 
 @dataclass(frozen=True)
 class RequestRates:
     position_hz: float
+
+
+@dataclass(frozen=True)
+class ParamsRead:
+    """The vehicle's parameters were read (all of them): the driver writes the snapshot."""
+
+    values: dict[str, float]
 
 
 @dataclass(frozen=True)
@@ -300,4 +314,7 @@ class Warn:
     text: str
 
 
-Output = Exchange | RequestRates | CancelExchange | NotifyRebooted | CoreEvent | JournalLine | Warn
+Output = (
+    Exchange | RequestRates | CancelExchange | NotifyRebooted | CoreEvent | JournalLine | Warn
+    | ParamsRead
+)

@@ -37,6 +37,7 @@ from groundstation.vehicle.controller_io import (
     Fly,
     HomeOutcome,
     MoveHome,
+    ReadAllParams,
     ReadParam,
     SetCurrent,
     SetMode,
@@ -58,6 +59,7 @@ __all__ = [
     "fence_job",
     "home_job",
     "launch_job",
+    "params_job",
     "park_job",
     "set_home_job",
     "target_job",
@@ -116,6 +118,7 @@ class JobHost(Protocol):
     def cruise_known(self, speed_m_s: float | None, source: str) -> None: ...
     def home_moved(self, x_m: float, y_m: float, outcome: HomeOutcome) -> None: ...
     def fence_done(self, fence: FenceCircle, ok: bool) -> None: ...
+    def params_read(self, values: dict[str, float] | None) -> None: ...
 
 
 def mission_job(
@@ -334,6 +337,17 @@ def fence_job(host: JobHost, fence: FenceCircle) -> Job:
     host.journal("fence", ok=ok, x_m=round(fence.x_m, 1), y_m=round(fence.y_m, 1),
                  radius_m=fence.radius_m, retries=retries, error=error or None)
     host.fence_done(fence, ok)
+
+
+def params_job(host: JobHost) -> Job:
+    """Read every parameter once (the ``.parm`` snapshot): ``host.params_read(values)``
+    with all of them, or None when the download did not complete (journalled)."""
+    answer = yield ReadAllParams()
+    values, result = answer if isinstance(answer, tuple) else ({}, None)
+    ok = result is not None and result.ok
+    host.journal("params_snapshot", ok=ok, count=len(values),
+                 error=None if ok or result is None else result.message)
+    host.params_read(values if ok else None)
 
 
 class JobRunner:

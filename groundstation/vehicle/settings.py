@@ -66,6 +66,8 @@ class ControllerSettings:
     retry_assess_s: float = 5.0
     fence_retry_s: float = 30.0
     """Mission seconds before a geofence that could not be set is tried again."""
+    params_snapshot: bool = False
+    """Read every parameter once (the run folder's ``.parm``; the daemon sets it)."""
     expect_mode_s: float = 15.0
     launch_timeout_s: float = 180.0
     clock_check_s: float = 30.0

@@ -1,0 +1,121 @@
+"""End to end through real MAVLink (tcp on 127.0.0.1) against the built-in simulator: the
+operating area becomes each vehicle's enabled geofence at join, and every mission floe
+verified is a QGC WPL 110 file that MAVProxy's ``wp load`` reads back item for item."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import pytest
+from pymavlink import mavparm, mavutil, mavwp
+
+from groundstation.commands.embedded_sim import build_embedded_sim
+from groundstation.mavlink.codec import mavlink2 as M
+from groundstation.mavlink.fence_items import (
+    FENCE_MARGIN_M,
+    build_fence_items,
+    compare_fence,
+    fence_circle,
+)
+from groundstation.mavlink.mission_items import MissionItem
+from groundstation.mavlink.mission_verify import compare_missions
+from tests.daemon_run import Journal, events, run_gcs
+
+RADIUS_M = 4000.0
+
+
+def _fenced_and_flying(journal: Journal) -> bool:
+    return (bool(events(journal, "fence", ok=True))
+            and bool(events(journal, "upload", ok=True, purpose="target"))
+            and len(events(journal, "params_snapshot", ok=True)) == 2)
+
+
+def _uploads_in_tlog(path: Path, gcs_system: int) -> list[list[MissionItem]]:
+    """Every complete mission upload floe sent, from the tlog: the MISSION_ITEM_INTs of
+    mission type MISSION after each MISSION_COUNT, one per seq (the last one sent)."""
+    log = mavutil.mavlink_connection(str(path), dialect="ardupilotmega")
+    uploads: list[list[MissionItem]] = []
+    current: dict[int, MissionItem] = {}
+    count = 0
+    while (msg := log.recv_match(type=["MISSION_COUNT", "MISSION_ITEM_INT"])) is not None:
+        if msg.get_srcSystem() != gcs_system or msg.mission_type != M.MAV_MISSION_TYPE_MISSION:
+            continue
+        if msg.get_type() == "MISSION_COUNT":
+            if current and len(current) == count:
+                uploads.append([current[i] for i in range(count)])
+            current, count = {}, msg.count
+            continue
+        item = MissionItem.from_message(msg)
+        assert item is not None
+        current[item.seq] = item
+    if current and len(current) == count:
+        uploads.append([current[i] for i in range(count)])
+    return uploads
+
+
+@pytest.mark.timeout(120)
+def test_the_area_is_each_vehicles_fence_and_its_missions_are_wpl_files(tmp_path: Path) -> None:
+    sims: list[Any] = []
+
+    def vehicles(config: Any, scenario: Any, keys: Any, wind: Any) -> Any:
+        sims.append(build_embedded_sim(config, scenario, keys, wind))
+        return sims[0]
+
+    daemon, journal = run_gcs(
+        tmp_path, "--vehicles", "sim:2", "--scenario", "default", "--launch",
+        "--operating-radius", str(RADIUS_M), "--speedup", "40", "--duration", "400",
+        until=_fenced_and_flying, timeout_s=100.0, embedded=vehicles,
+    )  # fmt: skip
+    assert daemon.stop_reason == "test: awaited events seen", daemon.stop_reason
+    # the fence went with the join, before the first target mission, as the area is
+    fence = fence_circle((0.0, 0.0), RADIUS_M)
+    assert fence is not None and fence.radius_m == RADIUS_M + FENCE_MARGIN_M
+    first = events(journal, "fence", ok=True)[0]
+    assert (first["x_m"], first["y_m"], first["radius_m"]) == (0.0, 0.0, fence.radius_m)
+    joined = events(journal, "vehicle_joined", vehicle=first["vehicle"])
+    targets = events(journal, "upload", ok=True, purpose="target", vehicle=first["vehicle"])
+    assert joined and joined[0]["t"] <= first["t"]
+    assert not targets or first["t"] <= targets[0]["t"]
+    # what the vehicle holds, read from the simulator itself: the area's fence, enabled
+    expected = build_fence_items(fence, daemon.origin)
+    fenced = {e["vehicle"] for e in events(journal, "fence", ok=True)}
+    for vehicle in sims[0].server.vehicles():
+        if str(vehicle.system_id) not in fenced:
+            continue
+        held = [MissionItem(seq=i, command=s.command, frame=s.frame, param1=s.param1,
+                            x=s.x, y=s.y, mission_type=M.MAV_MISSION_TYPE_FENCE)
+                for i, s in enumerate(vehicle.geo.stores[M.MAV_MISSION_TYPE_FENCE])]
+        assert compare_fence(expected, held) == []
+        assert vehicle.params.get("FENCE_ENABLE") == 1
+        assert int(vehicle.params.get("FENCE_TYPE")) & 4
+        assert vehicle.params.get("FENCE_ACTION") == 1
+        assert vehicle.fence.present and vehicle.fence.enabled and not vehicle.fence.breached
+    # the parameter snapshot of each vehicle, as MAVProxy's ``param load`` reads it: every
+    # parameter the vehicle has, with the value it had when floe read it
+    for vehicle in sims[0].server.vehicles():
+        path = daemon.run_dir / "params" / f"{vehicle.system_id}.parm"
+        loaded = mavparm.MAVParmDict()
+        loaded.load(str(path), use_excludes=False)
+        assert sorted(loaded) == sorted(vehicle.params.names())
+        assert loaded["SYSID_THISMAV"] == vehicle.system_id
+        assert loaded["AIRSPEED_CRUISE"] == pytest.approx(vehicle.params.get("AIRSPEED_CRUISE"))
+    # the WPL files: one per verified upload, in order; MAVProxy's loader gives back what
+    # floe sent (the tlog's MISSION_ITEM_INTs), item for item
+    uploads = _uploads_in_tlog(daemon.run_dir / "flight.tlog", daemon.config.links.gcs_system_id)
+    ok_uploads = events(journal, "upload", ok=True)
+    files = sorted((daemon.run_dir / "missions").glob("*/*.waypoints"))
+    # (a mission verified just before the stop may still await its set-current and AUTO:
+    # its file is written, its journal line not yet)
+    assert len(files) >= len(ok_uploads) >= 2
+    sent = {tuple((i.seq, i.command, i.x, i.y) for i in up): up for up in uploads}
+    for path in files:
+        assert path.read_text().startswith("QGC WPL 110\n")
+        loader = mavwp.MAVWPLoader()
+        count = loader.load(str(path))
+        loaded = [MissionItem.from_message(loader.wp(i)) for i in range(count)]
+        assert None not in loaded
+        key = tuple((i.seq, i.command, i.x, i.y) for i in loaded)  # type: ignore[union-attr]
+        assert key in sent, f"{path.name}: not a mission floe sent"
+        assert compare_missions(sent[key], loaded, autopilot="exact",  # type: ignore[arg-type]
+                                skip_home=False) == []
