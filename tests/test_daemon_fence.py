@@ -4,6 +4,7 @@ verified is a QGC WPL 110 file that MAVProxy's ``wp load`` reads back item for i
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Any
 
@@ -20,6 +21,8 @@ from groundstation.mavlink.fence_items import (
 )
 from groundstation.mavlink.mission_items import MissionItem
 from groundstation.mavlink.mission_verify import compare_missions
+from groundstation.runners.report.data import load_run_data
+from groundstation.runners.report.page import render_html
 from tests.daemon_run import Journal, events, run_gcs
 
 RADIUS_M = 4000.0
@@ -32,25 +35,30 @@ def _fenced_and_flying(journal: Journal) -> bool:
 
 
 def _uploads_in_tlog(path: Path, gcs_system: int) -> list[list[MissionItem]]:
-    """Every complete mission upload floe sent, from the tlog: the MISSION_ITEM_INTs of
-    mission type MISSION after each MISSION_COUNT, one per seq (the last one sent)."""
+    """Every complete mission upload floe sent, from the tlog: per vehicle (target
+    system), the MISSION_ITEM_INTs of mission type MISSION after each MISSION_COUNT, one
+    per seq (the last one sent)."""
     log = mavutil.mavlink_connection(str(path), dialect="ardupilotmega")
     uploads: list[list[MissionItem]] = []
-    current: dict[int, MissionItem] = {}
-    count = 0
+    current: dict[int, tuple[int, dict[int, MissionItem]]] = {}  # target -> (count, items)
+
+    def close(target: int) -> None:
+        count, items = current.pop(target, (0, {}))
+        if items and len(items) == count:
+            uploads.append([items[i] for i in range(count)])
+
     while (msg := log.recv_match(type=["MISSION_COUNT", "MISSION_ITEM_INT"])) is not None:
         if msg.get_srcSystem() != gcs_system or msg.mission_type != M.MAV_MISSION_TYPE_MISSION:
             continue
         if msg.get_type() == "MISSION_COUNT":
-            if current and len(current) == count:
-                uploads.append([current[i] for i in range(count)])
-            current, count = {}, msg.count
+            close(msg.target_system)
+            current[msg.target_system] = (msg.count, {})
             continue
         item = MissionItem.from_message(msg)
-        assert item is not None
-        current[item.seq] = item
-    if current and len(current) == count:
-        uploads.append([current[i] for i in range(count)])
+        assert item is not None and msg.target_system in current
+        current[msg.target_system][1][item.seq] = item
+    for target in list(current):
+        close(target)
     return uploads
 
 
@@ -119,3 +127,9 @@ def test_the_area_is_each_vehicles_fence_and_its_missions_are_wpl_files(tmp_path
         assert key in sent, f"{path.name}: not a mission floe sent"
         assert compare_missions(sent[key], loaded, autopilot="exact",  # type: ignore[arg-type]
                                 skip_home=False) == []
+    # gcs report links both, relative to the page
+    out_dir = tmp_path / "report"
+    page = render_html(load_run_data(daemon.run_dir), [], out_dir)
+    links = re.findall(r'<a href="([^"]+)">', page)
+    wanted = {*files, daemon.run_dir / "params" / "1.parm", daemon.run_dir / "params" / "2.parm"}
+    assert {(out_dir / link).resolve() for link in links} == {p.resolve() for p in wanted}
