@@ -96,7 +96,6 @@ PROBLEM_EVENTS = frozenset(
         "ship_feed_silent",
         "unknown_systems",
         "file_write_failed",
-        "fence_breach",
     }
 )
 """Operator events that report something wrong: logged at WARNING."""
