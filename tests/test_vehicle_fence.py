@@ -126,3 +126,15 @@ def test_a_failed_fence_is_journalled_and_tried_again_later() -> None:
     rig.run(15.0)
     assert [line.fields["ok"] for line in rig.journal("fence")] == [False, True]
     assert rig.c.fence_held == AREA
+
+
+def test_an_autopilot_that_refuses_the_fence_is_asked_three_times_not_all_run() -> None:
+    rig = joined(FenceRig(fence_retry_s=30.0))
+    rig.fence_ok = False
+    rig.feed(vio.FenceWanted(rig.t, AREA))
+    rig.run(300.0, step_s=1.0)
+    assert [line.fields["ok"] for line in rig.journal("fence")] == [False] * 3
+    # the area moves: that fence is tried afresh
+    rig.feed(vio.FenceWanted(rig.t, FenceCircle(500.0, 0.0, AREA.radius_m)))
+    rig.run(5.0)
+    assert len(rig.journal("fence")) == 4

@@ -28,10 +28,11 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+from domain.errors import LocalProtocolError
 from domain.geodesy import GeoOrigin
 from groundstation.mavlink.codec import mavlink2
-from groundstation.mavlink.mission_items import MissionItem, _latlon
-from groundstation.mavlink.mission_verify import ItemMismatch, _param_equal
+from groundstation.mavlink.mission_items import MissionItem, f32
+from groundstation.mavlink.mission_verify import ItemMismatch
 
 __all__ = [
     "CMD_FENCE_CIRCLE_INCLUSION",
@@ -96,7 +97,11 @@ def fence_circle(center_xy_m: tuple[float, float], area_radius_m: float | None
 def build_fence_items(fence: FenceCircle, origin: GeoOrigin) -> list[MissionItem]:
     """The two fence items (module docstring) for ``fence``; raises
     :class:`~domain.errors.LocalProtocolError` for a centre without a valid lat/lon."""
-    lat_e7, lon_e7 = _latlon(origin, fence.x_m, fence.y_m, "fence centre")
+    lat_deg, lon_deg, _ = origin.to_geodetic(fence.x_m, fence.y_m, 0.0)
+    if not (math.isfinite(lat_deg) and math.isfinite(lon_deg) and abs(lat_deg) <= 90.0):
+        raise LocalProtocolError(f"fence centre ({fence.x_m}, {fence.y_m}) m has no lat/lon")
+    lat_e7 = round(lat_deg * 1e7)
+    lon_e7 = round(((lon_deg + 180.0) % 360.0 - 180.0) * 1e7)
     base = {"frame": M.MAV_FRAME_GLOBAL_INT, "x": lat_e7, "y": lon_e7,
             "mission_type": M.MAV_MISSION_TYPE_FENCE}
     return [
@@ -128,7 +133,7 @@ def compare_fence(
             continue
         if got.mission_type != sent.mission_type:
             out.append(ItemMismatch(seq, "mission_type", sent.mission_type, got.mission_type))
-        if not _param_equal(sent.param1, got.param1):
+        if not math.isclose(f32(sent.param1), f32(got.param1), rel_tol=1e-6, abs_tol=1e-6):
             out.append(ItemMismatch(seq, "param1", sent.param1, got.param1))
         if _FRAME_CLASS.get(sent.frame, sent.frame) != _FRAME_CLASS.get(got.frame, got.frame):
             out.append(ItemMismatch(seq, "frame", sent.frame, got.frame))

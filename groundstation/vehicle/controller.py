@@ -90,6 +90,8 @@ S = VehicleState
 
 
 
+FENCE_TRIES = 3
+"""Failed fence jobs for one fence before floe stops trying (until it moves or a reboot)."""
 PARAMS_TRIES = 3
 """Parameter downloads tried per session before the snapshot is given up (journalled)."""
 _POSE_STATES = (S.ACTIVE, S.HOME, S.OVERRIDDEN)
@@ -187,6 +189,7 @@ class VehicleController:
         self.fence_held: FenceCircle | None = None
         """The fence the vehicle was last verified to hold, enabled (None: none yet)."""
         self._fence_retry_at_s = 0.0  # no new fence job before (after a failed one)
+        self._fence_failures = 0  # failed jobs for the fence wanted now
         self.params_snapshot = False
         """Its parameters were read once (the ``.parm`` snapshot is written)."""
         self._params_tries = 0
@@ -280,6 +283,8 @@ class VehicleController:
         elif isinstance(inp, controller_io.LaunchWanted):
             self._on_launch_wanted(inp)
         elif isinstance(inp, controller_io.FenceWanted):
+            if inp.fence is None or inp.fence.moved(self.fence_wanted):
+                self._fence_failures = 0  # another fence: tried afresh
             self.fence_wanted = inp.fence
         self._advance()
         out, self._out = self._out, []
@@ -468,6 +473,7 @@ class VehicleController:
         self._loiter = None
         self.wp_loiter_rad_m = None
         self.fence_held = None  # read back and enabled again once it is floe's again
+        self._fence_failures = 0
         self._rates_at_s = -math.inf
         self.watch.reset_clock()
         if self.state in IN_HAND:
@@ -796,12 +802,15 @@ class VehicleController:
     def _fence_due(self) -> bool:
         """The area's fence goes to a vehicle floe commands (joined, in the plan, not
         advisory) that does not hold it yet, or holds one the area has moved away from
-        (:meth:`FenceCircle.moved`); after a failure, again ``fence_retry_s`` later. Never
+        (:meth:`FenceCircle.moved`); after a failure, again ``fence_retry_s`` later, at
+        most :data:`FENCE_TRIES` times for one fence (an autopilot without the fence
+        parameters is not asked every 30 s for the whole run; a reboot or a moved area
+        tries again). Never
         to a vehicle its pilot took over, sent home or not yet joined: floe uploads and
         enables nothing there, as it uploads no mission."""
         want = self.fence_wanted
         return (want is not None and self.commanded and self.t_s >= self._fence_retry_at_s
-                and want.moved(self.fence_held))
+                and self._fence_failures < FENCE_TRIES and want.moved(self.fence_held))
 
     def _start(self, job: Job) -> None:
         self._jobs.start(job)
@@ -1202,7 +1211,9 @@ class VehicleController:
         operator's warning)."""
         if ok:
             self.fence_held = fence
+            self._fence_failures = 0
         else:
+            self._fence_failures += 1
             self._fence_retry_at_s = self.t_s + self.s.fence_retry_s
 
 
