@@ -62,7 +62,7 @@ def _uploads_in_tlog(path: Path, gcs_system: int) -> list[list[MissionItem]]:
     return uploads
 
 
-@pytest.mark.timeout(120)
+@pytest.mark.timeout(200)
 def test_the_area_is_each_vehicles_fence_and_its_missions_are_wpl_files(tmp_path: Path) -> None:
     sims: list[Any] = []
 
@@ -73,7 +73,7 @@ def test_the_area_is_each_vehicles_fence_and_its_missions_are_wpl_files(tmp_path
     daemon, journal = run_gcs(
         tmp_path, "--vehicles", "sim:2", "--scenario", "default", "--launch",
         "--operating-radius", str(RADIUS_M), "--speedup", "40", "--duration", "400",
-        until=_fenced_and_flying, timeout_s=100.0, embedded=vehicles,
+        until=_fenced_and_flying, timeout_s=170.0, embedded=vehicles,
     )  # fmt: skip
     assert daemon.stop_reason == "test: awaited events seen", daemon.stop_reason
     # the fence went with the join, before the first target mission, as the area is
