@@ -62,8 +62,9 @@ def autopilot_version(v: VehicleView) -> Any:
 
 
 GEOFENCE_HEALTH = M.MAV_SYS_STATUS_GEOFENCE
-"""ArduPlane without a configured fence (FENCE_ENABLE 0, the default) reports the geofence
-not present, not enabled, and healthy: AC_Fence::sys_status_failed() is false when the fence
+"""The geofence bits come from :meth:`sitl.fence.SimFence.status_bits`. ArduPlane without a
+configured fence (FENCE_ENABLE 0, the default) reports the geofence not present, not
+enabled, and healthy: AC_Fence::sys_status_failed() is false when the fence
 is not present, and GCS_MAVLINK sets the health bit unless it failed. MAVProxy's fence
 module says "fence breach" when that health bit goes from set to clear (it starts set), so
 a vehicle that never sets it is reported breached on every connection."""

@@ -134,7 +134,12 @@ def test_an_autopilot_that_refuses_the_fence_is_asked_three_times_not_all_run() 
     rig.feed(vio.FenceWanted(rig.t, AREA))
     rig.run(300.0, step_s=1.0)
     assert [line.fields["ok"] for line in rig.journal("fence")] == [False] * 3
-    # the area moves: that fence is tried afresh
+    # a boat's area drifting in small steps is still the fence refused: not tried again
+    for step in range(1, 5):
+        rig.feed(vio.FenceWanted(rig.t, FenceCircle(20.0 * step, 0.0, AREA.radius_m)))
+        rig.run(40.0, step_s=1.0)
+    assert len(rig.journal("fence")) == 3
+    # the area moved away from the refused fence: that fence is tried afresh
     rig.feed(vio.FenceWanted(rig.t, FenceCircle(500.0, 0.0, AREA.radius_m)))
     rig.run(5.0)
     assert len(rig.journal("fence")) == 4

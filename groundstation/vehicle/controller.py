@@ -190,6 +190,7 @@ class VehicleController:
         """The fence the vehicle was last verified to hold, enabled (None: none yet)."""
         self._fence_retry_at_s = 0.0  # no new fence job before (after a failed one)
         self._fence_failures = 0  # failed jobs for the fence wanted now
+        self._fence_failed: FenceCircle | None = None  # the fence those failures were for
         self.params_snapshot = False
         """Its parameters were read once (the ``.parm`` snapshot is written)."""
         self._params_tries = 0
@@ -283,8 +284,8 @@ class VehicleController:
         elif isinstance(inp, controller_io.LaunchWanted):
             self._on_launch_wanted(inp)
         elif isinstance(inp, controller_io.FenceWanted):
-            if inp.fence is None or inp.fence.moved(self.fence_wanted):
-                self._fence_failures = 0  # another fence: tried afresh
+            if inp.fence is None or inp.fence.moved(self._fence_failed):
+                self._fence_failures = 0  # another fence than the one refused: afresh
             self.fence_wanted = inp.fence
         self._advance()
         out, self._out = self._out, []
@@ -1214,6 +1215,7 @@ class VehicleController:
             self._fence_failures = 0
         else:
             self._fence_failures += 1
+            self._fence_failed = fence
             self._fence_retry_at_s = self.t_s + self.s.fence_retry_s
 
 
