@@ -133,3 +133,49 @@ def test_the_area_is_each_vehicles_fence_and_its_missions_are_wpl_files(tmp_path
     links = re.findall(r'<a href="([^"]+)">', page)
     wanted = {*files, daemon.run_dir / "params" / "1.parm", daemon.run_dir / "params" / "2.parm"}
     assert {(out_dir / link).resolve() for link in links} == {p.resolve() for p in wanted}
+
+
+def _breach_cleared(journal: Journal) -> bool:
+    return any(e["event"] == "statustext" and e["text"] == "Fence breach cleared"
+               for e in journal)
+
+
+@pytest.mark.timeout(200)
+def test_a_pilot_flying_out_of_the_area_is_brought_back_by_the_fence(tmp_path: Path) -> None:
+    """The pilot takes vehicle 1 in FBWA at 60 s and flies straight on: floe commands
+    nothing more to it, and the autopilot's own fence (set by floe at join) turns it home
+    when it crosses the fence."""
+    daemon, journal = run_gcs(
+        tmp_path, "--vehicles", "sim:1", "--scenario", "default", "--launch",
+        "--operating-radius", "600", "--sim-fault", "1:mode:at=60,mode=FBWA",
+        "--speedup", "40", "--duration", "300",
+        until=_breach_cleared, timeout_s=170.0,
+    )  # fmt: skip
+    assert daemon.stop_reason == "test: awaited events seen", daemon.stop_reason
+    [fence] = events(journal, "fence", ok=True)
+    assert fence["radius_m"] == 600 + FENCE_MARGIN_M
+    [override] = events(journal, "override", vehicle="1")
+    assert override["mode"] == "FBWA" and fence["t"] < override["t"]
+    [breach] = [e for e in journal if e["event"] == "statustext"
+                and e["text"] == "Fence breached: Polygon"]
+    assert breach["t"] > override["t"]
+    rtl = [e for e in events(journal, "mode", vehicle="1", mode="RTL") if e["t"] >= breach["t"]]
+    assert rtl and rtl[0]["cause"] == "vehicle" and rtl[0]["t"] - breach["t"] < 1.0
+    # nothing commanding went to the pilot's vehicle after the override: no transfer, no
+    # parameter, no command but the telemetry rates
+    log = mavutil.mavlink_connection(str(daemon.run_dir / "flight.tlog"), dialect="ardupilotmega")
+    gcs = daemon.config.links.gcs_system_id
+    after: list[str] = []
+    heartbeats_after = 0
+    while (msg := log.recv_match()) is not None:
+        late = msg.get_srcSystem() == gcs and getattr(msg, "_timestamp", 0) > override["unix_s"]
+        heartbeats_after += late and msg.get_type() == "HEARTBEAT"
+        if (late
+                and msg.get_type() not in ("HEARTBEAT", "REQUEST_DATA_STREAM", "TIMESYNC",
+                                           "SYSTEM_TIME")):
+            kind = msg.get_type()
+            if kind == "COMMAND_LONG" and msg.command == M.MAV_CMD_SET_MESSAGE_INTERVAL:
+                continue
+            after.append(kind)
+    assert heartbeats_after > 10  # the tlog does hold floe's frames of that time
+    assert after == []
