@@ -69,7 +69,7 @@ class SessionHost(Protocol):
         ...
 
     def params_read(self, vehicle: str, values: dict[str, float]) -> None:
-        """The vehicle's parameters, read at join (its ``.parm`` snapshot is written)."""
+        """The vehicle's parameters, read once (its ``.parm`` snapshot is written)."""
         ...
 
 

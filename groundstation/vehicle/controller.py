@@ -806,9 +806,8 @@ class VehicleController:
         (:meth:`FenceCircle.moved`); after a failure, again ``fence_retry_s`` later, at
         most :data:`FENCE_TRIES` times for one fence (an autopilot without the fence
         parameters is not asked every 30 s for the whole run; a reboot or a moved area
-        tries again). Never
-        to a vehicle its pilot took over, sent home or not yet joined: floe uploads and
-        enables nothing there, as it uploads no mission."""
+        tries again). Never to a vehicle its pilot took over, sent home or not yet joined:
+        floe uploads and enables nothing there, as it uploads no mission."""
         want = self.fence_wanted
         return (want is not None and self.commanded and self.t_s >= self._fence_retry_at_s
                 and self._fence_failures < FENCE_TRIES and want.moved(self.fence_held))
