@@ -317,6 +317,14 @@ def _command(
         return _reposition(v, msg, p, frame)
     if cmd == M.MAV_CMD_DO_SET_HOME:
         return _set_home(v, msg, p, frame)
+    if cmd == M.MAV_CMD_DO_FENCE_ENABLE:
+        # AC_Fence: 0 disables, 1 enables (FENCE_ENABLE, not saved); 2 (the floor only)
+        # has nothing to disable on a fence of inclusion items
+        if p[0] not in (0.0, 1.0, 2.0):
+            return [_ack(msg, cmd, M.MAV_RESULT_FAILED)]
+        if p[0] != 2.0:
+            v.params.set("FENCE_ENABLE", p[0])
+        return [_ack(msg, cmd, M.MAV_RESULT_ACCEPTED)]
     if cmd == M.MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN:
         if p[0] != 1.0 or ap.armed:
             return [_ack(msg, cmd, M.MAV_RESULT_FAILED)]

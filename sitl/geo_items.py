@@ -20,9 +20,8 @@ ArduPlane runs the same mission-item protocol for ``MAV_MISSION_TYPE_FENCE`` (1)
 * ``MISSION_REQUEST(_INT)`` -> the stored item as ``MISSION_ITEM(_INT)`` of that type
   (``INVALID_SEQUENCE`` beyond the end); ``MISSION_CLEAR_ALL`` -> empty, ``ACCEPTED``.
 
-The fence stays unconfigured and disabled whatever is uploaded (FENCE_ENABLE is 0), so
-SYS_STATUS keeps reporting it not present, not enabled and healthy
-(:mod:`sitl.vehicle_messages`).
+Until ``FENCE_ENABLE`` is 1 the fence stays disabled whatever is uploaded; what the
+vehicle does with it is :mod:`sitl.fence` (and SYS_STATUS: :mod:`sitl.vehicle_messages`).
 """
 
 from __future__ import annotations

@@ -89,6 +89,11 @@ def default_param_specs(system_id: int, cruise_speed_m_s: float) -> list[ParamSp
         ParamSpec("RALLY_TOTAL", 0, _INT8, 0, 100),
         ParamSpec("RALLY_LIMIT_KM", 5.0, _REAL32, 0, 1000),
         ParamSpec("RALLY_INCL_HOME", 0, _INT8, 0, 1),
+        # AC_Fence, ArduPlane's defaults: off; the polygon type (inclusion/exclusion
+        # items, circles too); RTL on a breach (sitl.fence)
+        ParamSpec("FENCE_ENABLE", 0, _INT8, 0, 1),
+        ParamSpec("FENCE_TYPE", 4, _INT8, 0, 15),
+        ParamSpec("FENCE_ACTION", 1, _INT8, 0, 7),
         ParamSpec("Q_ENABLE", 0, _INT8, 0, 2),
         ParamSpec("FLTMODE_CH", 8, _INT8, 1, 16),
         ParamSpec("FLTMODE1", ArduPlaneMode.AUTO, _INT8, 0, 25),

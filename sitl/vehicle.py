@@ -48,11 +48,13 @@ from dataclasses import dataclass
 from typing import Any
 
 from domain.geodesy import compass_deg_from_enu_rad
+from domain.modes import ArduPlaneMode
 from groundstation.mavlink.codec import mavlink2
 from sitl import command_handler
 from sitl.airframe import Airframe, Guidance
 from sitl.autopilot import AUTO, GUIDED, INITIALISING, LOITER, MANUAL, MODE_NAMES, RTL, Autopilot
 from sitl.faults import FaultEvent
+from sitl.fence import SimFence
 from sitl.geo_items import GeoItemsServer
 from sitl.mission_protocol import REREQUEST_S, UPLOAD_TIMEOUT_S, MissionEvents, MissionServer
 from sitl.mission_store import MAX_MISSION_ITEMS, MissionStore, StoredItem
@@ -157,6 +159,8 @@ class SimVehicle:
             self.params.set("BATT_CAPACITY", model.capacity_mah)
         # rally points and the fence are stored in EEPROM: they survive reboots
         self.geo = GeoItemsServer(rerequest_s=REREQUEST_S, upload_timeout_s=UPLOAD_TIMEOUT_S)
+        self.fence = SimFence(config.origin, lambda: self.geo.stores[M.MAV_MISSION_TYPE_FENCE],
+                              self.params.get)
         self.ship = SimShip(config.ship, t_s) if config.ship is not None else None
         self.events: list[SimEvent] = []
         self.crashed = False
@@ -467,6 +471,8 @@ class SimVehicle:
             msg = build_message(self, msg_id)
             if msg is not None:
                 out.append(msg)
+            if msg_id == M.MAVLINK_MSG_ID_SYS_STATUS and self.fence.enabled:
+                out.append(self.fence.status_message())  # ArduPlane: EXTENDED_STATUS
         return out
 
     def _physics(self, dt_s: float) -> list[Any]:
@@ -502,6 +508,27 @@ class SimVehicle:
             out += self.battery_low()
         out += self._recovery()
         out += self._update_home()
+        out += self._fence_check()  # every physics step: ArduPlane's 10 Hz
+        return out
+
+    def _fence_check(self) -> list[Any]:
+        """ArduPlane's 10 Hz fence check (:mod:`sitl.fence`): a new breach acts by
+        ``FENCE_ACTION`` (RTL, or GUIDED to the fence's return point)."""
+        ap, af = self.autopilot, self.airframe
+        mode, texts = self.fence.check(af.x_m, af.y_m, armed=ap.armed, mode=ap.mode,
+                                       time_boot_ms=self.time_boot_ms)
+        out: list[Any] = []
+        for text in texts:
+            out += self.text.make(text, M.MAV_SEVERITY_NOTICE)
+        if mode is not None:
+            if mode != ap.mode:  # (ArduPlane ignores a switch to the mode it is in)
+                out += ap.set_mode(mode, af)
+            if mode == ArduPlaneMode.GUIDED:  # set_guided_WP: the return point, always
+                ret = self.fence.return_point() or self.home_xy_m
+                alt_cm = self.params.get("ALT_HOLD_RTL")
+                alt_m = af.alt_m if alt_cm < 0 else alt_cm / 100.0
+                ap.set_guided_target(ret[0], ret[1], alt_m, 0.0)
+            self._record("fence", f"breach: {self.mode_name}")
         return out
 
     def _drain_battery(

@@ -62,8 +62,9 @@ def autopilot_version(v: VehicleView) -> Any:
 
 
 GEOFENCE_HEALTH = M.MAV_SYS_STATUS_GEOFENCE
-"""ArduPlane without a configured fence (FENCE_ENABLE 0, the default) reports the geofence
-not present, not enabled, and healthy: AC_Fence::sys_status_failed() is false when the fence
+"""The geofence bits come from :meth:`sitl.fence.SimFence.status_bits`. ArduPlane without a
+configured fence (FENCE_ENABLE 0, the default) reports the geofence not present, not
+enabled, and healthy: AC_Fence::sys_status_failed() is false when the fence
 is not present, and GCS_MAVLINK sets the health bit unless it failed. MAVProxy's fence
 module says "fence breach" when that health bit goes from set to clear (it starts set), so
 a vehicle that never sets it is reported breached on every connection."""
@@ -72,18 +73,19 @@ a vehicle that never sets it is reported breached on every connection."""
 def _sys_status(v: VehicleView) -> Any:
     flags = v.ready_flags
     health = _SENSORS & ~(M.MAV_SYS_STATUS_SENSOR_GPS | M.MAV_SYS_STATUS_AHRS | PREARM_BIT)
-    health |= GEOFENCE_HEALTH
+    present, fence_enabled, fence_health = v.fence.status_bits()
+    health |= fence_health
     if flags["gps"]:
         health |= M.MAV_SYS_STATUS_SENSOR_GPS
     if flags["ekf"]:
         health |= M.MAV_SYS_STATUS_AHRS
     if v.prearm_ok:
         health |= PREARM_BIT
-    enabled = _SENSORS
+    enabled = _SENSORS | fence_enabled
     if not v.airspeed_sensor.in_use:  # disabled by the health check: present, healthy
         enabled &= ~M.MAV_SYS_STATUS_SENSOR_DIFFERENTIAL_PRESSURE
     return M.MAVLink_sys_status_message(
-        _SENSORS,
+        _SENSORS | present,
         enabled,
         health,
         200,

@@ -15,6 +15,7 @@ from typing import Any, Protocol
 from domain.geodesy import GeoOrigin
 from sitl.airframe import Airframe
 from sitl.autopilot import Autopilot
+from sitl.fence import SimFence
 from sitl.mission_store import MissionStore
 from sitl.params import ParamStore
 from sitl.sim_airspeed import AirspeedSensor
@@ -97,6 +98,7 @@ class VehicleView(Protocol):
     t_s: float
     wind_estimate: EkfWindModel
     airspeed_sensor: AirspeedSensor
+    fence: SimFence
 
     @property
     def system_id(self) -> int: ...

@@ -44,6 +44,15 @@ class Host:
     def clip(self, x_m: float, y_m: float) -> tuple[float, float, bool]:
         return x_m, y_m, False
 
+    def fence(self) -> None:
+        return None
+
+    def mission_verified(self, vehicle: str, purpose: str, items: Any) -> None:
+        pass
+
+    def params_read(self, vehicle: str, values: Any) -> None:
+        pass
+
 
 class Port:
     """Downloads answer at once; uploads hang until cancelled."""
@@ -68,11 +77,16 @@ class Port:
         self.calls.append(f"read {name}")
         return 22.0 if name == "AIRSPEED_CRUISE" else None
 
-    async def download(self, expect_count: int | None = None) -> TransferResult:
+    async def param_list(self) -> tuple[dict[str, float], TransferResult]:
+        self.calls.append("param list")
+        return {"AIRSPEED_CRUISE": 22.0}, TransferResult(True, TransferCode.SUCCESS, "ok")
+
+    async def download(self, expect_count: int | None = None, mission_type: int = 0
+                       ) -> TransferResult:
         self.calls.append("download")
         return TransferResult(True, TransferCode.SUCCESS, "ok", items=())
 
-    async def upload(self, items: Any) -> TransferResult:
+    async def upload(self, items: Any, mission_type: int = 0) -> TransferResult:
         self.calls.append("upload")
         try:
             await asyncio.sleep(3600)
@@ -171,7 +185,7 @@ class RebootingPort(Port):
         super().notify_rebooted()
         self.rebooted.set()
 
-    async def upload(self, items: Any) -> TransferResult:
+    async def upload(self, items: Any, mission_type: int = 0) -> TransferResult:
         self.calls.append("upload")
         await self.rebooted.wait()
         return TransferResult(False, TransferCode.VEHICLE_REBOOTED, "vehicle rebooted")

@@ -494,4 +494,5 @@ def controller_settings(
         progress_timeout_s=fleet.progress_timeout_s,
         ready_pct=None if watch is None else watch.ready_pct,
         launch_on_order=watch is not None and watch.on_station is not None,
+        params_snapshot=True,
     )

@@ -46,6 +46,7 @@ from groundstation.daemon.services import FnService, Service, TaskSet
 from groundstation.daemon.session import VehicleSession
 from groundstation.daemon.signing_gate import SigningGate
 from groundstation.daemon.supervision import Supervisor
+from groundstation.daemon.vehicle_files import VehicleFiles
 from groundstation.daemon.vehicle_port import VehiclePort
 from groundstation.daemon.world import ScenarioWorld
 from groundstation.daemon.world_feed import WorldFeed
@@ -54,6 +55,8 @@ from groundstation.link.base import Link
 from groundstation.link.binding import BindingRules
 from groundstation.mavlink.codec import MavlinkEncoder, mavlink2
 from groundstation.mavlink.evidence import NewSystemEvidence, is_autopilot_heartbeat
+from groundstation.mavlink.fence_items import FenceCircle, fence_circle
+from groundstation.mavlink.mission_items import MissionItem
 from groundstation.vehicle.state import LinkState, VehicleState
 from planner import PlanResult
 
@@ -215,6 +218,8 @@ class Daemon:
             config.mission.operating_radius_m,
             config.mission.operating_center == OperatingCenter.BOAT,
         )
+        self.vehicle_files = VehicleFiles(run_dir, self.journal)
+        """Each vehicle's verified missions (QGC WPL 110) and parameter snapshot (.parm)."""
         self.stopping = False
         self.last_plan: LastPlan | None = None
         self._due = _Due()
@@ -307,6 +312,19 @@ class Daemon:
 
     def area_center(self) -> tuple[float, float]:
         return self.area.center()
+
+    def fence(self) -> FenceCircle | None:
+        """The operating area's geofence now (SessionHost; ``fence_items.fence_circle``)."""
+        return fence_circle(self.area.center(), self.area.radius_m)
+
+    def mission_verified(self, vehicle: str, purpose: str,
+                         items: Sequence[MissionItem]) -> None:
+        """A verified mission: its QGC WPL 110 file in the run folder (SessionHost)."""
+        self.vehicle_files.mission(vehicle, purpose, items)
+
+    def params_read(self, vehicle: str, values: dict[str, float]) -> None:
+        """A vehicle's parameters: its ``.parm`` snapshot in the run folder (SessionHost)."""
+        self.vehicle_files.params(vehicle, values)
 
     def inside_area(self, x_m: float, y_m: float) -> bool:
         return self.area.contains(x_m, y_m)

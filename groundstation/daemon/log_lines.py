@@ -95,6 +95,7 @@ PROBLEM_EVENTS = frozenset(
         "home_set_failed",
         "ship_feed_silent",
         "unknown_systems",
+        "file_write_failed",
     }
 )
 """Operator events that report something wrong: logged at WARNING."""
@@ -137,6 +138,7 @@ OPERATOR_EVENTS = PROBLEM_EVENTS | frozenset(
         "launch_order",
         "ship_feed_restored",
         "ship_feed_link",
+        "fence",
     }
 )
 """The events every operator view shows (plus the conditional ones of the module doc)."""

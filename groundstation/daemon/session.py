@@ -20,6 +20,7 @@ import contextlib
 import dataclasses
 import logging
 import math
+from collections.abc import Callable, Sequence
 from typing import Any, Protocol
 
 from domain.errors import LocalProtocolError
@@ -31,8 +32,9 @@ from groundstation.daemon.clock import MissionClock
 from groundstation.daemon.config import DaemonConfig, VehicleSettings, controller_settings
 from groundstation.daemon.vehicle_port import VehiclePort
 from groundstation.mavlink.codec import MAVLinkMessage, mavlink2
-from groundstation.mavlink.mission_items import build_mission_items
-from groundstation.mavlink.mission_verify import compare_missions
+from groundstation.mavlink.fence_items import FenceCircle, build_fence_items, compare_fence
+from groundstation.mavlink.mission_items import MissionItem, build_mission_items
+from groundstation.mavlink.mission_verify import ItemMismatch, compare_missions
 from groundstation.mavlink.telemetry import VehicleSnapshot, VehicleTelemetry
 from groundstation.vehicle import controller_io
 from groundstation.vehicle.controller import FlyRecord, VehicleController
@@ -56,6 +58,19 @@ class SessionHost(Protocol):
     def journal(self, event: str, *, logged: bool = False, **fields: Any) -> None: ...
 
     def clip(self, x_m: float, y_m: float) -> tuple[float, float, bool]: ...
+
+    def fence(self) -> FenceCircle | None:
+        """The operating area's geofence now (None: no area)."""
+        ...
+
+    def mission_verified(self, vehicle: str, purpose: str,
+                         items: Sequence[MissionItem]) -> None:
+        """A mission was uploaded and verified by read-back (its WPL file is written)."""
+        ...
+
+    def params_read(self, vehicle: str, values: dict[str, float]) -> None:
+        """The vehicle's parameters, read once (its ``.parm`` snapshot is written)."""
+        ...
 
 
 class VehicleSession:
@@ -98,6 +113,7 @@ class VehicleSession:
         self._wake = asyncio.Event()
         self._exchanges: collections.deque[controller_io.Exchange] = collections.deque()
         self._exchange_task: asyncio.Task[Any] | None = None
+        self._fence_given: FenceCircle | None = None
 
     # ------------------------------------------------------------------ reading
     @property
@@ -258,6 +274,10 @@ class VehicleSession:
         events = self.telemetry.tick(t_s)
         if events:
             self._feed(controller_io.AutopilotFrame(t_s, "", self.snapshot, tuple(events)))
+        fence = self.host.fence()
+        if fence != self._fence_given:  # the area's fence now (the controller decides)
+            self._fence_given = fence
+            self._feed(controller_io.FenceWanted(t_s, fence))
         self._feed(controller_io.TimePassed(t_s))
 
     # ------------------------------------------------------------------ out
@@ -276,6 +296,8 @@ class VehicleSession:
                 self.port.request_rates(out.position_hz)
             elif isinstance(out, controller_io.NotifyRebooted):
                 self.port.notify_rebooted()
+            elif isinstance(out, controller_io.ParamsRead):
+                self.host.params_read(self.id, out.values)
             elif isinstance(out, controller_io.CancelExchange):
                 if self._exchange_task is not None:
                     self._exchange_task.cancel()
@@ -319,6 +341,8 @@ class VehicleSession:
         port = self.port
         if isinstance(request, controller_io.UploadMission):
             return await self._upload_verified(request)
+        if isinstance(request, controller_io.UploadFence):
+            return await self._upload_fence(request)
         if isinstance(request, controller_io.Download):
             return await port.download()
         if isinstance(request, controller_io.SetCurrent):
@@ -329,6 +353,8 @@ class VehicleSession:
             return await port.arm()
         if isinstance(request, controller_io.ReadParam):
             return await port.param_read(request.name)
+        if isinstance(request, controller_io.ReadAllParams):
+            return await port.param_list()
         if isinstance(request, controller_io.MoveHome):
             return await self._move_home(request)
         return await port.param_set(request.name, request.value)
@@ -353,11 +379,37 @@ class VehicleSession:
     async def _upload_verified(
         self, request: controller_io.UploadMission
     ) -> controller_io.UploadOutcome:
-        """Upload then read back until they match (transfer mechanics, no policy)."""
+        """Upload then read back until they match (transfer mechanics, no policy); a
+        verified mission is handed to the host (its WPL file)."""
         try:
             items = build_mission_items(list(request.steps), self.host.origin)
         except ValueError as exc:
             return controller_io.UploadOutcome(False, 0, str(exc), 0)
+        outcome = await self._transfer_verified(request, items, M.MAV_MISSION_TYPE_MISSION,
+                                                compare_missions)
+        if outcome.ok:
+            self.host.mission_verified(self.id, request.purpose, items)
+        return outcome
+
+    async def _upload_fence(self, request: controller_io.UploadFence
+                            ) -> controller_io.UploadOutcome:
+        """The fence items (mission type FENCE) through the same verified transfer."""
+        try:
+            items = build_fence_items(request.fence, self.host.origin)
+        except ValueError as exc:
+            return controller_io.UploadOutcome(False, 0, str(exc), 0)
+        return await self._transfer_verified(request, items, M.MAV_MISSION_TYPE_FENCE,
+                                             compare_fence)
+
+    async def _transfer_verified(
+        self,
+        request: controller_io.Exchange,
+        items: list[MissionItem],
+        mission_type: int,
+        compare: Callable[[Sequence[MissionItem], Sequence[MissionItem]], list[ItemMismatch]],
+    ) -> controller_io.UploadOutcome:
+        """Upload ``items`` of ``mission_type``, read them back and ``compare``, up to the
+        transfer retries; stops as soon as the controller no longer wants ``request``."""
         t0_s = self.clock.now_s()
         retries = 0
         last = ""
@@ -367,7 +419,7 @@ class VehicleSession:
                 await asyncio.sleep(self.clock.wall_s(self.controller.s.retry_pause_s))
             if not self.controller.wants(request):  # aborted (reboot, release...): stop
                 return controller_io.UploadOutcome(False, retries, "no longer wanted", len(items))
-            up = await self.port.upload(items)
+            up = await self.port.upload(items, mission_type)
             retries += up.retries_used
             if not up.ok and not up.maybe_stored:
                 last = f"upload {up.code.value}: {up.message}"
@@ -376,12 +428,12 @@ class VehicleSession:
                 continue
             if not self.controller.wants(request):
                 return controller_io.UploadOutcome(False, retries, "no longer wanted", len(items))
-            down = await self.port.download(expect_count=len(items))
+            down = await self.port.download(expect_count=len(items), mission_type=mission_type)
             retries += down.retries_used
             if not down.ok or down.items is None:
                 last = f"download {down.code.value}: {down.message}"
                 continue
-            diff = compare_missions(items, down.items)
+            diff = compare(items, down.items)
             if diff:
                 last = f"verify: {diff[0]}"
                 continue

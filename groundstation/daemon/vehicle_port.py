@@ -52,6 +52,7 @@ from groundstation.mavlink.mission_transfer import (
     TransferResult,
 )
 from groundstation.mavlink.mission_upload import MissionUpload
+from groundstation.mavlink.param_list import ParamList
 from groundstation.mavlink.vehicle_commands import CommandLong, HomeSet, ParamRead, ParamSet
 
 __all__ = ["PortClock", "VehiclePort"]
@@ -295,13 +296,17 @@ class VehiclePort:
     def _own_component(self) -> int:
         return self.encoder.component_id
 
-    async def upload(self, items: Sequence[MissionItem]) -> TransferResult:
+    async def upload(
+        self, items: Sequence[MissionItem], mission_type: int = M.MAV_MISSION_TYPE_MISSION
+    ) -> TransferResult:
+        """Upload ``items`` of ``mission_type`` (the mission, or the fence)."""
         timeout_s = self.transfer_timeout_s()
         return await self.run(
             MissionUpload(
                 self.system_id,
                 self.component_id,
                 items,
+                mission_type=mission_type,
                 timeout_s=timeout_s,
                 ack_retries=self._ack_retries(timeout_s),
                 resend_items=self._constrained(),
@@ -311,13 +316,17 @@ class VehiclePort:
             )
         )
 
-    async def download(self, expect_count: int | None = None) -> TransferResult:
-        """Read the mission back; ``expect_count`` (the count just uploaded) lets a
-        constrained link ask for the items with the list request itself."""
+    async def download(
+        self, expect_count: int | None = None, mission_type: int = M.MAV_MISSION_TYPE_MISSION
+    ) -> TransferResult:
+        """Read the mission (or the fence: ``mission_type``) back; ``expect_count`` (the
+        count just uploaded) lets a constrained link ask for the items with the list
+        request itself."""
         return await self.run(
             MissionDownload(
                 self.system_id,
                 self.component_id,
+                mission_type=mission_type,
                 window=self._pipeline(),
                 expect_count=expect_count,
                 timeout_s=self.transfer_timeout_s(),
@@ -401,6 +410,20 @@ class VehiclePort:
         )
         await self.run(machine)
         return machine.value
+
+    async def param_list(self) -> tuple[dict[str, float], TransferResult]:
+        """Every parameter (PARAM_REQUEST_LIST, the missing ones re-read by index:
+        :class:`ParamList`): what came, and how the download ended. Not a safety
+        exchange: it waits while the radio's buffer is low, as a mission does."""
+        machine = ParamList(
+            self.system_id,
+            self.component_id,
+            timeout_s=self.transfer_timeout_s(),
+            retries=self.retries,
+            own_system=self._own_system,
+        )
+        result = await self.run(machine)
+        return machine.values, result
 
     async def set_home(
         self, lat_deg: float, lon_deg: float, alt_m: float | None, timeout_s: float = 1.0,

@@ -46,6 +46,7 @@ from groundstation.core import events as ev
 from groundstation.core.mission import target_mission
 from groundstation.mavlink.airspeed_health import AirspeedChange, AirspeedHealth
 from groundstation.mavlink.evidence import LoiterEndEvidence
+from groundstation.mavlink.fence_items import FenceCircle
 from groundstation.mavlink.telemetry_events import (
     Armed,
     Disarmed,
@@ -64,8 +65,10 @@ from groundstation.vehicle.jobs import (
     Job,
     JobRunner,
     cruise_job,
+    fence_job,
     home_job,
     launch_job,
+    params_job,
     park_job,
     set_home_job,
     target_job,
@@ -87,6 +90,10 @@ S = VehicleState
 
 
 
+FENCE_TRIES = 3
+"""Failed fence jobs for one fence before floe stops trying (until it moves or a reboot)."""
+PARAMS_TRIES = 3
+"""Parameter downloads tried per session before the snapshot is given up (journalled)."""
 _POSE_STATES = (S.ACTIVE, S.HOME, S.OVERRIDDEN)
 """Whose position the core hears: in the plan, sent home, or taken over (the ship watch
 aims the homes and returns of all three; ``core/watch.py``)."""
@@ -177,6 +184,17 @@ class VehicleController:
         self.fresh = Freshness(settings.lag_threshold_s, loiter_margin_m=settings.progress_margin_m)
         """Its telemetry's age against its own clock, lagging, predictions (:mod:`.freshness`)."""
         self._predicted_at_s = -math.inf  # when the core was last given a predicted pose
+        self.fence_wanted: FenceCircle | None = None
+        """The operating area's fence (the daemon's FenceWanted; None: no area)."""
+        self.fence_held: FenceCircle | None = None
+        """The fence the vehicle was last verified to hold, enabled (None: none yet)."""
+        self._fence_retry_at_s = 0.0  # no new fence job before (after a failed one)
+        self._fence_failures = 0  # failed jobs for the fence wanted now
+        self._fence_failed: FenceCircle | None = None  # the fence those failures were for
+        self.params_snapshot = False
+        """Its parameters were read once (the ``.parm`` snapshot is written)."""
+        self._params_tries = 0
+        self._params_retry_at_s = 0.0
 
     # ------------------------------------------------------------------ reading
     @property
@@ -221,7 +239,8 @@ class VehicleController:
         return self.snap.armed is True and not self.snap.reboot_suspected
 
     def may_command_request(self, request: controller_io.Exchange) -> bool:
-        return (not isinstance(request, controller_io.SetMode | controller_io.UploadMission)
+        return (not isinstance(request, controller_io.SetMode | controller_io.UploadMission
+                               | controller_io.UploadFence | controller_io.FenceParam)
                 or self.may_command())
 
     def must_wait(self, request: controller_io.Exchange) -> bool:
@@ -237,7 +256,7 @@ class VehicleController:
         if isinstance(request, controller_io.MoveHome):  # changes no mode: no grace to wait
             return self.snap.reboot_suspected or self.link is not LinkState.OK
         commanding = (controller_io.SetMode | controller_io.UploadMission | controller_io.SetCurrent
-                      | controller_io.Arm)
+                      | controller_io.Arm | controller_io.UploadFence | controller_io.FenceParam)
         if not isinstance(request, commanding):
             return False
         return self.snap.reboot_suspected or self.watch.mode_change_pending
@@ -264,6 +283,10 @@ class VehicleController:
             self._on_new_home(inp)
         elif isinstance(inp, controller_io.LaunchWanted):
             self._on_launch_wanted(inp)
+        elif isinstance(inp, controller_io.FenceWanted):
+            if inp.fence is None or inp.fence.moved(self._fence_failed):
+                self._fence_failures = 0  # another fence than the one refused: afresh
+            self.fence_wanted = inp.fence
         self._advance()
         out, self._out = self._out, []
         return out
@@ -450,6 +473,8 @@ class VehicleController:
         self._abort_job()
         self._loiter = None
         self.wp_loiter_rad_m = None
+        self.fence_held = None  # read back and enabled again once it is floe's again
+        self._fence_failures = 0
         self._rates_at_s = -math.inf
         self.watch.reset_clock()
         if self.state in IN_HAND:
@@ -746,6 +771,10 @@ class VehicleController:
             self._pending_home = False
             self._start(home_job(self))
             return True
+        if self._fence_due():
+            assert self.fence_wanted is not None
+            self._start(fence_job(self, self.fence_wanted))
+            return True
         fly = self._pending_fly
         if fly is not None and self.commanded:
             self._pending_fly = None
@@ -755,7 +784,33 @@ class VehicleController:
             return True
         if fly is not None and self.s.advisory:
             self._pending_fly = None
+        if self._params_due():
+            self._start(params_job(self))
+            return True
         return False
+
+    def _params_due(self) -> bool:
+        """The parameter snapshot is read once the vehicle was assessed (its cruise speed
+        known), when nothing else waits: the lowest priority of all, so a target mission
+        is never queued behind it. Reading commands nothing, so it is read in any state
+        (a vehicle its pilot flies included); not in advisory mode (floe sends nothing but
+        heartbeats there). A failed download is tried again ``fence_retry_s`` later, at
+        most :data:`PARAMS_TRIES` times."""
+        return (self.s.params_snapshot and not self.params_snapshot and not self.s.advisory
+                and self.cruise_source is not None and self._params_tries < PARAMS_TRIES
+                and self.t_s >= self._params_retry_at_s)
+
+    def _fence_due(self) -> bool:
+        """The area's fence goes to a vehicle floe commands (joined, in the plan, not
+        advisory) that does not hold it yet, or holds one the area has moved away from
+        (:meth:`FenceCircle.moved`); after a failure, again ``fence_retry_s`` later, at
+        most :data:`FENCE_TRIES` times for one fence (an autopilot without the fence
+        parameters is not asked every 30 s for the whole run; a reboot or a moved area
+        tries again). Never to a vehicle its pilot took over, sent home or not yet joined:
+        floe uploads and enables nothing there, as it uploads no mission."""
+        want = self.fence_wanted
+        return (want is not None and self.commanded and self.t_s >= self._fence_retry_at_s
+                and self._fence_failures < FENCE_TRIES and want.moved(self.fence_held))
 
     def _start(self, job: Job) -> None:
         self._jobs.start(job)
@@ -1141,6 +1196,26 @@ class VehicleController:
         self.journal("rtl", ok=ok)
         if not ok:
             self._pending_home = True
+
+    def params_read(self, values: dict[str, float] | None) -> None:
+        self._params_tries += 1
+        if values is None:
+            self._params_retry_at_s = self.t_s + self.s.fence_retry_s
+            return
+        self.params_snapshot = True
+        self._out.append(controller_io.ParamsRead(values))
+
+    def fence_done(self, fence: FenceCircle, ok: bool) -> None:
+        """The fence job's end: held (verified and enabled), or tried again
+        ``fence_retry_s`` later (its ``fence`` journal line, ``ok: false``, is the
+        operator's warning)."""
+        if ok:
+            self.fence_held = fence
+            self._fence_failures = 0
+        else:
+            self._fence_failures += 1
+            self._fence_failed = fence
+            self._fence_retry_at_s = self.t_s + self.s.fence_retry_s
 
 
 def _reading(value: float | None, low: float, high: float) -> float | None:

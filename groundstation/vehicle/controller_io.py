@@ -24,6 +24,7 @@ from typing import Any
 
 from groundstation.core import events as ev
 from groundstation.core.commands import FlyToTarget
+from groundstation.mavlink.fence_items import FenceCircle
 from groundstation.mavlink.mission_items import MissionStep
 from groundstation.mavlink.telemetry_events import TelemetryEvent, VehicleSnapshot
 
@@ -35,6 +36,8 @@ __all__ = [
     "Download",
     "Exchange",
     "ExchangeDone",
+    "FenceParam",
+    "FenceWanted",
     "Fly",
     "ForeignFrame",
     "HomeOutcome",
@@ -45,6 +48,8 @@ __all__ = [
     "NewHome",
     "NotifyRebooted",
     "Output",
+    "ParamsRead",
+    "ReadAllParams",
     "ReadParam",
     "Release",
     "RequestRates",
@@ -53,6 +58,7 @@ __all__ = [
     "SetParam",
     "Stop",
     "TimePassed",
+    "UploadFence",
     "UploadMission",
     "UploadOutcome",
     "Warn",
@@ -127,6 +133,15 @@ class LaunchWanted:
 
 
 @dataclass(frozen=True)
+class FenceWanted:
+    """The fence the vehicle should hold: the operating area's (``fence_items.py``), sent
+    at join and whenever the area moved; None: no area, nothing fenced."""
+
+    t_s: float
+    fence: FenceCircle | None
+
+
+@dataclass(frozen=True)
 class Stop:
     t_s: float
 
@@ -170,7 +185,7 @@ class ExchangeDone:
 
 Input = (
     AutopilotFrame | ForeignFrame | TimePassed | Fly | Release | Stop | ExchangeDone | NewHome
-    | LaunchWanted
+    | LaunchWanted | FenceWanted
 )
 
 
@@ -183,6 +198,14 @@ class UploadMission:
     steps: tuple[MissionStep, ...]
     purpose: str
     target: str | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class UploadFence:
+    """Upload ``fence`` as fence items (mission type FENCE), read them back and compare;
+    retried up to the transfer retries, as a mission is: an :class:`UploadOutcome`."""
+
+    fence: FenceCircle
 
 
 @dataclass(frozen=True, eq=False)
@@ -215,11 +238,23 @@ class SetParam:
 
 
 @dataclass(frozen=True, eq=False)
+class FenceParam(SetParam):
+    """A SetParam of the fence's (FENCE_TYPE, FENCE_ACTION, FENCE_ENABLE): it commands the
+    vehicle's behaviour, so it waits, as an upload does, while a mode change is not yet
+    attributed, and is never sent to a vehicle its pilot took over."""
+
+
+@dataclass(frozen=True, eq=False)
 class ReadParam:
     """Read parameter ``name`` (PARAM_REQUEST_READ by name; the driver retries a silence a
     bounded number of times): the value, or None when the vehicle does not answer."""
 
     name: str
+
+
+@dataclass(frozen=True, eq=False)
+class ReadAllParams:
+    """Read every parameter (the ``.parm`` snapshot): a ``(values, TransferResult)``."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -232,13 +267,21 @@ class MoveHome:
 
 
 Exchange = (
-    UploadMission | Download | SetCurrent | SetMode | Arm | SetParam | ReadParam | MoveHome
+    UploadMission | UploadFence | Download | SetCurrent | SetMode | Arm | SetParam | ReadParam
+    | MoveHome | ReadAllParams
 )
 
 
 @dataclass(frozen=True)
 class RequestRates:
     position_hz: float
+
+
+@dataclass(frozen=True)
+class ParamsRead:
+    """The vehicle's parameters were read (all of them): the driver writes the snapshot."""
+
+    values: dict[str, float]
 
 
 @dataclass(frozen=True)
@@ -271,4 +314,7 @@ class Warn:
     text: str
 
 
-Output = Exchange | RequestRates | CancelExchange | NotifyRebooted | CoreEvent | JournalLine | Warn
+Output = (
+    Exchange | RequestRates | CancelExchange | NotifyRebooted | CoreEvent | JournalLine | Warn
+    | ParamsRead
+)

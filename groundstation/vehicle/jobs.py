@@ -16,6 +16,12 @@ from typing import Any, Protocol
 from domain.modes import ArduPlaneMode
 from groundstation.core.mission import target_mission
 from groundstation.mavlink.codec import mavlink2
+from groundstation.mavlink.fence_items import (
+    FENCE_ACTION_REPORT_ONLY,
+    FENCE_ACTION_RTL,
+    FENCE_TYPE_POLYGON,
+    FenceCircle,
+)
 from groundstation.mavlink.mission_items import (
     LoiterTime,
     LoiterUnlimited,
@@ -27,13 +33,16 @@ from groundstation.vehicle.controller_io import (
     Arm,
     Download,
     Exchange,
+    FenceParam,
     Fly,
     HomeOutcome,
     MoveHome,
+    ReadAllParams,
     ReadParam,
     SetCurrent,
     SetMode,
     SetParam,
+    UploadFence,
     UploadMission,
     UploadOutcome,
 )
@@ -47,8 +56,10 @@ __all__ = [
     "JobRunner",
     "Pause",
     "cruise_job",
+    "fence_job",
     "home_job",
     "launch_job",
+    "params_job",
     "park_job",
     "set_home_job",
     "target_job",
@@ -106,6 +117,8 @@ class JobHost(Protocol):
     def home_done(self, ok: bool) -> None: ...
     def cruise_known(self, speed_m_s: float | None, source: str) -> None: ...
     def home_moved(self, x_m: float, y_m: float, outcome: HomeOutcome) -> None: ...
+    def fence_done(self, fence: FenceCircle, ok: bool) -> None: ...
+    def params_read(self, values: dict[str, float] | None) -> None: ...
 
 
 def mission_job(
@@ -281,6 +294,60 @@ def set_home_job(host: JobHost, x_m: float, y_m: float) -> Job:
     if not isinstance(outcome, HomeOutcome):  # the exchange ended without an answer
         outcome = HomeOutcome(False, error="no answer")
     host.home_moved(x_m, y_m, outcome)
+
+
+def fence_job(host: JobHost, fence: FenceCircle) -> Job:
+    """Give the vehicle ``fence`` and enable it, as ArduPlane expects (``fence_items.py``):
+
+    1. ``FENCE_TYPE`` read; bit 2 (4: the inclusion/exclusion items) added when missing,
+       the other bits (altitude, home circle) kept;
+    2. ``FENCE_ACTION`` read; 0 (report only) becomes 1 (RTL), any other kept (the
+       operator's GUIDED to the return point stays);
+    3. the fence items uploaded (mission type FENCE) and read back until they match;
+    4. ``FENCE_ENABLE`` = 1 (PARAM_SET, confirmed by its PARAM_VALUE echo; a parameter, so
+       the fence stays enabled through a reboot).
+
+    Each step must succeed for the next; ``host.fence_done(fence, ok)`` journals the
+    outcome. Parameters are read before they are set, so nothing the vehicle already has
+    right is written."""
+    ok = True
+    error = ""
+    fence_type = yield ReadParam("FENCE_TYPE")
+    if fence_type is None:
+        ok, error = False, "FENCE_TYPE not read"
+    elif not int(fence_type) & FENCE_TYPE_POLYGON:
+        ok = bool((yield FenceParam("FENCE_TYPE", float(int(fence_type) | FENCE_TYPE_POLYGON))))
+        error = "" if ok else "FENCE_TYPE not set"
+    if ok:
+        action = yield ReadParam("FENCE_ACTION")
+        if action is None:
+            ok, error = False, "FENCE_ACTION not read"
+        elif int(action) == FENCE_ACTION_REPORT_ONLY:
+            ok = bool((yield FenceParam("FENCE_ACTION", float(FENCE_ACTION_RTL))))
+            error = "" if ok else "FENCE_ACTION not set"
+    retries = 0
+    if ok:
+        up: UploadOutcome = yield UploadFence(fence)
+        ok, retries = up.ok, up.retries
+        error = "" if ok else f"fence upload: {up.error}"
+    if ok:
+        ok = bool((yield FenceParam("FENCE_ENABLE", 1.0)))
+        error = "" if ok else "FENCE_ENABLE not set"
+    host.count_retries(retries)
+    host.journal("fence", ok=ok, x_m=round(fence.x_m, 1), y_m=round(fence.y_m, 1),
+                 radius_m=fence.radius_m, retries=retries, error=error or None)
+    host.fence_done(fence, ok)
+
+
+def params_job(host: JobHost) -> Job:
+    """Read every parameter once (the ``.parm`` snapshot): ``host.params_read(values)``
+    with all of them, or None when the download did not complete (journalled)."""
+    answer = yield ReadAllParams()
+    values, result = answer if isinstance(answer, tuple) else ({}, None)
+    ok = result is not None and result.ok
+    host.journal("params_snapshot", ok=ok, count=len(values),
+                 error=None if ok or result is None else result.message)
+    host.params_read(values if ok else None)
 
 
 class JobRunner:

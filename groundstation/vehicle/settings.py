@@ -64,6 +64,10 @@ class ControllerSettings:
     rates_every_s: float = 30.0
     retry_pause_s: float = 1.0
     retry_assess_s: float = 5.0
+    fence_retry_s: float = 30.0
+    """Mission seconds before a geofence that could not be set is tried again."""
+    params_snapshot: bool = False
+    """Read every parameter once (the run folder's ``.parm``; the daemon sets it)."""
     expect_mode_s: float = 15.0
     launch_timeout_s: float = 180.0
     clock_check_s: float = 30.0

@@ -83,6 +83,9 @@ class RunData:
     end_t_s: float = 0.0
     tracking: TrackingData = field(default_factory=TrackingData)
     """The multi-target tracker's lines (empty for journals from before it)."""
+    vehicle_files: list[tuple[str, str, Path]] = field(default_factory=list)
+    """A ``gcs run`` folder's per-vehicle files: (vehicle, "mission" | "parameters", path),
+    the QGC WPL 110 missions in upload order, then the ``.parm`` snapshots."""
 
     def mean_uncertainty(self) -> list[tuple[float, float]]:
         """[t, mean sigma over the targets estimated at t] (metrics' series if present)."""
@@ -337,6 +340,8 @@ def load_run_data(path: Path, say: Callable[[str], None] | None = None) -> RunDa
             data.warnings.append(str(exc))
         if tlog is not None:
             _from_tlog(data, tlog, journal)
+    if path.is_dir():
+        data.vehicle_files = vehicle_files(path)
     metrics_path = path / "metrics.json" if path.is_dir() else None
     if metrics_path is not None and metrics_path.is_file():
         try:
@@ -345,6 +350,22 @@ def load_run_data(path: Path, say: Callable[[str], None] | None = None) -> RunDa
             data.warnings.append(f"{metrics_path}: unreadable ({exc}); not used")
     data.title = _title(data)
     return data
+
+
+def vehicle_files(run_dir: Path) -> list[tuple[str, str, Path]]:
+    """The run folder's ``missions/<vehicle>/NNN-<purpose>.waypoints`` and
+    ``params/<vehicle>.parm`` (``daemon/vehicle_files.py``), vehicles in natural order."""
+    found: list[tuple[str, str, Path]] = []
+    missions = run_dir / "missions"
+    if missions.is_dir():
+        for folder in sorted((p for p in missions.iterdir() if p.is_dir()),
+                             key=lambda p: _natural(p.name)):
+            found += [(folder.name, "mission", f) for f in sorted(folder.glob("*.waypoints"))]
+    params = run_dir / "params"
+    if params.is_dir():
+        found += [(f.stem, "parameters", f)
+                  for f in sorted(params.glob("*.parm"), key=lambda p: _natural(p.stem))]
+    return found
 
 
 _SOURCE_TITLES = {"run": "gcs run", "simulate": "gcs simulate", "tlog": "tlog"}

@@ -5,13 +5,16 @@ draws the figures (:mod:`~groundstation.runners.report.plots`) and writes
 ``OUT/report.html`` with every PNG embedded as a ``data:image/png;base64`` URI, so the
 page can be mailed or archived alone. The map's ``<img>`` carries the plotted extent
 (``data-xlim``, ``data-ylim``, metres) and the vehicles' track bounding box
-(``data-track-bbox``) for checks. The PNGs are also written next to the page.
+(``data-track-bbox``) for checks. The PNGs are also written next to the page. A ``gcs run``
+folder's per-vehicle files (the missions as QGC WPL 110, the ``.parm`` snapshots) are
+linked in the table ``vehicle-files``, relative to the page.
 """
 
 from __future__ import annotations
 
 import html
 import json
+import os
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -92,8 +95,29 @@ def _lifecycle_html(data: RunData) -> list[str]:
     return out
 
 
-def render_html(data: RunData, figures: list[FigurePng]) -> str:
-    """The page (see the module docstring)."""
+def _files_html(data: RunData, out_dir: Path | None) -> list[str]:
+    """Links to each vehicle's mission files (QGC WPL 110: MAVProxy ``wp load``,
+    QGroundControl) and parameter snapshot (``.parm``: MAVProxy ``param load``), relative
+    to the page when it has a folder."""
+    if not data.vehicle_files:
+        return []
+    esc = html.escape
+    out = ['<h2>Vehicle files</h2><table id="vehicle-files"><tr><th>vehicle</th>'
+           "<th>file</th><th>opens with</th></tr>"]
+    for vehicle, kind, path in data.vehicle_files:
+        href = (os.path.relpath(path, out_dir) if out_dir is not None
+                else path.resolve().as_uri())
+        opens = ("MAVProxy wp load, QGroundControl" if kind == "mission"
+                 else "MAVProxy param load")
+        out.append(f'<tr><td>{esc(vehicle)}</td><td><a href="{esc(href)}">'
+                   f"{esc(kind)}: {esc(path.name)}</a></td><td>{opens}</td></tr>")
+    out.append("</table>")
+    return out
+
+
+def render_html(data: RunData, figures: list[FigurePng], out_dir: Path | None = None) -> str:
+    """The page (see the module docstring); ``out_dir``: where it is written (its links to
+    the run folder's files are relative to it)."""
     esc = html.escape
     out = page_start(f"floe report: {data.title}", f"floe flight report: {data.title}")
     out.append('<h2>Summary</h2><table id="summary">')
@@ -145,6 +169,7 @@ def render_html(data: RunData, figures: list[FigurePng]) -> str:
             out.append(f"<p>... {len(events) - _EVENT_ROWS} more</p>")
     else:
         out.append("<p>none recorded</p>")
+    out += _files_html(data, out_dir)
     if data.tlog is not None and data.tlog.vehicles:
         out.append(
             '<h2>Vehicles in the tlog</h2><table id="tlog"><tr><th>system id</th>'
@@ -197,5 +222,5 @@ def build_report(
         out_dir / "figures.json", json.dumps({f.name: f.info for f in figures}, indent=1) + "\n"
     )
     html_path = out_dir / "report.html"
-    atomic_write_text(html_path, render_html(data, figures))
+    atomic_write_text(html_path, render_html(data, figures, out_dir))
     return ReportResult(html_path, figures, data)
