@@ -18,7 +18,9 @@ ArduPlane runs the same mission-item protocol for ``MAV_MISSION_TYPE_FENCE`` (1)
   (``OPERATION_CANCELLED``): the mission's own timings, given by
   :class:`sitl.mission_protocol.MissionServer`;
 * ``MISSION_REQUEST(_INT)`` -> the stored item as ``MISSION_ITEM(_INT)`` of that type
-  (``INVALID_SEQUENCE`` beyond the end); ``MISSION_CLEAR_ALL`` -> empty, ``ACCEPTED``.
+  (``INVALID_SEQUENCE`` beyond the end); ``MISSION_CLEAR_ALL`` -> empty, ``ACCEPTED``;
+  ``MISSION_REQUEST_LIST`` and ``MISSION_REQUEST(_INT)`` during an upload of that type ->
+  ``DENIED`` (``MissionItemProtocol::handle_mission_request_list`` / ``_int``).
 
 Until ``FENCE_ENABLE`` is 1 the fence stays disabled whatever is uploaded; what the
 vehicle does with it is :mod:`sitl.fence` (and SYS_STATUS: :mod:`sitl.vehicle_messages`).
@@ -67,6 +69,10 @@ class GeoItemsServer:
         peer = (int(msg.get_srcSystem()), int(msg.get_srcComponent()))
         mtype = int(msg.mission_type)
         store = self.stores[mtype]
+        if kind in ("MISSION_REQUEST_LIST", "MISSION_REQUEST", "MISSION_REQUEST_INT") and (
+                mtype in self._uploads):
+            # MissionItemProtocol: no listing and no item while an upload is received
+            return [self._ack(peer, M.MAV_MISSION_DENIED, mtype)]
         if kind == "MISSION_REQUEST_LIST":
             return [M.MAVLink_mission_count_message(peer[0], peer[1], len(store), mtype)]
         if kind == "MISSION_COUNT":
