@@ -102,7 +102,7 @@ def test_wide_terminal_shows_every_column_and_target() -> None:
     header = next(line for line in lines if line.startswith("vehicle"))
     for name in ("sysid", "armed", "route", "uploads", "retries", "wind"):
         assert name in header, header
-    targets = [line for line in lines if line.startswith("T") and "s ago" in line or
+    targets = [line for line in lines if (line.startswith("T") and "s ago" in line) or
                line.startswith("T2 ")]
     assert len(targets) == 14, "\n".join(lines)
 

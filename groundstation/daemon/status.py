@@ -12,8 +12,9 @@ the terminal's width, :func:`fit_table`), the tracker's counts
 (``tracks: 9 confirmed, 3 tentative, 1 prior; 100 search cells``), one row per confirmed or
 prior target (id, ``sqrt(sigma)`` in metres, state: tracked, LOST or never seen, last seen,
 status, position; as many as the terminal's height leaves, the rest counted; tentative
-tracks are only counted: clutter makes many), one line per link (frames received, dropped unread, bad, foreign)
-and the newest operator events (``log_lines.is_operator_event``; problems in colour).
+tracks are only counted: clutter makes many), one line per link (frames received, dropped
+unread, bad, foreign) and the newest operator events (``log_lines.is_operator_event``;
+problems in colour).
 Redrawn once a wall second in place (``rich.live.Live``); the console's own lines
 (warnings, the start lines) stay above it. Colours come from ``rich``: none on a dumb
 terminal or a file.
