@@ -48,7 +48,7 @@ class GeoFake(FakeControl):
             "heading_rad": 0.3, "speed_m_s": 19.0, "mode": "AUTO", "armed": True,
             "status": "active", "link": "ok", "telemetry_age_s": 0.3, "battery_pct": 81.0,
             "target": "A", "route": ["A"], "aim": [LOITER[0], LOITER[1]], "track": [],
-            "lat_deg": G_LAT, "lon_deg": G_LON, "airspeed_m_s": 18.5, "groundspeed_m_s": 21.2,
+            "airspeed_m_s": 18.5, "groundspeed_m_s": 21.2,
             "heading_deg": 72.8, "gps": "ok", "battery_v": 12.3,
             "link_quality": {"state": "ok", "telemetry_age_s": 0.3, "rssi": 201,
                              "remrssi": 188},

@@ -5,8 +5,6 @@
 =================  ================================================================
 field              from
 =================  ================================================================
-``lat_deg``        GLOBAL_POSITION_INT, as the daemon holds it (local ENU back to
-``lon_deg``        WGS84 with the mission origin: ``GeoOrigin.to_geodetic``)
 ``airspeed_m_s``   VFR_HUD ``airspeed``
 ``groundspeed_m_s`` VFR_HUD ``groundspeed`` (else GLOBAL_POSITION_INT's velocity)
 ``heading_deg``    compass degrees, 0 = north, clockwise (GLOBAL_POSITION_INT ``hdg``,
@@ -23,6 +21,10 @@ field              from
                    at its last point with the configured radius (``x_m``, ``y_m``,
                    ``radius_m``); None without a mission
 =================  ================================================================
+
+Latitude and longitude are not added: the page converts the local ENU position itself
+(``web/geo.js``, exactly as pymap3d does); pymap3d takes ~1 ms a point here, too much to
+spend per vehicle on every state document.
 """
 
 from __future__ import annotations
@@ -30,7 +32,6 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from domain.geodesy import GeoOrigin
 from groundstation.mavlink.link_budget import LinkBudget
 from groundstation.mavlink.telemetry_events import VehicleSnapshot
 from groundstation.vehicle.state import FlyRecord
@@ -57,21 +58,16 @@ def heading_deg(heading_rad: float | None) -> float | None:
     return (90.0 - math.degrees(heading_rad)) % 360.0
 
 
-def vehicle_panel(snap: VehicleSnapshot, fly: FlyRecord | None, origin: GeoOrigin | None,
-                  loiter_radius_m: float, link: str, telemetry_age_s: float | None,
+def vehicle_panel(snap: VehicleSnapshot, fly: FlyRecord | None, loiter_radius_m: float,
+                  link: str, telemetry_age_s: float | None,
                   budget: LinkBudget | None) -> dict[str, Any]:
     """The fields of the module docstring for one vehicle."""
-    lat = lon = None
-    if origin is not None and snap.x_m is not None and snap.y_m is not None:
-        lat, lon, _ = origin.to_geodetic(snap.x_m, snap.y_m)
     radio = budget.radio if budget is not None else None
     loiter = None
     if fly is not None:
         x_m, y_m = ((fly.x_m, fly.y_m), *fly.through)[-1]
         loiter = {"x_m": x_m, "y_m": y_m, "radius_m": loiter_radius_m}
     return {
-        "lat_deg": lat,
-        "lon_deg": lon,
         "airspeed_m_s": snap.airspeed_m_s,
         "groundspeed_m_s": snap.speed_m_s,
         "heading_deg": heading_deg(snap.heading_rad),

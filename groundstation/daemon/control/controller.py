@@ -107,7 +107,7 @@ class DaemonController:
                     "aim": [s.fly.x_m, s.fly.y_m] if s.fly else None,
                     "track": [list(p) for p in s.track],
                     "wind": vehicle_wind(snap.wind_xy_m_s),
-                    **vehicle_panel(snap, s.fly, origin, d.core_config.loiter_radius_m,
+                    **vehicle_panel(snap, s.fly, d.core_config.loiter_radius_m,
                                     s.link, s.telemetry_age_s,
                                     d.budgets.for_system(s.system_id)),
                 }

@@ -175,7 +175,10 @@
     if (app.view.auto && !app.hover && app.mode === "select") fitView(false);
     updateVehicles(doc);
     updateShipCourse(doc);
-    if (G) G.updatePanel($("vehicle-panel").tBodies[0], doc.vehicles || [], colourOf);
+    if (G) {
+      G.updatePanel($("vehicle-panel").tBodies[0], doc.vehicles || [], colourOf, (v) =>
+        (geoFrame && num(v.x_m) && num(v.y_m) ? geoFrame.toLatLng(v.x_m, v.y_m) : null));
+    }
     updateTargets(doc);
     $("track-counts").textContent = L.countsText(doc);
     app.dirty = true;
@@ -468,7 +471,10 @@
     stack.style.transform = rot ? "rotate(" + (-rot) + "rad)" : "";
     app.rotation = rot;
     if (geoActive()) {
-      if (app.tileUrl) basemap.setTiles(app.tileUrl, app.tileInfo);
+      // the daemon's own tiles once /api/session has said their deepest zoom
+      if (app.tileUrl && (app.tileInfo || !app.tileUrl.startsWith("/tiles/"))) {
+        basemap.setTiles(app.tileUrl, app.tileInfo);
+      }
       const [lat, lon] = geoFrame.toLatLng(app.view.cx, app.view.cy);
       basemap.sync(lat, lon, app.view.scale);
     }

@@ -145,8 +145,9 @@
     return text;
   }
 
-  // One row per vehicle: keyed by id, cells updated in place.
-  function updatePanel(tbody, vehicles, colourOf) {
+  // One row per vehicle: keyed by id, cells updated in place; `position(v)` its
+  // [lat, lon] (the name's tooltip) or null.
+  function updatePanel(tbody, vehicles, colourOf, position) {
     const seen = new Set();
     vehicles.forEach((v, index) => {
       const id = String(v.id);
@@ -175,7 +176,8 @@
       c[5].className = v.gps === "ok" ? "" : (v.gps ? "st-lost" : "");
       const q = v.link_quality || {};
       c[8].className = q.state === "ok" ? "" : (q.state ? "st-lost" : "");
-      c[0].title = latLonText(v.lat_deg, v.lon_deg);
+      const ll = position ? position(v) : null;
+      c[0].title = ll ? latLonText(ll[0], ll[1]) : "";
     });
     for (const row of Array.from(tbody.rows)) {
       if (!seen.has(row.dataset.id)) row.remove();
