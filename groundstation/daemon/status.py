@@ -363,7 +363,9 @@ class StatusView:
 
     def __rich_console__(self, console: Console, options: ConsoleOptions) -> RenderResult:
         daemon, width = self.daemon, options.max_width
-        height = options.height or console.height
+        # one line short of the terminal: a picture as tall as the screen scrolls it as
+        # rich.live redraws, and a warning printed above would land on the table's last line
+        height = (options.height or console.height) - 1
         stats = daemon.router.link_stats()
         trouble = set(link_lines(stats, only_trouble=True))
         links = [Text(text, style="yellow" if text in trouble else "", no_wrap=True,
