@@ -13,6 +13,7 @@ import sys
 from collections.abc import Sequence
 
 from domain.errors import FloeError, UsageError
+from domain.extras import DISTRIBUTION, missing_extra_message
 
 __all__ = ["main"]
 
@@ -46,7 +47,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args[0] == "--version":
         from importlib.metadata import version
 
-        print(f"floe {version('floe')}")
+        print(f"floe {version(DISTRIBUTION)}")
         return 0
     name, rest = args[0], args[1:]
     if name not in COMMANDS:
@@ -68,6 +69,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     except FloeError as exc:
         print(f"gcs {name}: error: {exc}", file=sys.stderr)
         return 1
+    except ModuleNotFoundError as exc:  # an optional extra (domain/extras.py) not installed
+        hint = missing_extra_message(exc)
+        if hint is None:
+            raise
+        print(f"gcs {name}: error: {hint}", file=sys.stderr)
+        return 2
     return status
 
 

@@ -50,7 +50,7 @@ def comparable(rows: list[dict[str, Any]]) -> dict[tuple[Any, ...], dict[str, An
 
 def test_local_pool_dask_and_in_process_runs_give_identical_rows(tmp_path: Path) -> None:
     need(importlib.util.find_spec("distributed") is not None,
-         "dask[distributed] is not installed (pip install '.[test]')")
+         "dask[distributed] is not installed (pip install '.[test,plot,campaign]')")
     from groundstation.runners.campaign.dask_executor import DaskExecutor
 
     path = campaign_file(tmp_path)

@@ -222,11 +222,12 @@ class ServerThread:
     thread; with ``tick_s`` the fake world advances in real time (for the browser)."""
 
     def __init__(self, tick_s: float | None = None, token: str = "s3cret-token",
-                 push_hz: float = 5.0, control: Any = None) -> None:
+                 push_hz: float = 5.0, control: Any = None, tiles: Any = None) -> None:
         self.control: Any = control if control is not None else FakeControl()
         self.token = token
         self.tick_s = tick_s
         self.push_hz = push_hz
+        self.tiles = tiles  # a TileArchive (control/tiles.py) served as /tiles/{z}/{x}/{y}
         self.url = ""
         self.loop = asyncio.new_event_loop()
         self._ready = threading.Event()
@@ -245,7 +246,8 @@ class ServerThread:
     async def _main(self) -> None:
         self._stop = asyncio.Event()
         control: DaemonControl = self.control
-        server = ControlServer(control, "127.0.0.1", 0, self.token, push_hz=self.push_hz)
+        server = ControlServer(control, "127.0.0.1", 0, self.token, push_hz=self.push_hz,
+                               tiles=self.tiles)
         await server.start()
         self.server = server
         self.url = server.url

@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from domain.errors import ConfigError
+from domain.extras import extra_hint, module_missing
 from domain.limits import MAX_FLEET
 from groundstation.commands.argtypes import positive_float
 from groundstation.commands.progress_bars import ProgressBars, TaskUpdate
@@ -118,6 +119,10 @@ def run(argv: list[str]) -> int:
     args = _parser().parse_args(argv)
     if args.workers < 1:
         print("gcs simulate: error: --workers must be >= 1", file=sys.stderr)
+        return 2
+    if not args.no_plots and module_missing("matplotlib"):  # before the run, not after it
+        print(f"gcs simulate: error: plots need matplotlib, not installed here: "
+              f"{extra_hint('plot')}, or --no-plots", file=sys.stderr)
         return 2
     try:
         scenario = load_scenario(args.scenario)

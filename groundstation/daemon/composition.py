@@ -17,6 +17,7 @@ from groundstation.daemon.config import DaemonConfig
 from groundstation.daemon.console import OperatorConsole
 from groundstation.daemon.control.controller import DaemonController
 from groundstation.daemon.control.server import ControlLimits, ControlServer, binding_warning
+from groundstation.daemon.control.tiles import TileArchive, TilesError
 from groundstation.daemon.daemon import Daemon
 from groundstation.daemon.embedded import EmbeddedVehicles
 from groundstation.daemon.feed_lines import FeedHost, FeedLines
@@ -123,7 +124,14 @@ async def start_control(
         max_writes_per_s=http.max_writes_per_s,
         header_timeout_s=http.header_timeout_s,
     )
-    server = ControlServer(DaemonController(daemon), host, port, token,
+    tiles = None
+    if http.map_tiles is not None:
+        try:
+            tiles = TileArchive(http.map_tiles)
+        except TilesError as exc:
+            raise StartError(str(exc)) from None
+        stack.callback(tiles.close)
+    server = ControlServer(DaemonController(daemon), host, port, token, tiles=tiles,
                            allow_origins=list(http.allow_origins), limits=limits)
     try:
         await server.start(push=False)  # the pushes run in the daemon's task tree

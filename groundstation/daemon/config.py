@@ -242,6 +242,8 @@ class HttpConfig:
     max_ws_clients: int = 16
     max_writes_per_s: float = 20.0
     header_timeout_s: float = 5.0
+    map_tiles: str | None = None
+    """The live map's offline tiles: a raster MBTiles file (``control/tiles.py``)."""
 
 
 @dataclass(frozen=True, slots=True)

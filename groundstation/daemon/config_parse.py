@@ -143,6 +143,7 @@ FLAGS: dict[str, str] = {
     "--http-max-ws-clients": "http.max_ws_clients",
     "--http-max-writes-per-s": "http.max_writes_per_s",
     "--http-header-timeout": "http.header_timeout_s",
+    "--map-tiles": "http.map_tiles",
     "--detections": "detections",
     "--run-dir": "records.run_dir",
     "--journal": "records.journal",

@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from domain.errors import ConfigError
+from domain.extras import DISTRIBUTION
 from domain.geodesy import GeoOrigin
 from domain.limits import MAX_COORDINATE_M, MAX_SPEED_M_S, MAX_TARGETS
 from domain.yaml_fields import check_number, load_yaml_file
@@ -73,9 +74,10 @@ MIN_SOLVER_WALL_S = 0.05
 
 def _versions() -> dict[str, str]:
     out = {"python": platform.python_version()}
-    for name in ("floe", "pymavlink", "ortools", "numpy"):
+    for name, dist in (("floe", DISTRIBUTION), ("pymavlink", "pymavlink"),
+                       ("ortools", "ortools"), ("numpy", "numpy")):
         try:
-            out[name] = version(name)
+            out[name] = version(dist)
         except PackageNotFoundError:
             out[name] = "unknown"
     return out

@@ -5,13 +5,16 @@ token is** (``RUN/control.json``), the newest plan as readable routes
 (``1 -> T5, T6 | 2 -> T2``), the wind the core plans with (``wind 12.0 m/s from 270°
 (vehicles 1,2,3)``, or its fallback's source: ``config``, ``scenario``, ``none``), links
 that heard no vehicle, dropped detections and signing refusals. Then one row per vehicle
-(id, system id, status, mode, armed, altitude, target, battery, link (``lag N s`` while its
-telemetry lags: docs/links.md), uploads ok/failed, upload retries, its own wind estimate
-as ``speed/from``), the tracker's counts
+(id, status, mode, link (``lag N s`` while its telemetry lags: docs/links.md), target,
+altitude, battery, armed, its route in the plan line's plan, system id, uploads
+ok/failed, its own wind estimate as ``speed/from``, upload retries: the columns that fit
+the terminal's width, :func:`fit_table`), the tracker's counts
 (``tracks: 9 confirmed, 3 tentative, 1 prior; 100 search cells``), one row per confirmed or
-prior target (id, position, sigma, lost, last seen, status; tentative tracks are only
-counted: clutter makes many), one line per link (frames received, dropped unread, bad, foreign)
-and the newest operator events (``log_lines.is_operator_event``; problems in colour).
+prior target (id, ``sqrt(sigma)`` in metres, state: tracked, LOST or never seen, last seen,
+status, position; as many as the terminal's height leaves, the rest counted; tentative
+tracks are only counted: clutter makes many), one line per link (frames received, dropped
+unread, bad, foreign) and the newest operator events (``log_lines.is_operator_event``;
+problems in colour).
 Redrawn once a wall second in place (``rich.live.Live``); the console's own lines
 (warnings, the start lines) stay above it. Colours come from ``rich``: none on a dumb
 terminal or a file.
@@ -21,12 +24,14 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import math
 from collections import deque
 from collections.abc import Iterable
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from rich import box
-from rich.console import Console, Group, RenderableType
+from rich.console import Console, ConsoleOptions, Group, RenderableType, RenderResult
 from rich.table import Table
 from rich.text import Text
 
@@ -164,6 +169,50 @@ def _table(*columns: str) -> Table:
     return table
 
 
+Cell = str | Text
+
+
+@dataclass(frozen=True)
+class Column:
+    """One column of a fitted table: ``rank`` 0 is always shown; higher ranks are left out
+    first when the terminal is too narrow (see :func:`fit_table`)."""
+
+    header: str
+    rank: int
+    right: bool = False
+
+
+def _cell_width(cell: Cell) -> int:
+    return Text(cell).cell_len if isinstance(cell, str) else cell.cell_len
+
+
+def fit_table(columns: list[Column], rows: list[list[Cell]], width: int) -> Table:
+    """The columns that fit ``width`` terminal cells, whole: each column is as wide as its
+    header or its widest cell (never cut to ``vehi…``), three cells apart; while the sum is
+    wider than ``width``, the column of the highest rank (the rightmost of equal rank) is
+    left out. Rank-0 columns always stay."""
+    widths = [max([_cell_width(c.header)] + [_cell_width(r[i]) for r in rows])
+              for i, c in enumerate(columns)]
+    keep = list(range(len(columns)))
+
+    def total() -> int:
+        return sum(widths[i] for i in keep) + 3 * max(0, len(keep) - 1)
+
+    while total() > width:
+        droppable = [i for i in keep if columns[i].rank > 0]
+        if not droppable:
+            break
+        worst = max(droppable, key=lambda i: (columns[i].rank, i))
+        keep.remove(worst)
+    table = Table(box=box.SIMPLE_HEAD, pad_edge=False, show_edge=False)
+    for i in keep:
+        table.add_column(columns[i].header, justify="right" if columns[i].right else "left",
+                         no_wrap=True, min_width=widths[i])
+    for row in rows:
+        table.add_row(*(row[i] for i in keep))
+    return table
+
+
 def _link_cell(link: LinkState, lagging: bool, age_s: float | None) -> Text:
     """The link's state, or ``lag N s`` while the vehicle's telemetry lags (its frames
     arrive, its newest position is old: planned from a prediction)."""
@@ -172,24 +221,51 @@ def _link_cell(link: LinkState, lagging: bool, age_s: float | None) -> Text:
     return Text(link, style=_LINK_STYLE.get(link, "yellow"))
 
 
-def _vehicles(daemon: Daemon) -> Table:
-    table = _table("vehicle", "sysid>", "status", "mode", "armed", "alt m>", "target",
-                   "batt %>", "link", "uploads>", "retries>", "wind>")
+VEHICLE_COLUMNS = [
+    Column("vehicle", 0), Column("status", 0), Column("mode", 0), Column("link", 0),
+    Column("target", 0), Column("alt m", 1, right=True), Column("batt %", 1, right=True),
+    Column("armed", 2), Column("route", 3), Column("sysid", 4, right=True),
+    Column("uploads", 5, right=True), Column("wind", 6, right=True),
+    Column("retries", 6, right=True),
+]
+
+
+def planned_route(daemon: Daemon, vehicle: str) -> list[str] | None:
+    """The vehicle's route in the newest plan (the plan line's own routes), None when the
+    plan gave it none or there is no plan yet."""
+    plan = daemon.last_plan
+    route = plan["routes"].get(vehicle) if plan is not None else None
+    return [str(t) for t in route] if isinstance(route, list) else None
+
+
+def _route_cell(route: list[str] | None) -> str:
+    """``T10, T8 +3``: the plan's first two targets and how many more."""
+    if not route:
+        return "-"
+    more = f" +{len(route) - 2}" if len(route) > 2 else ""
+    return ", ".join(route[:2]) + more
+
+
+def _vehicles(daemon: Daemon, width: int) -> Table:
+    """One row per vehicle, every vehicle; the columns that fit ``width``. ``target`` is
+    what the vehicle flies to; ``route`` the plan line's route for it (the same source)."""
+    rows: list[list[Cell]] = []
     for s in sorted(daemon.sessions.values(), key=lambda s: s.system_id):
         snap = s.snapshot
         retries = s.upload_retries
-        table.add_row(
-            s.id, str(s.system_id), s.status, _fmt(snap.mode_name), _fmt(snap.armed),
-            _fmt(snap.alt_m, ".0f"), _fmt(s.fly.target if s.fly else None),
-            _fmt(snap.battery_remaining_pct, ".0f"),
-            _link_cell(s.link, s.lagging, s.telemetry_age_s),
+        rows.append([
+            s.id, s.status, _fmt(snap.mode_name), _link_cell(s.link, s.lagging, s.telemetry_age_s),
+            _fmt(s.fly.target if s.fly else None), _fmt(snap.alt_m, ".0f"),
+            _fmt(snap.battery_remaining_pct, ".0f"), "yes" if snap.armed else (
+                "-" if snap.armed is None else "no"),
+            _route_cell(planned_route(daemon, s.id)), str(s.system_id),
             Text(f"{s.uploads_ok}/{s.uploads_failed}",
                  style="red" if s.uploads_failed else ""),
-            Text(str(retries), style="yellow" if retries else ""), _own_wind(snap),
-        )  # fmt: skip
+            _own_wind(snap), Text(str(retries), style="yellow" if retries else ""),
+        ])  # fmt: skip
     if not daemon.sessions:
-        table.add_row("(none yet)", *[""] * 11)
-    return table
+        rows.append(["(none yet)", *[""] * (len(VEHICLE_COLUMNS) - 1)])
+    return fit_table(VEHICLE_COLUMNS, rows, width)
 
 
 def _watch(daemon: Daemon) -> list[RenderableType]:
@@ -216,20 +292,53 @@ def _watch(daemon: Daemon) -> list[RenderableType]:
     return out
 
 
-def _targets(daemon: Daemon) -> list[RenderableType]:
-    """The tracker's counts, then the confirmed and prior targets (tentative: counted)."""
+TARGET_COLUMNS = [
+    Column("target", 0), Column("√σ m", 0, right=True), Column("state", 0),
+    Column("seen", 1, right=True), Column("status", 2), Column("x m", 3, right=True),
+    Column("y m", 3, right=True),
+]
+
+
+def target_state(lost: bool, last_seen_s: float | None) -> Text:
+    """``never seen`` (no measurement yet: a listed or reported position only), ``LOST``
+    (seen once, then ``sqrt(sigma)`` outgrew the camera's footprint) or ``tracked``."""
+    if last_seen_s is None:
+        return Text("never seen", style="yellow")
+    if lost:
+        return Text("LOST", style="bold red")
+    return Text("tracked")
+
+
+def _seen_cell(t_s: float, last_seen_s: float | None) -> str:
+    """``12 s ago``; ``never``."""
+    return "never" if last_seen_s is None else f"{max(0.0, t_s - last_seen_s):.0f} s ago"
+
+
+def _targets(daemon: Daemon, width: int, max_rows: int | None = None) -> list[RenderableType]:
+    """The tracker's counts, then the confirmed and prior targets (tentative: counted),
+    ``sqrt(sigma)`` in metres, the lost ones first, then the least certain. At most
+    ``max_rows`` rows (the terminal's height); a last line counts the ones left out."""
     t = daemon.clock.now_s()
     view = daemon.core.view()
     tracks = track_dicts(view.tracks)
-    table = _table("target", "x m>", "y m>", "sigma>", "lost", "seen s>", "status")
-    for tr in view.firm_tracks():
-        seen = None if tr.last_seen_s is None else t - tr.last_seen_s
+    firm = sorted(view.firm_tracks(),
+                  key=lambda tr: (not (tr.lost and tr.last_seen_s is not None), -tr.sigma))
+    shown = firm if max_rows is None or len(firm) <= max_rows else firm[:max(0, max_rows - 1)]
+    rows: list[list[Cell]] = []
+    for tr in shown:
         kind = tr.status
-        table.add_row(tr.id, f"{tr.x_m:.0f}", f"{tr.y_m:.0f}", f"{tr.sigma:.2f}",
-                      Text("LOST", style="bold red") if tr.lost else "", _fmt(seen, ".0f"),
-                      Text(kind, style="magenta" if kind == "prior" else ""))
+        rows.append([tr.id, f"{math.sqrt(max(0.0, tr.sigma)):.0f}",
+                     target_state(tr.lost, tr.last_seen_s), _seen_cell(t, tr.last_seen_s),
+                     Text(kind, style="magenta" if kind == "prior" else ""),
+                     f"{tr.x_m:.0f}", f"{tr.y_m:.0f}"])
     counts = track_counts(tracks)
-    return [Text(count_line(counts, len(view.search_cells))), table]
+    out: list[RenderableType] = [Text(count_line(counts, len(view.search_cells)))]
+    if rows:
+        out.append(fit_table(TARGET_COLUMNS, rows, width))
+    if len(shown) < len(firm):
+        out.append(Text(f"... {len(firm) - len(shown)} more targets (the least uncertain; "
+                        f"all on the live map)", style="dim"))
+    return out
 
 
 def _recent(lines: Iterable[dict[str, Any]]) -> list[RenderableType]:
@@ -242,17 +351,48 @@ def _recent(lines: Iterable[dict[str, Any]]) -> list[RenderableType]:
     return out
 
 
+class StatusView:
+    """The status picture, laid out for the terminal it is drawn on (``rich`` hands it the
+    width and height at each redraw): the columns that fit the width (:func:`fit_table`),
+    every vehicle, then as many targets as the height leaves (at least 3, the rest counted),
+    then the newest events in what is left."""
+
+    def __init__(self, daemon: Daemon, tally: EventTally,
+                 alerts: OperatorAlerts | None) -> None:
+        self.daemon, self.tally, self.alerts = daemon, tally, alerts
+
+    def __rich_console__(self, console: Console, options: ConsoleOptions) -> RenderResult:
+        daemon, width = self.daemon, options.max_width
+        # one line short of the terminal: a picture as tall as the screen scrolls it as
+        # rich.live redraws, and a warning printed above would land on the table's last line
+        height = (options.height or console.height) - 1
+        stats = daemon.router.link_stats()
+        trouble = set(link_lines(stats, only_trouble=True))
+        links = [Text(text, style="yellow" if text in trouble else "", no_wrap=True,
+                      overflow="ellipsis") for text in link_lines(stats)]
+        top = Group(*_header(daemon, self.alerts), _vehicles(daemon, width), *_watch(daemon))
+
+        def lines(renderable: RenderableType) -> int:
+            return len(console.render_lines(renderable, options.update(height=None),
+                                            pad=False))
+
+        used = lines(top) + len(links) + 1  # the blank line before the recent pane
+        # the targets' count line, the table's header and rule, each target; the recent
+        # pane gets what is left (at least its title)
+        spare = height - used - 3 - 1
+        max_rows = max(3, spare - min(len(self.tally.recent), 3))
+        targets = _targets(daemon, width, max_rows)
+        left = height - used - lines(Group(*targets)) - 1
+        recent = list(self.tally.recent)[-left:] if left > 0 else []
+        yield Group(top, *targets, *links, Text(""), *_recent(recent))
+
+
 def render_status(
     daemon: Daemon, tally: EventTally, alerts: OperatorAlerts | None = None
 ) -> RenderableType:
-    """The table as a ``rich`` renderable; the recent pane from ``tally``."""
-    stats = daemon.router.link_stats()
-    trouble = set(link_lines(stats, only_trouble=True))
-    links = [Text(text, style="yellow" if text in trouble else "", no_wrap=True,
-                  overflow="ellipsis") for text in link_lines(stats)]
-    return Group(*_header(daemon, alerts), _vehicles(daemon), *_watch(daemon),
-                 *_targets(daemon), *links,
-                 Text(""), *_recent(tally.recent))
+    """The table as a ``rich`` renderable (:class:`StatusView`); the recent pane from
+    ``tally``."""
+    return StatusView(daemon, tally, alerts)
 
 
 async def status_loop(

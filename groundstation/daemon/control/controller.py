@@ -14,8 +14,10 @@ from typing import TYPE_CHECKING, Any, Protocol
 from groundstation.core import events as ev
 from groundstation.daemon.control.contract import VEHICLE_ACTIONS
 from groundstation.daemon.hosts import CoreHost, FleetHost
+from groundstation.daemon.link_budgets import LinkBudgets
 from groundstation.daemon.log_lines import is_operator_event
 from groundstation.daemon.track_views import search_dicts, track_counts, track_dicts
+from groundstation.daemon.vehicle_view import vehicle_panel
 from groundstation.daemon.watch_lines import watch_dict
 from groundstation.daemon.wind_view import vehicle_wind, wind_summary
 from groundstation.vehicle.state import VehicleState
@@ -51,6 +53,8 @@ class ControllerHost(FleetHost, CoreHost, Protocol):
     def last_plan(self) -> Mapping[str, Any] | None: ...
     @property
     def wind_fallback_source(self) -> str: ...
+    @property
+    def budgets(self) -> LinkBudgets: ...
 
     def add_detection(self, event: ev.Detection) -> None: ...
     def area_center(self) -> tuple[float, float]: ...
@@ -103,6 +107,9 @@ class DaemonController:
                     "aim": [s.fly.x_m, s.fly.y_m] if s.fly else None,
                     "track": [list(p) for p in s.track],
                     "wind": vehicle_wind(snap.wind_xy_m_s),
+                    **vehicle_panel(snap, s.fly, d.core_config.loiter_radius_m,
+                                    s.link, s.telemetry_age_s,
+                                    d.budgets.for_system(s.system_id)),
                 }
             )
         targets = [

@@ -65,6 +65,7 @@ from groundstation.daemon.control.guard import (
 )
 from groundstation.daemon.control.pacing import StateDocument, TurnBudget
 from groundstation.daemon.control.push import PageHub
+from groundstation.daemon.control.tiles import LEAFLET_FILES, TileArchive, leaflet_dir
 
 __all__ = [
     "ControlLimits",
@@ -82,6 +83,7 @@ log = logging.getLogger(__name__)
 
 WEB_DIR = Path(__file__).with_name("web")
 STATIC_FILES = {"app.js": "text/javascript", "layers.js": "text/javascript",
+                "geo.js": "text/javascript",
                 "style.css": "text/css"}
 WRITE_METHODS = frozenset({"POST", "PUT", "PATCH", "DELETE"})
 CSP = ("default-src 'self'; script-src 'self'; style-src 'self'; img-src 'self' data: http: "
@@ -154,7 +156,9 @@ class ControlServer:
 
     ``port`` 0 binds an ephemeral port; :attr:`url` is the bound address after ``start()``.
     ``push_hz`` is the rate of full-state pushes to pages; ``tile_url`` an optional map tile
-    URL template (``https://.../{z}/{x}/{y}.png``) handed to pages (no default: offline).
+    URL template (``https://.../{z}/{x}/{y}.png``) handed to pages (no default: offline);
+    ``tiles`` the operator's MBTiles file (``tiles.py``), served as ``/tiles/{z}/{x}/{y}``
+    (it sets ``tile_url``). Leaflet's files are served from ``xstatic-leaflet``.
     ``allow_origins``: origins (``scheme://host[:port]``) allowed besides the page's own;
     ``limits``: see :class:`ControlLimits`; ``budget``: the work allowed per loop turn and
     ``document``: the shared state document (``pacing.py``; by default 8 units per turn and
@@ -162,7 +166,8 @@ class ControlServer:
 
     def __init__(self, control: DaemonControl, host: str = "127.0.0.1", port: int = 8080,
                  token: str | None = None, *, push_hz: float = 4.0,
-                 tile_url: str | None = None, allow_origins: Iterable[str] = (),
+                 tile_url: str | None = None, tiles: TileArchive | None = None,
+                 allow_origins: Iterable[str] = (),
                  limits: ControlLimits | None = None, budget: TurnBudget | None = None,
                  document: StateDocument | None = None) -> None:
         if token is not None and not token:
@@ -174,7 +179,11 @@ class ControlServer:
         self.port = port
         self.token = token if token is not None else new_token()
         self.push_hz = push_hz
+        self.tiles = tiles
+        if tiles is not None:  # the operator's file, served here (offline)
+            tile_url = "/tiles/{z}/{x}/{y}"
         self.tile_url = tile_url
+        self.leaflet = leaflet_dir()
         self.origins = OriginPolicy(host, allow_origins)  # ValueError on a bad origin
         self.limits = limits or ControlLimits()
         self.rejects = RejectLog(log)
@@ -209,6 +218,8 @@ class ControlServer:
         r.add_get("/", self._index)
         r.add_get("/index.html", self._index)
         r.add_get("/static/{name}", self._static)
+        r.add_get("/vendor/leaflet/{name:.+}", self._leaflet)
+        r.add_get("/tiles/{z}/{x}/{y}", self._tile)
         r.add_get("/api/state", self._get_state)
         r.add_get("/api/session", self._get_session)
         r.add_get("/api/server", self._get_server)
@@ -412,6 +423,26 @@ class ControlServer:
             "Content-Type": f"{STATIC_FILES[name]}; charset=utf-8",
             "Cache-Control": "no-cache"})
 
+    async def _leaflet(self, request: web.Request) -> web.StreamResponse:
+        name = request.match_info["name"]
+        if self.leaflet is None or name not in LEAFLET_FILES:
+            raise web.HTTPNotFound()
+        return web.FileResponse(self.leaflet / name, headers={
+            "Content-Type": LEAFLET_FILES[name], "Cache-Control": "max-age=3600"})
+
+    async def _tile(self, request: web.Request) -> web.Response:
+        if self.tiles is None:
+            raise web.HTTPNotFound()
+        try:
+            z, x, y = (int(request.match_info[k].split(".")[0]) for k in ("z", "x", "y"))
+        except ValueError:
+            raise web.HTTPNotFound() from None
+        data = self.tiles.tile(z, x, y)
+        if data is None:
+            raise web.HTTPNotFound()
+        return web.Response(body=data, content_type=self.tiles.content_type,
+                            headers={"Cache-Control": "max-age=3600"})
+
     # ----------------------------------------------------------------- reads
 
     async def _get_state(self, request: web.Request) -> web.Response:
@@ -420,7 +451,8 @@ class ControlServer:
 
     async def _get_session(self, request: web.Request) -> web.Response:
         return _json({"write": self.authorized(request), "push_hz": self.push_hz,
-                      "tile_url": self.tile_url, "version": 1})
+                      "tile_url": self.tile_url, "version": 1,
+                      "tiles": self.tiles.info.to_dict() if self.tiles else None})
 
     async def _get_server(self, request: web.Request) -> web.Response:
         allow = sorted(f"{s}://{h if ':' not in h else f'[{h}]'}:{p}"

@@ -23,6 +23,7 @@ from collections.abc import Iterable
 from typing import Any
 
 from domain.errors import FloeError
+from domain.extras import extra_hint
 from groundstation.runners.campaign.grid import RunTask
 from groundstation.runners.campaign.pool import RunSink
 from groundstation.runners.campaign.run import execute_run
@@ -65,7 +66,7 @@ class DaskExecutor:
         try:
             from distributed import Client, LocalCluster
         except ImportError:
-            raise DaskError("--dask needs dask[distributed]: pip install 'floe[campaign]'") \
+            raise DaskError(f"--dask needs dask[distributed]: {extra_hint('campaign')}") \
                 from None
         try:
             if self.local_workers is not None:

@@ -23,6 +23,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from domain.extras import DISTRIBUTION
 from groundstation.runners.campaign.grid import RunTask
 from groundstation.runners.campaign.schema import ARRIVAL_SUMMARIES, metrics_columns
 from groundstation.runners.simulate.simulator import PlanRecord, SimulationOptions, run_simulation
@@ -114,7 +115,7 @@ def floe_version() -> str:
     from importlib.metadata import PackageNotFoundError, version
 
     try:
-        return version("floe")
+        return version(DISTRIBUTION)
     except PackageNotFoundError:
         return "unknown"
 

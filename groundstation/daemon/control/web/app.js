@@ -33,6 +33,11 @@
     dirty: true,
     hover: false,              // pointer over the map
     layers: { search: 0, confirmed: 0, tentative: 0, prior: 0 },  // drawn in the last frame
+    tileInfo: null,            // the daemon's MBTiles metadata (/api/session)
+    orient: "north",           // north | ship (ship-up: the ship's course points up)
+    rotation: 0,               // rad the map is turned by (ship-up), 0 north-up
+    shipCourse: null,          // rad, compass, from the ship's predicted track or its moves
+    loiters: [],               // the commanded loiter circles drawn in the last frame
   };
   const L = window.floeLayers;
 
@@ -74,6 +79,7 @@
       const body = await resp.json();
       app.write = !!body.write;
       if (body.tile_url && !app.tileUrl) app.tileUrl = body.tile_url;
+      if (body.tiles) app.tileInfo = body.tiles;
     } catch (e) {
       app.write = false;
     }
@@ -168,6 +174,11 @@
     // Never move the map under the operator's pointer or while placing a target.
     if (app.view.auto && !app.hover && app.mode === "select") fitView(false);
     updateVehicles(doc);
+    updateShipCourse(doc);
+    if (G) {
+      G.updatePanel($("vehicle-panel").tBodies[0], doc.vehicles || [], colourOf, (v) =>
+        (geoFrame && num(v.x_m) && num(v.y_m) ? geoFrame.toLatLng(v.x_m, v.y_m) : null));
+    }
     updateTargets(doc);
     $("track-counts").textContent = L.countsText(doc);
     app.dirty = true;
@@ -385,22 +396,113 @@
   // ------------------------------------------------------------------ map geometry
   const canvas = $("map");
   const ctx = canvas.getContext("2d");
+  const G = window.floeGeo;
+  // Leaflet under the canvas (geo.js); without Leaflet (not installed) or before the
+  // mission origin is known, the canvas' own flat projection.
+  const basemap = G ? new G.Basemap($("geo"), $("scale-box")) : { ok: false };
+  let geoFrame = null;       // the ENU frame of doc.origin (geo.js)
 
+  // the canvas' own size, untouched by the ship-up rotation of its box
   function size() {
-    const rect = canvas.getBoundingClientRect();
-    return { w: Math.max(1, rect.width), h: Math.max(1, rect.height) };
+    return { w: Math.max(1, canvas.clientWidth), h: Math.max(1, canvas.clientHeight) };
+  }
+
+  const geoActive = () => basemap.ok && geoFrame !== null;
+  let synced = "";           // the view the map was last set to
+
+  // The map follows app.view before any projection through it (a zoom button, a drag,
+  // a fit change the view between frames).
+  function ensureSynced() {
+    const key = app.view.cx + "," + app.view.cy + "," + app.view.scale;
+    if (key !== synced) syncMap();
   }
 
   function toScreen(x, y) {
+    if (geoActive()) {
+      ensureSynced();
+      const [lat, lon] = geoFrame.toLatLng(x, y);
+      return basemap.project(lat, lon);
+    }
     const { w, h } = size();
     const v = app.view;
     return [w / 2 + (x - v.cx) * v.scale, h / 2 - (y - v.cy) * v.scale];
   }
 
   function toWorld(px, py) {
+    if (geoActive()) {
+      ensureSynced();
+      const [lat, lon] = basemap.unproject(px, py);
+      return geoFrame.toEnu(lat, lon);
+    }
     const { w, h } = size();
     const v = app.view;
     return [v.cx + (px - w / 2) / v.scale, v.cy - (py - h / 2) / v.scale];
+  }
+
+  // Latitude/longitude of a canvas point (null without an origin).
+  function toLatLon(px, py) {
+    if (!geoFrame) return null;
+    const [x, y] = toWorld(px, py);
+    return geoFrame.toLatLng(x, y);
+  }
+
+  // The map under the canvas follows app.view; ship-up turns the canvas and the map
+  // together (their box is the view's diagonal, so no corner shows empty).
+  function syncMap() {
+    const doc = app.doc;
+    const origin = doc && doc.origin;
+    if (G && origin && num(origin.lat_deg) && num(origin.lon_deg) &&
+        (!geoFrame || geoFrame.lat0 !== origin.lat_deg || geoFrame.lon0 !== origin.lon_deg)) {
+      geoFrame = G.frame(origin.lat_deg, origin.lon_deg);
+    }
+    const wrap = $("map-wrap"), stack = $("stack");
+    const ww = wrap.clientWidth, wh = wrap.clientHeight;
+    let rot = 0;
+    if (app.orient === "ship" && num(app.shipCourse)) {
+      rot = app.shipCourse;
+      const b = doc && doc.boat;
+      if (b && num(b.x_m) && num(b.y_m)) { app.view.cx = b.x_m; app.view.cy = b.y_m; }
+    }
+    const side = rot ? Math.ceil(Math.hypot(ww, wh)) : null;
+    const box = side ? [side, side] : [ww, wh];
+    const left = side ? (ww - side) / 2 : 0, top = side ? (wh - side) / 2 : 0;
+    stack.style.width = box[0] + "px"; stack.style.height = box[1] + "px";
+    stack.style.left = left + "px"; stack.style.top = top + "px";
+    stack.style.transform = rot ? "rotate(" + (-rot) + "rad)" : "";
+    app.rotation = rot;
+    if (geoActive()) {
+      // the daemon's own tiles once /api/session has said their deepest zoom
+      if (app.tileUrl && (app.tileInfo || !app.tileUrl.startsWith("/tiles/"))) {
+        basemap.setTiles(app.tileUrl, app.tileInfo);
+      }
+      const [lat, lon] = geoFrame.toLatLng(app.view.cx, app.view.cy);
+      basemap.sync(lat, lon, app.view.scale);
+    }
+    synced = app.view.cx + "," + app.view.cy + "," + app.view.scale;
+  }
+
+  // The ship's course (compass rad): its predicted track's first leg, else its last move.
+  const boatSeen = [];
+  function updateShipCourse(doc) {
+    const ship = doc.watch && doc.watch.ship;
+    if (ship && Array.isArray(ship.track) && ship.track.length >= 2) {
+      const [a, b] = ship.track;
+      if (Math.hypot(b[0] - a[0], b[1] - a[1]) > 1) {
+        app.shipCourse = Math.atan2(b[0] - a[0], b[1] - a[1]);
+        return;
+      }
+    }
+    const boat = doc.boat;
+    if (!boat || !num(boat.x_m) || !num(boat.y_m)) return;
+    const last = boatSeen[boatSeen.length - 1];
+    if (!last || Math.hypot(boat.x_m - last[0], boat.y_m - last[1]) > 5) {
+      boatSeen.push([boat.x_m, boat.y_m]);
+      if (boatSeen.length > 2) boatSeen.shift();
+    }
+    if (boatSeen.length === 2) {
+      const [a, b] = boatSeen;
+      app.shipCourse = Math.atan2(b[0] - a[0], b[1] - a[1]);
+    }
   }
 
   function contentPoints(doc) {
@@ -450,11 +552,13 @@
   function zoom(factor, px, py) {
     const { w, h } = size();
     if (px === undefined) { px = w / 2; py = h / 2; }
+    // keep the point under (px, py) in place: offsets from the centre scale as 1/scale
     const [wx, wy] = toWorld(px, py);
-    app.view.scale = Math.min(50, Math.max(0.002, app.view.scale * factor));
-    const [nx, ny] = toWorld(px, py);
-    app.view.cx += wx - nx;
-    app.view.cy += wy - ny;
+    const old = app.view.scale;
+    app.view.scale = Math.min(50, Math.max(0.002, old * factor));
+    const k = old / app.view.scale;
+    app.view.cx = wx + (app.view.cx - wx) * k;
+    app.view.cy = wy + (app.view.cy - wy) * k;
     app.view.auto = false;
     app.dirty = true;
   }
@@ -618,6 +722,30 @@
     }
   }
 
+  // The commanded loiter of each vehicle (its mission's last item: centre and radius, from
+  // the daemon), drawn as a circle of 96 segments in the ENU frame: round at any zoom,
+  // whatever the telemetry rate (a 2 Hz track would draw a 7-sided polygon).
+  const LOITER_SEGMENTS = 96;
+  function drawLoiters(doc) {
+    app.loiters = [];
+    (doc.vehicles || []).forEach((v, index) => {
+      const l = v.loiter;
+      if (!l || !num(l.x_m) || !num(l.y_m) || !num(l.radius_m) || l.radius_m <= 0) return;
+      ctx.strokeStyle = colourOf(index); ctx.lineWidth = 1.5; ctx.setLineDash([]);
+      ctx.beginPath();
+      for (let i = 0; i <= LOITER_SEGMENTS; i++) {
+        const a = 2 * Math.PI * i / LOITER_SEGMENTS;
+        const [px, py] = toScreen(l.x_m + l.radius_m * Math.cos(a),
+                                  l.y_m + l.radius_m * Math.sin(a));
+        if (i === 0) ctx.moveTo(px, py); else ctx.lineTo(px, py);
+      }
+      ctx.stroke();
+      const [cx, cy] = toScreen(l.x_m, l.y_m);
+      app.loiters.push({ vehicle: v.id, cx, cy, radius_m: l.radius_m,
+                         colour: colourOf(index), segments: LOITER_SEGMENTS });
+    });
+  }
+
   function drawVehicles(doc, fov) {
     const targets = new Map((doc.targets || []).map((t) => [String(t.id), t]));
     (doc.vehicles || []).forEach((v, index) => {
@@ -767,11 +895,16 @@
       canvas.height = Math.round(h * dpr);
       if (app.view.auto) fitView(true);
     }
+    syncMap();
     ctx.setTransform(dpr, 0, 0, dpr, 0, 0);
-    ctx.fillStyle = "#dfe9f0";
-    ctx.fillRect(0, 0, w, h);
-    drawTiles(w, h);
-    drawGrid(w, h);
+    if (geoActive() && basemap.tiles) {
+      ctx.clearRect(0, 0, w, h);  // the operator's tiles show through
+    } else {  // a plain background (and the metric grid)
+      ctx.fillStyle = "#dfe9f0";
+      ctx.fillRect(0, 0, w, h);
+      drawTiles(w, h);
+      drawGrid(w, h);
+    }
     const doc = app.doc;
     if (doc) {
       const fov = num(doc.fov_radius_m) ? doc.fov_radius_m : 150;
@@ -780,12 +913,16 @@
         ctx.setLineDash([8, 6]); ctx.strokeStyle = "#8aa0b4"; ctx.lineWidth = 1;
         ctx.beginPath(); ctx.arc(cx, cy, doc.operating_radius_m * app.view.scale, 0, 2 * Math.PI);
         ctx.stroke(); ctx.setLineDash([]);
+        ctx.fillStyle = "#5d7388"; ctx.font = "11px system-ui, sans-serif";
+        ctx.fillText("operating area (fence)", cx - 55,
+          cy - doc.operating_radius_m * app.view.scale - 5);
       }
       app.layers = { search: 0, confirmed: 0, tentative: 0, prior: 0 };
       app.layers.search = L.drawSearch(ctx, doc, toScreen, app.view.scale);
       drawShipTrack(doc);
       drawBoat(doc);
       drawTargets(doc, fov);
+      drawLoiters(doc);
       drawVehicles(doc, fov);
       drawWind(doc, w);
       drawWatch(doc, w, h);
@@ -856,7 +993,10 @@
     });
     canvas.addEventListener("pointermove", (e) => {
       const [wx, wy] = toWorld(e.offsetX, e.offsetY);
-      $("cursor").textContent = "x " + fmt(wx) + " m, y " + fmt(wy) + " m";
+      const ll = toLatLon(e.offsetX, e.offsetY);
+      app.cursor = ll ? { lat: ll[0], lon: ll[1], x_m: wx, y_m: wy } : { x_m: wx, y_m: wy };
+      $("cursor").textContent = (ll ? G.latLonText(ll[0], ll[1]) + "  " : "") +
+        "x " + fmt(wx) + " m, y " + fmt(wy) + " m";
       if (!drag) return;
       const dx = e.offsetX - drag.x, dy = e.offsetY - drag.y;
       if (!drag.moved && Math.hypot(dx, dy) < 5) return;
@@ -877,6 +1017,13 @@
       zoom(e.deltaY < 0 ? 1.2 : 1 / 1.2, e.offsetX, e.offsetY);
     }, { passive: false });
     $("fit").onclick = () => { app.view.auto = true; fitView(true); app.dirty = true; };
+    $("orient").onclick = () => {
+      app.orient = app.orient === "north" ? "ship" : "north";
+      $("orient").textContent = app.orient === "north" ? "North up" : "Ship up";
+      $("orient").title = app.orient === "north" ? "north is up (click: the ship's course up)"
+        : "the ship's course is up (click: north up)";
+      app.dirty = true;
+    };
     $("zoom-in").onclick = () => zoom(1.5);
     $("zoom-out").onclick = () => zoom(1 / 1.5);
     $("add-target").onclick = () => setMode(app.mode === "add" ? "select" : "add");
@@ -951,6 +1098,14 @@
     get mode() { return app.mode; },
     get layers() { return Object.assign({}, app.layers); },
     windLabel,
-    toScreen, toWorld,
+    toScreen, toWorld, toLatLon,
+    get cursor() { return app.cursor || null; },
+    get loiters() { return app.loiters.slice(); },
+    get orient() { return app.orient; },
+    get rotation() { return app.rotation; },
+    get basemap() {
+      return { leaflet: basemap.ok, geo: geoActive(), tiles: !!basemap.tiles,
+               tileEvents: basemap.tileEvents ? Object.assign({}, basemap.tileEvents) : null };
+    },
   };
 })();
