@@ -184,16 +184,20 @@ class FakeControl:
 
     async def move_target(self, target_id: str, *, x_m: float | None = None,
                           y_m: float | None = None, lat_deg: float | None = None,
-                          lon_deg: float | None = None) -> dict[str, Any]:
+                          lon_deg: float | None = None,
+                          sigma0: float | None = None) -> dict[str, Any]:
         self.calls.append(("move", target_id, x_m, y_m, lat_deg, lon_deg))
         if self.refuse:
             return {"ok": False, "error": self.refuse}
         if target_id not in self.targets:
             return {"ok": False, "error": f"unknown target {target_id}"}
         if x_m is not None and y_m is not None:
-            self.targets[target_id].update(x_m=x_m, y_m=y_m, sigma=1.0)
+            self.targets[target_id].update(x_m=x_m, y_m=y_m,
+                                           sigma=10.0 if sigma0 is None else sigma0)
         self.emit("target_moved", target=target_id)
-        return {"ok": True, "error": None, "target": target_id}
+        t = self.targets[target_id]
+        return {"ok": True, "error": None, "target": target_id, "x_m": t["x_m"],
+                "y_m": t["y_m"], "sigma": t["sigma"]}
 
     async def remove_target(self, target_id: str) -> dict[str, Any]:
         self.calls.append(("remove", target_id))

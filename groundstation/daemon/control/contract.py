@@ -49,9 +49,11 @@ from __future__ import annotations
 from collections.abc import AsyncIterator
 from typing import Any, Protocol
 
-__all__ = ["VEHICLE_ACTIONS", "DaemonControl"]
+__all__ = ["FLEET_ACTIONS", "VEHICLE_ACTIONS", "DaemonControl"]
 
-VEHICLE_ACTIONS = ("launch", "resume", "release")
+VEHICLE_ACTIONS = ("launch", "resume", "release", "rtl")
+FLEET_ACTIONS = ("release", "rtl", "resume")
+"""Actions on every vehicle at once: each vehicle as its own ``vehicle_action``."""
 
 
 class DaemonControl(Protocol):
@@ -88,12 +90,22 @@ class DaemonControl(Protocol):
         y_m: float | None = None,
         lat_deg: float | None = None,
         lon_deg: float | None = None,
+        sigma0: float | None = None,
     ) -> dict[str, Any]:
-        """Tell the daemon where a target is now (a manual fix, fused as a measurement)."""
+        """An operator's fix: the track is re-seated there with ``sigma0`` (m^2), not gated
+        as a measurement. Reply has ``target``, ``x_m``, ``y_m``, ``sigma``."""
         ...
 
     async def remove_target(self, target_id: str) -> dict[str, Any]: ...
 
     async def vehicle_action(self, vehicle_id: str, action: str) -> dict[str, Any]:
-        """``launch``, ``resume`` (give back to floe) or ``release`` (stop commanding)."""
+        """``launch``, ``resume`` (give back to floe), ``release`` (stop commanding) or
+        ``rtl`` (send home). Reply has ``vehicle``, ``status`` (after the action) and
+        ``what`` (what happened, one line); a refusal's ``error`` says why."""
+        ...
+
+    async def fleet_action(self, action: str) -> dict[str, Any]:
+        """One of :data:`FLEET_ACTIONS` on every vehicle, each exactly as
+        :meth:`vehicle_action`. Reply: ``{"ok": True, "action", "results": [{"vehicle",
+        "ok", "what" | "error", "status"}], "done": n, "refused": n}``."""
         ...

@@ -837,7 +837,10 @@
       setMode("select");
       const id = app.selected;
       const reply = await api("PUT", "/api/targets/" + encodeURIComponent(id), pos);
-      if (reply) notice("target " + id + " fixed at (" + pos.x_m + ", " + pos.y_m + ") m");
+      if (reply) {
+        notice("target " + id + " re-seated at (" + fmt(reply.x_m, 1) + ", " + fmt(reply.y_m, 1) +
+               ") m, sigma " + fmt(reply.sigma, 1) + " m²");
+      }
     } else {
       const t = nearestTarget(px, py);
       select(t ? t.id : null);
