@@ -13,7 +13,6 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import io
-from functools import partial
 from pathlib import Path
 from typing import Any
 
