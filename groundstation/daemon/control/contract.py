@@ -14,20 +14,21 @@ State snapshot (``state()``), JSON-able, the same document the live page draws::
       "origin": {"lat_deg", "lon_deg"}, "operating_radius_m": float | None,
       "operating_center_m": [x_m, y_m] (home or the boat),
       "vehicles": [{"id", "name", "system_id", "x_m", "y_m", "alt_m", "heading_rad",
-                    "speed_m_s", "mode", "armed", "status" (active|overridden|lost|home|
-                    on_ground|joining), "launch_held" (why floe will not launch it on
+                    "speed_m_s", "mode", "armed", "status" (active|overridden|released|lost|
+                    home|on_ground|joining), "launch_held" (why floe will not launch it on
                     its own: it came down after it flew; None), "launch_wanted"
                     ({"reason", "relieves"}: the core asks for this spare's launch, until
                     it flies; None), "home" ([x_m, y_m]: the home it confirmed after
                     floe moved it to the ship; None), "link" (ok|degraded|lost),
                     "battery_pct",
-                    "target", "route": [ids], "aim": [x_m, y_m] | None,
+                    "target", "route": [ids], "aim": [x_m, y_m] | None (floe's mission:
+                    only while floe flies it, active or joining),
                     "track": [[x_m, y_m], ...] (recent positions),
                     "wind": {"wx_m_s", "wy_m_s", "speed_m_s", "from_deg"} | None (its own
                     accepted WIND estimate)}],
       "targets": [{"id", "x_m", "y_m", "vx_m_s", "vy_m_s", "sigma", "cov_xy": [pxx, pxy, pyy],
-                   "lost", "last_seen_s"}] (every track the observer holds, tentative ones
-                  included),
+                   "lost", "last_seen_s", "status"}] (every track the observer holds,
+                  tentative ones included),
       "tracks": [{"id", "status" (tentative|confirmed|prior), "x_m", "y_m", "sigma_m2",
                   "existence" (0..1), "t_s"}] (the tracker's view of the same tracks),
       "track_counts": {"confirmed", "tentative", "prior"},
