@@ -20,7 +20,12 @@ import pytest
 from daemon_run import status_text, stop_when
 
 from groundstation.commands.run import build_config, run_daemon
-from groundstation.daemon.alerts import SILENT_AFTER_S, SILENT_REPEAT_S, never_heard
+from groundstation.daemon.alerts import (
+    NO_VEHICLE_AFTER_S,
+    SILENT_AFTER_S,
+    SILENT_REPEAT_S,
+    never_heard,
+)
 from groundstation.daemon.config import StatusMode
 from groundstation.daemon.console import ConsoleHandler, OperatorConsole
 from groundstation.daemon.daemon import Daemon
@@ -328,19 +333,21 @@ def test_link_silence_counts_from_the_links_own_connect_and_first_frame(
         at(4.0)  # frames arrive; the vehicle is not made yet
         at(13.9)
         assert records == []  # 11.9 s after the connect, 9.9 s after the first frame
-        at(14.0)
+        at(4.0 + NO_VEHICLE_AFTER_S - 0.1)  # frames arrive: a vehicle may need its GPS
+        assert records == []
+        at(4.0 + NO_VEHICLE_AFTER_S)
         assert len(records) == 1
-        assert "no vehicle heard in 10 s since its first frame" in records[0]
+        assert "no vehicle heard in 60 s since its first frame" in records[0]
         assert "37 frames received" in records[0] and "connected but silent" not in records[0]
         link.counters.connects = 2  # a reconnect is no progress: the count goes on
-        at(14.0 + SILENT_REPEAT_S - 0.1)
+        at(4.0 + NO_VEHICLE_AFTER_S + SILENT_REPEAT_S - 0.1)
         assert len(records) == 1
-        at(14.0 + SILENT_REPEAT_S)
+        at(4.0 + NO_VEHICLE_AFTER_S + SILENT_REPEAT_S)
         assert len(records) == 2
     finally:
         logging.getLogger("groundstation").removeHandler(keep)
         journal.close()
     (first, _) = [e for e in read_journal(tmp_path / "journal.jsonl")
                   if e["event"] == "link_silent"]
-    assert first["since"] == "first frame" and first["silent_s"] == 10.0
+    assert first["since"] == "first frame" and first["silent_s"] == NO_VEHICLE_AFTER_S
     assert first["received"] == 37

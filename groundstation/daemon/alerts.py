@@ -5,7 +5,8 @@
   mission clock: from the daemon's start while it never connected, from its connect once
   it connected, from its first frame once frames arrive. A vehicle link none of whose
   frames made a vehicle (a session bound to it) ``SILENT_AFTER_S`` seconds after the latest
-  of these says so, and again every ``SILENT_REPEAT_S`` while it stays so: one
+  of these (``NO_VEHICLE_AFTER_S`` after its first frame: frames arrive, the vehicle is
+  not made yet) says so, and again every ``SILENT_REPEAT_S`` while it stays so: one
   ``link_silent`` journal line (``link``, ``url``, ``silent_s``: seconds since ``since``,
   ``since``: ``start``, ``connect`` or ``first frame``, ``connected``, ``received``) and one
   warning on the console naming what to check. A wrong address, a missing serial device,
@@ -41,6 +42,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "DROPS_REPORT_S",
+    "NO_VEHICLE_AFTER_S",
     "SILENT_AFTER_S",
     "SILENT_REPEAT_S",
     "AlertsHost",
@@ -51,6 +53,10 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 SILENT_AFTER_S = 10.0
+NO_VEHICLE_AFTER_S = 60.0
+"""A link receiving frames that made no vehicle yet warns this long after its first frame:
+a real autopilot may stream heartbeats for tens of seconds before it has the GPS position
+a vehicle needs without ``--origin``."""
 SILENT_REPEAT_S = 30.0
 DROPS_REPORT_S = 10.0
 _FEED_REASONS = ("malformed", "out_of_order", "late")
@@ -153,7 +159,8 @@ class OperatorAlerts:
             since, since_s = self._progress(link, wall_s)
             silent_s = wall_s - since_s
             due = self._next_silent_s.get(link_id)
-            if silent_s < SILENT_AFTER_S or (due is not None and wall_s < due):
+            after_s = NO_VEHICLE_AFTER_S if since == "first frame" else SILENT_AFTER_S
+            if silent_s < after_s or (due is not None and wall_s < due):
                 continue
             self._next_silent_s[link_id] = wall_s + SILENT_REPEAT_S
             self.silent.add(link_id)
