@@ -86,7 +86,7 @@ def write_campaign(folder: Path, runs: int, plans_per_run: int, duration_s: int)
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(allow_abbrev=False, description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=10_000)
     parser.add_argument("--plans", type=int, default=40, help="plans per run")
     parser.add_argument("--duration", type=int, default=200, help="mission seconds per run")

@@ -210,7 +210,7 @@ def extract(revision: str, into: Path) -> Path:
 
 
 async def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(allow_abbrev=False, description=__doc__.split("\n\n")[0])
     parser.add_argument("--baseline", default=DEFAULT_BASELINE,
                         help="git revision measured as 'before' (default %(default)s)")
     parser.add_argument("--rounds", type=int, default=3)

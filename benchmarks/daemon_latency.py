@@ -212,7 +212,7 @@ class _keep:
 
 
 def main() -> int:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(allow_abbrev=False, description=__doc__.splitlines()[0])
     p.add_argument("--speedup", type=float, default=10.0)
     p.add_argument("--duration", type=float, default=400.0, help="mission seconds per run")
     p.add_argument("--sizes", default="3,10")

@@ -223,7 +223,7 @@ def report(runs: Sequence[dict[str, Any]]) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(allow_abbrev=False, description=__doc__.split("\n\n")[0])
     parser.add_argument("--wind", type=float, default=15.0, help="m/s (default 15)")
     parser.add_argument("--directions", default="0,90,180,270", help="FROM degrees")
     parser.add_argument("--seeds", type=int, default=3)

@@ -309,7 +309,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
 
 def main(argv: list[str] | None = None) -> int:
     """Parse options, run, print; exit status 1 on task errors or false state changes."""
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p = argparse.ArgumentParser(allow_abbrev=False, description=__doc__.split("\n\n")[0])
     p.add_argument("--vehicles", type=int, default=3, help="simulated vehicles (>= 2)")
     p.add_argument("--rate", type=float, default=20_000.0, help="fuzz frames/s on vehicle 1")
     p.add_argument("--udp-rate", type=float, default=1_000.0, help="frames/s, other link")

@@ -22,7 +22,7 @@ from link_flood_harness import FloodResult, run_flood
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(allow_abbrev=False, description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=2)
     parser.add_argument("--duration", type=float, default=3.0)
     parser.add_argument("--json", type=Path, default=None)

@@ -168,7 +168,7 @@ def ask(proc: subprocess.Popen[str], task: dict[str, Any]) -> dict[str, Any] | N
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=(__doc__ or "").split("\n")[0])
+    parser = argparse.ArgumentParser(allow_abbrev=False, description=(__doc__ or "").split("\n")[0])
     parser.add_argument("--sizes", default="1x10,1x16,3x10,5x20,10x50")
     parser.add_argument("--seeds", type=int, default=10)
     parser.add_argument("--solvers", default="floe,mtz-highs,mtz-scip,mtz-cpsat")

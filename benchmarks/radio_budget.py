@@ -102,7 +102,7 @@ def print_row(r: dict[str, Any], vehicles: int) -> None:
 
 
 def main() -> None:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(allow_abbrev=False, description=__doc__.splitlines()[0])
     p.add_argument("--scenario", default="paper-boat")
     p.add_argument("--radio", default="sik,loss=0.05")
     p.add_argument("--duration", type=float, default=1800.0)

@@ -243,7 +243,7 @@ def _daemon(radio: str) -> None:
 
 
 def main() -> None:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(allow_abbrev=False, description=__doc__.splitlines()[0])
     p.add_argument("--radio", default="sik")
     p.add_argument("--duration", type=float, default=600.0)
     p.add_argument("--uploads", type=int, default=40)

@@ -81,7 +81,7 @@ _SINK = (
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(allow_abbrev=False, description=__doc__.split("\n\n")[0])
     parser.add_argument("--counts", default="1,3,10")
     parser.add_argument("--speedups", default="20,50,100,200")
     parser.add_argument("--wall-s", type=float, default=4.0)

@@ -304,7 +304,7 @@ def bench_against_tree(rounds: int, tree: Path) -> dict[str, float]:
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(allow_abbrev=False, description=__doc__.split("\n\n")[0])
     parser.add_argument("--rounds", type=int, default=7)
     parser.add_argument("--bytecode", choices=("cached", "none"), default="cached")
     parser.add_argument("--json", type=Path, default=None, help="also write the figures here")

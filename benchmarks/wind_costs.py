@@ -153,7 +153,7 @@ def timing(seeds: int) -> None:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(allow_abbrev=False, description=__doc__.splitlines()[0])
     parser.add_argument("--only", choices=("accuracy", "timing"))
     parser.add_argument("--cases", type=int, default=40, help="first legs per row")
     parser.add_argument("--seeds", type=int, default=10, help="problems per size")

@@ -267,7 +267,7 @@ def jobs_for(args: argparse.Namespace) -> list[Job]:
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(allow_abbrev=False, description=__doc__.splitlines()[0])
     parser.add_argument("--scenarios", default=",".join(SCENARIOS))
     parser.add_argument("--uavs", default="3,5", help="fleet sizes, e.g. 3,5")
     parser.add_argument("--winds", default="0,5,10,15", help="mean wind speeds, m/s")

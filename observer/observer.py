@@ -139,6 +139,27 @@ class Observer:
             track.set_position_moments(track.t_s, mean_xy, cov_xy)
             self._check_lost(target_id)
 
+    def reseat(self, target_id: str, t_s: float, x_m: float, y_m: float,
+               sigma0: float) -> None:
+        """An operator's fix: ``target_id`` is at (x_m, y_m) at ``t_s`` with position
+        uncertainty ``sigma0`` (m^2, the trace of the position covariance), whatever the
+        estimate said; no gate. The track keeps its velocity estimate, its velocity
+        variances (Kalman), its process noise and its ever-lost flag; it counts as seen at
+        ``t_s``. Raises KeyError if unknown, ValueError for a bad value."""
+        old = self._at(target_id, t_s)
+        x, y = finite_number("x_m", x_m), finite_number("y_m", y_m)
+        s0 = _non_negative("sigma0", finite_number("sigma0", sigma0))
+        _, _, vx, vy = old.state
+        ever_lost = self._ever_lost[target_id]
+        p0: list[float] | None = None
+        if isinstance(old, KalmanTrack):
+            p0 = [0.5 * s0, 0.5 * s0, float(old.p_view[2, 2]), float(old.p_view[3, 3])]
+        del self._tracks[target_id]
+        self.add_target(target_id, old.t_s, x, y, vx_m_s=vx, vy_m_s=vy,
+                        sigma0=None if p0 is not None else s0, p0=p0, q_per_s=old.q_per_s)
+        self._tracks[target_id].last_seen_s = old.t_s
+        self._ever_lost[target_id] = ever_lost or self._ever_lost[target_id]
+
     def take_over(self, target_id: str, source_id: str) -> None:
         """``target_id``'s filter is replaced by ``source_id``'s (a newer estimate of the same
         object), which stops being tracked; ``target_id`` keeps its process-noise intensity

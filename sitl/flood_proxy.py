@@ -160,7 +160,8 @@ async def _amain(args: argparse.Namespace) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the proxy (see the module docstring)."""
-    p = argparse.ArgumentParser(prog="python -m sitl.flood_proxy", description=__doc__)
+    p = argparse.ArgumentParser(allow_abbrev=False, prog="python -m sitl.flood_proxy",
+                                description=__doc__)
     p.add_argument("--upstream", type=int, required=True, help="the vehicle's TCP port")
     p.add_argument("--port", type=int, default=0, help="port to listen on (0: ephemeral)")
     p.add_argument("--rate", type=float, default=20_000.0, help="flood frames per second")

@@ -10,6 +10,7 @@ from collections.abc import Iterator
 import pytest
 from test_control_fake import ServerThread
 
+from domain.errors import UsageError
 from groundstation.commands import target, vehicle
 
 TOKEN = "cli-token"
@@ -65,7 +66,7 @@ def test_vehicle_actions_and_list(server: ServerThread,
     monkeypatch.setenv("FLOE_API", server.url)  # the environment works like the options
     monkeypatch.setenv("FLOE_TOKEN", TOKEN)
     assert vehicle.run(["release", "X8-2"]) == 0
-    assert capsys.readouterr().out.strip() == "release: vehicle uav2 ok"
+    assert capsys.readouterr().out.strip() == "vehicle uav2 released"  # what happened
     assert vehicle.run(["resume", "2"]) == 0
     assert vehicle.run(["launch", "uav1"]) == 0
     capsys.readouterr()
@@ -169,3 +170,80 @@ def test_something_else_on_the_port(capsys: pytest.CaptureFixture[str]) -> None:
     finally:
         httpd.shutdown()
         httpd.server_close()
+
+
+def test_a_move_says_where_the_track_is_now_and_a_refusal_exits_1(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """Issue 29: ``gcs target move`` printed "moved target B7" and exited 0 whatever the
+    daemon did. It prints the daemon's answer (the re-seated track), and a refusal (even
+    one answered ``ok: false`` with status 200) is exit 1 with the reason."""
+    with ServerThread(token=TOKEN) as srv:
+        api = ["--api", srv.url, "--token", TOKEN]
+        assert target.run(["move", "A", "--x", "130", "--y", "-45", "--sigma0", "7", *api]) == 0
+        assert capsys.readouterr().out.strip() == (
+            "moved target A: now at (130.0, -45.0) m, sigma 7.00 m^2")
+        srv.call(lambda: setattr(srv.control, "refuse", "position is outside the area"))
+        assert target.run(["move", "A", "--x", "1", "--y", "2", *api]) == 1
+        one_line_error(capsys, "refused: position is outside the area")
+
+
+def test_tentative_tracks_do_not_read_never_seen(capsys: pytest.CaptureFixture[str]) -> None:
+    """Issue 29: tentative tracks (born of a detection) read "last seen never"."""
+    with ServerThread(token=TOKEN) as srv:
+        assert target.run(["list", "--api", srv.url]) == 0
+        rows = {line.split()[0]: line for line in capsys.readouterr().out.splitlines()[1:]}
+        assert "at birth" in rows["C"] and rows["C"].split()[-1] == "tentative"
+        assert "never (listed)" in rows["B"]
+        assert "never" not in rows["C"]
+
+
+def test_fleet_actions_answer_per_vehicle(capsys: pytest.CaptureFixture[str]) -> None:
+    """Issue 29: release/RTL/resume all, each vehicle's answer on its own line; exit 1
+    when any vehicle refused."""
+    with ServerThread(token=TOKEN) as srv:
+        api = ["--api", srv.url, "--token", TOKEN]
+        assert vehicle.run(["release", "--all", *api]) == 0
+        out = capsys.readouterr().out.splitlines()
+        assert out == ["release vehicle uav1: vehicle uav1 released",
+                       "release vehicle uav2: vehicle uav2 released",
+                       "release vehicle uav3: vehicle uav3 released",
+                       "release --all: 3 done, 0 refused"]
+        srv.call(lambda: srv.control.vehicles[1].update(status="active"))
+        assert vehicle.run(["resume", "--all", *api]) == 1  # uav2 is active already
+        captured = capsys.readouterr()
+        assert "resume --all: 2 done, 1 refused" in captured.out
+        assert "resume vehicle uav2: refused: vehicle uav2 is active already" in captured.err
+        assert vehicle.run(["rtl", "--all", *api]) == 0
+        assert srv.call(lambda: [v["status"] for v in srv.control.vehicles]) == ["home"] * 3
+        assert srv.call(lambda: srv.control.calls[-3:]) == [
+            ("fleet", "release"), ("fleet", "resume"), ("fleet", "rtl")]
+        capsys.readouterr()
+        assert vehicle.run(["rtl", "uav1", "--all", *api]) == 2
+        one_line_error(capsys, "a vehicle or --all, not both")
+        assert vehicle.run(["release", *api]) == 2
+        one_line_error(capsys, "give a vehicle")
+
+
+@pytest.mark.parametrize(("name", "argv"), [
+    ("run", ["--vehicle", "sim:3"]), ("simulate", ["--uav", "2"]),
+    ("replay", ["runs/x", "--spe", "2"]), ("plan", ["-", "--work", "2"]),
+    ("sitl", ["--vehicle", "2"]), ("target", ["list", "--js"]),
+    ("vehicle", ["list", "--js"]), ("report", ["x", "--ou", "y"]),
+    ("campaign", ["--spe", "x"]), ("campaign_report", ["x", "--ou", "y"]),
+])
+def test_no_option_is_guessed_from_a_prefix(name: str, argv: list[str],
+                                            capsys: pytest.CaptureFixture[str]) -> None:
+    """Issue 29: ``gcs run --vehicle sim:3`` ran as ``--vehicles`` (argparse's prefix
+    matching) and launched a fleet. Every parser refuses an option it does not know, a
+    prefix of one included (parsed only: nothing runs)."""
+    import importlib
+
+    module = importlib.import_module(f"groundstation.commands.{name}")
+    parser = module._parser()
+    assert parser.allow_abbrev is False
+    with pytest.raises((SystemExit, UsageError)) as raised:
+        parser.parse_args(argv)
+    if isinstance(raised.value, SystemExit):
+        assert raised.value.code == 2
+        err = capsys.readouterr().err
+        assert "unrecognized arguments" in err or "are required: --out" in err, err

@@ -111,7 +111,8 @@ class FakeControl:
         for tg in self.targets.values():
             s = tg["sigma"]
             targets.append({**tg, "cov_xy": [s * 0.6, s * 0.1, s * 0.4],
-                            "lost": math.sqrt(s) > FOV_M})
+                            "lost": math.sqrt(s) > FOV_M,
+                            "status": self.statuses.get(tg["id"], "confirmed")})
         return {
             "t": round(self.t, 3), "unix_s": time.time(), "speedup": 1.0, "advisory": False,
             "origin": {"lat_deg": 78.93, "lon_deg": 11.92}, "operating_radius_m": 2000.0,
@@ -184,16 +185,20 @@ class FakeControl:
 
     async def move_target(self, target_id: str, *, x_m: float | None = None,
                           y_m: float | None = None, lat_deg: float | None = None,
-                          lon_deg: float | None = None) -> dict[str, Any]:
+                          lon_deg: float | None = None,
+                          sigma0: float | None = None) -> dict[str, Any]:
         self.calls.append(("move", target_id, x_m, y_m, lat_deg, lon_deg))
         if self.refuse:
             return {"ok": False, "error": self.refuse}
         if target_id not in self.targets:
             return {"ok": False, "error": f"unknown target {target_id}"}
         if x_m is not None and y_m is not None:
-            self.targets[target_id].update(x_m=x_m, y_m=y_m, sigma=1.0)
+            self.targets[target_id].update(x_m=x_m, y_m=y_m,
+                                           sigma=10.0 if sigma0 is None else sigma0)
         self.emit("target_moved", target=target_id)
-        return {"ok": True, "error": None, "target": target_id}
+        t = self.targets[target_id]
+        return {"ok": True, "error": None, "target": target_id, "x_m": t["x_m"],
+                "y_m": t["y_m"], "sigma": t["sigma"]}
 
     async def remove_target(self, target_id: str) -> dict[str, Any]:
         self.calls.append(("remove", target_id))
@@ -211,10 +216,31 @@ class FakeControl:
         assert action in VEHICLE_ACTIONS
         for v in self.vehicles:
             if v["id"] == vehicle_id:
-                v["status"] = "overridden" if action == "release" else "active"
-                self.emit(action, vehicle=vehicle_id)
-                return {"ok": True, "error": None, "vehicle": vehicle_id}
+                return self._act(v, action)
         return {"ok": False, "error": f"unknown vehicle {vehicle_id}"}
+
+    def _act(self, v: dict[str, Any], action: str) -> dict[str, Any]:
+        """As the daemon answers: released/home/active, or refused with the reason."""
+        after = {"release": "released", "rtl": "home", "resume": "active",
+                 "launch": "active"}[action]
+        if v["status"] == after and action != "launch":
+            return {"ok": False, "error": f"vehicle {v['id']} is {after} already",
+                    "vehicle": v["id"], "status": v["status"]}
+        v["status"] = after
+        if after != "active":
+            v["target"], v["route"] = None, []
+        self.emit(action, vehicle=v["id"])
+        return {"ok": True, "error": None, "vehicle": v["id"], "status": after,
+                "what": f"vehicle {v['id']} {after}"}
+
+    async def fleet_action(self, action: str) -> dict[str, Any]:
+        self.calls.append(("fleet", action))
+        if self.refuse:
+            return {"ok": False, "error": self.refuse}
+        results = [self._act(v, action) for v in self.vehicles]
+        done = sum(1 for r in results if r["ok"])
+        return {"ok": True, "error": None, "action": action, "results": results,
+                "done": done, "refused": len(results) - done}
 
 
 class ServerThread:

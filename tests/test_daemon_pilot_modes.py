@@ -169,7 +169,9 @@ def test_pilots_switch_is_final_until_given_back(tmp_path: Path, case: str) -> N
         assert not [e for e in events(journal, "fly", vehicle=name)
                     if overrides[0]["t"] <= e["t"] < t_resume]  # fmt: skip
         # given back: the API's resume took it, a verified target, AUTO set by floe
-        assert reply == {"ok": True, "error": None, "vehicle": name}
+        assert reply == {"ok": True, "error": None, "vehicle": name, "status": "active",
+                         "what": f"vehicle {name} resumed: floe flies it again "
+                                 "(was overridden)"}
         uploads = [e for e in events(journal, "upload", vehicle=name, ok=True, purpose="target")
                    if e["t"] >= t_resume]  # fmt: skip
         assert uploads, f"vehicle {sysid} was not given back"
@@ -248,7 +250,9 @@ def test_plane_that_came_down_while_the_pilot_had_it_is_never_relaunched(
     assert launch["state"]["launch_held"] == held["reason"]
     assert launch["state"]["status"] == "on_ground"
     # the operator's launch: accepted, and floe launches it (takeoff mission, armed, AUTO)
-    assert launch.get("reply") == {"ok": True, "error": None, "vehicle": "1"}
+    answer = launch.get("reply") or {}
+    assert (answer.get("ok"), answer.get("error"), answer.get("vehicle")) == (True, None, "1")
+    assert str(answer.get("what")).startswith("vehicle 1: launch requested")
     relaunch = [e for e in events(journal, "launch", vehicle="1") if e["t"] >= t_launch]
     assert relaunch
     assert [e for e in events(journal, "upload", vehicle="1", purpose="takeoff", ok=True)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import io
 import json
+import re
 import shutil
 from pathlib import Path
 
@@ -135,6 +136,24 @@ def test_changed_planner_setting_shows_differences(
     assert problem_lines and "tau 0.5" in problem_lines[0] and "tau 0.9" in problem_lines[0]
     assert any(" objective " in line for line in out.splitlines())
     assert "DIFFERENCE" in out.splitlines()[-1]
+
+
+def test_set_summarises_how_many_routes_changed(
+    event_run: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Issue 29: a what-if replay says whether any route changed: "routes changed: N of
+    M" (M re-solved plans, N with another route than recorded); JSON: ``routes_changed``."""
+    assert main(["replay", str(event_run), "--set", "planner.tau=0.9"]) == 1
+    last = capsys.readouterr().out.splitlines()[-1]
+    found = re.search(r"routes changed: (\d+) of (\d+) re-solved plans", last)
+    assert found is not None, last
+    changed, compared = int(found.group(1)), int(found.group(2))
+    assert compared > 0 and 0 <= changed <= compared
+    assert main(["replay", str(event_run), "--set", "planner.tau=0.9", "--json"]) == 1
+    report = json.loads(capsys.readouterr().out)
+    assert report["routes_changed"] == changed and report["objectives_compared"] == compared
+    assert main(["replay", str(event_run)]) == 0  # no setting changed: not in the line
+    assert "routes changed" not in capsys.readouterr().out
 
 
 def test_override_alias_and_observer_setting(

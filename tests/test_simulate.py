@@ -232,3 +232,55 @@ def test_the_operating_area_refuses_targets_outside_it() -> None:
     assert all(math.hypot(x, y) <= 1000.0 for x, y in added.values())
     whole = run_simulation(scenario, dataclasses.replace(options, operating_radius_m=None))
     assert not [r for r in whole.journal if r["event"] == "target_refused"]
+
+
+def test_cli_refuses_a_wind_at_or_above_the_airspeed(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """Issue 29: ``gcs simulate --wind 30,270`` printed a normal table with 0 visits and
+    exited 0 (the reason only in the journal). As ``gcs plan``: one line, exit 2."""
+    out = tmp_path / "out"
+    assert main(["simulate", "--scenario", "paper-boat", "--wind", "30,270", "--duration",
+                 "10", "--no-plots", "--quiet", "--out", str(out)]) == 2
+    captured = capsys.readouterr()
+    err = captured.err.strip()
+    assert err == ("gcs simulate: error: --wind: a wind of 30 m/s is not below the airspeed "
+                   "22 m/s: legs into it cannot be flown")
+    assert captured.out == "" and not out.exists()
+
+
+def test_fallbacks_of_the_core_are_console_lines() -> None:
+    from groundstation.commands.simulate import fallback_lines
+
+    journal = [{"event": "plan", "t": 0.0},
+               {"event": "wind_refused", "t": 3.0, "detail": "planning as in still air: x"},
+               {"event": "wind_refused", "t": 9.0, "detail": "planning as in still air: x"}]
+    assert fallback_lines(journal) == [
+        "fallback: wind_refused at t=3.0 s: planning as in still air: x (2 times)"]
+
+
+def test_ctrl_c_keeps_the_partial_journal_and_metrics(
+    tmp_path: Path, capsys: pytest.CaptureFixture, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Issue 29: Ctrl-C in ``gcs simulate`` left an empty folder. The run so far is kept
+    (metrics of the mission seconds flown, the journal, which replays), exit 130."""
+    from groundstation.commands import simulate as simulate_cmd
+
+    def progress(_update: object) -> object:
+        def at(t_s: float, _duration_s: float) -> None:
+            if t_s >= 20.0:
+                raise KeyboardInterrupt
+
+        return at
+
+    monkeypatch.setattr(simulate_cmd, "_mission_progress", progress)
+    out = tmp_path / "run"
+    assert main(["simulate", "--scenario", "paper-boat", "--uavs", "2", "--duration", "100",
+                 "--no-plots", "--quiet", "--out", str(out)]) == 130
+    err = capsys.readouterr().err
+    assert "interrupted at t=20.0 s" in err and str(out) in err
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["interrupted_at_s"] == 20.0 and metrics["duration_s"] == 20.0
+    assert len(metrics["uncertainty_series"]) >= 20
+    assert (out / "journal.jsonl").stat().st_size > 0
+    assert main(["replay", str(out), "--no-resolve"]) == 0

@@ -34,6 +34,7 @@ _PROG = "gcs campaign"
 
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
+        allow_abbrev=False,
         prog=_PROG,
         description="Run every combination of a campaign file's grid (scenarios x fleet "
         "sizes x objectives x tau x seeds x scenario overrides) and store one row per run "

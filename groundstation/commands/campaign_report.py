@@ -21,6 +21,7 @@ _PROG = "gcs campaign report"
 
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
+        allow_abbrev=False,
         prog=_PROG,
         description="Write a self-contained HTML report of a gcs campaign folder: mean "
         "uncertainty against fleet size, the mean-uncertainty series over mission time "

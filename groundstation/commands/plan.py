@@ -30,7 +30,8 @@ class _PlanParser(argparse.ArgumentParser):
 
 
 def _parser() -> argparse.ArgumentParser:
-    parser = _PlanParser(prog="gcs plan", description="Solve one target-visitation problem.")
+    parser = _PlanParser(allow_abbrev=False, prog="gcs plan",
+                         description="Solve one target-visitation problem.")
     parser.add_argument("problem", help="problem JSON file, or - for standard input")
     parser.add_argument("--workers", type=int, default=1, help="CP-SAT workers (default 1)")
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")

@@ -33,6 +33,7 @@ _PROG = "gcs replay"
 
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
+        allow_abbrev=False,
         prog=_PROG,
         description="Feed a recorded run (RUN_DIR/journal.jsonl) through today's decision "
         "core and report, event by event, where it decides differently (exit 0 identical, "

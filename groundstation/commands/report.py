@@ -23,6 +23,7 @@ _PROG = "gcs report"
 
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
+        allow_abbrev=False,
         prog=_PROG,
         description="Write a self-contained HTML report (map, uncertainty, plan timeline, "
         "solve times, uploads, link losses, overrides, summary) of a gcs run folder, a "

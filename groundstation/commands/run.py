@@ -47,6 +47,7 @@ def _parser() -> argparse.ArgumentParser:
     from groundstation.daemon.config import Objective, OnExit, ReplanTrigger, StatusMode
 
     p = _RunParser(
+        allow_abbrev=False,
         prog="gcs run",
         description="The floe ground-station daemon: keeps a fleet of "
         "fixed-wing UAVs tracking drifting targets over MAVLink.",

@@ -8,7 +8,7 @@ from world.scenario import bundled_scenarios, load_scenario
 
 
 def run(argv: list[str]) -> int:
-    parser = argparse.ArgumentParser(prog="gcs scenarios", description=__doc__)
+    parser = argparse.ArgumentParser(allow_abbrev=False, prog="gcs scenarios", description=__doc__)
     parser.parse_args(argv)
     names = bundled_scenarios()
     width = max([16, *(len(name) for name in names)])

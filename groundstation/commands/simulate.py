@@ -56,6 +56,7 @@ def _fleet_sizes(text: str) -> list[int]:
 
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
+        allow_abbrev=False,
         prog="gcs simulate",
         description="Run a scenario in virtual time: the decision core against the world "
         "model. Writes metrics.json and PNG plots.",
@@ -135,6 +136,12 @@ def run(argv: list[str]) -> int:
         except ConfigError as exc:
             print(f"gcs simulate: error: {exc}", file=sys.stderr)
             return 2
+    if scenario.wind.speed_m_s >= scenario.fleet.speed_m_s:
+        source = "--wind" if args.wind is not None else f"scenario {scenario.name}'s wind"
+        print(f"gcs simulate: error: {source}: a wind of {scenario.wind.speed_m_s:g} m/s is "
+              f"not below the airspeed {scenario.fleet.speed_m_s:g} m/s: legs into it "
+              "cannot be flown", file=sys.stderr)
+        return 2
     sizes: list[int] = args.uavs or [scenario.fleet.count]
     try:
         args.out.mkdir(parents=True, exist_ok=True)
@@ -146,9 +153,17 @@ def run(argv: list[str]) -> int:
     except StorageError as exc:  # a full disk, an unwritable folder: one line
         print(f"gcs simulate: error: {exc}", file=sys.stderr)
         return 2
+    except Interrupted as stop:
+        kept = "metrics.json" + (", journal.jsonl" if not args.no_journal else "")
+        print(f"gcs simulate: interrupted at t={stop.t_s:.1f} s: the partial run's {kept} "
+              f"kept in {stop.out_dir} (no plots)", file=sys.stderr)
+        return 130
     _print_summary(rows)
     if not scenario.wind.calm:
         print(f"wind: {scenario.wind.describe()}")
+    for row in rows:
+        for line in row.get("fallbacks", ()):
+            print(f"uavs={row['uavs']}: {line}")
     return 0
 
 
@@ -205,12 +220,15 @@ def _simulate_sizes(
         atomic_write_text(out_dir / "metrics.json", json.dumps(metrics, indent=1) + "\n")
         if result.journal:
             atomic_write_bytes(out_dir / "journal.jsonl", b"".join(journal_lines(result.journal)))
+        if result.interrupted_at_s is not None:
+            raise Interrupted(result.interrupted_at_s, out_dir)
         if not args.no_plots:
             from groundstation.runners.simulate.plots import write_plots
 
             write_plots(result, out_dir)
         curves[uavs] = metrics["uncertainty_series"]
-        rows.append({"uavs": uavs, "dir": str(out_dir), **metrics})
+        rows.append({"uavs": uavs, "dir": str(out_dir), **metrics,
+                     "fallbacks": fallback_lines(result.journal or [])})
     if len(sizes) > 1 and not args.no_plots:
         from groundstation.runners.simulate.plots import plot_comparison
 
@@ -220,6 +238,37 @@ def _simulate_sizes(
             args.out / "comparison.png",
         )
     return rows
+
+
+class Interrupted(Exception):
+    """Ctrl-C stopped a simulation at mission time ``t_s``; its partial metrics and journal
+    are written in ``out_dir``."""
+
+    def __init__(self, t_s: float, out_dir: Path) -> None:
+        super().__init__(f"interrupted at t={t_s:.1f} s")
+        self.t_s = t_s
+        self.out_dir = out_dir
+
+
+FALLBACK_NOTES = ("wind_refused", "wind_fallback")
+"""The core's notes of a fallback that changes the result (planning in still air, or in
+the configured wind instead of the vehicles'): said on the console, not only journalled."""
+
+
+def fallback_lines(journal: list[dict[str, Any]]) -> list[str]:
+    """One console line per kind of fallback note in the journal: its first time and
+    detail, and how many there were."""
+    seen: dict[str, list[dict[str, Any]]] = {}
+    for record in journal:
+        if record.get("event") in FALLBACK_NOTES:
+            seen.setdefault(str(record["event"]), []).append(record)
+    lines = []
+    for kind, records in seen.items():
+        first = records[0]
+        more = f" ({len(records)} times)" if len(records) > 1 else ""
+        lines.append(f"fallback: {kind} at t={float(first.get('t', 0.0)):.1f} s: "
+                     f"{first.get('detail') or ''}{more}".rstrip())
+    return lines
 
 
 def _mission_progress(update: TaskUpdate) -> Callable[[float, float], None]:

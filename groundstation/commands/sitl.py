@@ -31,6 +31,7 @@ __all__ = ["build", "parse_options", "run", "signing_key"]
 
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
+        allow_abbrev=False,
         prog="gcs sitl",
         description="Start N simulated ArduPlane vehicles speaking MAVLink 2 (TCP per vehicle,"
         " optional UDP out) plus the world's detection feed, or N real ArduPilot SITL "

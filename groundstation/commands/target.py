@@ -122,7 +122,10 @@ class ApiClient:
                 "(a daemon found through its control.json needs neither)",
                 EXIT_USAGE,
             )
-        return self.request(method, path, body)
+        reply = self.request(method, path, body)
+        if isinstance(reply, dict) and reply.get("ok") is False:
+            raise ApiError(f"refused: {reply.get('error') or 'no reason given'}", EXIT_REFUSED)
+        return reply
 
     def request(self, method: str, path: str, body: dict[str, Any] | None = None) -> Any:
         headers = {"Accept": "application/json"}
@@ -244,6 +247,7 @@ def _position(args: argparse.Namespace) -> dict[str, float]:
 
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
+        allow_abbrev=False,
         prog="gcs target",
         description="Add, move, remove or list the targets of the "
         "running daemon (through its control API).",
@@ -256,18 +260,22 @@ def _parser() -> argparse.ArgumentParser:
         sp.add_argument("--lat", type=float, help="latitude (deg, WGS-84)")
         sp.add_argument("--lon", type=float, help="longitude (deg, WGS-84)")
 
-    add = sub.add_parser("add", help="add a target")
+    add = sub.add_parser("add", allow_abbrev=False, help="add a target")
     add.add_argument("id", nargs="?", default=None, help="target id (default: daemon names it)")
     position_options(add)
     add.add_argument("--vx", type=float, default=None, help="drift east (m/s)")
     add.add_argument("--vy", type=float, default=None, help="drift north (m/s)")
     add.add_argument("--sigma0", type=float, default=None, help="initial uncertainty (m^2)")
-    move = sub.add_parser("move", help="tell the daemon where a target is now")
+    move = sub.add_parser("move", allow_abbrev=False,
+                          help="an operator's fix: the target is here now (the track is "
+                          "re-seated there, not gated as a measurement)")
     move.add_argument("id", help="target id")
     position_options(move)
-    remove = sub.add_parser("remove", help="remove a target")
+    move.add_argument("--sigma0", type=float, default=None,
+                      help="uncertainty of the fix (m^2; default: the daemon's, one camera fix)")
+    remove = sub.add_parser("remove", allow_abbrev=False, help="remove a target")
     remove.add_argument("id", help="target id")
-    lst = sub.add_parser("list", help="list the targets")
+    lst = sub.add_parser("list", allow_abbrev=False, help="list the targets")
     lst.add_argument("--json", action="store_true", help="print the API's JSON")
     for sp in (add, move, remove, lst):
         add_api_options(sp)
@@ -288,11 +296,14 @@ def _list(client: ApiClient, as_json: bool) -> int:
     rows = []
     for t in targets:
         seen = t.get("last_seen_s")
-        ago = (
-            f"{now - seen:.0f} s ago"
-            if isinstance(now, int | float) and isinstance(seen, int | float)
-            else "never"
-        )
+        if isinstance(now, int | float) and isinstance(seen, int | float):
+            ago = f"{now - seen:.0f} s ago"
+        elif t.get("status") == "tentative":
+            ago = "at birth"  # born of one detection, none accepted since
+        elif t.get("status") == "prior":
+            ago = "never (listed)"
+        else:
+            ago = "never"
         rows.append(
             [
                 str(t.get("id")),
@@ -303,9 +314,11 @@ def _list(client: ApiClient, as_json: bool) -> int:
                 _fmt(t.get("sigma")),
                 ago,
                 _fmt(t.get("lost")),
+                str(t.get("status") or "-"),
             ]
         )
-    print(table(rows, ["id", "x_m", "y_m", "vx_m_s", "vy_m_s", "sigma", "last seen", "lost"]))
+    print(table(rows, ["id", "x_m", "y_m", "vx_m_s", "vy_m_s", "sigma", "last seen", "lost",
+                       "status"]))
     if not rows:
         print("(no targets)")
     return 0
@@ -328,8 +341,15 @@ def _execute(args: argparse.Namespace) -> int:
         reply = client.write("POST", "/api/targets", body)
         print(f"added target {reply.get('target', args.id)}")
     elif args.action == "move":
-        client.write("PUT", f"/api/targets/{_quote(args.id)}", _position(args))
-        print(f"moved target {args.id}")
+        fix: dict[str, Any] = dict(_position(args))
+        sigma0 = _finite(args.sigma0, "--sigma0")
+        if sigma0 is not None:
+            if sigma0 < 0:
+                raise ApiError("--sigma0: must be >= 0", EXIT_USAGE)
+            fix["sigma0"] = sigma0
+        reply = client.write("PUT", f"/api/targets/{_quote(args.id)}", fix)
+        print(f"moved target {args.id}: now at ({_fmt(reply.get('x_m'))}, "
+              f"{_fmt(reply.get('y_m'))}) m, sigma {_fmt(reply.get('sigma'), 2)} m^2")
     else:
         client.write("DELETE", f"/api/targets/{_quote(args.id)}")
         print(f"removed target {args.id}")

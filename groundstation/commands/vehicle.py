@@ -3,7 +3,12 @@
     gcs vehicle launch uav1      # arm when ready, take off, hand over to floe
     gcs vehicle release uav2     # stop commanding it (the operator flies it)
     gcs vehicle resume uav2      # give it back to floe
+    gcs vehicle rtl uav2         # send it home (RTL); resume gives it back
+    gcs vehicle release --all    # every vehicle (also rtl --all, resume --all)
     gcs vehicle list [--json]
+
+Every action prints what happened (per vehicle with ``--all``), and exits 1 if the daemon
+refused it (with ``--all``: refused for any vehicle), naming why.
 
 A vehicle is named by its id, its name or its MAVLink system id. Same ``--api``/``--token``/
 ``--run-dir`` options (the running daemon is found through its ``control.json``) and exit
@@ -26,21 +31,30 @@ ACTIONS = {
     "launch": "arm a vehicle on the ground when its pre-arm checks pass, take off, take over",
     "resume": "give a released or overridden vehicle back to floe",
     "release": "stop commanding a vehicle (it keeps flying its current mission)",
+    "rtl": "send a vehicle home (RTL); floe stops planning it until resumed",
 }
+FLEET = ("release", "rtl", "resume")
 
 
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
+        allow_abbrev=False,
         prog="gcs vehicle",
         description="Launch, resume, release or list the vehicles of "
         "the running daemon (through its control API).",
     )
     sub = p.add_subparsers(dest="action", required=True, metavar="ACTION")
     for action, text in ACTIONS.items():
-        sp = sub.add_parser(action, help=text)
-        sp.add_argument("id", help="vehicle id, name or system id")
+        sp = sub.add_parser(action, help=text, allow_abbrev=False)
+        if action in FLEET:
+            sp.add_argument("id", nargs="?", default=None,
+                            help="vehicle id, name or system id (or --all)")
+            sp.add_argument("--all", action="store_true",
+                            help="every vehicle, each as it alone would be")
+        else:
+            sp.add_argument("id", help="vehicle id, name or system id")
         add_api_options(sp)
-    lst = sub.add_parser("list", help="list the vehicles")
+    lst = sub.add_parser("list", help="list the vehicles", allow_abbrev=False)
     lst.add_argument("--json", action="store_true", help="print the API's JSON")
     add_api_options(lst)
     return p
@@ -109,6 +123,28 @@ def _list(client: ApiClient, as_json: bool) -> int:
     return 0
 
 
+def _fleet(client: ApiClient, action: str) -> int:
+    """``ACTION --all``: one line per vehicle; exit 1 if any was refused."""
+    reply = client.write("POST", f"/api/fleet/{action}")
+    results = reply.get("results") if isinstance(reply, dict) else None
+    if not isinstance(results, list):
+        raise ApiError("the daemon gave no per-vehicle answer", 1)
+    refused = 0
+    for r in results:
+        if not isinstance(r, dict):
+            continue
+        if r.get("ok"):
+            print(f"{action} vehicle {r.get('vehicle')}: {r.get('what') or 'done'}")
+        else:
+            refused += 1
+            print(f"{action} vehicle {r.get('vehicle')}: refused: {r.get('error')}",
+                  file=sys.stderr)
+    if not results:
+        print(f"{action} --all: the daemon has no vehicle")
+    print(f"{action} --all: {len(results) - refused} done, {refused} refused")
+    return 1 if refused else 0
+
+
 def run(argv: list[str]) -> int:
     try:
         args = _parser().parse_args(argv)
@@ -118,10 +154,17 @@ def run(argv: list[str]) -> int:
         client = connect(args, "gcs vehicle")
         if args.action == "list":
             return _list(client, args.json)
+        if getattr(args, "all", False):
+            if args.id is not None:
+                raise ApiError("give a vehicle or --all, not both", 2)
+            return _fleet(client, args.action)
+        if args.id is None:
+            raise ApiError(f"{args.action}: give a vehicle id, name or system id, or --all", 2)
         ref = urllib.parse.quote(args.id, safe="")
         reply = client.write("POST", f"/api/vehicles/{ref}/{args.action}")
         vehicle = reply.get("vehicle", args.id) if isinstance(reply, dict) else args.id
-        print(f"{args.action}: vehicle {vehicle} ok")
+        what = reply.get("what") if isinstance(reply, dict) else None
+        print(what or f"{args.action}: vehicle {vehicle} ok")
         return 0
     except ApiError as exc:
         print(f"gcs vehicle: error: {exc}", file=sys.stderr)

@@ -59,6 +59,7 @@ from groundstation.core.events import (
     LoiterEnded,
     PlanSolved,
     TargetAdded,
+    TargetFixed,
     TargetRemoved,
     Telemetry,
     Tick,
@@ -339,6 +340,19 @@ class DecisionCore:
                 self._prior_points[event.target] = (event.x_m, event.y_m)
                 self.search.set_prior_points(list(self._prior_points.values()))
             self._mark_dirty("target added")
+        elif isinstance(event, TargetFixed):
+            if event.target not in self.observer.target_ids:
+                out.append(Note(event.t_s, "unknown_target", target=event.target))
+                return out
+            try:
+                self.tracks.reseat(event.target, event.t_s, event.x_m, event.y_m,
+                                   event.sigma0)
+            except ValueError as exc:
+                out.append(Note(event.t_s, "fix_refused", target=event.target,
+                                detail=str(exc)))
+                return out
+            self.uploads.seen(event.target)
+            self._mark_dirty("target fixed")
         elif isinstance(event, TargetRemoved):
             if event.target not in self.observer.target_ids:
                 out.append(Note(event.t_s, "unknown_target", target=event.target))

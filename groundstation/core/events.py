@@ -24,6 +24,7 @@ __all__ = [
     "OperatorResume",
     "PlanSolved",
     "TargetAdded",
+    "TargetFixed",
     "TargetRemoved",
     "Telemetry",
     "Tick",
@@ -126,6 +127,19 @@ class TargetAdded:
         2 variance_m2`` (``variance_m2`` per axis, e.g. ``world``'s ``PriorEntry``)."""
         return cls(t_s, entry.id, entry.x_m, entry.y_m, sigma0=2.0 * entry.variance_m2,
                    prior=True)
+
+
+@dataclass(frozen=True)
+class TargetFixed:
+    """An operator's fix: ``target`` is at (x_m, y_m) now, with position uncertainty
+    ``sigma0`` (m^2, the trace of the position covariance). Not a measurement: it is not
+    gated; the track is re-seated there (it keeps its velocity estimate) and confirmed."""
+
+    t_s: float
+    target: str
+    x_m: float
+    y_m: float
+    sigma0: float
 
 
 @dataclass(frozen=True)
@@ -300,6 +314,7 @@ Event = (
     | Detection
     | CameraFrame
     | TargetAdded
+    | TargetFixed
     | TargetRemoved
     | LoiterEnded
     | VehicleJoined

@@ -90,6 +90,15 @@ class TrackBook:
                                   sigma0=sigma0, q_per_s=q_per_s)
         self.adopt(track_id, prior=prior)
 
+    def reseat(self, track_id: str, t_s: float, x_m: float, y_m: float,
+               sigma0: float) -> None:
+        """An operator's fix (``TargetFixed``): the observer re-seats the track
+        (``Observer.reseat``) and the tracker, if any, holds it as confirmed."""
+        self._observer.reseat(track_id, t_s, x_m, y_m, sigma0)
+        if self.tracker is not None:
+            self.tracker.forget(track_id)
+            self.tracker.adopt(track_id, status=CONFIRMED, existence=1.0)
+
     def remove(self, track_id: str) -> None:
         """Stop a track the core was told to remove (``TargetRemoved``); no-op if the
         observer no longer holds it."""

@@ -1,11 +1,19 @@
 """Problems no single journal line reports, told to the operator while the run goes on.
 
-* **A link that has heard no vehicle.** A vehicle link none of whose frames ever made a
-  vehicle (a session bound to it) after ``SILENT_AFTER_S`` mission seconds says so, and again
-  every ``SILENT_REPEAT_S`` while it stays so: one ``link_silent`` journal line (``link``,
-  ``url``, ``silent_s``, ``connected``, ``received``) and one warning on the console naming
-  what to check. A wrong address, a missing serial device, an unroutable ``udpout:`` or a
-  TCP port another client holds all look like this.
+* **A link that has heard no vehicle.** Silence is counted on the link's own clock (wall
+  seconds, whatever the mission's speed-up), from the link's own progress, never from the
+  mission clock: from the daemon's start while it never connected, from its connect once
+  it connected, from its first frame once frames arrive. A vehicle link none of whose
+  frames made a vehicle (a session bound to it) ``SILENT_AFTER_S`` seconds after the latest
+  of these (``NO_VEHICLE_AFTER_S`` after its first frame: frames arrive, the vehicle is
+  not made yet) says so, and again every ``SILENT_REPEAT_S`` while it stays so: one
+  ``link_silent`` journal line (``link``, ``url``, ``silent_s``: seconds since ``since``,
+  ``since``: ``start``, ``connect`` or ``first frame``, ``connected``, ``received``) and one
+  warning on the console naming what to check. A wrong address, a missing serial device,
+  an unroutable ``udpout:`` or a TCP port another client holds all look like this; a link
+  whose vehicle is still being heard in (3 heartbeats and a position, a second or two at
+  any speed-up) does not. A link that connects again or flaps does not restart the count:
+  only progress (never connected -> connected -> frames) does.
 * **Detections dropped.** At most every ``DROPS_REPORT_S`` mission seconds, when the number
   of dropped detections grew: one ``detections_dropped`` line (``new``, ``total`` and the
   counts by reason: ``no_origin``, ``outside_area`` (camera or feed), ``malformed``,
@@ -13,13 +21,15 @@
 
 :meth:`OperatorAlerts.check` reads only what the daemon already counts (sessions, link
 counters, dropped detections) and reports what is due; the daemon's task
-(:meth:`OperatorAlerts.run`) calls it once a mission second until the run stops.
+(:meth:`OperatorAlerts.run`) calls it once a mission second (at least every 0.05 wall s,
+at most every wall second) until the run stops.
 """
 
 from __future__ import annotations
 
 import asyncio
 import logging
+import time
 from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any, Protocol
 
@@ -32,6 +42,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "DROPS_REPORT_S",
+    "NO_VEHICLE_AFTER_S",
     "SILENT_AFTER_S",
     "SILENT_REPEAT_S",
     "AlertsHost",
@@ -42,6 +53,10 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 SILENT_AFTER_S = 10.0
+NO_VEHICLE_AFTER_S = 60.0
+"""A link receiving frames that made no vehicle yet warns this long after its first frame:
+a real autopilot may stream heartbeats for tens of seconds before it has the GPS position
+a vehicle needs without ``--origin``."""
 SILENT_REPEAT_S = 30.0
 DROPS_REPORT_S = 10.0
 _FEED_REASONS = ("malformed", "out_of_order", "late")
@@ -66,10 +81,15 @@ class OperatorAlerts:
     """See the module docstring."""
 
     def __init__(
-        self, daemon: AlertsHost, feed_counters: Callable[[], Mapping[str, int]] | None = None
+        self, daemon: AlertsHost, feed_counters: Callable[[], Mapping[str, int]] | None = None,
+        wall_s: Callable[[], float] = time.monotonic,
     ) -> None:
         self.daemon = daemon
         self.feed_counters = feed_counters
+        self.wall_s = wall_s
+        """The links' own clock (wall seconds): silence is counted on it."""
+        self._phase: dict[str, tuple[int, float]] = {}
+        """Per link: its progress (0 never connected, 1 connected, 2 frames) and since when."""
         """The detection feed's counters (None without a feed)."""
         self.heard: set[str] = set()
         """Vehicle links a vehicle was ever bound to."""
@@ -102,15 +122,30 @@ class OperatorAlerts:
 
     # ------------------------------------------------------------------ checks
     def check(self, now_s: float) -> None:
-        """Report what is due at mission time ``now_s`` (nothing once the run is stopping)."""
+        """Report what is due at mission time ``now_s`` (the links: at ``wall_s()``;
+        nothing once the run is stopping)."""
         if self.daemon.stopping:
             return
-        self._check_links(now_s)
+        self._check_links(self.wall_s())
         if now_s >= self._next_drops_s:
             self._next_drops_s = now_s + DROPS_REPORT_S
             self._check_drops()
 
-    def _check_links(self, now_s: float) -> None:
+    def _progress(self, link: Link, wall_s: float) -> tuple[str, float]:
+        """Where the link got to (``start``, ``connect``, ``first frame``) and since when
+        (wall s): the count restarts only when it gets further."""
+        if link.counters.frames_in:
+            level = 2
+        elif link.connected or link.counters.connects:
+            level = 1
+        else:
+            level = 0
+        seen = self._phase.get(link.link_id)
+        if seen is None or level > seen[0]:
+            seen = self._phase[link.link_id] = (level, wall_s)
+        return ("start", "connect", "first frame")[seen[0]], seen[1]
+
+    def _check_links(self, wall_s: float) -> None:
         router = self.daemon.router
         for sysid in self.daemon.sessions:
             link = router.link_for(sysid)
@@ -119,18 +154,26 @@ class OperatorAlerts:
                 self.silent.discard(link.link_id)
         for link in router.vehicle_links:
             link_id = link.link_id
-            if link_id in self.heard or now_s < self._next_silent_s.get(link_id, SILENT_AFTER_S):
+            if link_id in self.heard:
                 continue
-            self._next_silent_s[link_id] = now_s + SILENT_REPEAT_S
+            since, since_s = self._progress(link, wall_s)
+            silent_s = wall_s - since_s
+            due = self._next_silent_s.get(link_id)
+            after_s = NO_VEHICLE_AFTER_S if since == "first frame" else SILENT_AFTER_S
+            if silent_s < after_s or (due is not None and wall_s < due):
+                continue
+            self._next_silent_s[link_id] = wall_s + SILENT_REPEAT_S
             self.silent.add(link_id)
             url = link.spec.url
             state = self.link_state(link)
             self.daemon.journal(
-                "link_silent", link=link_id, url=url, silent_s=round(now_s, 1),
-                connected=link.connected, received=link.counters.frames_in, logged=True,
+                "link_silent", link=link_id, url=url, silent_s=round(silent_s, 1),
+                since=since, connected=link.connected, received=link.counters.frames_in,
+                logged=True,
             )  # fmt: skip
-            log.warning("link %s (%s): no vehicle heard in %.0f s (%s); %s", link_id, url,
-                        now_s, state, _advice(link))
+            after = "" if since == "start" else f" since its {since}"
+            log.warning("link %s (%s): no vehicle heard in %.0f s%s (%s); %s", link_id, url,
+                        silent_s, after, state, _advice(link))
 
     def _check_drops(self) -> None:
         drops = self.drops()
@@ -147,11 +190,12 @@ class OperatorAlerts:
                     DROPS_REPORT_S, total, text)
 
     async def run(self) -> None:
-        """Check once a mission second (at least every 0.05 wall s) until cancelled."""
+        """Check once a mission second (at least every 0.05 wall s, at most every wall
+        second) until cancelled."""
         clock = self.daemon.clock
         while True:
             self.check(clock.now_s())
-            await asyncio.sleep(max(0.05, clock.wall_s(1.0)))
+            await asyncio.sleep(min(1.0, max(0.05, clock.wall_s(1.0))))
 
 
 def _unheard_state(link: Link) -> str:
@@ -182,6 +226,9 @@ def never_heard(daemon: AlertsHost) -> str | None:
 
 def _advice(link: Link) -> str:
     """What to check for a link that heard no vehicle (by the kind of link)."""
+    if link.counters.frames_in:
+        return ("frames arrive but none made a vehicle: check that an autopilot (not "
+                "another ground station) sends heartbeats and a position here")
     match link.spec.kind:
         case LinkKind.TCP_SERVER:
             return "check that the vehicle or its bridge connects to this address and port"

@@ -107,6 +107,8 @@ OPERATOR_EVENTS = PROBLEM_EVENTS | frozenset(
         "loiter_end",
         "link_restored",
         "resume",
+        "resume_deferred",
+        "target_fixed",
         "vehicle_seen",
         "vehicle_joined",
         "cruise_speed",

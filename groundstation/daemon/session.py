@@ -262,6 +262,21 @@ class VehicleSession:
         self._carry_out(self.controller.take_outputs())
         return ok
 
+    def operator_action(self, t_s: float, action: str) -> tuple[bool, str]:
+        """An operator's ``release``, ``rtl`` or ``resume`` through the control API:
+        ``(ok, what happened)`` (``VehicleController.operator_*``)."""
+        c = self.controller
+        if action == "release":
+            answer = c.operator_release(t_s, "api")
+        elif action == "rtl":
+            answer = c.operator_rtl(t_s, "api rtl")
+        elif action == "resume":
+            answer = c.operator_resume(t_s, "api")
+        else:
+            raise ValueError(f"unknown operator action {action!r}")
+        self._carry_out(c.take_outputs())
+        return answer
+
     def override(self, t_s: float, reason: str) -> None:
         self.controller.override(t_s, reason)
         self._carry_out(self.controller.take_outputs())

@@ -118,6 +118,8 @@ class VehicleController:
         its own initiative (only an operator's :meth:`launch` does)."""
         self.came_down: str | None = None
         """How it came down after it flew (None while it flies, or before it ever did)."""
+        self.released_by_operator = False
+        """Overridden because the operator released it through floe (status ``released``)."""
         self._operator_launch = False  # an operator's launch request, until it flies
         self.launch_held: str | None = None
         """Why a launch floe would have started on its own is held (until the operator's)."""
@@ -199,6 +201,10 @@ class VehicleController:
     # ------------------------------------------------------------------ reading
     @property
     def status(self) -> str:
+        """The state's name; ``released`` for one the operator released through floe
+        (:meth:`operator_release`: the state is ``overridden``, floe no longer commands it)."""
+        if self.state is S.OVERRIDDEN and self.released_by_operator:
+            return "released"
         return self.state.value
 
     @property
@@ -607,19 +613,26 @@ class VehicleController:
         self._core_pose()
         self._core(ev.VehicleReturned(t, self.vehicle))
 
-    def override(self, t: float, reason: str, mode: str | None = None) -> None:
+    def override(self, t: float, reason: str, mode: str | None = None, *,
+                 released: bool = False) -> None:
         """Someone else took the vehicle (``mode``: the mode it was switched to, when that
-        is how): stop commanding it until it is given back, replan the others."""
+        is how): stop commanding it until it is given back, replan the others.
+        ``released``: the operator released it through floe (journalled ``released``)."""
         if self.state is S.OVERRIDDEN:
             return
         was_planned = self.state is S.ACTIVE
         self.state = S.OVERRIDDEN
+        self.released_by_operator = released
         self._left_taken = self.snap.mode is not None and self.snap.mode not in TAKEN_MODES
         self._pending_fly = self._wanted = None
         self._loiter = None
         self.watch.reset_progress()
         self._abort_job(cancel=True)
-        self.journal("override", reason=reason, mode=mode or self.snap.mode_name)
+        if released:
+            self.journal("released", reason=reason, home=False, by="operator",
+                         mode=self.snap.mode_name)
+        else:
+            self.journal("override", reason=reason, mode=mode or self.snap.mode_name)
         if was_planned:
             self._core(ev.OperatorOverride(t, self.vehicle))
 
@@ -629,10 +642,16 @@ class VehicleController:
         if self.state not in (S.OVERRIDDEN, S.HOME):
             return False
         if not self.flying():
-            self.journal("resume_refused", reason=reason, why="not flying")
+            # Refused only on evidence that it is down; with no sustained evidence either
+            # way yet (climbing out, a gap in telemetry) it is assessed as any vehicle
+            # seen anew and joins once it flies: said as such, not as a refusal.
+            down = self.watch.grounded.confirmed
+            self.journal("resume_refused" if down else "resume_deferred", reason=reason,
+                         why="not flying" if down else "waiting for evidence that it flies")
             self.state = S.ON_GROUND
             self._retry_at_s = t
             return False
+        self.released_by_operator = False
         self.journal("resume", reason=reason)
         if self.state is S.HOME:
             self._battery_reported = False
@@ -647,8 +666,59 @@ class VehicleController:
         self._core(ev.OperatorResume(t, self.vehicle))
         return True
 
+    def operator_resume(self, t: float, reason: str) -> tuple[bool, str]:
+        """An operator's resume (API, page, CLI): :meth:`resume` with its answer, ``(ok,
+        what happened)``. The same rule as AUTO: taken back only if it flies."""
+        before = self.status
+        if self.state is S.ACTIVE:
+            return False, f"vehicle {self.vehicle} is already active (floe flies it)"
+        if self.state not in (S.OVERRIDDEN, S.HOME):
+            return False, f"vehicle {self.vehicle} is {before}, not overridden, released or home"
+        if self.resume(t, reason):
+            return True, f"vehicle {self.vehicle} resumed: floe flies it again (was {before})"
+        if self.watch.grounded.confirmed:
+            return False, (f"vehicle {self.vehicle} is not flying (it came down): floe does "
+                           "not relaunch it; 'launch' does")
+        return True, (f"vehicle {self.vehicle} resume deferred: no sustained evidence yet "
+                      "that it flies; it joins once it does")
+
+    def operator_release(self, t: float, reason: str) -> tuple[bool, str]:
+        """An operator releases the vehicle: floe stops commanding it (it flies on in its
+        mode and mission), journalled as ``released`` (not an override); the core hands its
+        targets to the others. ``(ok, what happened)``."""
+        if self.state is not S.ACTIVE:
+            return False, f"vehicle {self.vehicle} is {self.status}, not active"
+        self.override(t, reason, released=True)
+        return True, (f"vehicle {self.vehicle} released: floe stops commanding it; it flies "
+                      f"on in {self.snap.mode_name or 'its mode'}")
+
+    def operator_rtl(self, t: float, reason: str) -> tuple[bool, str]:
+        """An operator sends the vehicle home (RTL to the home it has, the ship's when floe
+        moved it): floe stops planning it, as when the core sends it home. Refused for a
+        vehicle a pilot took (their mode change is final) or one not flying."""
+        if self.state is S.HOME:
+            return True, f"vehicle {self.vehicle} is already on its way home"
+        if self.state is S.OVERRIDDEN and not self.released_by_operator:
+            return False, (f"vehicle {self.vehicle} is overridden: its pilot has it (their "
+                           "mode change is final)")
+        if self.state not in (S.ACTIVE, S.OVERRIDDEN) or not self.flying():
+            return False, f"vehicle {self.vehicle} is {self.status}, not flying under floe"
+        if self.s.advisory:
+            return False, "advisory mode: floe commands no vehicle"
+        was_planned = self.state is S.ACTIVE
+        self._release(reason, home=True)
+        self.released_by_operator = False
+        if was_planned:  # the core frees its targets; its ReleaseVehicle finds it home
+            self._core(ev.OperatorOverride(t, self.vehicle))
+        return True, f"vehicle {self.vehicle} sent home (RTL); 'resume' gives it back to floe"
+
     def _release(self, reason: str, home: bool) -> None:
-        """Core said: stop commanding (ReleaseVehicle) or go home (SendHome)."""
+        """Core said: stop commanding (ReleaseVehicle) or go home (SendHome). A release
+        of a vehicle floe already stopped commanding (taken over, released or sent home by
+        the operator: the core's answer to ``OperatorOverride``) changes nothing and is not
+        journalled again."""
+        if not home and self.state in (S.OVERRIDDEN, S.HOME):
+            return
         self._pending_fly = self._wanted = None
         self._loiter = None
         self.watch.reset_progress()

@@ -126,6 +126,10 @@ def parse_target_body(body: Any) -> tuple[str | None, dict[str, Any]]:
     return target_id, kwargs
 
 
-def parse_move_body(body: Any) -> dict[str, float]:
-    """PUT/PATCH /api/targets/ID body -> keyword arguments of ``move_target``."""
-    return _position(_check_keys(body, ("x_m", "y_m", "lat_deg", "lon_deg")))
+def parse_move_body(body: Any) -> dict[str, float | None]:
+    """PUT/PATCH /api/targets/ID body -> keyword arguments of ``move_target`` (an
+    operator's fix: the position, and ``sigma0`` in m^2 if given)."""
+    body = _check_keys(body, ("x_m", "y_m", "lat_deg", "lon_deg", "sigma0"))
+    kwargs: dict[str, float | None] = dict(_position(body))
+    kwargs["sigma0"] = _number(body, "sigma0", minimum=0.0, maximum=MAX_SIGMA0)
+    return kwargs

@@ -14,20 +14,21 @@ State snapshot (``state()``), JSON-able, the same document the live page draws::
       "origin": {"lat_deg", "lon_deg"}, "operating_radius_m": float | None,
       "operating_center_m": [x_m, y_m] (home or the boat),
       "vehicles": [{"id", "name", "system_id", "x_m", "y_m", "alt_m", "heading_rad",
-                    "speed_m_s", "mode", "armed", "status" (active|overridden|lost|home|
-                    on_ground|joining), "launch_held" (why floe will not launch it on
+                    "speed_m_s", "mode", "armed", "status" (active|overridden|released|lost|
+                    home|on_ground|joining), "launch_held" (why floe will not launch it on
                     its own: it came down after it flew; None), "launch_wanted"
                     ({"reason", "relieves"}: the core asks for this spare's launch, until
                     it flies; None), "home" ([x_m, y_m]: the home it confirmed after
                     floe moved it to the ship; None), "link" (ok|degraded|lost),
                     "battery_pct",
-                    "target", "route": [ids], "aim": [x_m, y_m] | None,
+                    "target", "route": [ids], "aim": [x_m, y_m] | None (floe's mission:
+                    only while floe flies it, active or joining),
                     "track": [[x_m, y_m], ...] (recent positions),
                     "wind": {"wx_m_s", "wy_m_s", "speed_m_s", "from_deg"} | None (its own
                     accepted WIND estimate)}],
       "targets": [{"id", "x_m", "y_m", "vx_m_s", "vy_m_s", "sigma", "cov_xy": [pxx, pxy, pyy],
-                   "lost", "last_seen_s"}] (every track the observer holds, tentative ones
-                  included),
+                   "lost", "last_seen_s", "status"}] (every track the observer holds,
+                  tentative ones included),
       "tracks": [{"id", "status" (tentative|confirmed|prior), "x_m", "y_m", "sigma_m2",
                   "existence" (0..1), "t_s"}] (the tracker's view of the same tracks),
       "track_counts": {"confirmed", "tentative", "prior"},
@@ -49,9 +50,11 @@ from __future__ import annotations
 from collections.abc import AsyncIterator
 from typing import Any, Protocol
 
-__all__ = ["VEHICLE_ACTIONS", "DaemonControl"]
+__all__ = ["FLEET_ACTIONS", "VEHICLE_ACTIONS", "DaemonControl"]
 
-VEHICLE_ACTIONS = ("launch", "resume", "release")
+VEHICLE_ACTIONS = ("launch", "resume", "release", "rtl")
+FLEET_ACTIONS = ("release", "rtl", "resume")
+"""Actions on every vehicle at once: each vehicle as its own ``vehicle_action``."""
 
 
 class DaemonControl(Protocol):
@@ -88,12 +91,22 @@ class DaemonControl(Protocol):
         y_m: float | None = None,
         lat_deg: float | None = None,
         lon_deg: float | None = None,
+        sigma0: float | None = None,
     ) -> dict[str, Any]:
-        """Tell the daemon where a target is now (a manual fix, fused as a measurement)."""
+        """An operator's fix: the track is re-seated there with ``sigma0`` (m^2), not gated
+        as a measurement. Reply has ``target``, ``x_m``, ``y_m``, ``sigma``."""
         ...
 
     async def remove_target(self, target_id: str) -> dict[str, Any]: ...
 
     async def vehicle_action(self, vehicle_id: str, action: str) -> dict[str, Any]:
-        """``launch``, ``resume`` (give back to floe) or ``release`` (stop commanding)."""
+        """``launch``, ``resume`` (give back to floe), ``release`` (stop commanding) or
+        ``rtl`` (send home). Reply has ``vehicle``, ``status`` (after the action) and
+        ``what`` (what happened, one line); a refusal's ``error`` says why."""
+        ...
+
+    async def fleet_action(self, action: str) -> dict[str, Any]:
+        """One of :data:`FLEET_ACTIONS` on every vehicle, each exactly as
+        :meth:`vehicle_action`. Reply: ``{"ok": True, "action", "results": [{"vehicle",
+        "ok", "what" | "error", "status"}], "done": n, "refused": n}``."""
         ...

@@ -12,7 +12,7 @@ from collections.abc import AsyncIterator, Mapping
 from typing import TYPE_CHECKING, Any, Protocol
 
 from groundstation.core import events as ev
-from groundstation.daemon.control.contract import VEHICLE_ACTIONS
+from groundstation.daemon.control.contract import FLEET_ACTIONS, VEHICLE_ACTIONS
 from groundstation.daemon.hosts import CoreHost, FleetHost
 from groundstation.daemon.link_budgets import LinkBudgets
 from groundstation.daemon.log_lines import is_operator_event
@@ -80,6 +80,7 @@ class DaemonController:
         vehicles = []
         for s in sorted(d.sessions.values(), key=lambda s: s.system_id):
             snap = s.snapshot
+            fly = s.fly if s.state in (VehicleState.ACTIVE, VehicleState.JOINING) else None
             vehicles.append(
                 {
                     "id": s.id,
@@ -102,9 +103,11 @@ class DaemonController:
                     "lagging": s.lagging,
                     "prediction": s.prediction(),
                     "battery_pct": snap.battery_remaining_pct,
-                    "target": s.fly.target if s.fly else None,
-                    "route": list(s.fly.route) if s.fly else [],
-                    "aim": [s.fly.x_m, s.fly.y_m] if s.fly else None,
+                    # floe's mission only while floe flies it (not once released,
+                    # taken over or sent home)
+                    "target": fly.target if fly else None,
+                    "route": list(fly.route) if fly else [],
+                    "aim": [fly.x_m, fly.y_m] if fly else None,
                     "track": [list(p) for p in s.track],
                     "wind": vehicle_wind(snap.wind_xy_m_s),
                     **vehicle_panel(snap, s.fly, d.core_config.loiter_radius_m,
@@ -123,6 +126,7 @@ class DaemonController:
                 "cov_xy": list(tr.cov_xy),
                 "lost": tr.lost,
                 "last_seen_s": tr.last_seen_s,
+                "status": tr.status,
             }
             for tr in view.tracks
         ]
@@ -224,15 +228,31 @@ class DaemonController:
         y_m: float | None = None,
         lat_deg: float | None = None,
         lon_deg: float | None = None,
+        sigma0: float | None = None,
     ) -> dict[str, Any]:
+        """An operator's fix: the track is re-seated at the position with ``sigma0`` (m^2;
+        default ``2 r_m2``, one camera fix) as a ``TargetFixed`` core input, never gated
+        like a measurement. The answer is the track as it is after the fix."""
         d = self.daemon
         if target_id not in d.core.view().target_ids:
             return _refuse(f"unknown target {target_id!r}")
         pos = self._position(x_m, y_m, lat_deg, lon_deg)
         if isinstance(pos, str):
             return _refuse(pos)
-        d.add_detection(ev.Detection(d.clock.now_s(), None, target_id, pos[0], pos[1]))
-        return {"ok": True, "error": None, "target": target_id}
+        if sigma0 is None:
+            sigma0 = 2.0 * d.core_config.observer.r_m2
+        if not (math.isfinite(sigma0) and sigma0 >= 0):
+            return _refuse("sigma0 must be >= 0")
+        t = d.clock.now_s()
+        d.journal("target_fixed", target=target_id, x_m=pos[0], y_m=pos[1],
+                  sigma0=sigma0, source="api")
+        d.core_event(ev.TargetFixed(t, target_id, pos[0], pos[1], float(sigma0)))
+        track = next((tr for tr in d.core.view().tracks if tr.id == target_id), None)
+        if track is None or math.hypot(track.x_m - pos[0], track.y_m - pos[1]) > 1e-6:
+            return _refuse(f"target {target_id!r} was not moved (the run is over, or it "
+                           "was removed)")
+        return {"ok": True, "error": None, "target": target_id, "x_m": track.x_m,
+                "y_m": track.y_m, "sigma": track.sigma}
 
     async def remove_target(self, target_id: str) -> dict[str, Any]:
         d = self.daemon
@@ -251,17 +271,32 @@ class DaemonController:
             session = d.sessions.get(int(vehicle_id))
         if session is None:
             return _refuse(f"unknown vehicle {vehicle_id!r}")
-        t = d.clock.now_s()
+        return self._act(session, action)
+
+    def _act(self, session: VehicleSession, action: str) -> dict[str, Any]:
+        """One vehicle's action and its answer (``contract.DaemonControl.vehicle_action``)."""
+        d = self.daemon
         if action == "launch":
             if d.config.advisory:
-                return _refuse("advisory mode: floe commands no vehicle")
+                return {**_refuse("advisory mode: floe commands no vehicle"),
+                        "vehicle": session.id, "status": session.status}
             ok, error = session.request_launch()
-            return {"ok": ok, "error": error or None, "vehicle": session.id}
-        if action == "resume":
-            if not session.resume(t, "api"):
-                return _refuse(f"vehicle {session.id} is {session.status}, not overridden")
-            return {"ok": True, "error": None, "vehicle": session.id}
-        if session.state is not VehicleState.ACTIVE:
-            return _refuse(f"vehicle {session.id} is {session.status}, not active")
-        session.override(t, "api release")
-        return {"ok": True, "error": None, "vehicle": session.id}
+            what = (f"vehicle {session.id}: launch requested (arm when the pre-arm checks "
+                    "pass, take off, hand over to floe)") if ok else None
+        else:
+            ok, text = session.operator_action(d.clock.now_s(), action)
+            what, error = (text, "") if ok else (None, text)
+        return {"ok": ok, "error": error or None, "vehicle": session.id,
+                "status": session.status, **({"what": what} if ok else {})}
+
+    async def fleet_action(self, action: str) -> dict[str, Any]:
+        d = self.daemon
+        if action not in FLEET_ACTIONS:
+            return _refuse(f"unknown fleet action {action!r}; use {', '.join(FLEET_ACTIONS)}")
+        results = []
+        for session in sorted(d.sessions.values(), key=lambda s: s.system_id):
+            reply = self._act(session, action)
+            results.append({k: v for k, v in reply.items() if v is not None})
+        done = sum(1 for r in results if r["ok"])
+        return {"ok": True, "error": None, "action": action, "results": results,
+                "done": done, "refused": len(results) - done}

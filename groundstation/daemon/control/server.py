@@ -7,10 +7,13 @@ the daemon owns the state. Endpoints (all JSON; docs/control.md has curl example
     GET    /api/targets | /api/targets/ID  targets (or one)
     POST   /api/targets                   {id?, x_m, y_m | lat_deg, lon_deg,
                                            vx_m_s?, vy_m_s?, sigma0?}     -> 201
-    PUT    /api/targets/ID  (or PATCH)    {x_m, y_m | lat_deg, lon_deg}   (a manual fix)
+    PUT    /api/targets/ID  (or PATCH)    {x_m, y_m | lat_deg, lon_deg, sigma0?}
+                                          (an operator's fix: the track is re-seated)
     DELETE /api/targets/ID
     GET    /api/vehicles | /api/vehicles/ID
-    POST   /api/vehicles/ID/ACTION        ACTION: launch | resume | release
+    POST   /api/vehicles/ID/ACTION        ACTION: launch | resume | release | rtl
+    POST   /api/fleet/ACTION              ACTION: release | rtl | resume (every vehicle;
+                                          the answer says per vehicle what happened)
     GET    /api/events?since=N[&limit=M][&notable=1]
                                           journal events with sequence number > N
                                           (notable=1: operator events only)
@@ -55,7 +58,7 @@ from groundstation.daemon.control.bodies import (
     parse_move_body,
     parse_target_body,
 )
-from groundstation.daemon.control.contract import VEHICLE_ACTIONS, DaemonControl
+from groundstation.daemon.control.contract import FLEET_ACTIONS, VEHICLE_ACTIONS, DaemonControl
 from groundstation.daemon.control.guard import (
     ControlLimits,
     OriginPolicy,
@@ -232,6 +235,7 @@ class ControlServer:
         r.add_get("/api/vehicles", self._get_vehicles)
         r.add_get("/api/vehicles/{id}", self._get_vehicle)
         r.add_post("/api/vehicles/{id}/{action}", self._vehicle_action)
+        r.add_post("/api/fleet/{action}", self._fleet_action)
         r.add_get("/api/events", self._get_events)
         r.add_get("/ws", self.pages.handle)
         # aiohttp's keep-alive timer also runs from the connection's start until a whole
@@ -540,5 +544,16 @@ class ControlServer:
         if vehicle is None:
             return _error(404, f"unknown vehicle {wanted!r}")
         reply = await self.control.vehicle_action(str(vehicle["id"]), action)
+        self.document.invalidate()
+        return self._reply(reply)
+
+    async def _fleet_action(self, request: web.Request) -> web.Response:
+        if (denied := self._require_token(request)) is not None:
+            return denied
+        action = request.match_info["action"]
+        if action not in FLEET_ACTIONS:
+            return _error(404, f"unknown fleet action {action!r} (one of "
+                          f"{', '.join(FLEET_ACTIONS)})")
+        reply = await self.control.fleet_action(action)
         self.document.invalidate()
         return self._reply(reply)

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -102,6 +102,10 @@ class ReplayReport:
     problems_equal: int = 0
     objectives_compared: int = 0
     objectives_equal: int = 0
+    routes_changed: int = 0
+    """Re-solved plans whose routes differ from the recorded plan's (any vehicle's
+    sequence); out of ``objectives_compared``. Without ``--set`` equal-cost ties can differ
+    too; with it, this says whether a setting changed what would have been flown."""
     track_samples_compared: int = 0
     track_samples_differing: int = 0
     not_comparable: list[str] = field(default_factory=list)
@@ -128,6 +132,7 @@ class ReplayReport:
             "problems_equal": self.problems_equal,
             "objectives_compared": self.objectives_compared,
             "objectives_equal": self.objectives_equal,
+            "routes_changed": self.routes_changed,
             "track_samples_compared": self.track_samples_compared,
             "track_samples_differing": self.track_samples_differing,
             "not_comparable": self.not_comparable,
@@ -155,7 +160,8 @@ class ReplayReport:
             f"{self.objectives_equal}/{self.objectives_compared} (not comparable: "
             f"{len(self.not_comparable)}); track samples differing "
             f"{self.track_samples_differing}/{self.track_samples_compared}"
-        )
+        ) + (f"; routes changed: {self.routes_changed} of {self.objectives_compared} "
+             "re-solved plans" if self.config_changes else "")
 
 
 def config_changes(recorded: CoreConfig, now: CoreConfig) -> list[str]:
@@ -350,6 +356,8 @@ class _Replayer:
             )
             return
         report.objectives_compared += 1
+        if _routes(result.routes) != _routes(recorded_result.routes):
+            report.routes_changed += 1
         if math.isclose(
             result.objective, recorded_result.objective, rel_tol=OBJECTIVE_REL_TOL, abs_tol=1e-9
         ):
@@ -362,6 +370,11 @@ class _Replayer:
                 f"{result.objective:.9g} ({result.status})",
                 line,
             )
+
+
+def _routes(routes: Mapping[str, Sequence[str]]) -> dict[str, list[str]]:
+    """A plan's routes, comparable: each vehicle's sequence, empty ones left out."""
+    return {str(v): [str(t) for t in seq] for v, seq in routes.items() if seq}
 
 
 def _with_nones(record: dict[str, Any]) -> dict[str, Any]:

@@ -156,6 +156,9 @@ class SimulationRun:
     events: list[dict[str, Any]] = field(default_factory=list)
     journal: list[dict[str, Any]] = field(default_factory=list)
     plans: list[PlanRecord] = field(default_factory=list)
+    interrupted_at_s: float | None = None
+    """Mission time a Ctrl-C stopped the run at (its metrics cover up to there); None: it
+    ran its whole duration."""
 
 
 class _Simulation:
@@ -373,54 +376,61 @@ class _Simulation:
             self.announce(added)
         steps = round(self.duration_s / self.dt_s)
         next_sample_s = 0.0
-        for k in range(steps + 1):
-            t_s = k * self.dt_s
-            self.apply_script(t_s)
-            if self.deck is not None:
-                self.deck_step(t_s)
-            for vehicle in self.vehicles.values():
-                if self.deck is not None and self.deck.on_deck(vehicle.id):
+        t_s = 0.0
+        try:
+            for k in range(steps + 1):
+                t_s = k * self.dt_s
+                self.apply_script(t_s)
+                if self.deck is not None:
+                    self.deck_step(t_s)
+                for vehicle in self.vehicles.values():
+                    if self.deck is not None and self.deck.on_deck(vehicle.id):
+                        continue
+                    self.metrics.position(t_s, vehicle.id, vehicle.state.x_m, vehicle.state.y_m)
+                    if not vehicle.lost:
+                        self.feed(self.telemetry(t_s, vehicle))
+                if self.world.boat is not None and self.core.config.priority_gain > 0:
+                    self.feed(BoatPosition(t_s, self.world.boat.x_m, self.world.boat.y_m))
+                on_second = t_s >= next_sample_s - 1e-9
+                if on_second and self.deck is not None:
+                    self.feed(self.ship_fix(t_s))
+                if on_second and not self.scenario.wind.calm:
+                    self.report_wind(t_s)
+                self.feed(Tick(t_s))
+                if on_second:
+                    self.sample(t_s)
+                    next_sample_s += 1.0
+                    if self.options.progress is not None:
+                        self.options.progress(t_s, self.duration_s)
+                if k == steps:
+                    break
+                wind_xy_m_s = self.wind.at(t_s + 0.5 * self.dt_s)
+                for vehicle in self.vehicles.values():
+                    if self.deck is not None and not self.fly_on_watch(t_s, vehicle, wind_xy_m_s):
+                        continue
+                    if vehicle.step(t_s, self.dt_s, wind_xy_m_s) and not vehicle.lost and (
+                        vehicle.commanded
+                    ):
+                        if self.options.journal:
+                            self.run.journal.append({"event": "loiter_end", "t": t_s + self.dt_s,
+                                                     "vehicle": vehicle.id})
+                        self.feed(LoiterEnded(t_s + self.dt_s, vehicle.id))
+                self.world.step(self.dt_s)
+                positions = {v.id: (v.state.x_m, v.state.y_m) for v in self.vehicles.values()}
+                if self.discovery is not None:
+                    for event in self.discovery.observe(self.world, positions,
+                                                        lambda v: self.vehicles[v].lost):
+                        self.feed_observed(event)
                     continue
-                self.metrics.position(t_s, vehicle.id, vehicle.state.x_m, vehicle.state.y_m)
-                if not vehicle.lost:
-                    self.feed(self.telemetry(t_s, vehicle))
-            if self.world.boat is not None and self.core.config.priority_gain > 0:
-                self.feed(BoatPosition(t_s, self.world.boat.x_m, self.world.boat.y_m))
-            on_second = t_s >= next_sample_s - 1e-9
-            if on_second and self.deck is not None:
-                self.feed(self.ship_fix(t_s))
-            if on_second and not self.scenario.wind.calm:
-                self.report_wind(t_s)
-            self.feed(Tick(t_s))
-            if on_second:
-                self.sample(t_s)
-                next_sample_s += 1.0
-                if self.options.progress is not None:
-                    self.options.progress(t_s, self.duration_s)
-            if k == steps:
-                break
-            wind_xy_m_s = self.wind.at(t_s + 0.5 * self.dt_s)
-            for vehicle in self.vehicles.values():
-                if self.deck is not None and not self.fly_on_watch(t_s, vehicle, wind_xy_m_s):
-                    continue
-                if vehicle.step(t_s, self.dt_s, wind_xy_m_s) and not vehicle.lost and (
-                    vehicle.commanded
-                ):
-                    if self.options.journal:
-                        self.run.journal.append({"event": "loiter_end", "t": t_s + self.dt_s,
-                                                 "vehicle": vehicle.id})
-                    self.feed(LoiterEnded(t_s + self.dt_s, vehicle.id))
-            self.world.step(self.dt_s)
-            positions = {v.id: (v.state.x_m, v.state.y_m) for v in self.vehicles.values()}
-            if self.discovery is not None:
-                for event in self.discovery.observe(self.world, positions,
-                                                    lambda v: self.vehicles[v].lost):
-                    self.feed_observed(event)
-                continue
-            for m in self.world.observe(positions):
-                if self.vehicles[m.vehicle].lost:
-                    continue
-                self.feed_observed(Detection(m.t_s, m.vehicle, m.target, m.x_m, m.y_m, m.r_m2))
+                for m in self.world.observe(positions):
+                    if self.vehicles[m.vehicle].lost:
+                        continue
+                    self.feed_observed(Detection(m.t_s, m.vehicle, m.target, m.x_m, m.y_m, m.r_m2))
+        except KeyboardInterrupt:
+            # Ctrl-C: the run so far is a run of that length (metrics, journal); the
+            # frontend keeps it and says so
+            self.run.interrupted_at_s = t_s
+            self.duration_s = max(t_s, self.dt_s)
         wall = time.perf_counter() - wall_start
         metrics = self.metrics.to_dict(wall)
         metrics["realtime_factor"] = self.duration_s / wall if wall > 0 else math.inf
@@ -428,6 +438,8 @@ class _Simulation:
         metrics["uavs"] = len(self.vehicles)
         metrics["seed"] = self.options.seed
         metrics["duration_s"] = self.duration_s
+        if self.run.interrupted_at_s is not None:
+            metrics["interrupted_at_s"] = self.run.interrupted_at_s
         metrics["policy"] = self.core.config.policy.describe()
         metrics["objective"] = self.core.config.objective
         metrics["wind"] = wind_record(self.scenario.wind)

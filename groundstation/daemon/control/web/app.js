@@ -270,7 +270,8 @@
         "<td></td><td></td><td></td><td></td><td></td><td class=route></td>" +
         "<td class='write-only actions'><button data-act=launch title='arm, take off, hand over to floe'>launch</button>" +
         "<button data-act=release title='stop commanding it'>release</button>" +
-        "<button data-act=resume title='give it back to floe'>resume</button></td>";
+        "<button data-act=resume title='give it back to floe'>resume</button>" +
+        "<button data-act=rtl title='send it home (RTL); resume gives it back'>rtl</button></td>";
       return row;
     }, (row, v, index) => {
       const c = row.cells;
@@ -974,11 +975,51 @@
       setMode("select");
       const id = app.selected;
       const reply = await api("PUT", "/api/targets/" + encodeURIComponent(id), pos);
-      if (reply) notice("target " + id + " fixed at (" + pos.x_m + ", " + pos.y_m + ") m");
+      if (reply) {
+        notice("target " + id + " re-seated at (" + fmt(reply.x_m, 1) + ", " + fmt(reply.y_m, 1) +
+               ") m, sigma " + fmt(reply.sigma, 1) + " m²");
+      }
     } else {
       const t = nearestTarget(px, py);
       select(t ? t.id : null);
     }
+  }
+
+  // Fleet actions: each asks for a confirmation, then shows each vehicle's answer.
+  const FLEET_WORDS = { release: "Release", rtl: "Send home (RTL)", resume: "Resume" };
+  function setupFleet() {
+    let pending = null;
+    const ask = $("fleet-confirm");
+    const answer = $("fleet-answer");
+    $("fleet").addEventListener("click", (e) => {
+      const button = e.target.closest("button[data-fleet]");
+      if (!button) return;
+      pending = button.dataset.fleet;
+      const n = ((app.doc && app.doc.vehicles) || []).length;
+      $("fleet-question").textContent = FLEET_WORDS[pending] + " all " + n + " vehicles?";
+      ask.hidden = false;
+      $("fleet-yes").focus();
+    });
+    $("fleet-no").onclick = () => { pending = null; ask.hidden = true; };
+    $("fleet-yes").onclick = async () => {
+      const action = pending;
+      pending = null;
+      ask.hidden = true;
+      if (!action) return;
+      const reply = await api("POST", "/api/fleet/" + action);
+      if (!reply) return;
+      answer.replaceChildren();
+      for (const r of reply.results || []) {
+        const li = document.createElement("li");
+        li.textContent = r.ok ? (r.what || ("vehicle " + r.vehicle + ": done"))
+          : "vehicle " + r.vehicle + " refused: " + r.error;
+        if (!r.ok) li.className = "error";
+        li.dataset.vehicle = r.vehicle;
+        answer.appendChild(li);
+      }
+      notice(action + " all: " + reply.done + " done, " + reply.refused + " refused",
+             reply.refused > 0);
+    };
   }
 
   function setupInteraction() {
@@ -1051,8 +1092,9 @@
       const id = button.closest("tr").dataset.id;
       const act = button.dataset.act;
       const reply = await api("POST", "/api/vehicles/" + encodeURIComponent(id) + "/" + act);
-      if (reply) notice(act + ": vehicle " + (reply.vehicle || id) + " ok");
+      if (reply) notice(reply.what || (act + ": vehicle " + (reply.vehicle || id) + " ok"));
     });
+    setupFleet();
     window.addEventListener("keydown", (e) => {
       if (e.target instanceof HTMLInputElement) return;
       if (e.key === "Escape") setMode("select");
