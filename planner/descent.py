@@ -170,6 +170,34 @@ class Descent:
             x = node
         return cost + self._tail(v, q + 1, x, hops)
 
+    # -- construction --------------------------------------------------------------------
+    def build_greedy(self, order: Sequence[int], n_uavs: int) -> list[list[int]]:
+        """Cheapest insertion of the targets in `order`, each at the best of the slots first
+        after a UAV (every UAV) and just before or after its placed neighbours (O(1) per slot
+        from the route arrays): the large-instance greedy (planner.heuristics.greedy)."""
+        self.load([[] for _ in range(n_uavs)])
+        placed = [False] * len(self.sigma)
+        routes, C = self.routes, self.C
+        wu, wp = self.where_u, self.where_p
+        m = self.m
+        for k in order:
+            slots = [(v, 0) for v in range(n_uavs)]
+            for j in self.neighbours[k]:
+                if j >= m and placed[j - m]:
+                    v, q = wu[j - m], wp[j - m]
+                    slots.append((v, q))
+                    slots.append((v, q - 1))
+            best = (float("inf"), 0, 0)
+            for v, q in slots:
+                delta = self._chain_after(v, q, (k,)) - C[v][len(routes[v])]
+                if delta < best[0]:
+                    best = (delta, v, q)
+            _, v, q = best
+            routes[v].insert(q, k)
+            placed[k] = True
+            self._refresh(v)
+        return [list(r) for r in routes]
+
     # -- the descent ---------------------------------------------------------------------
     def run(self, routes: Sequence[Sequence[int]], active: Sequence[int] | None = None,
             move_cap: int = 20_000) -> list[list[int]]:
