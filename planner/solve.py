@@ -62,12 +62,12 @@ POSITION_BUILD_S_PER_VAR = 5e-6  # position model build per LP column (0.115-0.1
 ORTOOLS_IMPORT_S = 0.4  # first CP-SAT run in a process: importing OR-Tools (wall, measured)
 END_MARGIN = 0.03  # fraction of the limit kept for the result (evaluate, idle rule)
 CPSAT_STOP_S = 0.1  # CP-SAT overruns max_time_in_seconds by this much (measured 0.05-0.12 s)
-LS_FIRST_SHARE = 0.3  # above 30 targets: the search runs to this share of the limit first
-LP_CPU_SHARE = 0.5  # the LP may use at most this share of the CPU left (the search the rest)
+LS_FIRST_SHARE = 0.2  # above 30 targets: the search runs to this share of the limit first
+LP_CPU_SHARE = 0.6  # the LP may use at most this share of the CPU left (the search the rest)
 LP_END_RESERVE = 0.1  # HiGHS's wall limit ends this share of the limit before the deadline
 CG_CANDIDATES = 6  # column generation: cheapest predecessors per target in the first round
 DETERMINISTIC_CG_ROUNDS = 3  # deterministic mode: column-generation rounds, not time
-CG_S_PER_COLUMN = 1e-5  # HiGHS CPU per restricted-LP z column (cg_round_cpu_s)
+CG_S_PER_COLUMN = 6e-6  # HiGHS CPU per restricted-LP z column (cg_round_cpu_s)
 CG_S_PER_COLUMN2 = 2e-9  # ... growing with the number of columns
 CG_S_PER_PRICE = 2.5e-7  # pricing CPU per column of the full LP (costs, reduced costs)
 
