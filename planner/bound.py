@@ -180,8 +180,16 @@ class _Pricing:
     """Duals of a (restricted) layered LP priced over every column (see lp_bound)."""
 
     value: float  # safe bound on J - C
-    reduced_a: FloatArray  # m x n
+    reduced_a: FloatArray  # m x n: r = c - A^T y
     reduced_z: FloatArray  # P - 1 x n x n
+    into: FloatArray  # n: min r over the columns into each target
+
+    def fixing(self) -> tuple[FloatArray, FloatArray]:
+        """A plan using column k (into j) costs at least value + r_k - into_j (>= 0)."""
+        return (
+            np.maximum(self.reduced_a - self.into[None, :], 0.0),
+            np.maximum(self.reduced_z - self.into[None, None, :], 0.0),
+        )
 
 
 def _price(
@@ -208,10 +216,7 @@ def _price(
     if layers >= 2:
         into = np.minimum(into, red_z.min(axis=(0, 1)))
     value = float(y_eq.sum() + y_ub[:m].sum() + into.sum())
-    # a plan using column k (into j) costs at least value + r_k - min_(into j) r
-    red_a = np.maximum(red_a - into[None, :], 0.0)
-    red_z = np.maximum(red_z - into[None, None, :], 0.0)
-    return _Pricing(value, red_a, red_z)
+    return _Pricing(value, red_a, red_z, into)
 
 
 def _restricted_lp(
@@ -343,11 +348,12 @@ def lp_bound(
     if best is None:
         return None
     ti, tj = _arc_index(n)
-    reduced_z = best.reduced_z[:, ti, tj].ravel() if n_layers else np.zeros(0)
+    fix_a, fix_z = best.fixing()
+    reduced_z = fix_z[:, ti, tj].ravel() if n_layers else np.zeros(0)
     return LpBound(
         value=inst.constant + best.value,
         layers=layers,
-        reduced=np.concatenate([best.reduced_a.ravel(), reduced_z]),
+        reduced=np.concatenate([fix_a.ravel(), reduced_z]),
         lp_time_s=time.perf_counter() - start,
         rounds=solved,
     )

@@ -17,7 +17,7 @@ from collections.abc import Callable
 
 Clock = Callable[[], float]
 
-MIN_RATE = 0.05
+MIN_RATE = 0.01
 MIN_SAMPLE_S = 0.02  # below this the CPU clock's granularity makes the rate meaningless
 
 

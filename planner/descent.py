@@ -47,6 +47,9 @@ NEIGHBOURS = 10
 0.1 % at 10x50-50x250 (measured, docs/planner.md) at a fraction of their cost."""
 
 
+GREEDY_POLL_EVERY = 16  # the neighbour greedy polls the deadline every this many targets
+
+
 def neighbour_lists(inst: Instance, count: int = NEIGHBOURS) -> list[list[int]]:
     """Per target k: the `count` nodes (UAV u as u, target t as m + t) nearest to k by
     min(d_net[k, j], d_net[j, k]), ties by node index."""
@@ -180,7 +183,11 @@ class Descent:
         routes, C = self.routes, self.C
         wu, wp = self.where_u, self.where_p
         m = self.m
-        for k in order:
+        for at, k in enumerate(order):
+            if at % GREEDY_POLL_EVERY == 0 and self.should_stop():
+                # out of time: the rest go in after their nearest placed node, uncosted
+                self._append_rest(order[at:], placed, n_uavs)
+                break
             slots = [(v, 0) for v in range(n_uavs)]
             for j in self.neighbours[k]:
                 if j >= m and placed[j - m]:
@@ -197,6 +204,28 @@ class Descent:
             placed[k] = True
             self._refresh(v)
         return [list(r) for r in routes]
+
+    def _append_rest(self, rest: Sequence[int], placed: list[bool], n_uavs: int) -> None:
+        """Each target of `rest` right after its nearest placed neighbour (a UAV: first on
+        its route; none placed: first on UAV 0's), O(neighbours) each, then the arrays."""
+        m, routes = self.m, self.routes
+        for k in rest:
+            u, pos = 0, 0
+            for j in self.neighbours[k]:
+                if j < m:
+                    u, pos = j, 0
+                    break
+                if placed[j - m]:
+                    t = j - m
+                    u = self.where_u[t]
+                    pos = routes[u].index(t) + 1
+                    break
+            routes[u].insert(pos, k)
+            placed[k] = True
+            for p, t in enumerate(routes[u], 1):
+                self.where_u[t], self.where_p[t] = u, p
+        for u in range(n_uavs):
+            self._refresh(u)
 
     # -- the descent ---------------------------------------------------------------------
     def run(self, routes: Sequence[Sequence[int]], active: Sequence[int] | None = None,

@@ -66,7 +66,7 @@ LS_FIRST_SHARE = 0.2  # above 30 targets: the search runs to this share of the l
 LP_CPU_SHARE = 0.6  # the LP may use at most this share of the CPU left (the search the rest)
 LP_END_RESERVE = 0.1  # HiGHS's wall limit ends this share of the limit before the deadline
 CG_CANDIDATES = 6  # column generation: cheapest predecessors per target in the first round
-DETERMINISTIC_CG_ROUNDS = 3  # deterministic mode: column-generation rounds, not time
+DETERMINISTIC_CG_ROUNDS = 2  # deterministic mode: column-generation rounds, not time
 CG_S_PER_COLUMN = 6e-6  # HiGHS CPU per restricted-LP z column (cg_round_cpu_s)
 CG_S_PER_COLUMN2 = 2e-9  # ... growing with the number of columns
 CG_S_PER_PRICE = 2.5e-7  # pricing CPU per column of the full LP (costs, reduced costs)
@@ -381,7 +381,9 @@ class PlanSolver:
                 if layers < MIN_LAYERS:
                     return None
                 return lp_bound(inst, layers, max(10.0 * limit, 10.0))
-            layers = min(n, cg_layer_cap(n, m))
+            # as many positions as the full LP had before column generation (never more
+            # work than it), solved by DETERMINISTIC_CG_ROUNDS rounds
+            layers = choose_layers(n, m, layer_cap(n, m, mid), DETERMINISTIC_LP_COLUMNS)
             if layers < MIN_LAYERS:
                 return None
             return lp_bound(
