@@ -3,22 +3,29 @@
 Pipeline: 10 % rule and distances (planner.instance); no kept target -> trivial optimum;
 where the subset DP is cheap (planner.exact_dp.dp_is_cheap, by measured cost per fleet size)
 -> exact DP; otherwise greedy insertion, the previous plan (hint) if it is better, iterated
-local search, a proven lower bound (planner.bound: the layered LP where it fits the budget,
-else the in-arc bound), then CP-SAT hinted with the best plan (planner.cpsat_model) where it
-pays: the position model (sequence objective, <= 30 targets) with every variable whose LP
-reduced cost exceeds the incumbent's gap fixed to 0, or the circuit model up to 60 targets
-when the time left covers its build. The result is the best plan by its exact float
+local search, a proven lower bound (planner.bound: the layered LP, by column generation
+above 30 targets, where it fits the CPU budget, else the in-arc bound), then CP-SAT hinted
+with the best plan (planner.cpsat_model) where it pays: the position model (sequence
+objective, <= 30 targets) with every variable whose LP reduced cost exceeds the incumbent's
+gap fixed to 0, or the circuit model (arrival and latency, up to 60 targets) when the CPU
+left covers its build. The result is the best plan by its exact float
 objective; status "optimal" when the DP ran or CP-SAT proved optimality, "feasible" when
 CP-SAT found a plan, "fallback" otherwise (the heuristic plan).
 
 Every result carries `bound` (a proven lower bound on J; = objective when optimal) and
 `gap` = (objective - bound) / |objective| (0 when both are 0, None when only the objective is).
 
-Deadlines are compute budgets measured with `clock` (time.perf_counter; no mission clock is
-read), polled by every phase: the local search between moves and per scan row, the LP and
-CP-SAT by their own time limits, sized from the time left. With deterministic=True nothing
-depends on the wall clock: the local search has a fixed iteration budget, the LP a fixed
-size, and CP-SAT runs one worker with max_deterministic_time.
+Deadlines are wall time measured with `clock` (time.perf_counter; no mission clock is
+read); phases whose cost is known in CPU (the LP, CP-SAT's build) are sized by the CPU the
+solve actually obtains (planner.budget: rate = `cpu_clock` time per wall second so far,
+times the wall time left), a phase that does not fit is not started, and HiGHS and CP-SAT
+get the wall time left as their own limits (an unfinished LP round hands back the bound of
+the rounds before). The local search gets everything else and polls the deadline before
+each target's moves, stopping when the next poll would come late (planner.budget.Poll).
+The rule is measured and stated in docs/planner.md ("Time budget"). With
+deterministic=True nothing depends on the wall clock: the local search has a fixed
+iteration budget, the LP a fixed size and number of rounds, and CP-SAT runs one worker with
+max_deterministic_time.
 """
 
 from __future__ import annotations
@@ -62,13 +69,15 @@ POSITION_BUILD_S_PER_VAR = 5e-6  # position model build per LP column (0.115-0.1
 ORTOOLS_IMPORT_S = 0.4  # first CP-SAT run in a process: importing OR-Tools (wall, measured)
 END_MARGIN = 0.03  # fraction of the limit kept for the result (evaluate, idle rule)
 CPSAT_STOP_S = 0.1  # CP-SAT overruns max_time_in_seconds by this much (measured 0.05-0.12 s)
-LS_FIRST_SHARE = 0.2  # above 30 targets: the search runs to this share of the limit first
+LS_FIRST_SHARE = 0.2  # above 30 targets: the first search ends by this share of the limit,
+FIRST_KICKS = 20  # or after its first descent and this many kicks (the LP then gets more CPU)
 LP_CPU_SHARE = 0.6  # the LP may use at most this share of the CPU left (the search the rest)
 LP_END_RESERVE = 0.1  # HiGHS's wall limit ends this share of the limit before the deadline
 CG_CANDIDATES = 6  # column generation: cheapest predecessors per target in the first round
 DETERMINISTIC_CG_ROUNDS = 2  # deterministic mode: column-generation rounds, not time
 CG_S_PER_COLUMN = 6e-6  # HiGHS CPU per restricted-LP z column (cg_round_cpu_s)
 CG_S_PER_COLUMN2 = 2e-9  # ... growing with the number of columns
+CG_S_PER_FIRST = 4e-6  # HiGHS CPU per a column (first targets, m n of them)
 CG_S_PER_PRICE = 2.5e-7  # pricing CPU per column of the full LP (costs, reduced costs)
 
 Clock = Callable[[], float]
@@ -192,11 +201,13 @@ def cg_layer_cap(n: int, m: int) -> int:
 def cg_round_cpu_s(n: int, m: int, layers: int) -> float:
     """Estimated CPU of one column-generation round with P = `layers` (quiet machine):
     HiGHS on the restricted LP, Z = (P - 1) n (CG_CANDIDATES + 1) z columns at
-    Z (1e-5 + 2e-9 Z) s (measured 10-33 us per column from 10x50 to 50x500, growing with
-    the LP), plus pricing every column of the full LP."""
+    Z (6e-6 + 2e-9 Z) s (measured 10-33 us per column from 10x50 to 50x500, growing with
+    the LP) and 4 us per a column (P = 2 at 50x250: 0.09 CPU-s), plus pricing every column
+    of the full LP."""
     z_cols = (layers - 1) * n * (CG_CANDIDATES + 1)
     full = (layers - 1) * n * n
-    return 0.01 + z_cols * (CG_S_PER_COLUMN + CG_S_PER_COLUMN2 * z_cols) + CG_S_PER_PRICE * full
+    highs = z_cols * (CG_S_PER_COLUMN + CG_S_PER_COLUMN2 * z_cols) + CG_S_PER_FIRST * m * n
+    return 0.01 + highs + CG_S_PER_PRICE * full
 
 
 def lp_seconds(columns: int) -> float:
@@ -309,7 +320,8 @@ class PlanSolver:
                 first = 1.0
             poll.restart(min(end, start + first * limit))
             patience = 20 if mid else None
-            routes, best_cost = ls.run(routes, 10**9, patience=patience)
+            kicks = 10**9 if mid or method == "heuristic" else FIRST_KICKS
+            routes, best_cost = ls.run(routes, kicks, patience=patience)
         self._mark("search")
         if method == "heuristic" or stop():
             hit = not stop()
