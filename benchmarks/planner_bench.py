@@ -2,6 +2,8 @@
 
     nice -n 10 python benchmarks/planner_bench.py --sizes 1x10,1x16,3x10,5x20,10x50 \
         --seeds 10 --solvers floe,mtz-highs,mtz-scip,mtz-cpsat --json rows.jsonl
+    python benchmarks/planner_bench.py --sizes 10x50,20x100,50x250,50x500 --seeds 10 \
+        --solvers floe,reflocal --busy 2 --json busy.jsonl     # issue 30: busy machine
     python benchmarks/planner_bench.py --report rows.jsonl     # the table again
 
 Instances: UAVs and targets uniform in [0, 1500]^2, UAV headings uniform, sigma uniform in

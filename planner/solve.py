@@ -157,12 +157,14 @@ def lp_ready() -> bool:
     return "scipy.optimize" in sys.modules
 
 
-def load_lp(limit_s: float) -> bool:
-    """Import scipy's LP now if it is not loaded and its import takes at most half the time
-    limit (the rest of the solve is then planned with the import paid)."""
+def load_lp(cpu_left_s: float, lp_cpu_s: float) -> bool:
+    """Whether scipy's LP is loaded, importing it first when its import (SCIPY_IMPORT_S of
+    CPU) and the LP (`lp_cpu_s`) fit the CPU left; a solve that cannot afford the import
+    does not start it (until issue 30 it was imported at the start of any solve with a limit
+    of 1 s or more: 2.5 s of wall time for a 1 s `gcs plan` 10x50 at load 30)."""
     if lp_ready():
         return True
-    if 0.5 * limit_s < SCIPY_IMPORT_S:
+    if SCIPY_IMPORT_S + lp_cpu_s > cpu_left_s:
         return False
     importlib.import_module("scipy.optimize")
     return True
@@ -287,8 +289,6 @@ class PlanSolver:
             sequence = inst.unit_hops  # the sequence objective (all hops 1)
             kind = "position" if sequence and n <= POSITION_MODEL_MAX_TARGETS else "circuit"
         mid = n <= POSITION_MODEL_MAX_TARGETS  # CP-SAT usually proves these: it gets the time
-        if method != "heuristic" and not self.deterministic:
-            load_lp(limit)
         # -- heuristic start
         poll = Poll(clock, end)
         stop = self._stop.is_set
@@ -297,6 +297,7 @@ class PlanSolver:
         else:
             ls = LocalSearch(inst, self.random_seed, lambda: stop() or poll())
         self.local_search = ls
+        self._mark("setup")  # route costs as lists, neighbour lists
         routes = ls.greedy()
         best_cost = ls.coster.total(routes)
         if self.hint:
@@ -411,8 +412,9 @@ class PlanSolver:
             layers = choose_layers(n, m, layer_cap(n, m, mid), LP_MAX_COLUMNS)
             while layers >= MIN_LAYERS and lp_seconds(lp_columns(n, m, layers)) > cpu_left:
                 layers -= 1 if layers <= 8 else max(1, layers // 4)
-            if layers < MIN_LAYERS:
+            if layers < MIN_LAYERS or not load_lp(cpu_left, 0.0):  # lp_seconds has the import
                 return None
+            wall_left = end - self.clock() - LP_END_RESERVE * limit
             return lp_bound(inst, layers, wall_left)
         layers = min(n, cg_layer_cap(n, m))
         while layers >= MIN_LAYERS and cg_round_cpu_s(n, m, layers) > cpu_left:
@@ -420,6 +422,14 @@ class PlanSolver:
         if layers < MIN_LAYERS:
             return None
         round_cpu = cg_round_cpu_s(n, m, layers)
+        if not lp_ready():
+            while layers >= MIN_LAYERS and not load_lp(cpu_left, cg_round_cpu_s(n, m, layers)):
+                layers -= 1 if layers <= 8 else max(1, layers // 4)
+            if layers < MIN_LAYERS:
+                return None
+            round_cpu = cg_round_cpu_s(n, m, layers)
+            cpu_left = budget.cpu_left_s() * LP_CPU_SHARE  # after the import
+            wall_left = end - self.clock() - LP_END_RESERVE * limit
         lp_start = budget.cpu()
 
         def no_more_rounds() -> bool:

@@ -225,3 +225,41 @@ def test_circuit_model_only_where_it_pays(
     p = random_problem(7, 4, 40, time_limit_s=5.0, objective=objective)
     PlanSolver(p, clock=clocks.wall, cpu_clock=clocks.cpu).solve()
     assert (RecordingRun.built == ["circuit"]) is circuit
+
+
+_IMPORT_PROBE = """
+import sys
+sys.path.insert(0, {tests!r})
+from planner_fixtures import random_problem
+from planner import PlanSolver
+
+class Clocks:
+    t = 0.0
+    def wall(self):
+        self.t += 5e-4
+        return self.t
+    def cpu(self):
+        return {rate} * self.t
+
+c = Clocks()
+PlanSolver(random_problem(6, 10, 50, time_limit_s={limit}), clock=c.wall, cpu_clock=c.cpu).solve()
+print("scipy.optimize" in sys.modules)
+"""
+
+
+@pytest.mark.parametrize(("rate", "limit_s", "imported"), [(0.2, 1.0, False), (1.0, 5.0, True)])
+def test_scipy_is_imported_only_when_the_lp_can_pay_for_it(
+    rate: float, limit_s: float, imported: bool
+) -> None:
+    """A fresh process: the LP's first solve imports scipy (0.3-0.5 CPU-s) only when the
+    import and the LP fit the CPU left. Before issue 30 any solve with a limit of 1 s or more
+    imported it first thing (2.5 s of wall time for a 1 s `gcs plan` 10x50 at load 30)."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    code = _IMPORT_PROBE.format(tests=str(Path(__file__).parent), rate=rate, limit=limit_s)
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=110, check=True
+    )
+    assert out.stdout.strip().splitlines()[-1] == str(imported)
