@@ -23,9 +23,16 @@ Two bounds, both valid for every objective:
   >= P"; its arcs cost as at P, and they may also leave from layer P itself), which keeps the
   LP small on big fleets and only weakens it. This is the time-indexed travelling-repairman
   formulation (the CP-SAT position model's LP). The value returned is a *safe dual bound*:
-  with HiGHS's duals y and reduced costs r = c - A^T y, b^T y + sum_j min(r_j, 0) (every column
-  is <= 1) bounds the LP optimum from below whatever the solver's tolerances, so rounding never
-  lets the bound exceed the optimum.
+  with any duals y (y <= 0 on the <= rows) and reduced costs r = c - A^T y, for every LP
+  solution x, c^T x = r^T x + y_eq^T A_eq x + y_ub^T A_ub x >= sum_j min_(k into j) r_k
+  + 1^T y_eq + b_ub^T y_ub, since the columns into target j sum to exactly 1 and
+  A_ub x <= b_ub. So it bounds the LP optimum (and J - C) from below whatever the solver's
+  tolerances, and whichever columns HiGHS saw: this is what makes *column generation*
+  sound. Above 30 targets the LP starts from a few columns per target (its K cheapest
+  predecessors and the incumbent plan's arcs), each round prices every column with the
+  duals of the restricted LP and adds the most negative per (position, target); each
+  round's bound is valid, the best one is kept (it reaches the full LP's optimum when no
+  column is negative). A round costs a fraction of the full LP (docs/planner.md).
 
 scipy (HiGHS inside) is imported lazily: small instances are solved exactly by the DP and never
 need it. highspy itself cannot be loaded next to OR-Tools (their bundled HiGHS builds clash).
@@ -34,6 +41,8 @@ need it. highspy itself cannot be loaded next to OR-Tools (their bundled HiGHS b
 from __future__ import annotations
 
 import math
+import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -60,6 +69,7 @@ class LpBound:
     layers: int  # P: positions 1..P, the last absorbing if P < n
     reduced: FloatArray
     lp_time_s: float
+    rounds: int = 1  # column generation: restricted LPs solved (1: the full LP)
 
 
 def h_min(inst: Instance) -> float:
@@ -147,61 +157,99 @@ def _arc_index(n: int) -> tuple[IntArray, IntArray]:
     return i.astype(np.int64), j.astype(np.int64)
 
 
-def lp_bound(inst: Instance, layers: int, time_limit_s: float) -> LpBound | None:
-    """Solve the layered LP with P = `layers` positions (at least 2 when n >= 2); None if
-    HiGHS does not finish within `time_limit_s`."""
-    import time
-
-    from scipy.optimize import linprog
-    from scipy.sparse import coo_matrix
-
-    start = time.perf_counter()
+def _layered_costs(inst: Instance, layers: int) -> tuple[FloatArray, FloatArray]:
+    """Column costs: a[u, j] (m x n) and z[p, i, j] (P - 1 x n x n, index p - 2, +inf on
+    the diagonal): w_uj + b h_uj sigma_j and w_ij + b sigma_j (h_ij + L[p - 1, i])."""
     m, n = inst.m, inst.n
-    if n == 0 or layers < 1:
-        return None
     b = 1.0 - inst.tau
     w = inst.arc_weight()
     hop = inst.hop
     sigma = inst.sigma
+    cost_a = w[:m, m:] + b * hop[:m, m:] * sigma[None, :]
     reach = hops_to_reach(inst)
-    layers = max(min(layers, n), min(2, n))  # with n >= 2 the absorbing layer needs P >= 2
+    tw = w[m:, m:] + b * hop[m:, m:] * sigma[None, :]
+    cost_z = np.empty((max(layers - 1, 0), n, n))
+    for pz in range(layers - 1):  # position p = pz + 2 leaves i at position p - 1 = pz + 1
+        cost_z[pz] = tw + b * sigma[None, :] * reach[pz + 1][:, None]
+        np.fill_diagonal(cost_z[pz], np.inf)
+    return cost_a, cost_z
+
+
+@dataclass
+class _Pricing:
+    """Duals of a (restricted) layered LP priced over every column (see lp_bound)."""
+
+    value: float  # safe bound on J - C
+    reduced_a: FloatArray  # m x n: r = c - A^T y
+    reduced_z: FloatArray  # P - 1 x n x n
+    into: FloatArray  # n: min r over the columns into each target
+
+    def fixing(self) -> tuple[FloatArray, FloatArray]:
+        """A plan using column k (into j) costs at least value + r_k - into_j (>= 0)."""
+        return (
+            np.maximum(self.reduced_a - self.into[None, :], 0.0),
+            np.maximum(self.reduced_z - self.into[None, None, :], 0.0),
+        )
+
+
+def _price(
+    m: int, n: int, layers: int, cost_a: FloatArray, cost_z: FloatArray,
+    y_eq: FloatArray, y_ub: FloatArray,
+) -> _Pricing:
+    """Reduced costs r = c - A^T y of every column, and the safe bound
+        b^T y + sum_j min_(columns k into j) r_k,
+    valid for any y_eq and any y_ub <= 0 (lp_bound's docstring)."""
+    y_ub = np.minimum(y_ub, 0.0)
     absorbing = layers < n
-    # -- columns: a[u, j] (u-major), then z[i, j, p] for p = 2..P, arcs i-major within p
-    ai, aj = np.divmod(np.arange(m * n, dtype=np.int64), n)
-    cost_a = w[ai, m + aj] + b * hop[ai, m + aj] * sigma[aj]
-    ti, tj = _arc_index(n)
-    n_arc = len(ti)
-    n_z = (layers - 1) * n_arc
-    p_of = np.repeat(np.arange(2, layers + 1, dtype=np.int64), n_arc)
-    zi = np.tile(ti, layers - 1)
-    zj = np.tile(tj, layers - 1)
-    cost_z = w[m + zi, m + zj] + b * sigma[zj] * (hop[m + zi, m + zj] + reach[p_of - 1, zi])
-    cost = np.concatenate([cost_a, cost_z])
+    leave = y_ub[m:].reshape(max(layers - 1, 0), n)  # leave[p - 2, i]: leave i into p
+    red_a = cost_a - y_eq[None, :] - y_ub[:m, None]
+    if layers >= 2:
+        red_a = red_a + leave[0][None, :]
+    red_z = cost_z - y_eq[None, None, :] - leave[:, :, None]
+    if layers >= 2:
+        nxt = np.zeros_like(leave)
+        nxt[:-1] = leave[1:]
+        if absorbing:
+            nxt[-1] = leave[-1]
+        red_z += nxt[:, None, :]
+    into = red_a.min(axis=0)
+    if layers >= 2:
+        into = np.minimum(into, red_z.min(axis=(0, 1)))
+    value = float(y_eq.sum() + y_ub[:m].sum() + into.sum())
+    return _Pricing(value, red_a, red_z, into)
+
+
+def _restricted_lp(
+    m: int, n: int, layers: int, cost_a: FloatArray, cost_z: FloatArray,
+    zp: IntArray, zi: IntArray, zj: IntArray, time_limit_s: float,
+) -> tuple[FloatArray, FloatArray] | None:
+    """HiGHS on the layered LP with every a column and the z columns (zp, zi, zj) (zp =
+    p - 2); its duals (y_eq, y_ub), or None if it did not finish in time."""
+    from scipy.optimize import linprog
+    from scipy.sparse import coo_matrix
+
+    absorbing = layers < n
     n_a = m * n
-    col_z = n_a + np.arange(n_z, dtype=np.int64)
-    # -- equality rows: target j entered once
+    ai, aj = np.divmod(np.arange(n_a, dtype=np.int64), n)
+    cost = np.concatenate([cost_a.ravel(), cost_z[zp, zi, zj]])
+    col_z = n_a + np.arange(len(zp), dtype=np.int64)
     eq_rows = np.concatenate([aj, zj])
     eq_cols = np.concatenate([np.arange(n_a, dtype=np.int64), col_z])
     a_eq = coo_matrix((np.ones(len(eq_rows)), (eq_rows, eq_cols)), shape=(n, len(cost)))
-    b_eq = np.ones(n)
-    # -- inequality rows: UAV u (row u); leave i into layer p (row m + (p - 2) n + i), p = 2..P
-    rows = [ai, m + (p_of - 2) * n + zi]  # first: a in UAV rows; outs: +1
+    rows = [ai, m + zp * n + zi]
     cols = [np.arange(n_a, dtype=np.int64), col_z]
-    vals = [np.ones(n_a), np.ones(n_z)]
+    vals = [np.ones(n_a), np.ones(len(zp))]
     if layers >= 2:
-        # in(i, 1) = sum_u a[u, i] enters the row of layer 2 with -1
         rows.append(m + aj)
         cols.append(np.arange(n_a, dtype=np.int64))
         vals.append(-np.ones(n_a))
-        # in(j, p) (z into j at layer p) enters the row "leave j into p + 1" for p < P
-        inner = p_of < layers
-        rows.append(m + (p_of[inner] - 1) * n + zj[inner])
+        inner = zp < layers - 2
+        rows.append(m + (zp[inner] + 1) * n + zj[inner])
         cols.append(col_z[inner])
         vals.append(-np.ones(int(inner.sum())))
         if absorbing:
-            # the last layer also feeds itself: leaving j into P needs j in P - 1 or P
-            last = p_of == layers
-            rows.append(m + (layers - 2) * n + zj[last])
+            last = ~inner
+            rows.append(m + zp[last] * n + zj[last])
             cols.append(col_z[last])
             vals.append(-np.ones(int(last.sum())))
     n_ub = m + max(layers - 1, 0) * n
@@ -210,33 +258,104 @@ def lp_bound(inst: Instance, layers: int, time_limit_s: float) -> LpBound | None
         shape=(n_ub, len(cost)),
     )
     b_ub = np.concatenate([np.ones(m), np.zeros(n_ub - m)])
-    remaining = time_limit_s - (time.perf_counter() - start)
-    if remaining <= 0.0:
+    if time_limit_s <= 0.0:
         return None
     res = linprog(
         cost,
         A_ub=a_ub.tocsr(),
         b_ub=b_ub,
         A_eq=a_eq.tocsr(),
-        b_eq=b_eq,
+        b_eq=np.ones(n),
         bounds=(0.0, None),
         method="highs",
-        options={"time_limit": remaining, "presolve": False},  # presolve: slower here, and
-        # not interrupted by the time limit
+        options={"time_limit": time_limit_s, "presolve": False},  # presolve: slower here,
+        # and not interrupted by the time limit
     )
     if res.status != 0 or res.eqlin is None or res.ineqlin is None:
         return None
     y_eq = np.asarray(res.eqlin.marginals, dtype=float)
-    y_ub = np.minimum(np.asarray(res.ineqlin.marginals, dtype=float), 0.0)
-    reduced = cost - a_eq.T @ y_eq - a_ub.T @ y_ub
-    safe = float(b_eq @ y_eq + b_ub @ y_ub + np.minimum(reduced, 0.0).sum())
-    if not math.isfinite(safe):
+    y_ub = np.asarray(res.ineqlin.marginals, dtype=float)
+    if not (np.isfinite(y_eq).all() and np.isfinite(y_ub).all()):
         return None
+    return y_eq, y_ub
+
+
+def lp_bound(
+    inst: Instance,
+    layers: int,
+    time_limit_s: float,
+    *,
+    routes: list[list[int]] | None = None,
+    candidates: int | None = None,
+    rounds: int = 1_000,
+    should_stop: Callable[[], bool] | None = None,
+) -> LpBound | None:
+    """The layered LP with P = `layers` positions (at least 2 when n >= 2), as a proven
+    bound; None if no LP finished within `time_limit_s` (wall, HiGHS's own limit).
+
+    With `candidates` = K (column generation), the LP starts from every a column, the z
+    columns into each target j from its K cheapest predecessors, and the columns of
+    `routes` (a plan, so the restricted LP is feasible); each round solves it, prices every
+    column with its duals, keeps the best safe bound so far and adds, per (position, j), the
+    most negative column. It stops when none is negative (the bound is then the full LP's
+    optimum), after `rounds`, when `should_stop()` or when HiGHS does not finish: an
+    interrupted round hands back the best bound of the rounds before. Without `candidates`
+    the full LP is solved once."""
+    start = time.perf_counter()
+    m, n = inst.m, inst.n
+    if n == 0 or layers < 1:
+        return None
+    layers = max(min(layers, n), min(2, n))  # with n >= 2 the absorbing layer needs P >= 2
+    cost_a, cost_z = _layered_costs(inst, layers)
+    n_layers = layers - 1
+    if candidates is None or n_layers == 0:
+        mask = np.isfinite(cost_z)
+    else:
+        k = min(candidates, n - 1)
+        pred = np.argsort(cost_z[0], axis=0, kind="stable")[:k]  # k x n: cheapest into j
+        mask = np.zeros(cost_z.shape, dtype=bool)
+        mask[:, pred, np.arange(n)[None, :]] = True
+        for u, route in enumerate(routes or []):
+            del u
+            for pos in range(1, len(route)):
+                mask[min(pos + 1, layers) - 2, route[pos - 1], route[pos]] = True
+        mask &= np.isfinite(cost_z)
+    stop = should_stop or (lambda: False)
+    best: _Pricing | None = None
+    solved = 0
+    for _ in range(max(rounds, 1)):
+        zp, zi, zj = (a.astype(np.int64) for a in np.nonzero(mask))
+        remaining = time_limit_s - (time.perf_counter() - start)
+        duals = _restricted_lp(m, n, layers, cost_a, cost_z, zp, zi, zj, remaining)
+        if duals is None:
+            break
+        solved += 1
+        priced = _price(m, n, layers, cost_a, cost_z, duals[0], duals[1])
+        if not math.isfinite(priced.value):
+            break
+        if best is None or priced.value > best.value:
+            best = priced
+        if candidates is None or n_layers == 0 or stop():
+            break
+        # add per (position, j) the most negative column not yet in
+        raw = np.where(mask, np.inf, priced.reduced_z)
+        gain = raw.min(axis=1)  # P - 1 x n
+        arg = raw.argmin(axis=1)
+        add_p, add_j = np.nonzero(gain < -1e-9 * (abs(priced.value) + 1.0))
+        if len(add_p) == 0:
+            break
+        mask[add_p, arg[add_p, add_j], add_j] = True
+    if best is None:
+        return None
+    ti, tj = _arc_index(n)
+    fix_a, fix_z = best.fixing()
+    reduced_z = fix_z[:, ti, tj].ravel() if n_layers else np.zeros(0)
     return LpBound(
-        value=inst.constant + safe,
+        value=inst.constant + best.value,
         layers=layers,
-        reduced=np.maximum(reduced, 0.0),
+        reduced=np.concatenate([fix_a.ravel(), reduced_z]),
         lp_time_s=time.perf_counter() - start,
+        rounds=solved,
     )
 
 

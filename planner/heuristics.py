@@ -1,9 +1,11 @@
 """Greedy construction and iterated local search on the route costs of planner.instance.
 
 A plan is one list of kept-target indices per UAV; its value is constant + sum of
-route costs (Instance.route_cost). Moves (first improvement, repeated to a local optimum):
-relocate one target anywhere, or-opt (move a chain of 2-3, either orientation), swap two
-targets, 2-opt inside a route, tail exchange between two routes. Iterated local search
+route costs (Instance.route_cost). Moves (per target the best improving one, repeated to a
+local optimum):
+relocate a chain of 1-3 targets (either orientation), swap two targets, 2-opt inside a
+route, tail exchange between two routes, each next to a target's nearest nodes and costed
+incrementally (planner.descent). Iterated local search
 then kicks the plan (relocate a few random targets, or reverse a random chain) and keeps the
 result if it is better. Everything is driven by a seeded random.Random, so with an iteration
 budget (no deadline) it is deterministic.
@@ -15,6 +17,7 @@ import itertools
 import random
 from collections.abc import Callable, Sequence
 
+from planner.descent import Descent, neighbour_lists
 from planner.instance import Instance
 
 Routes = list[list[int]]
@@ -104,9 +107,21 @@ def best_insertion(
     return best
 
 
-def greedy(inst: Instance, coster: RouteCoster | None = None) -> Routes:
-    """Cheapest insertion, targets taken by decreasing sigma."""
+GREEDY_FULL_MAX = 20_000
+"""Above n (n + m) = this, the greedy tries only the slots next to a target's neighbours and
+after each UAV (planner.descent.Descent.build_greedy): every slot costs O(n) per target in
+Python, 0.29 CPU-s at 50x500 (0.05 s by neighbours)."""
+
+
+def greedy(
+    inst: Instance, coster: RouteCoster | None = None, descent: Descent | None = None
+) -> Routes:
+    """Cheapest insertion, targets taken by decreasing sigma (every slot; above
+    GREEDY_FULL_MAX the slots next to each target's neighbours, given `descent`)."""
     coster = coster or RouteCoster(inst)
+    if descent is not None and inst.n * (inst.n + inst.m) > GREEDY_FULL_MAX:
+        order = sorted(range(inst.n), key=lambda k: (-coster.sigma[k], k))
+        return descent.build_greedy(order, inst.m)
     routes: Routes = [[] for _ in range(inst.m)]
     costs = [0.0] * inst.m
     for k in sorted(range(inst.n), key=lambda k: (-coster.sigma[k], k)):
@@ -117,9 +132,10 @@ def greedy(inst: Instance, coster: RouteCoster | None = None) -> Routes:
 
 
 class LocalSearch:
-    """Iterated local search. `should_stop` (the caller's stop flag and deadline) is polled
-    after every improving move and once per outer loop of every neighbourhood scan, so a
-    deadline ends even the first descent within one scan row (O(n) route costs)."""
+    """Iterated local search. Descents are incremental (planner.descent: delta costs,
+    neighbour lists, don't-look bits). `should_stop` (the caller's stop flag and deadline)
+    is polled before every target's moves are evaluated (at most a few dozen O(1) move
+    costs), so a deadline ends even the first descent within a fraction of a millisecond."""
 
     def __init__(
         self,
@@ -131,133 +147,34 @@ class LocalSearch:
         self.coster = RouteCoster(inst)
         self.rng = random.Random(seed)
         self._caller_stop = should_stop or (lambda: False)
-        self._move_cap = MAX_DESCENT_MOVES
-        self.moves = 0  # improving moves applied (tests: the deadline is polled)
+        self._descent = Descent(
+            inst.m,
+            self.coster.w,
+            self.coster.h,
+            self.coster.sigma,
+            self.coster.b,
+            neighbour_lists(inst),
+            self._caller_stop,
+        )
+
+    def greedy(self) -> Routes:
+        """planner.heuristics.greedy with this search's neighbour lists."""
+        return greedy(self.inst, self.coster, self._descent)
+
+    @property
+    def moves(self) -> int:
+        """Improving moves applied so far (tests: the deadline is polled)."""
+        return self._descent.moves
 
     def should_stop(self) -> bool:
-        """The caller's stop, or this descent's move budget spent."""
-        return self._caller_stop() or self.moves >= self._move_cap
+        """The caller's stop."""
+        return self._caller_stop()
 
     # -- descent -------------------------------------------------------------------------
-    def descend(self, routes: Routes) -> Routes:
-        self._move_cap = self.moves + MAX_DESCENT_MOVES
-        routes = [list(r) for r in routes]
-        costs = [self.coster.cost(u, r) for u, r in enumerate(routes)]
-        improved = True
-        while improved and not self.should_stop():
-            improved = (
-                self._relocate(routes, costs, 1)
-                or self._relocate(routes, costs, 2)
-                or self._relocate(routes, costs, 3)
-                or self._swap(routes, costs)
-                or self._two_opt(routes, costs)
-                or self._tails(routes, costs)
-            )
-        return routes
-
-    def _relocate(self, routes: Routes, costs: list[float], length: int) -> bool:
-        coster = self.coster
-        found = False
-        for u in range(len(routes)):
-            pos = 0
-            while pos + length <= len(routes[u]):
-                route = routes[u]
-                chain = route[pos : pos + length]
-                rest = route[:pos] + route[pos + length :]
-                removed_cost = coster.cost(u, rest)
-                gain0 = costs[u] - removed_cost
-                saved = costs[u]
-                routes[u] = rest
-                costs[u] = removed_cost
-                options = [chain] if length == 1 else [chain, chain[::-1]]
-                best = (gain0 - _EPS, -1, -1, chain)
-                for option in options:
-                    delta, v, p = best_insertion(coster, routes, costs, option)
-                    if delta < best[0]:
-                        best = (delta, v, p, option)
-                if best[1] >= 0 and not (best[1] == u and best[2] == pos and best[3] == chain):
-                    # (putting the chain back where it was is no move, whatever rounding says)
-                    v, p, option = best[1], best[2], best[3]
-                    routes[v] = routes[v][:p] + option + routes[v][p:]
-                    costs[v] = coster.cost(v, routes[v])
-                    found = True
-                    self.moves += 1
-                    if self.should_stop():
-                        return True
-                else:
-                    routes[u] = route
-                    costs[u] = saved
-                    pos += 1
-                    if self.should_stop():
-                        return found
-        return found
-
-    def _swap(self, routes: Routes, costs: list[float]) -> bool:
-        coster = self.coster
-        found = False
-        places = [(u, p) for u, r in enumerate(routes) for p in range(len(r))]
-        for a in range(len(places)):
-            if self.should_stop():
-                return found
-            for c in range(a + 1, len(places)):
-                (u, p), (v, q) = places[a], places[c]
-                if u == v:
-                    r = list(routes[u])
-                    r[p], r[q] = r[q], r[p]
-                    new = coster.cost(u, r)
-                    if new < costs[u] - _EPS:
-                        routes[u], costs[u] = r, new
-                        found = True
-                        self.moves += 1
-                else:
-                    r1, r2 = list(routes[u]), list(routes[v])
-                    r1[p], r2[q] = r2[q], r1[p]
-                    n1, n2 = coster.cost(u, r1), coster.cost(v, r2)
-                    if n1 + n2 < costs[u] + costs[v] - _EPS:
-                        routes[u], routes[v], costs[u], costs[v] = r1, r2, n1, n2
-                        found = True
-                        self.moves += 1
-        return found
-
-    def _two_opt(self, routes: Routes, costs: list[float]) -> bool:
-        coster = self.coster
-        found = False
-        for u, route in enumerate(routes):
-            size = len(route)
-            for i in range(size - 1):
-                if self.should_stop():
-                    return found
-                for j in range(i + 2, size + 1):
-                    r = routes[u]
-                    cand = r[:i] + r[i:j][::-1] + r[j:]
-                    new = coster.cost(u, cand)
-                    if new < costs[u] - _EPS:
-                        routes[u], costs[u] = cand, new
-                        found = True
-                        self.moves += 1
-        return found
-
-    def _tails(self, routes: Routes, costs: list[float]) -> bool:
-        coster = self.coster
-        found = False
-        m = len(routes)
-        for u in range(m):
-            for v in range(u + 1, m):
-                if self.should_stop():
-                    return found
-                for i in range(len(routes[u]) + 1):
-                    for j in range(len(routes[v]) + 1):
-                        r1, r2 = routes[u], routes[v]
-                        if i == len(r1) and j == len(r2):
-                            continue
-                        c1 = r1[:i] + r2[j:]
-                        c2 = r2[:j] + r1[i:]
-                        n1, n2 = coster.cost(u, c1), coster.cost(v, c2)
-                        if n1 + n2 < costs[u] + costs[v] - _EPS:
-                            routes[u], routes[v], costs[u], costs[v] = c1, c2, n1, n2
-                            found = True
-                            self.moves += 1
-        return found
+    def descend(self, routes: Routes, active: Sequence[int] | None = None) -> Routes:
+        """A local optimum from `routes` (planner.descent); `active`: the targets whose
+        moves are tried first (all if None). At most MAX_DESCENT_MOVES improving moves."""
+        return self._descent.run(routes, active, MAX_DESCENT_MOVES)
 
     # -- perturbation ----------------------------------------------------------------------
     def kick(self, routes: Routes) -> Routes:
@@ -312,7 +229,9 @@ class LocalSearch:
             if patience is not None and since >= patience:
                 break
             since += 1
-            cand = self.descend(self.kick(current))
+            kicked = self.kick(current)
+            touched = [k for u, r in enumerate(kicked) if r != current[u] for k in r]
+            cand = self.descend(kicked, touched)
             cost = self.coster.total(cand)
             # accept improvements, and rarely a slightly worse plan to leave a basin
             # (costs are negative or positive: compare on the absolute scale)

@@ -70,11 +70,16 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from planner.dubins import dubins_distance_to_point
+from planner.dubins import dubins_distance_to_point, dubins_distances_to_points
 from planner.problem import Objective, PlanningProblem, ProblemError, wind_problem
 from planner.wind import first_leg_times_s, potential_s, straight_leg_times_s
 
 FloatArray = npt.NDArray[np.float64]
+
+DUBINS_SCALAR_MAX = 2_000
+"""Up to this many UAV -> target pairs the first legs are computed one by one (the plans of
+every daemon-sized problem stay bit for bit what they were); above, by numpy (0.11 -> 0.06
+CPU-s at 50x500)."""
 
 
 def kept_targets(problem: PlanningProblem) -> tuple[list[int], list[int]]:
@@ -209,11 +214,18 @@ def build_instance(problem: PlanningProblem) -> Instance:
     if wind is None:
         diff = xy[:, None, :] - xy[None, :, :]
         d = np.sqrt((diff**2).sum(axis=2))
-        for i, u in enumerate(uavs):
-            for k, t in enumerate(targets):
-                d[i, m + k] = dubins_distance_to_point(
-                    u.x_m, u.y_m, u.heading_rad, t.x_m, t.y_m, problem.turn_radius_m
-                )
+        if m * n > DUBINS_SCALAR_MAX:  # numpy, agrees to ~1e-15 relative (tested)
+            pose = np.array([(u.x_m, u.y_m, u.heading_rad) for u in uavs], dtype=float)
+            d[:m, m:] = dubins_distances_to_points(
+                pose[:, 0:1], pose[:, 1:2], pose[:, 2:3], xy[None, m:, 0], xy[None, m:, 1],
+                problem.turn_radius_m,
+            )
+        else:
+            for i, u in enumerate(uavs):
+                for k, t in enumerate(targets):
+                    d[i, m + k] = dubins_distance_to_point(
+                        u.x_m, u.y_m, u.heading_rad, t.x_m, t.y_m, problem.turn_radius_m
+                    )
         d_net = d
     else:
         d = _wind_costs(problem, xy, m, wind)

@@ -3,22 +3,29 @@
 Pipeline: 10 % rule and distances (planner.instance); no kept target -> trivial optimum;
 where the subset DP is cheap (planner.exact_dp.dp_is_cheap, by measured cost per fleet size)
 -> exact DP; otherwise greedy insertion, the previous plan (hint) if it is better, iterated
-local search, a proven lower bound (planner.bound: the layered LP where it fits the budget,
-else the in-arc bound), then CP-SAT hinted with the best plan (planner.cpsat_model) where it
-pays: the position model (sequence objective, <= 30 targets) with every variable whose LP
-reduced cost exceeds the incumbent's gap fixed to 0, or the circuit model up to 60 targets
-when the time left covers its build. The result is the best plan by its exact float
+local search, a proven lower bound (planner.bound: the layered LP, by column generation
+above 30 targets, where it fits the CPU budget, else the in-arc bound), then CP-SAT hinted
+with the best plan (planner.cpsat_model) where it pays: the position model (sequence
+objective, <= 30 targets) with every variable whose LP reduced cost exceeds the incumbent's
+gap fixed to 0, or the circuit model (arrival and latency, up to 60 targets) when the CPU
+left covers its build. The result is the best plan by its exact float
 objective; status "optimal" when the DP ran or CP-SAT proved optimality, "feasible" when
 CP-SAT found a plan, "fallback" otherwise (the heuristic plan).
 
 Every result carries `bound` (a proven lower bound on J; = objective when optimal) and
 `gap` = (objective - bound) / |objective| (0 when both are 0, None when only the objective is).
 
-Deadlines are compute budgets measured with `clock` (time.perf_counter; no mission clock is
-read), polled by every phase: the local search between moves and per scan row, the LP and
-CP-SAT by their own time limits, sized from the time left. With deterministic=True nothing
-depends on the wall clock: the local search has a fixed iteration budget, the LP a fixed
-size, and CP-SAT runs one worker with max_deterministic_time.
+Deadlines are wall time measured with `clock` (time.perf_counter; no mission clock is
+read); phases whose cost is known in CPU (the LP, CP-SAT's build) are sized by the CPU the
+solve actually obtains (planner.budget: rate = `cpu_clock` time per wall second so far,
+times the wall time left), a phase that does not fit is not started, and HiGHS and CP-SAT
+get the wall time left as their own limits (an unfinished LP round hands back the bound of
+the rounds before). The local search gets everything else and polls the deadline before
+each target's moves, stopping when the next poll would come late (planner.budget.Poll).
+The rule is measured and stated in docs/planner.md ("Time budget"). With
+deterministic=True nothing depends on the wall clock: the local search has a fixed
+iteration budget, the LP a fixed size and number of rounds, and CP-SAT runs one worker with
+max_deterministic_time.
 """
 
 from __future__ import annotations
@@ -29,6 +36,8 @@ import threading
 import time
 from collections.abc import Callable, Mapping, Sequence
 from typing import TYPE_CHECKING
+
+import numpy as np
 
 from planner.bound import (
     LP_MAX_COLUMNS,
@@ -41,8 +50,9 @@ from planner.bound import (
     lp_bound,
     lp_columns,
 )
+from planner.budget import Budget, Poll
 from planner.exact_dp import dp_is_cheap, solve_dp
-from planner.heuristics import LocalSearch, RouteCoster, best_insertion, greedy
+from planner.heuristics import LocalSearch, RouteCoster, best_insertion
 from planner.instance import Instance, build_instance
 from planner.problem import PlanningProblem, PlanResult, PlanStatus, plan_gap
 
@@ -59,6 +69,16 @@ POSITION_BUILD_S_PER_VAR = 5e-6  # position model build per LP column (0.115-0.1
 ORTOOLS_IMPORT_S = 0.4  # first CP-SAT run in a process: importing OR-Tools (wall, measured)
 END_MARGIN = 0.03  # fraction of the limit kept for the result (evaluate, idle rule)
 CPSAT_STOP_S = 0.1  # CP-SAT overruns max_time_in_seconds by this much (measured 0.05-0.12 s)
+LS_FIRST_SHARE = 0.2  # above 30 targets: the first search ends by this share of the limit,
+FIRST_KICKS = 20  # or after its first descent and this many kicks (the LP then gets more CPU)
+LP_CPU_SHARE = 0.6  # the LP may use at most this share of the CPU left (the search the rest)
+LP_END_RESERVE = 0.1  # HiGHS's wall limit ends this share of the limit before the deadline
+CG_CANDIDATES = 6  # column generation: cheapest predecessors per target in the first round
+DETERMINISTIC_CG_ROUNDS = 2  # deterministic mode: column-generation rounds, not time
+CG_S_PER_COLUMN = 6e-6  # HiGHS CPU per restricted-LP z column (cg_round_cpu_s)
+CG_S_PER_COLUMN2 = 2e-9  # ... growing with the number of columns
+CG_S_PER_FIRST = 4e-6  # HiGHS CPU per a column (first targets, m n of them)
+CG_S_PER_PRICE = 2.5e-7  # pricing CPU per column of the full LP (costs, reduced costs)
 
 Clock = Callable[[], float]
 
@@ -109,14 +129,22 @@ def idle_assignment(inst: Instance, routes: Sequence[Sequence[int]]) -> dict[str
     m = inst.m
     idle = [u for u, route in enumerate(routes) if not route]
     taken = {route[0] for route in routes if route}
-    pairs = sorted(
-        (float(inst.d_net[u, m + k]), u, k) for u in idle for k in range(inst.n) if k not in taken
-    )
-    for _, u, k in pairs:
-        if k in taken or inst.problem.uavs[u].id in out:
-            continue
-        out[inst.problem.uavs[u].id] = inst.target_id(k)
-        taken.add(k)
+    free = [k for k in range(inst.n) if k not in taken]
+    if idle and free:
+        # every (distance, UAV, target) pair in increasing order (numpy: 0.03 s -> 1 ms with
+        # 10 idle UAVs and 500 targets)
+        dist = inst.d_net[np.ix_(idle, [m + k for k in free])]
+        uu, kk = np.meshgrid(np.asarray(idle), np.asarray(free), indexing="ij")
+        order = np.lexsort((kk.ravel(), uu.ravel(), dist.ravel()))
+        flat_u, flat_k = uu.ravel(), kk.ravel()
+        for at in order:
+            u, k = int(flat_u[at]), int(flat_k[at])
+            if k in taken or inst.problem.uavs[u].id in out:
+                continue
+            out[inst.problem.uavs[u].id] = inst.target_id(k)
+            taken.add(k)
+            if len(out) == len(idle):
+                break
     for u in idle:
         uav_id = inst.problem.uavs[u].id
         if uav_id not in out:
@@ -129,12 +157,14 @@ def lp_ready() -> bool:
     return "scipy.optimize" in sys.modules
 
 
-def load_lp(limit_s: float) -> bool:
-    """Import scipy's LP now if it is not loaded and its import takes at most half the time
-    limit (the rest of the solve is then planned with the import paid)."""
+def load_lp(cpu_left_s: float, lp_cpu_s: float) -> bool:
+    """Whether scipy's LP is loaded, importing it first when its import (SCIPY_IMPORT_S of
+    CPU) and the LP (`lp_cpu_s`) fit the CPU left; a solve that cannot afford the import
+    does not start it (until issue 30 it was imported at the start of any solve with a limit
+    of 1 s or more: 2.5 s of wall time for a 1 s `gcs plan` 10x50 at load 30)."""
     if lp_ready():
         return True
-    if 0.5 * limit_s < SCIPY_IMPORT_S:
+    if SCIPY_IMPORT_S + lp_cpu_s > cpu_left_s:
         return False
     importlib.import_module("scipy.optimize")
     return True
@@ -164,6 +194,24 @@ def cpsat_build_s(kind: str, m: int, n: int) -> float:
     return build + cpsat_import_s()
 
 
+def cg_layer_cap(n: int, m: int) -> int:
+    """Most positions P for the column-generation LP: min(n, max(6, ceil(4 n / m))), twice
+    layer_cap's (a round costs a tenth of the full LP, docs/planner.md)."""
+    return min(n, max(6, -(-4 * n // max(m, 1))))
+
+
+def cg_round_cpu_s(n: int, m: int, layers: int) -> float:
+    """Estimated CPU of one column-generation round with P = `layers` (quiet machine):
+    HiGHS on the restricted LP, Z = (P - 1) n (CG_CANDIDATES + 1) z columns at
+    Z (6e-6 + 2e-9 Z) s (measured 10-33 us per column from 10x50 to 50x500, growing with
+    the LP) and 4 us per a column (P = 2 at 50x250: 0.09 CPU-s), plus pricing every column
+    of the full LP."""
+    z_cols = (layers - 1) * n * (CG_CANDIDATES + 1)
+    full = (layers - 1) * n * n
+    highs = z_cols * (CG_S_PER_COLUMN + CG_S_PER_COLUMN2 * z_cols) + CG_S_PER_FIRST * m * n
+    return 0.01 + highs + CG_S_PER_PRICE * full
+
+
 def lp_seconds(columns: int) -> float:
     """Estimated wall time of the layered LP (plus scipy's import if not yet loaded)."""
     first = 0.0 if lp_ready() else SCIPY_IMPORT_S
@@ -183,7 +231,11 @@ class PlanSolver:
         deterministic: bool = False,
         method: str = "auto",
         clock: Clock = time.perf_counter,
+        cpu_clock: Clock | None = None,
     ) -> None:
+        """`clock`: wall time (s). `cpu_clock`: the CPU time this solve obtains (s); by
+        default time.thread_time with the default wall clock, none (CPU = wall) with another
+        clock (tests drive the budget by the wall clock alone)."""
         self.problem = problem
         self.hint = hint
         self.num_workers = num_workers
@@ -191,6 +243,13 @@ class PlanSolver:
         self.deterministic = deterministic
         self.method = method  # "auto", "dp", "position", "circuit", "heuristic" (tests, bench)
         self.clock = clock
+        if cpu_clock is None and clock is time.perf_counter:
+            cpu_clock = time.thread_time
+        self.cpu_clock = cpu_clock
+        self.budget = Budget(clock, cpu_clock, 0.0, 0.0)
+        self._incumbent: list[list[int]] | None = None
+        self.trace: list[tuple[str, float, float]] = []  # (phase, wall s, CPU s) at its end
+        self.lp: LpBound | None = None  # the last solve's LP bound (benchmarks)
         self._stop = threading.Event()
         self._lock = threading.Lock()
         self._run: CpSatRun | None = None
@@ -209,7 +268,12 @@ class PlanSolver:
         problem = self.problem
         limit = problem.time_limit_s
         end = start + limit * (1.0 - END_MARGIN)
+        budget = Budget(clock, self.cpu_clock, start, end)
+        self.budget = budget
+        self.trace = []
+        self.lp = None
         inst = build_instance(problem)
+        self._mark("build")
         m, n = inst.m, inst.n
         if n == 0:
             empty: list[list[int]] = [[] for _ in range(m)]
@@ -225,44 +289,50 @@ class PlanSolver:
             sequence = inst.unit_hops  # the sequence objective (all hops 1)
             kind = "position" if sequence and n <= POSITION_MODEL_MAX_TARGETS else "circuit"
         mid = n <= POSITION_MODEL_MAX_TARGETS  # CP-SAT usually proves these: it gets the time
-        if method != "heuristic" and not self.deterministic:
-            load_lp(limit)
         # -- heuristic start
-        ls_end = [end]
+        poll = Poll(clock, end)
         stop = self._stop.is_set
         if self.deterministic:
             ls = LocalSearch(inst, self.random_seed, stop)
         else:
-            ls = LocalSearch(inst, self.random_seed, lambda: stop() or clock() > ls_end[0])
+            ls = LocalSearch(inst, self.random_seed, lambda: stop() or poll())
         self.local_search = ls
-        routes = greedy(inst, ls.coster)
+        self._mark("setup")  # route costs as lists, neighbour lists
+        routes = ls.greedy()
         best_cost = ls.coster.total(routes)
         if self.hint:
             hinted = hint_routes(inst, self.hint)
             if hinted is not None and ls.coster.total(hinted) < best_cost:
                 routes, best_cost = hinted, ls.coster.total(hinted)
-        # mid-size: CP-SAT usually proves optimality, keep the search short; large: the ILS
-        # does the work (CP-SAT rarely improves a good plan within seconds). The LP runs
-        # early (after 30 % of the limit) so that the local search after it absorbs any
-        # overrun of the LP under load; then the search goes on to 70 % of the limit, and
-        # to the end unless the circuit model (<= 60 targets) can still be built and run.
+        self._mark("greedy")
+        # Phases (docs/planner.md, "Time budget"): mid-size (<= 30 targets): a short search,
+        # the full LP, CP-SAT's position model (it usually proves optimality). Larger: the
+        # search to LS_FIRST_SHARE of the limit, the LP bound by column generation if its
+        # estimated CPU fits the CPU the rest of the wall time will give at the rate
+        # obtained so far, CP-SAT's circuit model only for arrival/latency up to 60
+        # targets when its build fits, and the search again to the deadline.
         ls_share = 0.1 if mid else 0.7
-        if method == "heuristic":
-            ls_share = 1.0
         if self.deterministic:
             iterations = 30 if mid else max(5, 600 // max(n, 1))
             routes, best_cost = ls.run(routes, iterations)
         else:
-            first = ls_share if mid or method == "heuristic" else 0.3
-            ls_end[0] = min(end, start + first * limit)
+            first = 0.1 if mid else LS_FIRST_SHARE
+            if method == "heuristic":
+                first = 1.0
+            poll.restart(min(end, start + first * limit))
             patience = 20 if mid else None
-            routes, best_cost = ls.run(routes, 10**9, patience=patience)
+            kicks = 10**9 if mid or method == "heuristic" else FIRST_KICKS
+            routes, best_cost = ls.run(routes, kicks, patience=patience)
+        self._mark("search")
         if method == "heuristic" or stop():
             hit = not stop()
             bound = in_arc_bound(inst)
             return self._result(inst, routes, PlanStatus.FALLBACK, "greedy+ils", start, hit, bound)
         # -- proven lower bound
+        self._incumbent = routes
         lp = self._lp(inst, mid, end, limit)
+        self.lp = lp
+        self._mark("lp")
         bound = in_arc_bound(inst)
         if lp is not None:
             bound = max(bound, lp.value)
@@ -270,52 +340,107 @@ class PlanSolver:
             return self._result(
                 inst, routes, PlanStatus.FALLBACK, "greedy+ils", start, False, bound
             )
-        if not mid and not self.deterministic:
-            ls_end[0] = min(end, start + ls_share * limit)
+        circuit_possible = n <= CIRCUIT_MODEL_MAX_TARGETS and not inst.unit_hops
+        if not mid and not self.deterministic and (circuit_possible or method == "circuit"):
+            poll.restart(min(end, start + ls_share * limit))
             routes, best_cost = ls.run(routes, 10**9)
+            self._mark("search")
         # -- CP-SAT where it pays, else the local search goes on to the deadline
-        # CP-SAT runs where its build (and OR-Tools' import) leaves it time to search: up to
-        # 30 targets it usually proves, so the time left need only cover the build, the stop
-        # allowance and 0.05 s; above, the circuit model must beat the local search, so 3x
-        # the build. Forced by method ("position", "circuit"); by size alone when deterministic.
+        # Up to 30 targets CP-SAT usually proves, so the CPU left need only cover the build,
+        # the stop allowance and 0.05 s. Above, only the arrival and latency objectives try
+        # the circuit model (<= 60 targets), when 3x its build fits: for the sequence
+        # objective it found no plan in 0.47-0.50 s at 10x50 (issue 30), while the search
+        # gains all along. Forced by method ("position", "circuit"); by size alone when
+        # deterministic.
         if method in ("position", "circuit"):
             use_cpsat = True
         elif self.deterministic:
             use_cpsat = n <= CIRCUIT_MODEL_MAX_TARGETS
-        elif n > CIRCUIT_MODEL_MAX_TARGETS:
+        elif n > CIRCUIT_MODEL_MAX_TARGETS or (not mid and inst.unit_hops):
             use_cpsat = False
         else:
             build_s = cpsat_build_s(kind, m, n)
             need_s = build_s + CPSAT_STOP_S if mid else 3.0 * build_s
-            use_cpsat = end - clock() > need_s + 0.05
+            use_cpsat = budget.cpu_left_s() > need_s + 0.05
         if not use_cpsat:
             if not self.deterministic:
-                ls_end[0] = end
+                poll.restart(end)
                 routes, best_cost = ls.run(routes, 10**9)
+                self._mark("search")
             hit = not stop()
             return self._result(inst, routes, PlanStatus.FALLBACK, "greedy+ils", start, hit, bound)
         return self._cpsat(
             inst, kind, ls.coster, routes, best_cost, lp, bound, start, end, ls_share
         )
 
+    def _mark(self, phase: str) -> None:
+        """Record the end of a phase (wall and CPU since the start; real clocks only, so a
+        test's fake clock is read exactly as the phases themselves read it)."""
+        if self.cpu_clock is not None:
+            b = self.budget
+            self.trace.append((phase, self.clock() - b.start, b.cpu() - b.cpu_start))
+
     def _lp(self, inst: Instance, mid: bool, end: float, limit: float) -> LpBound | None:
-        """The layered LP, sized to its budget; None if it does not fit or finish."""
+        """The layered LP bound, sized to the CPU it can get; None if it does not fit or no
+        round finishes (HiGHS is stopped at the wall deadline minus LP_END_RESERVE of the
+        limit). Mid-size: the full LP with one layer per position (CP-SAT's reduced-cost
+        fixing needs it). Larger: column generation (planner.bound.lp_bound with
+        candidates), P from layer_cap down to the largest whose estimated CPU fits."""
         m, n = inst.m, inst.n
-        cap = layer_cap(n, m, mid)
+        routes = self._incumbent
         if self.deterministic:  # sized by columns: nothing depends on the wall clock
-            layers = choose_layers(n, m, cap, DETERMINISTIC_LP_COLUMNS)
+            if mid:
+                layers = choose_layers(n, m, layer_cap(n, m, mid), DETERMINISTIC_LP_COLUMNS)
+                if layers < MIN_LAYERS:
+                    return None
+                return lp_bound(inst, layers, max(10.0 * limit, 10.0))
+            # as many positions as the full LP had before column generation (never more
+            # work than it), solved by DETERMINISTIC_CG_ROUNDS rounds
+            layers = choose_layers(n, m, layer_cap(n, m, mid), DETERMINISTIC_LP_COLUMNS)
             if layers < MIN_LAYERS:
                 return None
-            return lp_bound(inst, layers, max(10.0 * limit, 10.0))
-        budget = min(end - self.clock(), 0.25 * limit if not mid else 0.4 * limit)
-        if budget <= 0.0:
+            return lp_bound(
+                inst, layers, max(10.0 * limit, 10.0), routes=routes,
+                candidates=CG_CANDIDATES, rounds=DETERMINISTIC_CG_ROUNDS,
+            )
+        budget = self.budget
+        cpu_left = budget.cpu_left_s() * LP_CPU_SHARE
+        wall_left = end - self.clock() - LP_END_RESERVE * limit
+        if cpu_left <= 0.0 or wall_left <= 0.0:
             return None
-        layers = choose_layers(n, m, cap, LP_MAX_COLUMNS)  # then fewer until its time fits
-        while layers >= MIN_LAYERS and lp_seconds(lp_columns(n, m, layers)) > budget:
+        if mid:
+            layers = choose_layers(n, m, layer_cap(n, m, mid), LP_MAX_COLUMNS)
+            while layers >= MIN_LAYERS and lp_seconds(lp_columns(n, m, layers)) > cpu_left:
+                layers -= 1 if layers <= 8 else max(1, layers // 4)
+            if layers < MIN_LAYERS or not load_lp(cpu_left, 0.0):  # lp_seconds has the import
+                return None
+            wall_left = end - self.clock() - LP_END_RESERVE * limit
+            return lp_bound(inst, layers, wall_left)
+        layers = min(n, cg_layer_cap(n, m))
+        while layers >= MIN_LAYERS and cg_round_cpu_s(n, m, layers) > cpu_left:
             layers -= 1 if layers <= 8 else max(1, layers // 4)
         if layers < MIN_LAYERS:
             return None
-        return lp_bound(inst, layers, budget)
+        round_cpu = cg_round_cpu_s(n, m, layers)
+        if not lp_ready():
+            while layers >= MIN_LAYERS and not load_lp(cpu_left, cg_round_cpu_s(n, m, layers)):
+                layers -= 1 if layers <= 8 else max(1, layers // 4)
+            if layers < MIN_LAYERS:
+                return None
+            round_cpu = cg_round_cpu_s(n, m, layers)
+            cpu_left = budget.cpu_left_s() * LP_CPU_SHARE  # after the import
+            wall_left = end - self.clock() - LP_END_RESERVE * limit
+        lp_start = budget.cpu()
+
+        def no_more_rounds() -> bool:
+            # another round only if its estimate fits what is left of the LP's CPU share
+            spent = budget.cpu() - lp_start
+            return self._stop.is_set() or spent + round_cpu > cpu_left
+
+        return lp_bound(
+            inst, layers, wall_left, routes=routes, candidates=CG_CANDIDATES,
+            should_stop=no_more_rounds,
+        )
 
     def _cpsat(
         self,

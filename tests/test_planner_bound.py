@@ -208,6 +208,7 @@ def test_deterministic_mode_gives_a_bound() -> None:
     a = PlanSolver(p, deterministic=True).solve()
     b = PlanSolver(p, deterministic=True).solve()
     assert a.bound == b.bound and a.gap == b.gap
+    assert a.routes == b.routes  # no clock: the same plan (replay re-solves it)
     assert a.bound is not None and a.bound < a.objective
 
 
