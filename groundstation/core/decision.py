@@ -374,24 +374,38 @@ class DecisionCore:
         if record is None or record.status is not FleetStatus.ACTIVE or not record.busy:
             return []
         record.busy = False
+        record.answer_due = True
         self._mark_dirty("loiter ended")
         if record.through:  # the mission's end: it flew through every cell (core/route.py)
             self._move_on(event.t_s, record, len(record.through), None)
         out = self._visit_ended(event.t_s, record)
+        command = self._next_along_route(event.t_s, record, out)
+        if command is None and record.answer_due:
+            # no leg yet: the next tick plans for it, whatever the policy (a periodic-only
+            # policy would otherwise leave it holding until the next period)
+            self._dirty_reason = self._dirty_reason or "loiter ended"
+        return out if command is None else [*out, command]
+
+    def _next_along_route(self, t_s: float, record: VehicleRecord, out: list[Command]
+                          ) -> Command | None:
+        """Without commitment, the loiter end's answer at once: the next target of its
+        planned route worth a visit (or home, on a watch, when that leg is unflyable;
+        appended to ``out``); None when there is none (or with commitment)."""
         if self.config.policy.commit or record.target not in record.route:
-            return out
+            return None
         rest = record.route[record.route.index(record.target) + 1:]
         known = self._known_targets()
         rest = tuple(t for t in rest if t in known)
         pick = self._first_worth_a_visit(record, rest)
         if pick is None:
-            return out
+            return None
         target, rest, leg = pick
-        home = self._unflyable(event.t_s, record, leg)
+        home = self._unflyable(t_s, record, leg)
         if home:
-            return out + home
-        command = self._fly(event.t_s, record, target, rest, leg)
-        return [*out, command] if command is not None else out
+            record.answer_due = False
+            out += home
+            return None
+        return self._fly(t_s, record, target, rest, leg)
 
     def _visit_ended(self, t_s: float, record: VehicleRecord) -> list[Command]:
         """A loiter (or pass) of ``record`` ended: if its target was not seen since the
@@ -597,6 +611,10 @@ class DecisionCore:
             command = self._fly(event.t_s, record, target, legs if route else (), leg)
             if command is not None:
                 fly.append(command)
+        for uav in request.problem.uavs:  # a loiter end's answer is given once
+            record = self.vehicles.get(uav.id)
+            if record is not None:
+                record.answer_due = False
         adopted = PlanAdopted(event.t_s, request.request_id, request.problem, result,
                               assignments, request.hint, request.reason)
         return [adopted, *fly]
@@ -636,11 +654,12 @@ class DecisionCore:
         # points of its route still ahead (not the repeats of where it flies to now): it
         # keeps flying them meanwhile
         ahead = record.busy and any(t != record.target for t in record.through)
-        if self.uploads.too_soon(record.id, t_s,
-                                 self.config.route_min_interval_s if ahead else None):
-            return None
+        if not record.answer_due and self.uploads.too_soon(
+                record.id, t_s, self.config.route_min_interval_s if ahead else None):
+            return None  # deferred; a loiter end's answer never is (core/uploads.py)
         record.route = route
         record.busy = True
+        record.answer_due = False
         self.uploads.sent(record.id, t_s)
         record.leg_t_s = t_s
         record.target, record.aim_xy_m, record.eta_s = target, aim, t_s + t_arr_s
