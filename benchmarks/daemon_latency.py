@@ -77,8 +77,8 @@ def start_sitl(count: int, speedup: float) -> tuple[subprocess.Popen[str], list[
     return proc, urls
 
 
-def scenario_file(path: Path, count: int) -> str:
-    """A field-test-like scenario: ``count`` stationary targets on a 1500 m ring, linear
+def scenario_file(path: Path, count: int, ring_m: float = 1500.0) -> str:
+    """A field-test-like scenario: ``count`` stationary targets on a ``ring_m`` ring, linear
     uncertainty, 20 s loiters, event-based replanning with commit. With real links the
     daemon's virtual camera sees them from the vehicles' telemetry."""
     lines = [
@@ -94,8 +94,8 @@ def scenario_file(path: Path, count: int) -> str:
     for k in range(count):
         a = 2 * math.pi * k / count
         lines.append(
-            f"    - {{id: T{k + 1}, x_m: {1500 * math.cos(a):.1f}, "
-            f"y_m: {1500 * math.sin(a):.1f}, sigma0: {k}}}"
+            f"    - {{id: T{k + 1}, x_m: {ring_m * math.cos(a):.1f}, "
+            f"y_m: {ring_m * math.sin(a):.1f}, sigma0: {k}}}"
         )
     lines += [
         "observer: {model: linear, linear_growth_per_s: 1.0, r_m2: 5.0, "
@@ -144,7 +144,8 @@ def _stat(values: list[float | None], fn: Any, scale: float = 1.0, ndigits: int 
     return round(scale * fn(got), ndigits) if got else None
 
 
-def run_one(count: int, speedup: float, duration_s: float, tmp: Path) -> dict[str, Any]:
+def run_one(count: int, speedup: float, duration_s: float, tmp: Path,
+            ring_m: float = 1500.0) -> dict[str, Any]:
     proc, urls = start_sitl(count, speedup)
     try:
         config = build_config(
@@ -156,7 +157,7 @@ def run_one(count: int, speedup: float, duration_s: float, tmp: Path) -> dict[st
                 "--duration",
                 str(duration_s),
                 "--scenario",
-                scenario_file(tmp / f"bench{count}.yaml", 2 * count),
+                scenario_file(tmp / f"bench{count}.yaml", 2 * count, ring_m),
                 "--run-dir",
                 str(tmp),
                 "--http",
@@ -184,7 +185,7 @@ def run_one(count: int, speedup: float, duration_s: float, tmp: Path) -> dict[st
     late = [d for d in delays if d is None or d > LIMIT_S]
     return {
         "vehicles": count,
-        "joined": sum(1 for s in daemon.sessions.values() if s.uploads_ok),
+        "joined": len({e["vehicle"] for e in journal if e["event"] == "vehicle_joined"}),
         "speedup": speedup,
         "mission_s": summary["mission_s"],
         "wall_s": round(wall, 2),
@@ -230,12 +231,14 @@ def main() -> int:
     p.add_argument("--duration", type=float, default=400.0, help="mission seconds per run")
     p.add_argument("--sizes", default="3,10")
     p.add_argument("--out", default=str(HERE / "daemon_latency.json"))
+    p.add_argument("--ring", type=float, default=1500.0, metavar="M",
+                   help="radius of the targets' ring (m); a small one loiters sooner")
     p.add_argument("--keep", default=None, metavar="DIR", help="keep the run folders in DIR")
     args = p.parse_args()
     results = []
     with tempfile.TemporaryDirectory() if not args.keep else _keep(args.keep) as tmp:
         for count in (int(x) for x in args.sizes.split(",")):
-            row = run_one(count, args.speedup, args.duration, Path(tmp))
+            row = run_one(count, args.speedup, args.duration, Path(tmp), args.ring)
             results.append(row)
             print(json.dumps(row), flush=True)
     Path(args.out).write_text(json.dumps({"results": results}, indent=1) + "\n", encoding="utf-8")
