@@ -182,7 +182,7 @@ def test_a_loiter_end_is_answered_at_the_next_tick_under_a_periodic_only_policy(
     out = solve_all(core, core.handle(LoiterEnded(3.0, "1")))
     out += run_ticks(core, 3.0, 3.3)
     requests = [c for c in out if isinstance(c, SolveRequest)]
-    assert [(round(r.t_s, 1), r.reason) for r in requests] == [(3.0, "loiter ended")]
+    assert [(round(r.t_s, 1), r.reason) for r in requests] == [(3.0, "loiter end answer")]
     answer = [f for f in flies(out) if f.vehicle == "1"]
     assert [(round(f.t_s, 1), f.target) for f in answer] == [(3.0, "B")]
     # the interval starts again from the answer: the 10 s period's redirect is deferred

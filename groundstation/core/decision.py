@@ -93,6 +93,11 @@ from planner.search_cells import SearchCell, SearchGrid
 
 __all__ = ["DecisionCore", "VehicleRecord"]
 
+ANSWER_REASON = "loiter end answer"
+"""The reason of a plan asked for only to answer a loiter end (a policy without event
+replanning): it commands only the vehicles whose loiter ended."""
+
+
 class DecisionCore:
     """Events and time in, commands out (see module docstring)."""
 
@@ -382,8 +387,9 @@ class DecisionCore:
         command = self._next_along_route(event.t_s, record, out)
         if command is None and record.answer_due:
             # no leg yet: the next tick plans for it, whatever the policy (a periodic-only
-            # policy would otherwise leave it holding until the next period)
-            self._dirty_reason = self._dirty_reason or "loiter ended"
+            # policy would otherwise leave it holding until the next period); that plan
+            # answers the loiter ends only (the others keep their legs until the period)
+            self._dirty_reason = self._dirty_reason or ANSWER_REASON
         return out if command is None else [*out, command]
 
     def _next_along_route(self, t_s: float, record: VehicleRecord, out: list[Command]
@@ -597,7 +603,7 @@ class DecisionCore:
                 continue
             if record.status is not FleetStatus.ACTIVE or (
                 self.config.policy.commit and record.busy
-            ):
+            ) or (request.reason == ANSWER_REASON and not record.answer_due):
                 continue
             pick = self._first_worth_a_visit(record, tuple(route) if route else (first,))
             if pick is None:
