@@ -95,7 +95,9 @@ __all__ = ["DecisionCore", "VehicleRecord"]
 
 ANSWER_REASON = "loiter end answer"
 """The reason of a plan asked for only to answer a loiter end (a policy without event
-replanning): it commands only the vehicles whose loiter ended."""
+replanning): it plans and commands only the vehicles whose loiter ended, as with
+commitment (the targets the others fly to are left out), and the others keep their legs
+until the next period."""
 
 
 class DecisionCore:
@@ -504,7 +506,8 @@ class DecisionCore:
         ):
             while self._next_periodic_s <= t_s + 1e-9:
                 self._next_periodic_s += period
-            reason = reason or "period"
+            # a periodic plan plans everyone, so it answers a loiter end too
+            reason = "period" if reason in (None, ANSWER_REASON) else reason
         if reason is None:
             return []
         self._dirty_reason = None
@@ -518,12 +521,15 @@ class DecisionCore:
 
     def _request_plan(self, t_s: float, reason: str) -> list[Command]:
         out: list[Command] = []
-        vehicles = sorted(self.planned_vehicles(), key=lambda v: v.id)
+        answer = reason == ANSWER_REASON  # as with commitment: the others keep their legs
+        vehicles = sorted(
+            (v for v in self.active_vehicles() if v.answer_due) if answer
+            else self.planned_vehicles(), key=lambda v: v.id)
         self.observer.predict_to(t_s)
         covered = {
             v.target for v in self.vehicles.values()
             if v.status is FleetStatus.ACTIVE and v.busy and v.target is not None
-        } if self.config.policy.commit else set()
+        } if self.config.policy.commit or answer else set()
         targets = track_targets(self.observer.tracks(), self.tracks.status, covered,
                                 self.config.tentative_weight, self.tracks.existence)
         if self.search is not None:
