@@ -6,25 +6,30 @@
     nice -n 10 python benchmarks/startup_bench.py --rounds 5 --against-tree /tmp/old
 
 Every section runs its alternatives interleaved, round by round, so a busy host slows them
-alike; figures are medians over the rounds. CPU is user + system time.
+alike; figures are medians over the rounds, CPU (user + system) and wall side by side.
 
-1. Process start-up (fresh interpreters, ``resource.getrusage(RUSAGE_CHILDREN)``):
-   ``gcs plan`` on a 3x10 problem and ``gcs simulate --no-plots`` (paper-boat, 3 UAVs,
-   200 s). "before" re-creates the old imports in the same process first: ``ortools.sat``
-   (which the planner imported at start-up), matplotlib (which ``gcs simulate`` imported
-   even without plots), and numpy loaded before ``gcs`` could set OPENBLAS_NUM_THREADS.
-   ``--bytecode cached`` (default) runs with a bytecode cache in a temporary folder, as an
-   installed package does; ``none`` compiles floe's modules at every start (a checkout with
+1. Process start-up (fresh interpreters; CPU from ``resource.getrusage(RUSAGE_CHILDREN)``,
+   wall around the child): ``gcs plan`` on a 3x10 problem and ``gcs simulate --no-plots``
+   (paper-boat, 3 UAVs, its 200 s; with and without its journal). The "before" cases
+   re-create the old imports in the same process first: ``ortools.sat`` (which the
+   planner imported at start-up), matplotlib (which ``gcs simulate`` imported even without
+   plots), filterpy's ``KalmanFilter`` (scipy.stats) and ``scipy.optimize`` (GOSPA's,
+   through the discovery module) that every paper-boat run imported until issue 30, and
+   numpy loaded before ``gcs`` could set OPENBLAS_NUM_THREADS. ``--bytecode cached``
+   (default) runs with a bytecode cache in a temporary folder, as an installed package
+   does; ``none`` compiles floe's modules at every start (a checkout with
    PYTHONDONTWRITEBYTECODE=1).
-2. Observer prediction, one 0.1 s grid step of 10 and of 50 tracks (in this process): per-track
-   filterpy ``predict`` (before), the closed form on Python floats per track (the
+2. Observer prediction, one 0.1 s grid step of 10 and of 50 tracks (in this process, CPU):
+   per-track ``predict`` (before), the closed form on Python floats per track (the
    alternative not taken), and today's batched product. Each is checked against filterpy's
-   predict over random states and steps: largest relative difference and whether every
-   number is bit-for-bit equal.
+   own ``KalmanFilter.predict`` over random states and steps: largest relative difference
+   and whether every number is bit-for-bit equal.
 3. The simulation loop in this process: paper-boat, 3 UAVs, 200 mission s, seed 0, with
-   the observer predicting per track (before) and batched (now); CPU seconds and the real
-   time factor (200 s / CPU s, and / wall s). ``--against-tree DIR`` runs only this loop,
-   in fresh interpreters alternating between the source tree in DIR and this one.
+   the observer predicting per track (before) and batched (now); CPU and wall seconds and
+   the real time factors (200 s / CPU s, and / wall s). ``--against-tree DIR`` runs only
+   this loop, in fresh interpreters alternating between the source tree in DIR and this
+   one (CPU and wall of the loop, and of the whole process, imports included).
+``--quick`` runs one round of sections 1 and 3 only (a smoke run, seconds).
 """
 
 from __future__ import annotations
@@ -47,6 +52,7 @@ from typing import Any
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import numpy as np
+from filterpy.kalman import KalmanFilter  # the reference (the test extra), not floe's path
 
 from groundstation.runners.simulate.simulator import SimulationOptions, run_simulation
 from observer import Observer, ObserverConfig
@@ -58,8 +64,10 @@ from observer.kalman_track import (
 )
 from world.scenario import load_scenario
 
-SIM_ARGS = "['simulate', '--uavs', '3', '--duration', '200', '--no-plots', '--quiet', " \
-    "'--no-journal', '--out', OUT]"
+SIM_ARGS = "['simulate', '--scenario', 'paper-boat', '--uavs', '3', '--no-plots', " \
+    "'--quiet', '--out', OUT]"
+OLD_KALMAN = "import filterpy.kalman\nimport scipy.optimize\n"
+"""What every Kalman run imported before issue 30 (filterpy's filter, GOSPA's scipy)."""
 MAIN = "from groundstation.cli import main\n"
 
 
@@ -74,6 +82,7 @@ def _problem_3x10(path: Path) -> None:
 def _startup_cases(problem: Path, out: Path) -> dict[str, str]:
     plan = MAIN + f"main(['plan', {str(problem)!r}])\n"
     sim = MAIN + f"OUT = {str(out)!r}\nmain({SIM_ARGS})\n"
+    sim_no_journal = sim.replace("'--quiet',", "'--quiet', '--no-journal',")
     return {
         "interpreter only (python -c pass)": "pass\n",
         "import numpy": "import numpy\n",
@@ -81,26 +90,34 @@ def _startup_cases(problem: Path, out: Path) -> dict[str, str]:
         "gcs plan 3x10, before": "import ortools.sat.python.cp_model\n" + plan,
         "gcs plan 3x10, lazy CP-SAT only": "import numpy\n" + plan,
         "gcs plan 3x10, now": plan,
-        "gcs simulate --no-plots, before": (
+        "gcs simulate --no-plots --no-journal, before": (
             "import ortools.sat.python.cp_model\n"
-            "import groundstation.runners.simulate.plots\n" + sim
+            "import groundstation.runners.simulate.plots\n" + OLD_KALMAN + sim_no_journal
         ),
+        "gcs simulate --no-plots --no-journal, with filterpy": OLD_KALMAN + sim_no_journal,
+        "gcs simulate --no-plots --no-journal, now": sim_no_journal,
+        "gcs simulate --no-plots, with filterpy": OLD_KALMAN + sim,
         "gcs simulate --no-plots, now": sim,
     }
 
 
-def _child_cpu_s(code: str, env: dict[str, str]) -> float:
+def _child(code: str, env: dict[str, str]) -> tuple[float, float]:
+    """CPU (user + system) and wall seconds of a fresh interpreter running ``code``."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    w0 = time.perf_counter()
     subprocess.run([sys.executable, "-c", code], env=env, check=True, stdout=subprocess.DEVNULL,
                    stderr=subprocess.DEVNULL, timeout=300)
+    wall_s = time.perf_counter() - w0
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime), wall_s
 
 
-def bench_startup(rounds: int, bytecode: str, tmp: Path) -> dict[str, float]:
+def bench_startup(rounds: int, bytecode: str, tmp: Path) -> dict[str, dict[str, float]]:
+    """Median CPU and wall seconds per case (``cpu_s``, ``wall_s``)."""
     problem = tmp / "p3x10.json"
     _problem_3x10(problem)
     env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+    env["PYTHONPATH"] = str(Path(__file__).resolve().parent.parent)
     if bytecode == "cached":
         env.pop("PYTHONDONTWRITEBYTECODE", None)
         env["PYTHONPYCACHEPREFIX"] = str(tmp / "pycache")
@@ -108,12 +125,16 @@ def bench_startup(rounds: int, bytecode: str, tmp: Path) -> dict[str, float]:
         env["PYTHONDONTWRITEBYTECODE"] = "1"
     cases = _startup_cases(problem, tmp / "sim")
     for code in cases.values():  # warm the bytecode cache and the file cache
-        _child_cpu_s(code, env)
-    samples: dict[str, list[float]] = {name: [] for name in cases}
+        _child(code, env)
+    cpu: dict[str, list[float]] = {name: [] for name in cases}
+    wall: dict[str, list[float]] = {name: [] for name in cases}
     for _ in range(rounds):
         for name, code in cases.items():
-            samples[name].append(_child_cpu_s(code, env))
-    return {name: statistics.median(v) for name, v in samples.items()}
+            c, w = _child(code, env)
+            cpu[name].append(c)
+            wall[name].append(w)
+    return {name: {"cpu_s": statistics.median(cpu[name]), "wall_s": statistics.median(wall[name])}
+            for name in cases}
 
 
 # --- 2. observer prediction -------------------------------------------------------------
@@ -187,12 +208,11 @@ def _accuracy(seed: int = 11, cases: int = 300) -> dict[str, tuple[float, bool]]
         h = float(rng.choice([0.1, rng.uniform(0.01, 5.0)]))
         tracks = _tracks(int(rng.integers(1, 12)), int(rng.integers(1 << 30)), h)
         ref = []
-        for tr in tracks:
-            kf_x, kf_p = tr.kf.x.copy(), tr.kf.P.copy()
-            tr.kf.predict(F=transition(h), Q=process_noise(tr.q_per_s, h))
-            ref.append((tr.kf.x, tr.kf.P))
-            tr.kf.x, tr.kf.P = kf_x, kf_p
-            tr.x_view, tr.p_view = kf_x, kf_p
+        for tr in tracks:  # filterpy's own filter, the reference
+            kf = KalmanFilter(dim_x=4, dim_z=2)
+            kf.x, kf.P = tr.kf.x.copy(), tr.kf.P.copy()
+            kf.predict(F=transition(h), Q=process_noise(tr.q_per_s, h))
+            ref.append((kf.x, kf.P))
         cf = _ClosedFormTracks(tracks)
         cf.step(h, tracks[0].q_per_s)
         KalmanBatch(h).predict_to(tracks, h)
@@ -226,7 +246,7 @@ def bench_observer(rounds: int, n: int = 10) -> dict[str, float]:
         now.predict_to(clock["now"] * 0.1)
 
     cases: dict[str, Callable[[], None]] = {
-        "per-track filterpy predict (before)": run_before,
+        "per-track predict (before)": run_before,
         "closed form, Python floats per track": lambda: cf.step(0.1, 0.1),
         "batched product (now)": run_now,
     }
@@ -278,29 +298,37 @@ def bench_loop(rounds: int) -> dict[str, dict[str, float]]:
 
 
 _LOOP_CODE = """
-import time
+import resource, time
+t0 = time.perf_counter()
 from world.scenario import load_scenario
 from groundstation.runners.simulate.simulator import SimulationOptions, run_simulation
 scenario, options = load_scenario("paper-boat"), SimulationOptions(seed=0, uavs=3)
 run_simulation(scenario, options)
-c0 = time.process_time()
+u = resource.getrusage(resource.RUSAGE_SELF)
+first_cpu_s, first_wall_s = u.ru_utime + u.ru_stime, time.perf_counter() - t0
+c0, w0 = time.process_time(), time.perf_counter()
 run_simulation(scenario, options)
-print(time.process_time() - c0)
+print(time.process_time() - c0, time.perf_counter() - w0, first_cpu_s, first_wall_s)
 """
 
+_TREE_FIGURES = ("loop_cpu_s", "loop_wall_s", "process_cpu_s", "process_wall_s")
 
-def bench_against_tree(rounds: int, tree: Path) -> dict[str, float]:
+
+def bench_against_tree(rounds: int, tree: Path) -> dict[str, dict[str, float]]:
     """Section 3 against another source tree (``git archive <commit> | tar -x -C DIR``):
-    fresh interpreters alternate between DIR and this tree; median loop CPU seconds."""
+    fresh interpreters alternate between DIR and this tree; medians of the loop's CPU and
+    wall seconds (a second run, warm) and of the process up to the end of its first run
+    (interpreter, imports and one run: what a ``gcs simulate`` pays)."""
     here = Path(__file__).resolve().parent.parent
-    samples: dict[str, list[float]] = {str(tree): [], "this tree": []}
+    samples: dict[str, list[list[float]]] = {str(tree): [], "this tree": []}
     for _ in range(rounds):
         for name, root in ((str(tree), tree), ("this tree", here)):
             env = dict(os.environ, PYTHONPATH=str(root))
             done = subprocess.run([sys.executable, "-c", _LOOP_CODE], env=env, cwd=root,
                                   capture_output=True, text=True, check=True, timeout=300)
-            samples[name].append(float(done.stdout.split()[-1]))
-    return {name: statistics.median(v) for name, v in samples.items()}
+            samples[name].append([float(v) for v in done.stdout.split()[-4:]])
+    return {name: {key: statistics.median(row[k] for row in v)
+                   for k, key in enumerate(_TREE_FIGURES)} for name, v in samples.items()}
 
 
 def main() -> int:
@@ -310,25 +338,39 @@ def main() -> int:
     parser.add_argument("--json", type=Path, default=None, help="also write the figures here")
     parser.add_argument("--against-tree", type=Path, default=None, metavar="DIR",
                         help="only: the simulation loop of the tree in DIR against this one")
+    parser.add_argument("--quick", action="store_true",
+                        help="one round of sections 1 and 3 only (a smoke run)")
     args = parser.parse_args()
+    if args.quick:
+        args.rounds = 1
     if args.against_tree is not None:
         figures = bench_against_tree(args.rounds, args.against_tree.resolve())
-        print("gcs simulate loop in fresh interpreters: paper-boat, 3 UAVs, 200 s, seed 0")
-        for name, cpu_s in figures.items():
-            print(f"   {name:<40} CPU {cpu_s:.3f} s = {200.0 / cpu_s:5.0f}x real time")
+        print("gcs simulate in fresh interpreters: paper-boat, 3 UAVs, 200 s, seed 0 "
+              f"(median of {args.rounds})")
+        for name, f in figures.items():
+            print(f"   {name:<32} loop CPU {f['loop_cpu_s']:.3f} s "
+                  f"({200.0 / f['loop_cpu_s']:5.0f}x), wall {f['loop_wall_s']:.3f} s; "
+                  f"process to the end of a first run CPU {f['process_cpu_s']:.3f} s "
+                  f"({200.0 / f['process_cpu_s']:5.0f}x), wall {f['process_wall_s']:.3f} s")
         return 0
     with tempfile.TemporaryDirectory() as tmp:
         startup = bench_startup(args.rounds, args.bytecode, Path(tmp))
-    print(f"1. process start-up, CPU (user+sys), median of {args.rounds} rounds, "
-          f"bytecode {args.bytecode}")
-    for name, s in startup.items():
-        print(f"   {name:<40} {s * 1000:7.0f} ms")
+    print(f"1. process start-up, median of {args.rounds} rounds, bytecode {args.bytecode}")
+    print(f"   {'':<52} {'CPU':>8} {'wall':>8}")
+    for name, f in startup.items():
+        print(f"   {name:<52} {f['cpu_s'] * 1000:5.0f} ms {f['wall_s'] * 1000:5.0f} ms")
+    if args.quick:
+        loop = bench_loop(1)
+        for name, r in loop.items():
+            print(f"3. {name:<40} CPU {r['cpu_s']:.3f} s, wall {r['wall_s']:.3f} s")
+        return 0
     accuracy = _accuracy()
     observer = {n: bench_observer(args.rounds, n) for n in (10, 50)}
     labels = {"closed form, Python floats per track": "closed form (Python floats)",
               "batched product (now)": "batched (now)"}
     for n, figures in observer.items():
-        print(f"2. observer prediction, {n} tracks, one 0.1 s grid step (CPU per step)")
+        print(f"2. observer prediction, {n} tracks, one 0.1 s grid step (CPU per step; "
+              "wall: a step is pure computation, the same)")
         for name, us in figures.items():
             acc = accuracy.get(labels.get(name, ""))
             note = "(the reference)" if acc is None else (
@@ -344,7 +386,7 @@ def main() -> int:
     print(f"   same uncertainty series both ways: {same}")
     if args.json is not None:
         args.json.write_text(json.dumps({
-            "rounds": args.rounds, "bytecode": args.bytecode, "startup_cpu_s": startup,
+            "rounds": args.rounds, "bytecode": args.bytecode, "startup": startup,
             "observer_step_us": {f"{n} tracks": v for n, v in observer.items()},
             "observer_accuracy": {k: {"max_rel_diff": v[0], "bit_identical": v[1]}
                                   for k, v in accuracy.items()},

@@ -32,7 +32,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
 Point = tuple[float, float]
 
@@ -118,6 +117,8 @@ def gospa(
     loc_p = 0.0
     if len(x) and len(y):
         dist = np.hypot(x[:, None, 0] - y[None, :, 0], x[:, None, 1] - y[None, :, 1])
+        from scipy.optimize import linear_sum_assignment  # only once a metric is computed
+
         rows, cols = linear_sum_assignment(np.minimum(dist, c) ** order)
         for i, j in zip(rows.tolist(), cols.tolist(), strict=True):
             if dist[i, j] < c:

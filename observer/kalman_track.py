@@ -1,4 +1,4 @@
-"""Constant-velocity Kalman track: the paper's eq. (3)-(11), built on filterpy.
+"""Constant-velocity Kalman track: the paper's eq. (3)-(11), filterpy's arithmetic in numpy.
 
 State ``x = [x, y, vx, vy]`` (m, m/s). Over a step ``dT``::
 
@@ -46,39 +46,69 @@ filterpy's per-track ``predict`` bit for bit (here: benchmarks/startup_bench.py 
 over random cases, and paper-boat journals are unchanged; tests/test_observer_batch.py
 holds them to 1e-9 relative, which holds whatever BLAS numpy uses).
 
-filterpy itself (which imports scipy.stats, ~0.6 s of CPU) is imported when a Kalman
-observer is created (:func:`load_filterpy`), not when this module is imported.
+**No filterpy at run time.** The filter (:class:`CvFilter`) is the few lines of filterpy
+2.0's ``KalmanFilter.predict`` and ``update`` that floe used, written with the very numpy
+calls filterpy makes, in the same order (``numpy.dot``, ``numpy.linalg.inv``, the Joseph
+form as ``dot(dot(I - K H, P), (I - K H)') + dot(dot(K, R), K')``), so the numbers are the
+same bit for bit on any BLAS (tests/test_observer_batch.py compares them with filterpy's
+over random cases with ``array_equal``). Importing filterpy's ``KalmanFilter`` costs ~1 s of
+CPU, nearly all of it ``scipy.stats`` (through ``filterpy.stats``, which the filter needs
+only for likelihoods floe never reads); that was more than a whole 200 s ``gcs simulate``.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
-
-if TYPE_CHECKING:
-    from filterpy.kalman import KalmanFilter
 
 _TINY_S = 1e-12
 _GRID_EPS = 1e-9  # in grid steps
 
 #: Measurement matrix C = [I 0].
 C = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0]])
+C_T = C.T
 
 
-def load_filterpy() -> type[KalmanFilter]:
-    """filterpy's ``KalmanFilter`` class, imported on the first call (filterpy imports
-    scipy.stats: ~0.6 s of CPU that paths without a Kalman observer do not pay)."""
-    from filterpy.kalman import KalmanFilter
-
-    return KalmanFilter
+_I4 = np.eye(4)
 
 
-def _new_filter() -> KalmanFilter:
-    """A 4-state, 2-measurement filterpy ``KalmanFilter``."""
-    return load_filterpy()(dim_x=4, dim_z=2)
+class CvFilter:
+    """The state ``x`` (4x1), covariance ``P`` (4x4) and last gain ``K`` (4x2) of one track,
+    with filterpy 2.0's ``KalmanFilter`` arithmetic (``dim_x=4``, ``dim_z=2``, no control
+    input, ``alpha = 1``):
+
+        predict:  x = dot(F, x);  P = dot(dot(F, P), F') + Q                     (7)-(8)
+        update:   y = z - dot(C, x);  PC' = dot(P, C');  S = dot(C, PC') + R;
+                  K = dot(PC', inv(S));  x = x + dot(K, y);
+                  P = dot(dot(I - dot(K, C), P), (I - dot(K, C))') + dot(dot(K, R), K')  (9)-(11)
+
+    filterpy's factor ``alpha^2 = 1.0`` multiplies exactly, so leaving it out changes no bit.
+    """
+
+    __slots__ = ("K", "P", "x")
+
+    def __init__(self, x: np.ndarray, p: np.ndarray) -> None:
+        self.x = x
+        self.P = p
+        self.K = np.zeros((4, 2))
+
+    def predict(self, F: np.ndarray, Q: np.ndarray) -> None:
+        """``x = F x``, ``P = F P F' + Q``."""
+        self.x = np.dot(F, self.x)
+        self.P = np.dot(np.dot(F, self.P), F.T) + Q
+
+    def update(self, z: np.ndarray, R: np.ndarray) -> None:
+        """The correction with measurement ``z`` (2 values) and its covariance ``R`` (2x2)."""
+        y = np.asarray(z, dtype=float).reshape(2, 1) - np.dot(C, self.x)
+        pht = np.dot(self.P, C_T)
+        s = np.dot(C, pht) + R
+        self.K = k = np.dot(pht, np.linalg.inv(s))
+        self.x = self.x + np.dot(k, y)
+        i_kh = _I4 - np.dot(k, C)
+        self.P = np.dot(np.dot(i_kh, self.P), i_kh.T) + np.dot(np.dot(k, R), k.T)
 
 
 def transition(dt_s: float) -> np.ndarray:
@@ -114,10 +144,8 @@ class KalmanTrack:
         q_per_s: float,
         grid_step_s: float,
     ) -> None:
-        self.kf = _new_filter()
-        self.kf.x = np.asarray(state, dtype=float).reshape(4, 1)
-        self.kf.P = np.diag(np.asarray(p0_diag, dtype=float))
-        self.kf.H = C.copy()
+        self.kf = CvFilter(np.asarray(state, dtype=float).reshape(4, 1),
+                           np.diag(np.asarray(p0_diag, dtype=float)))
         self.q_per_s = q_per_s
         self.grid_step_s = grid_step_s
         self.t_anchor_s = t_s  # time of the committed state kf.x, kf.P

@@ -27,7 +27,7 @@ import numpy as np
 
 from observer.checks import finite_number, is_finite_number
 from observer.config import ObserverConfig
-from observer.kalman_track import KalmanBatch, KalmanTrack, load_filterpy
+from observer.kalman_track import KalmanBatch, KalmanTrack
 from observer.linear_track import LinearTrack
 from observer.records import MeasurementOutcome, TrackSnapshot
 
@@ -56,8 +56,6 @@ class Observer:
         if not isinstance(config, ObserverConfig):
             raise TypeError(f"config must be an ObserverConfig, got {type(config).__name__}")
         self.config = config
-        if config.model == "kalman":
-            load_filterpy()  # here, not at import time: a linear observer never needs it
         self._tracks: dict[str, _Track] = {}
         self._ever_lost: dict[str, bool] = {}
         self._counters: dict[str, int] = dict.fromkeys(COUNTER_NAMES, 0)

@@ -154,3 +154,50 @@ def test_gcs_simulate_discovery_keeps_each_vehicle_under_sixty_uploads_an_hour(
     for v in ("1", "2", "3"):
         times = [f["t"] for f in flies if f["vehicle"] == v]
         assert all(b - a >= 15.0 - 1e-6 for a, b in itertools.pairwise(times))
+
+
+def _two_targets_one_each(policy: ReplanPolicy) -> DecisionCore:
+    """Two vehicles, two targets: each vehicle's planned route is its one target, so a
+    loiter end leaves nothing along the route; the minimum interval is 15 s (default)."""
+    core = DecisionCore(CoreConfig(policy=policy, observer=ObserverConfig(model="kalman"),
+                                   loiter_s=0.0))
+    for vehicle, y_m in (("1", 0.0), ("2", 3000.0)):
+        core.handle(VehicleJoined(0.0, vehicle, 0.0, y_m, 0.0, 22.0))
+    core.handle(TargetAdded(0.0, "A", 600.0, 0.0, vx_m_s=0.0, vy_m_s=3.0, sigma0=10.0))
+    core.handle(TargetAdded(0.0, "C", 600.0, 3000.0, vx_m_s=0.0, vy_m_s=3.0, sigma0=10.0))
+    return core
+
+
+def test_a_loiter_end_is_answered_at_the_next_tick_under_a_periodic_only_policy() -> None:
+    """Issue 30: with replanning every 10 s only (no events), a vehicle whose route ends at
+    the target it just passed was left holding until the next period; now the loiter end
+    plans at the next tick, and its answer (a new leg, 3 s after the last one) is not
+    deferred by the 15 s upload interval."""
+    core = _two_targets_one_each(ReplanPolicy(on_events=False, period_s=10.0, commit=False))
+    first = flies(run_ticks(core, 0.0, 1.0))
+    assert {(f.vehicle, f.target) for f in first} == {("1", "A"), ("2", "C")}
+    # a new, very uncertain target near vehicle 1 (no replan: events do not replan here)
+    core.handle(TargetAdded(2.0, "B", 0.0, 400.0, sigma0=5000.0))
+    assert not flies(run_ticks(core, 1.0, 3.0))
+    out = solve_all(core, core.handle(LoiterEnded(3.0, "1")))
+    out += run_ticks(core, 3.0, 3.3)
+    requests = [c for c in out if isinstance(c, SolveRequest)]
+    assert [(round(r.t_s, 1), r.reason) for r in requests] == [(3.0, "loiter end answer")]
+    answer = [f for f in flies(out) if f.vehicle == "1"]
+    assert [(round(f.t_s, 1), f.target) for f in answer] == [(3.0, "B")]
+    # the interval starts again from the answer: the 10 s period's redirect is deferred
+    core.handle(TargetAdded(5.0, "D", 0.0, -400.0, sigma0=50000.0))
+    later = run_ticks(core, 5.0, 11.0)
+    assert any(isinstance(c, SolveRequest) and c.reason == "period" for c in later)
+    assert not [f for f in flies(later) if f.vehicle == "1"]
+
+
+def test_a_loiter_end_with_commitment_is_answered_at_once_under_a_periodic_policy() -> None:
+    """With commitment and periodic replanning only, the idle vehicle is planned at the
+    next tick, not at the next period."""
+    core = _two_targets_one_each(ReplanPolicy(on_events=False, period_s=10.0, commit=True))
+    run_ticks(core, 0.0, 1.0)
+    core.handle(TargetAdded(2.0, "B", 0.0, 3400.0, sigma0=5000.0))
+    out = solve_all(core, core.handle(LoiterEnded(4.0, "2")))
+    out += run_ticks(core, 4.0, 4.3)
+    assert [(round(f.t_s, 1), f.vehicle, f.target) for f in flies(out)] == [(4.0, "2", "B")]

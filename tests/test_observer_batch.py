@@ -13,7 +13,14 @@ import pytest
 from filterpy.kalman import KalmanFilter
 
 from observer import Observer, ObserverConfig
-from observer.kalman_track import KalmanBatch, KalmanTrack, process_noise, transition
+from observer.kalman_track import (
+    C,
+    CvFilter,
+    KalmanBatch,
+    KalmanTrack,
+    process_noise,
+    transition,
+)
 
 REL = 1e-9
 
@@ -119,3 +126,26 @@ def test_observer_equals_tracks_advanced_one_by_one(seed: int) -> None:
         assert (snap.x_m, snap.y_m, snap.vx_m_s, snap.vy_m_s) == pytest.approx(tr.state, rel=REL)
         assert snap.sigma == pytest.approx(tr.sigma, rel=REL)
         assert snap.cov_xy == pytest.approx(tr.cov_xy, rel=REL)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_floe_filter_predicts_and_updates_as_filterpy_bit_for_bit(seed: int) -> None:
+    """``CvFilter`` makes filterpy's numpy calls in filterpy's order: equal, not just close."""
+    rng = np.random.default_rng(100 + seed)
+    for _ in range(60):
+        x = rng.normal(0.0, 500.0, size=(4, 1))
+        m = rng.normal(size=(4, 4)) * 10.0 ** rng.uniform(-2, 3)
+        p = m @ m.T + np.eye(4) * 1e-3
+        dt_s, q_per_s = float(rng.uniform(0.01, 5.0)), float(rng.uniform(0.0, 2.0))
+        z, r = rng.normal(0.0, 500.0, size=2), float(rng.uniform(0.1, 400.0)) * np.eye(2)
+        ref = KalmanFilter(dim_x=4, dim_z=2)
+        ref.x, ref.P, ref.H = x.copy(), p.copy(), C.copy()
+        ours = CvFilter(x.copy(), p.copy())
+        for f in (ref, ours):
+            f.predict(F=transition(dt_s), Q=process_noise(q_per_s, dt_s))
+        assert np.array_equal(ours.x, ref.x) and np.array_equal(ours.P, ref.P)
+        for f in (ref, ours):
+            f.update(z, R=r)
+        assert np.array_equal(ours.x, ref.x)
+        assert np.array_equal(ours.P, ref.P)
+        assert np.array_equal(ours.K, ref.K)

@@ -11,6 +11,7 @@ from pathlib import Path
 import pytest
 
 from groundstation.cli import main
+from groundstation.core.decision import ANSWER_REASON
 from groundstation.core.metrics import boundedness_ratio
 from groundstation.runners.simulate.simulator import SimulationOptions, run_simulation
 from world.scenario import ScriptedEvent, load_scenario
@@ -211,10 +212,19 @@ def test_first_plan_sends_each_uav_to_its_own_iceberg(objective: str) -> None:
                                 objective=objective, journal=True)
     run = run_simulation(load_scenario("paper-boat"), options)
     plans = [r for r in run.journal if r["event"] == "plan"]
-    assert len(plans) >= 2  # t = 0, 5 and 10 s
-    for plan in plans:
-        targets = list(plan["assignments"].values())
-        assert len(targets) == 3 and len(set(targets)) == 3, plan["assignments"]
+    assert len([p for p in plans if p["reason"] != ANSWER_REASON]) >= 2  # t = 0, 5 and 10 s
+    flying: dict[str, str] = {}  # each vehicle's leg, from the journal's fly lines
+    for record in run.journal:
+        if record["event"] == "fly":
+            flying[record["vehicle"]] = record["target"]
+        if record["event"] != "plan":
+            continue
+        targets = list(record["assignments"].values())
+        if record["reason"] == ANSWER_REASON:  # commands only the vehicles whose pass ended
+            others = {t for v, t in flying.items() if v not in record["assignments"]}
+            assert targets and not set(targets) & others, (record["assignments"], flying)
+        else:
+            assert len(targets) == 3 and len(set(targets)) == 3, record["assignments"]
 
 
 def test_the_operating_area_refuses_targets_outside_it() -> None:

@@ -94,6 +94,13 @@ from planner.search_cells import SearchCell, SearchGrid
 
 __all__ = ["DecisionCore", "VehicleRecord"]
 
+ANSWER_REASON = "loiter end answer"
+"""The reason of a plan asked for only to answer a loiter end (a policy without event
+replanning): it plans and commands only the vehicles whose loiter ended, as with
+commitment (the targets the others fly to are left out), and the others keep their legs
+until the next period."""
+
+
 class DecisionCore:
     """Events and time in, commands out (see module docstring)."""
 
@@ -388,24 +395,39 @@ class DecisionCore:
         if record is None or record.status is not FleetStatus.ACTIVE or not record.busy:
             return []
         record.busy = False
+        record.answer_due = True
         self._mark_dirty("loiter ended")
         if record.through:  # the mission's end: it flew through every cell (core/route.py)
             self._move_on(event.t_s, record, len(record.through), None)
         out = self._visit_ended(event.t_s, record)
+        command = self._next_along_route(event.t_s, record, out)
+        if command is None and record.answer_due:
+            # no leg yet: the next tick plans for it, whatever the policy (a periodic-only
+            # policy would otherwise leave it holding until the next period); that plan
+            # answers the loiter ends only (the others keep their legs until the period)
+            self._dirty_reason = self._dirty_reason or ANSWER_REASON
+        return out if command is None else [*out, command]
+
+    def _next_along_route(self, t_s: float, record: VehicleRecord, out: list[Command]
+                          ) -> Command | None:
+        """Without commitment, the loiter end's answer at once: the next target of its
+        planned route worth a visit (or home, on a watch, when that leg is unflyable;
+        appended to ``out``); None when there is none (or with commitment)."""
         if self.config.policy.commit or record.target not in record.route:
-            return out
+            return None
         rest = record.route[record.route.index(record.target) + 1:]
         known = self._known_targets()
         rest = tuple(t for t in rest if t in known)
         pick = self._first_worth_a_visit(record, rest)
         if pick is None:
-            return out
+            return None
         target, rest, leg = pick
-        home = self._unflyable(event.t_s, record, leg)
+        home = self._unflyable(t_s, record, leg)
         if home:
-            return out + home
-        command = self._fly(event.t_s, record, target, rest, leg)
-        return [*out, command] if command is not None else out
+            record.answer_due = False
+            out += home
+            return None
+        return self._fly(t_s, record, target, rest, leg)
 
     def _visit_ended(self, t_s: float, record: VehicleRecord) -> list[Command]:
         """A loiter (or pass) of ``record`` ended: if its target was not seen since the
@@ -498,7 +520,8 @@ class DecisionCore:
         ):
             while self._next_periodic_s <= t_s + 1e-9:
                 self._next_periodic_s += period
-            reason = reason or "period"
+            # a periodic plan plans everyone, so it answers a loiter end too
+            reason = "period" if reason in (None, ANSWER_REASON) else reason
         if reason is None:
             return []
         self._dirty_reason = None
@@ -512,12 +535,15 @@ class DecisionCore:
 
     def _request_plan(self, t_s: float, reason: str) -> list[Command]:
         out: list[Command] = []
-        vehicles = sorted(self.planned_vehicles(), key=lambda v: v.id)
+        answer = reason == ANSWER_REASON  # as with commitment: the others keep their legs
+        vehicles = sorted(
+            (v for v in self.active_vehicles() if v.answer_due) if answer
+            else self.planned_vehicles(), key=lambda v: v.id)
         self.observer.predict_to(t_s)
         covered = {
             v.target for v in self.vehicles.values()
             if v.status is FleetStatus.ACTIVE and v.busy and v.target is not None
-        } if self.config.policy.commit else set()
+        } if self.config.policy.commit or answer else set()
         targets = track_targets(self.observer.tracks(), self.tracks.status, covered,
                                 self.config.tentative_weight, self.tracks.existence)
         if self.search is not None:
@@ -597,7 +623,7 @@ class DecisionCore:
                 continue
             if record.status is not FleetStatus.ACTIVE or (
                 self.config.policy.commit and record.busy
-            ):
+            ) or (request.reason == ANSWER_REASON and not record.answer_due):
                 continue
             pick = self._first_worth_a_visit(record, tuple(route) if route else (first,))
             if pick is None:
@@ -611,6 +637,10 @@ class DecisionCore:
             command = self._fly(event.t_s, record, target, legs if route else (), leg)
             if command is not None:
                 fly.append(command)
+        for uav in request.problem.uavs:  # a loiter end's answer is given once
+            record = self.vehicles.get(uav.id)
+            if record is not None:
+                record.answer_due = False
         adopted = PlanAdopted(event.t_s, request.request_id, request.problem, result,
                               assignments, request.hint, request.reason)
         return [adopted, *fly]
@@ -650,11 +680,12 @@ class DecisionCore:
         # points of its route still ahead (not the repeats of where it flies to now): it
         # keeps flying them meanwhile
         ahead = record.busy and any(t != record.target for t in record.through)
-        if self.uploads.too_soon(record.id, t_s,
-                                 self.config.route_min_interval_s if ahead else None):
-            return None
+        if not record.answer_due and self.uploads.too_soon(
+                record.id, t_s, self.config.route_min_interval_s if ahead else None):
+            return None  # deferred; a loiter end's answer never is (core/uploads.py)
         record.route = route
         record.busy = True
+        record.answer_due = False
         self.uploads.sent(record.id, t_s)
         record.leg_t_s = t_s
         record.target, record.aim_xy_m, record.eta_s = target, aim, t_s + t_arr_s

@@ -70,6 +70,11 @@ class VehicleRecord:
     leg_wind_xy_m_s: tuple[float, float] | None = None
     leg_wind_source: str | None = None
     """The wind that leg was predicted in, and its source (``core/wind_replan.py``)."""
+    answer_due: bool = False
+    """Its loiter (or pass) ended and no new leg was sent since: the next one is the loiter
+    end's answer, sent at once, not deferred by the upload interval (``core/uploads.py``;
+    one such leg per loiter end). Cleared when a leg is sent or a plan that included the
+    vehicle gave it none."""
 
     @property
     def idle(self) -> bool:

@@ -10,10 +10,14 @@ each way on a radio link), so the core sends one only when it matters:
   and a search cell a vehicle flies to stays in the planning problem even when other cells
   grew past it (``CoreConfig.keep_held_cells``), so it is not turned away for that alone.
 * **Minimum interval.** A vehicle is sent at most one FlyToTarget per ``min_interval_s``
-  mission seconds. A new target (a redirect, or the next target after a loiter end) or a
-  moved aim that comes sooner is *deferred*: the vehicle keeps flying (or holding over)
-  what it has, and a replan is asked for as soon as the interval has passed
+  mission seconds. A redirect or a moved aim that comes sooner is *deferred*: the vehicle
+  keeps flying what it has, and a replan is asked for as soon as the interval has passed
   (:meth:`UploadRule.due`), so the deferred decision is taken again on fresh estimates.
+  The one exception is a loiter end's answer (``VehicleRecord.answer_due``): the vehicle
+  has finished its mission and holds, its target changes, so its next leg is sent at once
+  (the next target of its route, or the plan the loiter end asks for at the next tick,
+  whatever the replanning policy). That is one upload per loiter end, and the interval
+  starts again from it.
   Safety is never delayed: going home, RTL, release, SetHome, an energy return and the
   operator's actions are other commands, and a vehicle that joins, returns, reboots or
   is resumed by the operator starts a fresh interval (:meth:`UploadRule.reset`), as does

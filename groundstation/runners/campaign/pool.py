@@ -33,7 +33,7 @@ from groundstation.runners.campaign.run import THREAD_ENV, RunOutcome, execute_r
 
 __all__ = ["LocalPool", "RunSink"]
 
-PRELOAD = ["groundstation.runners.campaign.run", "filterpy.kalman"]
+PRELOAD = ["groundstation.runners.campaign.run"]
 """Imported once by the forkserver; every worker is forked with them loaded."""
 
 

@@ -7,7 +7,7 @@ into one flat row (``runs.parquet``) and, when asked, one row per adopted plan
 (``plans.parquet``). Columns are listed in :mod:`groundstation.runners.campaign.schema`.
 
 :func:`init_worker` prepares a worker process once: one BLAS/OpenMP thread, SIGINT
-ignored (the driver decides when to stop), and the simulator's imports loaded, so that
+ignored (the driver decides when to stop); the simulator's imports are this module's own, so
 no run pays them.
 """
 
@@ -69,7 +69,6 @@ def init_worker(environ: Mapping[str, str] | None = None, driver_pid: int | None
         os.environ.update(environ)
     if driver_pid is not None:
         _exit_with_driver(driver_pid)
-    warm_up()
 
 
 def _process_alive(pid: int) -> bool:
@@ -100,13 +99,6 @@ def _exit_with_driver(driver_pid: int, poll_s: float = 0.5) -> None:
         os._exit(0)
 
     threading.Thread(target=watch, name="floe-driver-watch", daemon=True).start()
-
-
-def warm_up() -> None:
-    """Load what a Kalman run imports on its first use (filterpy, scipy: ~0.6 s)."""
-    from observer.kalman_track import load_filterpy
-
-    load_filterpy()
 
 
 @functools.cache
