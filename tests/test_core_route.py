@@ -120,3 +120,24 @@ def test_the_no_progress_watch_follows_the_point_the_vehicle_flies_to() -> None:
     assert fly.aim_now(1) == (2000.0, 0.0)  # never back
     assert fly.aim_now(None) == (2000.0, 0.0)
     assert fly.aim_now(5) == (3000.0, 0.0)  # the unlimited loiter at the last point
+
+
+def test_a_routed_pass_is_redirected_at_most_once_per_route_interval() -> None:
+    """Even when its mission holds no other point than its head (one iceberg: the head
+    repeated), a vehicle on a routed pass keeps it for the route interval (60 s) before a
+    new head is sent: not the 15 s upload interval, with which neighbouring heads flipped
+    with every replan."""
+    core = DecisionCore(CoreConfig(
+        policy=ReplanPolicy(on_events=True, period_s=5.0, commit=False),
+        observer=ObserverConfig(model="kalman"), loiter_s=0.0,
+        area_m=(0.0, 3000.0, -1500.0, 1500.0),
+        search=SearchConfig(cell_m=500.0, growth_m2_per_s=25.0, max_cells=0)))
+    core.handle(VehicleJoined(0.0, "1", 0.0, 0.0, 0.0, 22.0))
+    core.handle(TargetAdded(0.0, "A", 2500.0, 0.0, sigma0=100.0))
+    first = fly_to(core, 0.0, 1.0, 0.0, 22.0)
+    assert [(f.target, [c.target for c in f.through]) for f in first] == [
+        ("A", ["A", "A", "A"])]
+    core.handle(TargetAdded(10.0, "D", 300.0, 900.0, sigma0=1e7))
+    sent = fly_to(core, 10.0, 70.0, 200.0, 600.0)
+    assert sent, "the new head is sent once the route interval has passed"
+    assert sent[0].target == "D" and 60.0 <= sent[0].t_s <= 61.0, (sent[0].t_s, sent[0].target)

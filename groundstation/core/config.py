@@ -151,8 +151,8 @@ class CoreConfig:
     new mission (``core/route.py``). None or 0: a mission ends at its head (journals
     written before routes read as None, so they replay as they ran)."""
     route_min_interval_s: float | None = 60.0
-    """The minimum interval for a vehicle that still has points of its mission's route
-    ahead (it keeps flying them while a new head waits; ``core/route.py``); at least
+    """The minimum interval for a vehicle flying a routed pass (it keeps flying its route,
+    or holds over its head, while a new head waits; ``core/route.py``); at least
     ``upload_min_interval_s``. None: that interval for every vehicle (journals before)."""
     revisit_growth: float | None = 2.0
     """A target a vehicle's visit did not see is not given to that vehicle again at the same

@@ -677,9 +677,12 @@ class DecisionCore:
                 self._move_on(t_s, record, k, (aim, t_arr_s))
                 record.route = route
                 return None
-        # points of its route still ahead (not the repeats of where it flies to now): it
-        # keeps flying them meanwhile
-        ahead = record.busy and any(t != record.target for t in record.through)
+        # a vehicle on a routed pass (``core/route.py``) is redirected at most once per
+        # route interval, whether points of its route are still ahead (it keeps flying
+        # them meanwhile) or only the repeats of its head: between neighbouring cells the
+        # plan's head flips with every periodic replan (issue 28: 60-68 uploads per vehicle
+        # per hour on discovery's seeds 4 and 7 from heads re-sent 15 s apart)
+        ahead = record.busy and bool(record.through)
         if not record.answer_due and self.uploads.too_soon(
                 record.id, t_s, self.config.route_min_interval_s if ahead else None):
             return None  # deferred; a loiter end's answer never is (core/uploads.py)
