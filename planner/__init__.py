@@ -2,6 +2,8 @@
 
 from planner.dubins import dubins_distance_to_point
 from planner.problem import (
+    MU_RULES,
+    MuRule,
     Objective,
     PlanningProblem,
     PlanResult,
@@ -11,11 +13,14 @@ from planner.problem import (
     UavPose,
     problem_from_dict,
     problem_to_dict,
+    parse_mu,
     result_to_dict,
 )
 from planner.solve import PlanSolver, solve_plan
 
 __all__ = [
+    "MU_RULES",
+    "MuRule",
     "Objective",
     "PlanResult",
     "PlanSolver",
@@ -26,6 +31,7 @@ __all__ = [
     "UavPose",
     "dubins_distance_to_point",
     "problem_from_dict",
+    "parse_mu",
     "problem_to_dict",
     "result_to_dict",
     "solve_plan",

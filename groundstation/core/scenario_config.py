@@ -65,6 +65,7 @@ def _core_config(scenario: Scenario, obs: Any, objective: str | None) -> CoreCon
         objective=Objective(objective or scenario.planner.objective),
         time_limit_s=scenario.planner.time_limit_s,
         min_sigma_fraction=scenario.planner.min_sigma_fraction,
+        mu=scenario.planner.mu,
         priority_gain=obs.priority_gain,
         priority_near_m=obs.priority_near_m,
         priority_far_m=obs.priority_far_m,
