@@ -11,9 +11,9 @@ from planner.problem import (
     ProblemError,
     TargetEstimate,
     UavPose,
+    parse_mu,
     problem_from_dict,
     problem_to_dict,
-    parse_mu,
     result_to_dict,
 )
 from planner.solve import PlanSolver, solve_plan
@@ -30,8 +30,8 @@ __all__ = [
     "TargetEstimate",
     "UavPose",
     "dubins_distance_to_point",
-    "problem_from_dict",
     "parse_mu",
+    "problem_from_dict",
     "problem_to_dict",
     "result_to_dict",
     "solve_plan",
