@@ -44,6 +44,13 @@ def growth_text(series: Sequence[Sequence[float]]) -> str:
     return f"last/middle third {pair[1] / pair[0]:.2f}"
 
 
+def uncertainty_title(run: SimulationRun) -> str:
+    """uncertainty.png's title: the run and its growth over the second half (never a
+    threshold verdict: docs/planner.md, "Figure 4 at the ensemble level")."""
+    return (f"{run.scenario.name}: {run.metrics['uavs']} UAV(s), seed {run.options.seed} - "
+            f"growth over the 2nd half: {growth_text(run.metrics['uncertainty_series'])}")
+
+
 def plot_uncertainty(run: SimulationRun, path: Path) -> Path:
     """Mean uncertainty (top) and each target's (bottom, log scale) against time."""
     fig = Figure(figsize=(9, 7), layout="constrained")
@@ -51,10 +58,7 @@ def plot_uncertainty(run: SimulationRun, path: Path) -> Path:
     series = run.metrics["uncertainty_series"]
     top.plot([t for t, _ in series], [s for _, s in series], color="black", lw=2)
     top.set_ylabel("mean uncertainty sigma (m$^2$)")
-    top.set_title(
-        f"{run.scenario.name}: {run.metrics['uavs']} UAV(s), seed {run.options.seed} - "
-        f"growth over the 2nd half: {growth_text(series)}"
-    )
+    top.set_title(uncertainty_title(run))
     top.grid(True, alpha=0.3)
     fov = run.scenario.fleet.fov_radius_m
     for k, (target, rows) in enumerate(sorted(run.target_estimates.items())):
