@@ -137,7 +137,7 @@ def _header_rows(
 
 
 def _trend_html(trends: TrendCounts | None, cells: Cells, keys: Sequence[str]) -> list[str]:
-    """Runs under each trend bound per cell (docs/planner.md "Bounded")."""
+    """Runs under each trend bound per cell (docs/planner.md "Figure 4 at the ensemble level")."""
     if trends is None:
         return []
     esc = html.escape

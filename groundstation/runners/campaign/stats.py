@@ -418,7 +418,7 @@ TREND_BOUNDS = (0.25, 0.4, 0.5, 0.6)
 @dataclass
 class TrendCounts:
     """Per cell: the median ``trend`` and how many runs have a trend at most each bound
-    (docs/planner.md "Bounded": the table that chose the bound 0.5)."""
+    (docs/planner.md "Figure 4 at the ensemble level": the table that chose the bound 0.5)."""
 
     bounds: tuple[float, ...]
     median: np.ndarray
