@@ -202,3 +202,40 @@ def test_ensemble_growth_is_the_mean_curves_last_over_middle_third() -> None:
     assert growth.low is not None and growth.high is not None
     assert 1.0 <= growth.low < 2.0 < growth.high <= 3.0
     assert ensemble_growth([(100.0, 150.0)]).text() == "1.50 (1 run: no interval)"
+
+
+def test_a_scenario_with_a_bad_mu_is_one_line_and_exit_2(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    scenario = tmp_path / "bad.yaml"
+    scenario.write_text(SCENARIO.replace("mu: paper", "mu: literal"))
+    assert main(["simulate", "--scenario", str(scenario), "--out", str(tmp_path / "o"),
+                 "--quiet", "--no-plots"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "planner.mu: must be a number >= 0 or one of floe, paper, " \
+        "unconstrained, got 'literal'" in err[0]
+
+
+def test_campaign_end_of_run_table_gives_the_growth_not_a_bounded_count() -> None:
+    import io
+
+    from groundstation.commands.campaign_progress import print_summary
+    from groundstation.runners.campaign.summary import summarise
+
+    t = [float(s) for s in range(31)]
+    rows = [
+        {"uavs": u, "seed": s, "mean_uncertainty": 1.0, "bounded_trend": True,
+         "series_t_s": t, "series_mean_sigma": [100.0 * (1 + (x > 20) * (s + u)) for x in t]}
+        for u in (1, 3) for s in range(4)
+    ]
+    keys, cells = summarise(rows, {"uavs": [1, 3], "seed": [0, 1, 2, 3]})
+    for cell in cells:
+        u = cell.cell["uavs"]
+        want = ensemble_growth([(100.0, 100.0 * (1 + s + u)) for s in range(4)])
+        assert cell.growth == want and want.value == pytest.approx(1 + 1.5 + u)
+    out = io.StringIO()
+    print_summary(keys, cells, out)
+    text = out.getvalue()
+    assert "growth 2nd half [95 % CI]" in text and "trend <= 0.5" in text
+    assert "bounded" not in text
+    assert cells[1].growth is not None and cells[1].growth.text() in text
