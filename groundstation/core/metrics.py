@@ -13,8 +13,10 @@
 
   is the growth over the second half that the slope predicts, relative to the level (0 for
   a level run, 0.67 for sigma growing linearly from 0, about 1.7 for the t^3 growth of a
-  track never seen again). The run is *bounded* (``bounded_trend``) when
-  ``trend <= TREND_BOUND`` = 0.5. Measured on paper-boat (docs/planner.md, "Figure 4 at the ensemble level"):
+  track never seen again). ``bounded_trend`` is the threshold ``trend <= TREND_BOUND`` =
+  0.5 (the key keeps its old name; it is a threshold on a rate, not a test of
+  boundedness: sqrt(t) passes it). Measured on paper-boat (docs/planner.md, "Figure 4 at
+  the ensemble level"):
   with icebergs that do not drift (a field 3-6 UAVs can hold), 4 of 120 runs of 200 s and
   600 s exceed 0.5 (0.4: 8, 0.25: 18); runs that must grow (one UAV over 200 s; 1, 3 and 5
   UAVs over 600 s of drift) all exceed it (0.6 lets 2 of 80 pass).
