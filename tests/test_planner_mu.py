@@ -196,7 +196,8 @@ def test_ensemble_growth_is_the_mean_curves_last_over_middle_third() -> None:
     level = third_means(t, [100.0] * len(t))
     assert level == (100.0, 100.0)
     rising = third_means(t, [5000.0 + 25.0 * s for s in t])
-    assert rising is not None and rising[1] / rising[0] == pytest.approx(12500 / 10000, rel=1e-3)
+    # middle third t in (100, 200], mean t 150.5; last (200, 300], mean 250.5
+    assert rising == pytest.approx((5000.0 + 25.0 * 150.5, 5000.0 + 25.0 * 250.5))
     growth = ensemble_growth([(100.0, 100.0), (100.0, 300.0), (100.0, 200.0)])
     assert growth.value == pytest.approx(2.0)
     assert growth.low is not None and growth.high is not None
