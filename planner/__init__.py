@@ -2,6 +2,8 @@
 
 from planner.dubins import dubins_distance_to_point
 from planner.problem import (
+    MU_RULES,
+    MuRule,
     Objective,
     PlanningProblem,
     PlanResult,
@@ -9,6 +11,7 @@ from planner.problem import (
     ProblemError,
     TargetEstimate,
     UavPose,
+    parse_mu,
     problem_from_dict,
     problem_to_dict,
     result_to_dict,
@@ -16,6 +19,8 @@ from planner.problem import (
 from planner.solve import PlanSolver, solve_plan
 
 __all__ = [
+    "MU_RULES",
+    "MuRule",
     "Objective",
     "PlanResult",
     "PlanSolver",
@@ -25,6 +30,7 @@ __all__ = [
     "TargetEstimate",
     "UavPose",
     "dubins_distance_to_point",
+    "parse_mu",
     "problem_from_dict",
     "problem_to_dict",
     "result_to_dict",

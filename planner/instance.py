@@ -57,8 +57,10 @@ after it on the path, a = tau mu (`arc_weight`), b = 1 - tau, h_ij = 1 (sequence
 d_net_ij / d_avg (arrival) or d_net_ij / speed_m_s (latency); J = constant + sum of arc
 costs.
 
-mu = F1max / F2avg unless given; F2avg = d_avg (N - m); F1max = sum_k sigma_(k) (N - t_k),
-sigma sorted descending, t_k = 2 + k // m; mu = 1 if either is 0.
+mu = F1max / F2avg unless given; F2avg = d_avg (N - m); F1max by the problem's mu_rule
+(planner.problem.MuRule): ``floe`` sum_k sigma_(k) (N - t_k), sigma sorted descending,
+t_k = 2 + k // m; ``paper`` (N - 2) sum sigma (every target right after a UAV, t = 2);
+``unconstrained`` (N - 1) sum sigma (t = 1); mu = 1 if either is 0.
 """
 
 from __future__ import annotations
@@ -71,7 +73,7 @@ import numpy as np
 import numpy.typing as npt
 
 from planner.dubins import dubins_distance_to_point, dubins_distances_to_points
-from planner.problem import Objective, PlanningProblem, ProblemError, wind_problem
+from planner.problem import MuRule, Objective, PlanningProblem, ProblemError, wind_problem
 from planner.wind import first_leg_times_s, potential_s, straight_leg_times_s
 
 FloatArray = npt.NDArray[np.float64]
@@ -93,8 +95,16 @@ def kept_targets(problem: PlanningProblem) -> tuple[list[int], list[int]]:
     return kept, dropped
 
 
-def f1_max(sigmas: Sequence[float], n_uav: int, n_nodes: int) -> float:
-    """Round-robin upper bound of F1: the k-th largest sigma gets t = 2 + k // n_uav."""
+def f1_max(
+    sigmas: Sequence[float], n_uav: int, n_nodes: int, rule: MuRule = MuRule.FLOE
+) -> float:
+    """F1max of eq. 18 by ``rule`` (MuRule): ``floe``, the round-robin upper bound of F1 (the
+    k-th largest sigma gets t = 2 + k // n_uav); ``paper``, every target at t = 2:
+    (N - 2) sum sigma; ``unconstrained``, every target at t = 1: (N - 1) sum sigma."""
+    if rule == MuRule.PAPER:
+        return float((n_nodes - 2) * sum(sigmas))
+    if rule == MuRule.UNCONSTRAINED:
+        return float((n_nodes - 1) * sum(sigmas))
     ordered = sorted(sigmas, reverse=True)
     return float(sum(s * (n_nodes - (2 + k // n_uav)) for k, s in enumerate(ordered)))
 
@@ -237,7 +247,7 @@ def build_instance(problem: PlanningProblem) -> Instance:
     if problem.mu is not None:
         mu = float(problem.mu)
     else:
-        f1m = f1_max(sigma.tolist(), m, size) if m else 0.0
+        f1m = f1_max(sigma.tolist(), m, size, problem.mu_rule) if m else 0.0
         f2avg = d_avg * (size - m)
         mu = f1m / f2avg if f1m != 0.0 and f2avg != 0.0 else 1.0
     tau = problem.tau

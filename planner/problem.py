@@ -5,11 +5,14 @@ Problem JSON (all planar metres, headings in radians counter-clockwise from +x):
     {"uavs": [{"id": "u1", "x": 0, "y": 0, "heading": 0.0}, ...],
      "targets": [{"id": "t1", "x": 10, "y": 5, "sigma": 3.0}, ...],
      "turn_radius": 105.0, "tau": 0.5,
-     "mu": null | float, "min_sigma_fraction": 0.1, "time_limit_s": 5.0,
+     "mu": null | float | "floe" | "paper" | "unconstrained",
+     "min_sigma_fraction": 0.1, "time_limit_s": 5.0,
      "objective": "sequence" | "arrival" | "latency", "speed_m_s": 22.0,
      "wind_m_s": null | [wx, wy]}
 
-`uavs`, `targets` and `turn_radius` are required; any other key is an error. `wind_m_s` is
+`uavs`, `targets` and `turn_radius` are required; any other key is an error. `mu` is a
+number (eq. 18's weight given), or the rule that computes it (:class:`MuRule`; null is
+``floe``). `wind_m_s` is
 the ENU vector (m/s) the air moves towards; absent or null is still air. A wind at or above
 the airspeed `speed_m_s` is refused (upwind legs could not be flown).
 """
@@ -45,6 +48,25 @@ class PlanStatus(StrEnum):
     FEASIBLE = "feasible"
     FALLBACK = "fallback"
 
+
+class MuRule(StrEnum):
+    """How eq. 18's mu = F1max / F2avg is computed when no number is given (planner.instance,
+    docs/planner.md "mu"). F2avg = d_avg (N - nUAV) for every rule, d_avg the mean of all
+    N (N - 1) off-diagonal entries of d (as eq. 18 defines it); they differ in F1max:
+
+    * ``floe``: the largest F1 a feasible plan reaches, the k-th largest sigma at
+      t = 2 + k // nUAV (round robin over the UAVs; the design notes' reading);
+    * ``paper``: the paper's "optimizing without constraints" read literally, every iceberg
+      right after a UAV: t = 2, F1max = (N - 2) sum sigma;
+    * ``unconstrained``: constraints (14)-(15) dropped too, t = 1: F1max = (N - 1) sum sigma.
+    """
+
+    FLOE = "floe"
+    PAPER = "paper"
+    UNCONSTRAINED = "unconstrained"
+
+
+MU_RULES = tuple(r.value for r in MuRule)
 
 OBJECTIVES = tuple(o.value for o in Objective)
 STATUSES = tuple(s.value for s in PlanStatus)
@@ -87,12 +109,13 @@ class PlanningProblem:
     targets: tuple[TargetEstimate, ...]
     turn_radius_m: float
     tau: float = 0.5
-    mu: float | None = None
+    mu: float | None = None  # given: used as is; None: computed by mu_rule
     min_sigma_fraction: float = 0.1
     time_limit_s: float = 5.0
     objective: Objective = Objective.SEQUENCE
     speed_m_s: float = 22.0
     wind_m_s: tuple[float, float] | None = None  # ENU, towards; None: still air
+    mu_rule: MuRule = MuRule.FLOE  # eq. 18's F1max when mu is None (MuRule)
 
     @property
     def planning_wind_m_s(self) -> tuple[float, float] | None:
@@ -252,11 +275,7 @@ def problem_from_dict(d: Mapping[str, Any]) -> PlanningProblem:
     tau = _number(d.get("tau", 0.5), "tau")
     if not 0.0 <= tau <= 1.0:
         raise ProblemError("tau", "must be in [0, 1]")
-    mu: float | None = None
-    if d.get("mu") is not None:
-        mu = _number(d["mu"], "mu")
-        if mu < 0:
-            raise ProblemError("mu", "must be >= 0")
+    mu, mu_rule = parse_mu(d.get("mu"))
     frac = _number(d.get("min_sigma_fraction", 0.1), "min_sigma_fraction")
     if not 0.0 <= frac <= 1.0:
         raise ProblemError("min_sigma_fraction", "must be in [0, 1]")
@@ -281,7 +300,27 @@ def problem_from_dict(d: Mapping[str, Any]) -> PlanningProblem:
         objective=Objective(objective),
         speed_m_s=speed,
         wind_m_s=wind,
+        mu_rule=mu_rule,
     )
+
+
+def parse_mu(raw: Any, field: str = "mu") -> tuple[float | None, MuRule]:
+    """A `mu` setting: null (the ``floe`` rule), a rule name (:class:`MuRule`) or a number
+    >= 0 (used as is). Returns (mu, rule); raises ProblemError naming ``field``."""
+    if raw is None:
+        return None, MuRule.FLOE
+    if isinstance(raw, str):
+        if raw not in MU_RULES:
+            raise ProblemError(field, f"must be a number >= 0 or one of {', '.join(MU_RULES)}, "
+                               f"got {raw!r}")
+        return None, MuRule(raw)
+    if isinstance(raw, bool) or not isinstance(raw, int | float):
+        raise ProblemError(field, f"must be a number >= 0 or one of {', '.join(MU_RULES)}, "
+                           f"got {type(raw).__name__}")
+    mu = _number(raw, field)
+    if mu < 0:
+        raise ProblemError(field, "must be >= 0")
+    return mu, MuRule.FLOE
 
 
 def _wind(raw: Any, speed_m_s: float) -> tuple[float, float] | None:
@@ -299,7 +338,8 @@ def _wind(raw: Any, speed_m_s: float) -> tuple[float, float] | None:
 
 def problem_to_dict(p: PlanningProblem) -> dict[str, Any]:
     """Inverse of problem_from_dict (`mu` and `wind_m_s` only when set, so a still-air
-    problem reads as it did before wind existed)."""
+    problem under the ``floe`` rule reads as it did before wind and mu rules existed;
+    `mu` is the number, else the rule's name when it is not ``floe``)."""
     out: dict[str, Any] = {
         "uavs": [{"id": u.id, "x": u.x_m, "y": u.y_m, "heading": u.heading_rad} for u in p.uavs],
         "targets": [{"id": t.id, "x": t.x_m, "y": t.y_m, "sigma": t.sigma} for t in p.targets],
@@ -312,6 +352,8 @@ def problem_to_dict(p: PlanningProblem) -> dict[str, Any]:
     }
     if p.mu is not None:
         out["mu"] = p.mu
+    elif p.mu_rule != MuRule.FLOE:
+        out["mu"] = str(p.mu_rule)
     if p.wind_m_s is not None:
         out["wind_m_s"] = [p.wind_m_s[0], p.wind_m_s[1]]
     return out

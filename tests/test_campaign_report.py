@@ -253,10 +253,10 @@ def test_table_numbers_are_the_cells_mean_ci_bounded_rate_and_median(report: Pat
         assert float(values[1] or "nan") == pytest.approx(want["mean"], rel=1e-12)
         low, high = (float(v) for v in (values[2] or "").split(","))
         assert (low, high) == pytest.approx(want["ci"], rel=1e-9)
-        k, n = (int(v) for v in (values[3] or "").split(","))
+        k, n = (int(v) for v in (values[4] or "").split(","))
         assert (k, n) == want["bounded"] and n == SEEDS - 1  # seed 0 has no verdict
-        _check_wilson(k, n, *(float(v) for v in (values[4] or "").split(",")))
-        assert float(values[5] or "nan") == pytest.approx(want["solve_plans"], rel=1e-12)
+        _check_wilson(k, n, *(float(v) for v in (values[5] or "").split(",")))
+        assert float(values[6] or "nan") == pytest.approx(want["solve_plans"], rel=1e-12)
         assert row[3][0] == f"{want['mean']:,.0f}"
 
 
@@ -274,7 +274,7 @@ def test_trend_table_and_first_test_count_the_runs_under_each_bound(report: Path
             f"{sum(t <= b for t in trends)}/{len(trends)}" for b in (0.25, 0.4, 0.5, 0.6)
         ]
         first = sum(r["bounded"] for r in runs)
-        assert cell_row[-1] == (f"{first}/{len(runs)}", f"{first},{len(runs)}")
+        assert cell_row[-3] == (f"{first}/{len(runs)}", f"{first},{len(runs)}")
 
 
 def test_paired_table_compares_each_seed_with_the_papers_objective(report: Path) -> None:
@@ -351,7 +351,7 @@ def test_a_campaign_without_plans_uses_the_runs_solve_times(tmp_path: Path) -> N
     assert "not shown: this campaign kept no plans" in text
     for row in (r for r in page.tables["cells"] if r):
         want = _expected(int(row[0][0]), row[1][0])
-        assert float(row[7][1] or "nan") == pytest.approx(want["solve_runs"], rel=1e-12)
+        assert float(row[8][1] or "nan") == pytest.approx(want["solve_runs"], rel=1e-12)
 
 
 def test_missing_empty_or_corrupt_folder_is_a_one_line_floe_error(
@@ -415,3 +415,50 @@ def test_a_list_valued_override_is_a_grid_key() -> None:
     ]
     assert [c.mean_uncertainty_m2 for c in cells] == [2.5, 0.5]
     assert [c.runs for c in cells] == [2, 2]
+
+
+def test_table_gives_each_cells_growth_over_the_second_half_with_a_bootstrap_interval(
+    report: Path,
+) -> None:
+    """Issue 31: the Figure 4 verdict is the ensemble's growth (mean curve, last third over
+    middle third) with an interval over the seeds, not a count of runs called bounded."""
+    page = _parse(report)
+    text = " ".join(page.text)
+    assert "growth 2nd half (last/middle third) [95 % CI]" in text
+    assert "bounded (" not in text  # no column calls the trend threshold bounded
+    for row in (r for r in page.tables["cells"] if r):
+        uavs, objective = int(row[0][0]), row[1][0]
+        runs = [r for r in RUNS if r["uavs"] == uavs and r["objective"] == objective]
+        t = np.asarray(runs[0]["series_t_s"])
+        middle = (t > DURATION_S / 3) & (t <= 2 * DURATION_S / 3)
+        last = t > 2 * DURATION_S / 3
+        curves = np.array([r["series_mean_sigma"] for r in runs])
+        want = curves.mean(axis=0)[last].mean() / curves.mean(axis=0)[middle].mean()
+        value, low, high = (float(v) for v in (row[5][1] or "").split(","))
+        assert value == pytest.approx(want, rel=1e-12)
+        assert low < value < high
+        assert row[5][0] == f"{value:.2f} [{low:.2f}, {high:.2f}]"
+
+
+def test_table_gives_mu_over_the_realised_f1_f2_per_cell(report: Path) -> None:
+    """Issue 31: eq. 18's mu against the realised F1/F2 of the plans (f2 / f1, floe's f2
+    holding mu), mean and sd over the plans; latency plans (mu 0) have none."""
+    for row in (r for r in _parse(report).tables["cells"] if r):
+        uavs, objective = int(row[0][0]), row[1][0]
+        ids = {r["run_id"] for r in RUNS if r["uavs"] == uavs and r["objective"] == objective}
+        ratios = [p["f2"] / p["f1"] for p in PLANS if p["run_id"] in ids and p["mu"] != 0]
+        if objective == "latency":
+            assert not ratios and row[-2][0] == "-"
+            continue
+        mean, sd, n = (float(v) for v in (row[-2][1] or "").split(","))
+        assert (mean, sd, n) == pytest.approx(
+            (np.mean(ratios), np.std(ratios, ddof=1), len(ratios)), rel=1e-9
+        )
+        per_run = [
+            np.mean([p["f2"] / p["f1"] for p in PLANS if p["run_id"] == i]) for i in sorted(ids)
+        ]
+        half = T_975_DF5 * np.std(per_run, ddof=1) / math.sqrt(len(per_run))
+        low, high = (float(v) for v in (row[-1][1] or "").split(","))
+        assert (low, high) == pytest.approx(
+            (np.mean(per_run) - half, np.mean(per_run) + half), rel=1e-9
+        )

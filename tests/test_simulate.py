@@ -120,6 +120,45 @@ def test_cli_writes_metrics_and_plots_for_a_fleet_list(tmp_path: Path,
     assert "uavs" in out and str(tmp_path / "uavs-3") in out
 
 
+def test_uncertainty_plot_title_quotes_the_growth_not_the_withdrawn_ratio_test() -> None:
+    from groundstation.runners.simulate.plots import uncertainty_title
+
+    scenario = load_scenario("paper-boat")
+    run = run_simulation(scenario, SimulationOptions(seed=1, uavs=1, duration_s=30.0))
+    series = run.metrics["uncertainty_series"]
+    middle = [v for t, v in series if 10.0 < t <= 20.0]
+    last = [v for t, v in series if t > 20.0]
+    ratio = (sum(last) / len(last)) / (sum(middle) / len(middle))
+    title = uncertainty_title(run)
+    assert title.endswith(f"growth over the 2nd half: last/middle third {ratio:.2f}")
+    assert "bounded" not in title and "2nd/1st half max" not in title
+
+
+def test_cli_prints_each_fleet_sizes_growth_over_the_second_half_with_its_interval(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """Issue 31: ``gcs simulate --uavs 1,3 --seeds K`` judges Figure 4 on the ensemble: the
+    mean curve's last third over its middle third, with a bootstrap interval over seeds."""
+    from groundstation.core.metrics import ensemble_growth, third_means
+
+    status = main(["simulate", "--scenario", "paper-boat", "--uavs", "1,3", "--seeds", "3",
+                   "--duration", "30", "--out", str(tmp_path), "--quiet", "--no-plots"])
+    assert status == 0
+    out = capsys.readouterr().out
+    assert "bounded" not in out
+    for k in (1, 3):
+        thirds = []
+        for seed in range(3):
+            series = json.loads(
+                (tmp_path / f"uavs-{k}" / f"seed-{seed}" / "metrics.json").read_text()
+            )["uncertainty_series"]
+            thirds.append(third_means([t for t, _ in series], [v for _, v in series]))
+        growth = ensemble_growth(thirds)
+        assert growth.low is not None
+        assert (f"uavs {k}: growth over the second half (mean curve, last third / middle "
+                f"third, 3 seed(s)): {growth.text()}") in out
+
+
 @pytest.mark.parametrize(
     ("args", "message"),
     [
@@ -127,6 +166,7 @@ def test_cli_writes_metrics_and_plots_for_a_fleet_list(tmp_path: Path,
         (["--uavs", "0"], "--uavs takes positive integers"),
         (["--uavs", "two"], "--uavs takes positive integers"),
         (["--duration", "-5"], "expected a positive number"),
+        (["--seeds", "0"], "--seeds must be in [1, 10000]"),
     ],
 )
 def test_cli_user_errors_are_one_line_with_status_2(

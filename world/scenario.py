@@ -183,6 +183,12 @@ class PlannerSpec:
     min_sigma_fraction: float = 0.1
     wind_aware: bool = True
     tentative_weight: float = 0.0
+    mu: float | str = "floe"
+    """Eq. 18's distance weight: a number >= 0 or a rule (MU_RULE_NAMES; planner.MuRule)."""
+
+
+MU_RULE_NAMES = ("floe", "paper", "unconstrained")
+"""``planner.mu``'s rules (planner.problem.MuRule; world does not import the planner)."""
 
 
 @dataclass(frozen=True)
@@ -528,9 +534,23 @@ def _parse_planner(f: Fields) -> PlannerSpec:
         min_sigma_fraction=f.number("min_sigma_fraction", 0.1, minimum=0.0, maximum=1.0),
         wind_aware=f.boolean("wind_aware", True),
         tentative_weight=f.number("tentative_weight", 0.0, minimum=0.0, maximum=1e6),
+        mu=_parse_mu(f),
     )
     f.done()
     return spec
+
+
+def _parse_mu(f: Fields) -> float | str:
+    """``mu``: a rule name (MU_RULE_NAMES) or a number >= 0; absent or null: ``floe``."""
+    raw = f.raw("mu")
+    if raw is None:
+        return "floe"
+    if isinstance(raw, str):
+        if raw not in MU_RULE_NAMES:
+            raise FieldError(f.path_of("mu"), f"must be a number >= 0 or one of "
+                             f"{', '.join(MU_RULE_NAMES)}, got {raw!r}")
+        return raw
+    return f.number("mu", 0.0, minimum=0.0)
 
 
 def _parse_policy(f: Fields) -> PolicySpec:

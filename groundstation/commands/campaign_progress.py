@@ -3,7 +3,9 @@
 Progress goes to stderr: on a terminal a ``rich`` bar (runs done of to do, rate, elapsed,
 ETA); otherwise one plain line at every 10 % (no escape codes in a log); nothing with
 ``--quiet``. The summary table (one row per grid cell: runs, mean sigma with its 95 %
-t-interval, bounded runs, visits, lost targets) goes to stdout, as a ``rich`` table.
+t-interval, the growth over the second half of the cell's mean curve with its 95 %
+bootstrap interval, runs with trend <= 0.5, visits, lost targets) goes to stdout, as a
+``rich`` table.
 """
 
 from __future__ import annotations
@@ -120,13 +122,15 @@ def print_summary(keys: Sequence[str], cells: Sequence[CellMeans],
                   box=None, header_style="bold")
     for key in keys:
         table.add_column(key)
-    for name in ("runs", "mean sigma m^2", "final sigma m^2", "bounded", "visits", "lost"):
+    for name in ("runs", "mean sigma m^2", "final sigma m^2",
+                 "growth 2nd half [95 % CI]", "trend <= 0.5", "visits", "lost"):
         table.add_column(name, justify="right")
     for summary in cells:
         bounded = f"{summary.bounded}/{summary.bounded_of}" if summary.bounded_of else "-"
+        growth = summary.growth.text() if summary.growth is not None else "-"
         table.add_row(
             *(str(summary.cell[k]) for k in keys), str(summary.runs),
             _figure(summary, "mean_uncertainty", 0), _figure(summary, "final_uncertainty", 0),
-            bounded, _figure(summary, "visits", 1), _figure(summary, "lost_targets", 1),
+            growth, bounded, _figure(summary, "visits", 1), _figure(summary, "lost_targets", 1),
         )
     Console(file=out, width=200 if not out.isatty() else None).print(table)

@@ -54,6 +54,9 @@ def _fleet_sizes(text: str) -> list[int]:
     return sizes
 
 
+MAX_SEEDS = 10_000
+
+
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         allow_abbrev=False,
@@ -74,6 +77,15 @@ def _parser() -> argparse.ArgumentParser:
         help="fleet size, or a comma list (1,3) to compare sizes (default: the scenario's)",
     )
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    parser.add_argument(
+        "--seeds",
+        type=int,
+        default=1,
+        metavar="K",
+        help="run K seeds (seed, seed+1, ...) per fleet size, each in DIR[/uavs-N]/seed-S, and "
+        "print each size's growth over the second half of the mean curve with its 95 %% "
+        "bootstrap interval over the seeds (default 1: one run, no interval)",
+    )
     parser.add_argument(
         "--out",
         type=Path,
@@ -125,6 +137,9 @@ def run(argv: list[str]) -> int:
         print(f"gcs simulate: error: plots need matplotlib, not installed here: "
               f"{extra_hint('plot')}, or --no-plots", file=sys.stderr)
         return 2
+    if not 1 <= args.seeds <= MAX_SEEDS:
+        print(f"gcs simulate: error: --seeds must be in [1, {MAX_SEEDS}]", file=sys.stderr)
+        return 2
     try:
         scenario = load_scenario(args.scenario)
     except ScenarioError as exc:
@@ -159,6 +174,7 @@ def run(argv: list[str]) -> int:
               f"kept in {stop.out_dir} (no plots)", file=sys.stderr)
         return 130
     _print_summary(rows)
+    _print_growth(rows, sizes, args.seeds)
     if not scenario.wind.calm:
         print(f"wind: {scenario.wind.describe()}")
     for row in rows:
@@ -180,10 +196,11 @@ def _run_sizes(args: argparse.Namespace, scenario: Any, sizes: list[int]) -> lis
     with ProgressBars(quiet=args.quiet) as bars:
         duration_s = args.duration or scenario.duration_s
         wind = "" if scenario.wind.calm else f" wind {scenario.wind.describe()}"
-        updates = {  # one task per fleet size, all shown from the start
-            uavs: bars.task(f"{scenario.name} uavs={uavs} seed={args.seed}{wind}", duration_s,
-                            " s")
+        updates = {  # one task per fleet size and seed, all shown from the start
+            (uavs, seed): bars.task(f"{scenario.name} uavs={uavs} seed={seed}{wind}",
+                                    duration_s, " s")
             for uavs in sizes
+            for seed in _seeds(args)
         }
         return _simulate_sizes(args, scenario, sizes, updates)
 
@@ -192,21 +209,23 @@ def _simulate_sizes(
     args: argparse.Namespace,
     scenario: Any,
     sizes: list[int],
-    updates: dict[int, TaskUpdate],
+    updates: dict[tuple[int, int], TaskUpdate],
 ) -> list[dict[str, Any]]:
     from groundstation.runners.simulate.simulator import SimulationOptions, run_simulation
 
     curves: dict[int, list[list[float]]] = {}
     rows: list[dict[str, Any]] = []
-    for uavs in sizes:
-        update = updates[uavs]
+    for uavs, seed in ((u, s) for u in sizes for s in _seeds(args)):
+        update = updates[(uavs, seed)]
         out_dir = args.out / f"uavs-{uavs}" if len(sizes) > 1 else args.out
+        if args.seeds > 1:
+            out_dir = out_dir / f"seed-{seed}"
         try:
             out_dir.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
             raise StorageError(f"cannot create {out_dir}: {describe_os_error(exc)}") from None
         options = SimulationOptions(
-            seed=args.seed,
+            seed=seed,
             uavs=uavs,
             duration_s=args.duration,
             num_workers=args.workers,
@@ -226,8 +245,9 @@ def _simulate_sizes(
             from groundstation.runners.simulate.plots import write_plots
 
             write_plots(result, out_dir)
-        curves[uavs] = metrics["uncertainty_series"]
-        rows.append({"uavs": uavs, "dir": str(out_dir), **metrics,
+        if seed == args.seed:
+            curves[uavs] = metrics["uncertainty_series"]
+        rows.append({"uavs": uavs, "seed": seed, "dir": str(out_dir), **metrics,
                      "fallbacks": fallback_lines(result.journal or [])})
     if len(sizes) > 1 and not args.no_plots:
         from groundstation.runners.simulate.plots import plot_comparison
@@ -271,6 +291,10 @@ def fallback_lines(journal: list[dict[str, Any]]) -> list[str]:
     return lines
 
 
+def _seeds(args: argparse.Namespace) -> range:
+    return range(args.seed, args.seed + args.seeds)
+
+
 def _mission_progress(update: TaskUpdate) -> Callable[[float, float], None]:
     """The runner's ``progress(t_s, duration_s)`` -> the task's update."""
 
@@ -282,20 +306,44 @@ def _mission_progress(update: TaskUpdate) -> Callable[[float, float], None]:
 
 def _print_summary(rows: list[dict[str, Any]]) -> None:
     header = (
-        f"{'uavs':>4} {'mean sigma':>11} {'max sigma':>11} {'final':>11} {'bounded':>8}"
+        f"{'uavs':>4} {'mean sigma':>11} {'max sigma':>11} {'final':>11} {'trend':>6}"
         f" {'lost':>4} {'visits':>6} {'plans':>5} {'x realtime':>10}  output"
     )
     print(header)
     for r in rows:
         print(
             f"{r['uavs']:>4} {r['mean_uncertainty']:>11.1f} {r['max_uncertainty']:>11.1f}"
-            f" {r['final_uncertainty']:>11.1f} {('yes' if r['bounded'] else 'no'):>8}"
+            f" {r['final_uncertainty']:>11.1f} {_trend_text(r['trend']):>6}"
             f" {len(r['lost_targets']):>4} {len(r['visits']):>6} {r['plans']:>5}"
             f" {r['realtime_factor']:>10.0f}  {r['dir']}"
         )
     for r in rows:
         if "on_station_shortfall_s" in r:
             print(_watch_line(r))
+
+
+def _trend_text(trend: float | None) -> str:
+    return "-" if trend is None else f"{trend:.2f}"
+
+
+def _print_growth(rows: list[dict[str, Any]], sizes: list[int], seeds: int) -> None:
+    """Per fleet size, the growth over the second half of the mean curve over its seeds
+    with the 95 % bootstrap interval (groundstation/core/metrics.py, ensemble_growth)."""
+    from groundstation.core.metrics import ensemble_growth, third_means
+
+    for uavs in sizes:
+        thirds = []
+        for r in rows:
+            if r["uavs"] != uavs:
+                continue
+            series = r["uncertainty_series"]
+            pair = third_means([t for t, _ in series], [v for _, v in series])
+            if pair is not None:
+                thirds.append(pair)
+        growth = ensemble_growth(thirds)
+        hint = "" if seeds > 1 else "; --seeds K for an interval over K seeds"
+        print(f"uavs {uavs}: growth over the second half (mean curve, last third / middle "
+              f"third, {growth.runs} seed(s)): {growth.text()}{hint}")
 
 
 def _watch_line(r: dict[str, Any]) -> str:

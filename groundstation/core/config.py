@@ -11,7 +11,7 @@ from typing import Any
 
 from groundstation.core.mission import ROUTE_POINTS_MAX
 from observer import ObserverConfig, TrackerConfig
-from planner import Objective
+from planner import MuRule, Objective, ProblemError, parse_mu
 from planner.search_cells import SearchConfig
 
 __all__ = [
@@ -132,6 +132,10 @@ class CoreConfig:
     objective: Objective = Objective.LATENCY  # docs/planner.md, "Choosing the objective"
     time_limit_s: float = 2.0
     min_sigma_fraction: float = 0.1
+    mu: float | MuRule = MuRule.FLOE
+    """Eq. 18's distance weight: a number >= 0, or the rule that computes it per plan
+    (``floe``, ``paper``, ``unconstrained``: planner.problem.MuRule, docs/planner.md "mu").
+    Journals written before the setting read as ``floe`` (the rule they ran)."""
     retarget_threshold_m: float | None = None
     """A vehicle flying to a target is sent there again only when the aim point moved
     farther than this (m); None: the loiter radius (``core/uploads.py``). Journals written
@@ -211,6 +215,11 @@ class CoreConfig:
             raise ValueError(f"objective must be one of {', '.join(Objective)}")
         object.__setattr__(self, "battery_low_action", BatteryAction(self.battery_low_action))
         object.__setattr__(self, "objective", Objective(self.objective))
+        try:
+            mu_value, mu_rule = parse_mu(self.mu)
+        except ProblemError as exc:
+            raise ValueError(str(exc)) from None
+        object.__setattr__(self, "mu", mu_rule if mu_value is None else mu_value)
         # a journal's start line holds the wind as a JSON list
         try:
             wind = tuple(float(c) for c in self.wind_xy_m_s)
@@ -290,6 +299,7 @@ def config_to_dict(config: CoreConfig) -> dict[str, Any]:
     """The core configuration as plain JSON/YAML data (journalled at start for replay)."""
     out = dataclasses.asdict(config)
     out["objective"] = str(config.objective)
+    out["mu"] = str(config.mu) if isinstance(config.mu, MuRule) else config.mu
     out["battery_low_action"] = str(config.battery_low_action)
     out["wind_xy_m_s"] = list(config.wind_xy_m_s)
     if config.area_m is not None:

@@ -13,11 +13,24 @@
 
   is the growth over the second half that the slope predicts, relative to the level (0 for
   a level run, 0.67 for sigma growing linearly from 0, about 1.7 for the t^3 growth of a
-  track never seen again). The run is *bounded* (``bounded_trend``) when
-  ``trend <= TREND_BOUND`` = 0.5. Measured on paper-boat (docs/planner.md, "Bounded"):
+  track never seen again). ``bounded_trend`` is the threshold ``trend <= TREND_BOUND`` =
+  0.5 (the key keeps its old name; it is a threshold on a rate, not a test of
+  boundedness: sqrt(t) passes it). Measured on paper-boat (docs/planner.md, "Figure 4 at
+  the ensemble level"):
   with icebergs that do not drift (a field 3-6 UAVs can hold), 4 of 120 runs of 200 s and
   600 s exceed 0.5 (0.4: 8, 0.25: 18); runs that must grow (one UAV over 200 s; 1, 3 and 5
   UAVs over 600 s of drift) all exceed it (0.6 lets 2 of 80 pass).
+* *growth over the second half* of an ensemble (:func:`ensemble_growth`; the campaign
+  report per grid cell, ``gcs simulate --uavs 1,3 --seeds K`` per fleet size): with
+  ``M_r`` and ``L_r`` run r's mean sigma over the middle third and the last third of its
+  mission time,
+
+      G = sum_r L_r / sum_r M_r
+
+  the ratio of the ensemble's mean curve over its last third to its middle third (runs of
+  equal length), with a 95 % percentile bootstrap interval over the runs (seeds). G = 1 is
+  level, G = 2 doubled over the second half. It judges the mean curve, not each run: a
+  single run's trend swings by +-0.65 between seeds (docs/planner.md).
 * the first definition (``bounded``, ``boundedness_ratio``: the second half's maximum at
   most 1.5 times the first half's) stays for comparison: it passes growing runs and fails
   level ones whose first half was unusually good.
@@ -28,6 +41,11 @@
   ``arrival_bias_later_s``); frontends
   feed it with :meth:`MetricsRecorder.fly`, :meth:`~MetricsRecorder.position` and
   :meth:`~MetricsRecorder.abandoned`.
+* ``mu_ratio`` {mean, sd, n}: eq. 18's mu over the realised F1/F2' of each adopted plan
+  (F2' the plan's distance sum without mu), i.e. ``f2 / f1`` as floe's ``f2`` includes mu;
+  1 means the plan's two terms weigh as mu assumed (the paper's Section 4.5 table). Plans
+  with F1 = 0, and plans without a distance term (mu = 0: every ``latency`` plan), are left
+  out; mean and sd are null when n = 0 (sd too when n = 1; sd with n - 1).
 * ``uploads``: per vehicle, the FlyToTarget commands it was given (each one mission upload;
   ``core/uploads.py`` decides when one is worth it), and ``uploads_per_hour`` the same per
   hour of the run: ``3600 n / T``, ``T`` the mission time of the last sample (s).
@@ -49,9 +67,12 @@ __all__ = [
     "BOUNDED_RATIO",
     "TREND_BOUND",
     "TREND_WINDOW_S",
+    "EnsembleGrowth",
     "MetricsRecorder",
     "boundedness_ratio",
+    "ensemble_growth",
     "theil_sen_slope",
+    "third_means",
     "trend_growth",
 ]
 
@@ -128,6 +149,71 @@ def boundedness_ratio(series: Sequence[Sequence[float]]) -> float:
     return second_max / first_max
 
 
+def third_means(
+    times_s: Sequence[float], values: Sequence[float]
+) -> tuple[float, float] | None:
+    """(mean over the middle third, mean over the last third) of a series by time: t0 + T/3 <
+    t <= t0 + 2T/3 and t > t0 + 2T/3, T = t_end - t0. None when a third has no sample."""
+    if len(times_s) < 3 or len(times_s) != len(values):
+        return None
+    t0, t_end = times_s[0], times_s[-1]
+    one, two = t0 + (t_end - t0) / 3.0, t0 + 2.0 * (t_end - t0) / 3.0
+    middle = [v for t, v in zip(times_s, values, strict=True) if one < t <= two]
+    last = [v for t, v in zip(times_s, values, strict=True) if t > two]
+    if not middle or not last:
+        return None
+    return statistics.fmean(middle), statistics.fmean(last)
+
+
+@dataclass(frozen=True)
+class EnsembleGrowth:
+    """Growth over the second half of an ensemble's mean curve (module docstring): ``value``
+    = last third / middle third, ``low``/``high`` its 95 % bootstrap interval over ``runs``
+    (None with fewer than 2 runs); value None when the middle third's mean is 0."""
+
+    value: float | None
+    low: float | None
+    high: float | None
+    runs: int
+
+    def text(self) -> str:
+        """``1.08 [0.92, 1.26]`` (``-`` without a value; no interval with one run)."""
+        if self.value is None:
+            return "-"
+        if self.low is None or self.high is None:
+            return f"{self.value:.2f} (1 run: no interval)"
+        return f"{self.value:.2f} [{self.low:.2f}, {self.high:.2f}]"
+
+
+BOOTSTRAP_RESAMPLES = 2000
+
+
+def ensemble_growth(
+    thirds: Sequence[tuple[float, float]], resamples: int = BOOTSTRAP_RESAMPLES, seed: int = 0
+) -> EnsembleGrowth:
+    """G = sum L_r / sum M_r over the runs' (M_r, L_r) (:func:`third_means`), with the 2.5 and
+    97.5 percentiles of G over ``resamples`` resamplings of the runs with replacement (a
+    fixed ``seed``: the same runs give the same interval)."""
+    import numpy as np
+
+    pairs = np.asarray(thirds, dtype=np.float64).reshape(-1, 2)
+    pairs = pairs[np.isfinite(pairs).all(axis=1)]
+    n = len(pairs)
+    middle, last = pairs[:, 0], pairs[:, 1]
+    if n == 0 or middle.sum() <= 0.0:
+        return EnsembleGrowth(None, None, None, n)
+    value = float(last.sum() / middle.sum())
+    if n < 2:
+        return EnsembleGrowth(value, None, None, n)
+    rng = np.random.default_rng(seed)
+    pick = rng.integers(0, n, size=(resamples, n))
+    sums_m = middle[pick].sum(axis=1)
+    ok = sums_m > 0.0
+    ratios = last[pick].sum(axis=1)[ok] / sums_m[ok]
+    low, high = np.percentile(ratios, [2.5, 97.5])
+    return EnsembleGrowth(value, float(low), float(high), n)
+
+
 @dataclass
 class MetricsRecorder:
     """Accumulates what metrics.json reports while a run goes on."""
@@ -137,6 +223,7 @@ class MetricsRecorder:
     lost: set[str] = field(default_factory=set)
     visits: list[dict[str, Any]] = field(default_factory=list)
     solve_times_s: list[float] = field(default_factory=list)
+    mu_ratios: list[float] = field(default_factory=list)
     plans: int = 0
     arrivals: ArrivalTracker = field(default_factory=ArrivalTracker)
     uploads: dict[str, int] = field(default_factory=dict)
@@ -190,9 +277,23 @@ class MetricsRecorder:
         """``vehicle`` was released or sent home: its last FlyToTarget will not be flown."""
         self.arrivals.abandoned(vehicle)
 
-    def plan(self, solve_time_s: float) -> None:
+    def plan(self, solve_time_s: float, mu: float = 0.0, f1: float = 0.0,
+             f2: float = 0.0) -> None:
+        """An adopted plan: its solve time, and mu / (F1 / F2') = f2 / f1 (module docstring)
+        unless F1 or mu is 0."""
         self.plans += 1
         self.solve_times_s.append(solve_time_s)
+        if f1 != 0.0 and mu != 0.0 and math.isfinite(f1) and math.isfinite(f2):
+            self.mu_ratios.append(f2 / f1)
+
+    def mu_ratio(self) -> dict[str, float | int | None]:
+        """``{mean, sd, n}`` of the plans' mu / (F1 / F2') (module docstring)."""
+        values = self.mu_ratios
+        return {
+            "mean": statistics.fmean(values) if values else None,
+            "sd": statistics.stdev(values) if len(values) > 1 else None,
+            "n": len(values),
+        }
 
     def to_dict(self, wall_time_s: float) -> dict[str, Any]:
         values = [s for _, s in self.series]
@@ -212,6 +313,7 @@ class MetricsRecorder:
                 "max": max(self.solve_times_s) if self.solve_times_s else 0.0,
             },
             "wall_time_s": wall_time_s,
+            "mu_ratio": self.mu_ratio(),
             "bounded": ratio <= BOUNDED_RATIO,
             "boundedness_ratio": ratio if math.isfinite(ratio) else None,
             "trend": trend if trend is not None and math.isfinite(trend) else None,

@@ -29,7 +29,7 @@ from collections.abc import Callable, Iterable, Sequence
 
 from groundstation.core.config import CoreConfig
 from observer import TrackSnapshot
-from planner import PlanningProblem, TargetEstimate, UavPose
+from planner import MuRule, PlanningProblem, TargetEstimate, UavPose
 from planner.search_cells import SearchCell
 
 __all__ = ["build_problem", "search_targets", "track_targets"]
@@ -74,11 +74,14 @@ def build_problem(
 ) -> PlanningProblem:
     """The planner's input: ``uavs`` (sorted by the caller), ``targets`` and the wind
     (None in still air: the problem then reads as before wind existed)."""
+    mu_rule = config.mu if isinstance(config.mu, MuRule) else MuRule.FLOE
     return PlanningProblem(
         uavs=tuple(uavs),
         targets=tuple(targets),
         turn_radius_m=config.turn_radius_m,
         tau=config.tau,
+        mu=None if isinstance(config.mu, MuRule) else config.mu,
+        mu_rule=mu_rule,
         min_sigma_fraction=config.min_sigma_fraction,
         time_limit_s=config.time_limit_s,
         objective=config.objective,

@@ -14,7 +14,7 @@ from typing import Any
 
 from groundstation.core.config import CoreConfig, ReplanPolicy, WatchConfig
 from observer import ObserverConfig, TrackerConfig
-from planner import Objective
+from planner import MuRule, Objective
 from planner.search_cells import SearchConfig
 from world.scenario import Scenario
 
@@ -65,6 +65,7 @@ def _core_config(scenario: Scenario, obs: Any, objective: str | None) -> CoreCon
         objective=Objective(objective or scenario.planner.objective),
         time_limit_s=scenario.planner.time_limit_s,
         min_sigma_fraction=scenario.planner.min_sigma_fraction,
+        mu=_mu(scenario.planner.mu),
         priority_gain=obs.priority_gain,
         priority_near_m=obs.priority_near_m,
         priority_far_m=obs.priority_far_m,
@@ -79,6 +80,11 @@ def _core_config(scenario: Scenario, obs: Any, objective: str | None) -> CoreCon
         ),
         watch=watch_config_for(scenario),
     )
+
+
+def _mu(value: float | str) -> float | MuRule:
+    """The scenario's ``planner.mu`` (a rule name, checked by world.scenario, or a number)."""
+    return MuRule(value) if isinstance(value, str) else value
 
 
 def watch_config_for(scenario: Scenario) -> WatchConfig | None:

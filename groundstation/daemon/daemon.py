@@ -349,7 +349,7 @@ class Daemon:
             self.solver.cancel(command.request_id)
         elif isinstance(command, cmd.PlanAdopted):
             result = command.result
-            self.metrics.plan(result.solve_time_s)
+            self.metrics.plan(result.solve_time_s, result.mu, result.f1, result.f2)
             self.last_plan = {
                 "t": round(command.t_s, 3),
                 "routes": dict(result.routes),

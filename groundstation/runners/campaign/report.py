@@ -10,10 +10,12 @@ external asset. Each figure is also written next to the page as
 ``<page stem>-<figure>.png`` (``report-series.png``...), for papers and docs.
 
 The page: the campaign (name, grid, fixed overrides, runs, floe versions, when written);
-a table per grid cell (runs, mean of ``mean_uncertainty`` with its 95 % t interval, bounded
-rate with its 95 % Wilson interval, median solve time; every number also in the cell's
-``data-value`` attribute at full precision); mean uncertainty against fleet size; the
-paper's Figure 4 (mean uncertainty over mission time, mean over seeds with a 95 % band);
+a table per grid cell (runs, mean of ``mean_uncertainty`` with its 95 % t interval, the
+growth over the second half of the cell's mean curve with its bootstrap interval, runs with
+trend <= 0.5 with its 95 % Wilson interval, median solve time, mu / (F1/F2) over the plans;
+every number also in the cell's ``data-value`` attribute at full precision); mean
+uncertainty against fleet size; the paper's Figure 4 (mean uncertainty over mission time,
+mean over seeds with a 95 % band);
 solve-time distributions; the distribution of mu / (F1 / F2) over adopted plans (eq. 18).
 """
 
@@ -54,7 +56,7 @@ from groundstation.runners.campaign.stats import (
     summarise_cells,
     trend_counts,
 )
-from groundstation.runners.campaign.table import cell_table
+from groundstation.runners.campaign.table import cell_table, text_table
 from groundstation.runners.html_page import figure_html, page_start
 from groundstation.storage import StorageError, atomic_write_bytes, atomic_write_text
 
@@ -66,21 +68,29 @@ __all__ = [
 ]
 
 
-def _data_values(s: CellSummary) -> list[str]:
-    """The full-precision numbers behind a row's numeric cells (``data-value``)."""
+def _data_values(s: CellSummary, summaries: Sequence[CellSummary]) -> list[str]:
+    """The full-precision numbers behind a row's numeric cells (``data-value``), one per
+    column of :func:`cell_table` (the optional columns when any cell has them)."""
 
     def full(*values: float | None) -> str:
         return ",".join("" if v is None else repr(float(v)) for v in values)
 
-    return [
-        str(s.runs),
-        full(s.mean_uncertainty_m2),
-        full(s.ci_low_m2, s.ci_high_m2),
+    growth = s.growth
+    mu = s.mu_ratio
+    out = [str(s.runs), full(s.mean_uncertainty_m2), full(s.ci_low_m2, s.ci_high_m2)]
+    if any(c.growth is not None for c in summaries):
+        out.append("" if growth is None else full(growth.value, growth.low, growth.high))
+    out += [
         f"{s.bounded},{s.bounded_of}",
         full(s.bounded_low, s.bounded_high),
         full(s.solve_time_median_s),
-        f"{s.ratio_bounded},{s.ratio_bounded_of}",
     ]
+    if any(c.ratio_bounded_of for c in summaries):
+        out.append(f"{s.ratio_bounded},{s.ratio_bounded_of}")
+    if any(c.mu_ratio is not None for c in summaries):
+        out += (["", ""] if mu is None
+                else [full(mu.mean, mu.sd) + f",{mu.plans}", full(mu.low, mu.high)])
+    return out
 
 
 def _distinct_text(data: CampaignData, column: str) -> str:
@@ -127,7 +137,7 @@ def _header_rows(
 
 
 def _trend_html(trends: TrendCounts | None, cells: Cells, keys: Sequence[str]) -> list[str]:
-    """Runs under each trend bound per cell (docs/planner.md "Bounded")."""
+    """Runs under each trend bound per cell (docs/planner.md "Figure 4 at the ensemble level")."""
     if trends is None:
         return []
     esc = html.escape
@@ -153,8 +163,9 @@ def _trend_html(trends: TrendCounts | None, cells: Cells, keys: Sequence[str]) -
         )
     out.append(
         "</table><p>trend: the growth over the second half of a run that a robust (Theil-Sen) "
-        "slope of its 10 s means predicts, relative to its level; bounded_trend is trend "
-        "&lt;= 0.5.</p>"
+        "slope of its 10 s means predicts, relative to its level (metrics.json "
+        "bounded_trend is trend &lt;= 0.5: a threshold on a rate, not a test of "
+        "boundedness).</p>"
     )
     return out
 
@@ -231,15 +242,22 @@ def render_campaign_html(
         cells_html = [f"<td>{esc(v)}</td>" for v in row[: len(keys)]]
         cells_html += [
             f'<td class="num" data-value="{esc(full)}">{esc(text)}</td>'
-            for text, full in zip(row[len(keys) :], _data_values(s), strict=False)
+            for text, full in zip(row[len(keys) :], _data_values(s, summaries), strict=True)
         ]
         out.append("<tr>" + "".join(cells_html) + "</tr>")
     out.append("</table>")
     out.append(
         "<p>mean sigma: mean over the cell's runs of their mean_uncertainty (the average "
-        "uncertainty over the targets and the mission), 95 % Student t interval. Bounded: "
-        f"runs whose {esc(summaries[0].bounded_column if summaries else 'bounded_trend')} "
-        "is true among those with a verdict, 95 % Wilson interval.</p>"
+        "uncertainty over the targets and the mission), 95 % Student t interval. Growth over "
+        "the second half: the cell's mean curve (over its seeds) averaged over the last "
+        "third of the mission divided by its average over the middle third (1: level; 2: "
+        "doubled), with the 95 % percentile bootstrap interval over the seeds "
+        "(groundstation/core/metrics.py, ensemble_growth); the verdict on the paper's "
+        "Figure 4. runs trend &lt;= 0.5: runs whose own growth rate (trend) is at most 0.5, "
+        "95 % Wilson interval; a threshold on a rate, not a test of boundedness (sqrt(t) "
+        "passes it). mu/(F1/F2): eq. 18's mu over the realised F1/F2' of each adopted plan "
+        "(f2 / f1; plans with f1 or mu 0 left out), mean and sd over the plans, 95 % t "
+        "interval over the runs' means.</p>"
     )
     out += _trend_html(trends, cells, keys)
     out += _paired_html(paired)
@@ -273,6 +291,8 @@ def write_campaign_report(
     note(f"{data.runs.num_rows} runs read")
     cells = group_cells(data.runs, data.grid_keys, data.grid)
     summaries = summaries_of(data.runs, cells, data.plans)
+    for line in text_table(*cell_table(summaries, cells.varying or cells.keys)):
+        note(line)
     panels = [
         plot_mean_vs_fleet(summaries, cells),
         plot_series(series_bands(data.runs, cells), cells),

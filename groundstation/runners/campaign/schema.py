@@ -50,6 +50,9 @@ _METRICS: dict[str, str] = {
     "duration_s": "float64",
     "realtime_factor": "float64",
     "wall_time_s": "float64",
+    "mu_ratio_mean": "float64",  # metrics.json mu_ratio {mean, sd, n} (eq. 18)
+    "mu_ratio_sd": "float64",
+    "mu_ratio_n": "int64",
     "policy": "string",
     "arrival_error_s_median": "float64",
     "arrival_error_s_p90": "float64",

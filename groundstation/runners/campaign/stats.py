@@ -13,6 +13,16 @@ so 10 000 runs of 600 mission seconds summarise in well under a second.
   score interval.
 * Median solve time: over every adopted plan of the cell's runs (``plans.parquet``
   ``solve_time_s``), else the median of the runs' ``solve_time_median_s``.
+* Growth over the second half (``growth``): the ensemble statistic of
+  :func:`groundstation.core.metrics.ensemble_growth`, the cell's mean curve over its last
+  third divided by its middle third, with a 95 % bootstrap interval over the cell's runs
+  (seeds). It replaces counting runs under a trend threshold as the verdict on the paper's
+  Figure 4: a threshold on one run's growth rate is a coin flip near it, and passes curves
+  that grow without bound.
+* mu / (F1/F2) (``mu_ratio``, eq. 18; the paper's Section 4.5 table): over the cell's
+  adopted plans with f1 and mu not 0 (``plans.parquet``), ``f2 / f1``; its mean and
+  standard deviation over the plans, and a 95 % Student t interval over the runs' own means
+  (plans of one run are not independent; runs are).
 """
 
 from __future__ import annotations
@@ -27,6 +37,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 from scipy.special import stdtrit
 
+from groundstation.core.metrics import EnsembleGrowth, ensemble_growth, third_means
 from groundstation.runners.campaign.data import (
     SEED_KEY,
     column_codes,
@@ -40,6 +51,7 @@ __all__ = [
     "TREND_BOUNDS",
     "CellSummary",
     "Cells",
+    "MuRatio",
     "SeriesBands",
     "TrendCounts",
     "group_cells",
@@ -207,6 +219,20 @@ def plan_cells(runs: pa.Table, cells: Cells, plans: pa.Table) -> np.ndarray:
 
 
 @dataclass(frozen=True)
+class MuRatio:
+    """mu / (F1/F2) over a cell's plans: ``mean``, ``sd`` over ``plans`` plans, the 95 % t
+    interval ``low``-``high`` over the means of its ``runs`` runs, and the mean mu."""
+
+    mean: float
+    sd: float | None
+    plans: int
+    low: float | None
+    high: float | None
+    runs: int
+    mu_mean: float
+
+
+@dataclass(frozen=True)
 class CellSummary:
     """One grid cell of a campaign (see the module docstring for the statistics)."""
 
@@ -234,6 +260,11 @@ class CellSummary:
     """Runs the first, unsound test (``bounded``: boundedness_ratio <= 1.5) calls bounded,
     when ``bounded_column`` is ``bounded_trend`` (else 0)."""
     ratio_bounded_of: int = 0
+    growth: EnsembleGrowth | None = None
+    """Growth over the second half of the cell's mean curve (module docstring); None
+    without series."""
+    mu_ratio: MuRatio | None = None
+    """mu / (F1/F2) over the cell's plans (module docstring); None without plans."""
 
     def label(self, keys: Sequence[str] | None = None) -> str:
         """``uavs=3, objective=sequence`` over ``keys`` (default: all of the cell's)."""
@@ -281,6 +312,8 @@ def summaries_of(runs: pa.Table, cells: Cells, plans: pa.Table | None) -> list[C
         has = np.isfinite(first)
         ratio_of = np.bincount(cells.index[has], minlength=g)
         ratio_bounded = np.bincount(cells.index[has], weights=first[has] > 0.5, minlength=g)
+    growth = cell_growth(runs, cells)
+    ratios = mu_ratios(runs, cells, plans)
     source = "none"
     solve = np.full(g, math.nan)
     if plans is not None and plans.num_rows and "solve_time_s" in plans.column_names:
@@ -312,9 +345,70 @@ def summaries_of(runs: pa.Table, cells: Cells, plans: pa.Table | None) -> list[C
                 solve_time_source=source if math.isfinite(solve[c]) else "none",
                 ratio_bounded=int(ratio_bounded[c]),
                 ratio_bounded_of=int(ratio_of[c]),
+                growth=None if growth is None else growth[c],
+                mu_ratio=None if ratios is None else ratios[c],
             )
         )
     return out
+
+
+def cell_growth(runs: pa.Table, cells: Cells) -> list[EnsembleGrowth] | None:
+    """Per cell, the growth over the second half of its runs' mean curve with its bootstrap
+    interval (module docstring); None without the series columns."""
+    if not {"series_t_s", "series_mean_sigma"} <= set(runs.column_names):
+        return None
+    times = runs.column("series_t_s").to_pylist()
+    values = runs.column("series_mean_sigma").to_pylist()
+    thirds: list[list[tuple[float, float]]] = [[] for _ in range(cells.count)]
+    for r, (t, v) in enumerate(zip(times, values, strict=True)):
+        if not t or not v:
+            continue
+        pair = third_means(t, v)
+        if pair is not None:
+            thirds[int(cells.index[r])].append(pair)
+    return [ensemble_growth(pairs) for pairs in thirds]
+
+
+def mu_ratios(runs: pa.Table, cells: Cells, plans: pa.Table | None) -> list[MuRatio | None] | None:
+    """Per cell, :class:`MuRatio` over its plans with f1 and mu not 0 (module docstring);
+    None without plans or without their mu, f1, f2 columns; a cell without such a plan
+    gets None."""
+    if plans is None or not plans.num_rows or not {"mu", "f1", "f2"} <= set(plans.column_names):
+        return None
+    mu, f1, f2 = (float_column(plans, k) for k in ("mu", "f1", "f2"))
+    ok = np.isfinite(mu) & np.isfinite(f1) & np.isfinite(f2) & (mu != 0) & (f1 != 0)
+    where = plan_cells(runs, cells, plans)
+    run_of = pc.index_in(plans.column("run_id"), value_set=runs.column("run_id").combine_chunks())
+    run_index = np.asarray(pc.fill_null(run_of, -1).to_numpy(zero_copy_only=False), np.int64)
+    ok &= (where >= 0) & (run_index >= 0)
+    ratio = np.divide(f2, f1, out=np.full(len(f1), math.nan), where=ok)
+    g = cells.count
+    n, mean, _ = grouped_mean_ci(ratio[ok], where[ok], g)
+    sd = np.sqrt(np.maximum(grouped_mean_ci_var(ratio[ok], where[ok], g), 0.0))
+    _, mu_mean, _ = grouped_mean_ci(mu[ok], where[ok], g)
+    _, run_mean, _ = grouped_mean_ci(ratio[ok], run_index[ok], runs.num_rows)
+    has_run = np.isfinite(run_mean)
+    rn, rmean, rhalf = grouped_mean_ci(run_mean[has_run], cells.index[has_run], g)
+    out: list[MuRatio | None] = []
+    for c in range(g):
+        if n[c] == 0:
+            out.append(None)
+            continue
+        interval = rn[c] >= 2 and math.isfinite(rhalf[c])
+        out.append(MuRatio(
+            mean=float(mean[c]), sd=_optional(sd[c]) if n[c] > 1 else None, plans=int(n[c]),
+            low=float(rmean[c] - rhalf[c]) if interval else None,
+            high=float(rmean[c] + rhalf[c]) if interval else None,
+            runs=int(rn[c]), mu_mean=float(mu_mean[c]),
+        ))
+    return out
+
+
+def grouped_mean_ci_var(values: np.ndarray, index: np.ndarray, groups: int) -> np.ndarray:
+    """Per group: the sample variance (n - 1) of its finite values (NaN for fewer than 2)."""
+    n, _, half = grouped_mean_ci(values, index, groups)
+    t = t_quantile_975(n - 1)
+    return np.asarray(np.square(half * np.sqrt(np.maximum(n, 1)) / t), dtype=np.float64)
 
 
 TREND_BOUNDS = (0.25, 0.4, 0.5, 0.6)
@@ -324,7 +418,7 @@ TREND_BOUNDS = (0.25, 0.4, 0.5, 0.6)
 @dataclass
 class TrendCounts:
     """Per cell: the median ``trend`` and how many runs have a trend at most each bound
-    (docs/planner.md "Bounded": the table that chose the bound 0.5)."""
+    (docs/planner.md "Figure 4 at the ensemble level": the table that chose the bound 0.5)."""
 
     bounds: tuple[float, ...]
     median: np.ndarray

@@ -3,7 +3,10 @@
 A *cell* is one combination of the grid keys other than ``seed`` that take more than one
 value (the seeds are the repetitions). For a figure x over the n runs of a cell the
 interval is Student's t: mean +- t(0.975, n - 1) s / sqrt(n) (none for n < 2). Booleans
-(``bounded_trend``) are counted, k of the n runs that have a value.
+(``bounded_trend``: trend <= 0.5) are counted, k of the n runs that have a value. The
+verdict on the paper's Figure 4 is ``growth``: the cell's mean curve over the last third of
+the mission divided by its middle third, with a 95 % bootstrap interval over the seeds
+(:func:`groundstation.core.metrics.ensemble_growth`).
 """
 
 from __future__ import annotations
@@ -14,6 +17,8 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from groundstation.core.metrics import EnsembleGrowth, ensemble_growth, third_means
+
 __all__ = ["SUMMARY_FIGURES", "CellMeans", "summarise", "t_half_width"]
 
 SUMMARY_FIGURES = ("mean_uncertainty", "final_uncertainty", "visits", "lost_targets")
@@ -21,14 +26,16 @@ SUMMARY_FIGURES = ("mean_uncertainty", "final_uncertainty", "visits", "lost_targ
 
 @dataclass(frozen=True)
 class CellMeans:
-    """One cell: its coordinates, its run count, (mean, half width) per figure, and how
-    many runs were bounded (trend test) out of those with a verdict."""
+    """One cell: its coordinates, its run count, (mean, half width) per figure, how many
+    runs had trend <= 0.5 out of those with a trend, and the growth over the second half
+    of the cell's mean curve (module docstring)."""
 
     cell: dict[str, Any]
     runs: int
     figures: dict[str, tuple[float, float | None]]
     bounded: int
     bounded_of: int
+    growth: EnsembleGrowth | None = None
 
 
 def t_half_width(values: Sequence[float]) -> float | None:
@@ -62,9 +69,15 @@ def summarise(
             if values:
                 figures[name] = (statistics.fmean(values), t_half_width(values))
         verdicts = [r["bounded_trend"] for r in members if r.get("bounded_trend") is not None]
+        thirds = [
+            pair for r in members
+            if (pair := third_means(r.get("series_t_s") or [], r.get("series_mean_sigma") or []))
+            is not None
+        ]
         out.append(CellMeans(
             cell={k: members[0].get(k) for k in keys}, runs=len(members), figures=figures,
             bounded=sum(bool(v) for v in verdicts), bounded_of=len(verdicts),
+            growth=ensemble_growth(thirds) if thirds else None,
         ))
     return keys, out
 

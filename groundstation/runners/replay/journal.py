@@ -183,8 +183,10 @@ def apply_overrides(config: CoreConfig, settings: Sequence[str]) -> CoreConfig:
         old = node[parts[-1]]
         if isinstance(old, float) and isinstance(value, int) and not isinstance(value, bool):
             value = float(value)
+        mu_setting = parts == ["mu"]  # a rule name or a number (planner.MuRule)
         if (
-            old is not None
+            not mu_setting
+            and old is not None
             and value is not None
             and type(value) is not type(old)
             and not (isinstance(old, float) and isinstance(value, float))

@@ -32,6 +32,25 @@ def _save(fig: Figure, path: Path) -> Path:
     return path
 
 
+def growth_text(series: Sequence[Sequence[float]]) -> str:
+    """``last/middle third 1.08`` of one run's curve (groundstation/core/metrics.py,
+    third_means); ``-`` when a third has no sample. One run has no interval: the ensemble's
+    is in ``gcs simulate --seeds K`` and the campaign report."""
+    from groundstation.core.metrics import third_means
+
+    pair = third_means([t for t, _ in series], [v for _, v in series])
+    if pair is None or pair[0] <= 0.0:
+        return "last/middle third -"
+    return f"last/middle third {pair[1] / pair[0]:.2f}"
+
+
+def uncertainty_title(run: SimulationRun) -> str:
+    """uncertainty.png's title: the run and its growth over the second half (never a
+    threshold verdict: docs/planner.md, "Figure 4 at the ensemble level")."""
+    return (f"{run.scenario.name}: {run.metrics['uavs']} UAV(s), seed {run.options.seed} - "
+            f"growth over the 2nd half: {growth_text(run.metrics['uncertainty_series'])}")
+
+
 def plot_uncertainty(run: SimulationRun, path: Path) -> Path:
     """Mean uncertainty (top) and each target's (bottom, log scale) against time."""
     fig = Figure(figsize=(9, 7), layout="constrained")
@@ -39,13 +58,7 @@ def plot_uncertainty(run: SimulationRun, path: Path) -> Path:
     series = run.metrics["uncertainty_series"]
     top.plot([t for t, _ in series], [s for _, s in series], color="black", lw=2)
     top.set_ylabel("mean uncertainty sigma (m$^2$)")
-    ratio = run.metrics.get("boundedness_ratio")
-    verdict = "bounded" if run.metrics.get("bounded") else "not bounded"
-    ratio_text = f"{ratio:.2f}" if isinstance(ratio, (int, float)) else "inf"
-    top.set_title(
-        f"{run.scenario.name}: {run.metrics['uavs']} UAV(s), seed {run.options.seed} - "
-        f"{verdict} (2nd/1st half max = {ratio_text})"
-    )
+    top.set_title(uncertainty_title(run))
     top.grid(True, alpha=0.3)
     fov = run.scenario.fleet.fov_radius_m
     for k, (target, rows) in enumerate(sorted(run.target_estimates.items())):
@@ -137,7 +150,8 @@ def plot_comparison(
     ax = fig.subplots()
     for k, (uavs, series) in enumerate(sorted(curves.items())):
         ax.plot([t for t, _ in series], [s for _, s in series], lw=2,
-                color=_COLOURS[k % len(_COLOURS)], label=f"{uavs} UAV(s)")
+                color=_COLOURS[k % len(_COLOURS)],
+                label=f"{uavs} UAV(s), growth over the 2nd half: {growth_text(series)}")
     ax.set_xlabel("mission time (s)")
     ax.set_ylabel("mean uncertainty sigma (m$^2$)")
     ax.set_title(title)

@@ -238,7 +238,8 @@ class _Simulation:
             )
             return self.core.handle(PlanSolved(command.t_s, command.request_id, result))
         if isinstance(command, PlanAdopted):
-            self.metrics.plan(command.result.solve_time_s)
+            result = command.result
+            self.metrics.plan(result.solve_time_s, result.mu, result.f1, result.f2)
             self.run.plans.append(_plan_record(command))
         elif isinstance(command, FlyToTarget):
             vehicle = self.vehicles[command.vehicle]
