@@ -34,6 +34,7 @@ def _vehicle(k: int) -> Any:
         id=str(k), system_id=k, status="active", snapshot=snap, link=LinkState.OK,
         lagging=False, telemetry_age_s=0.4, uploads_ok=30 + k, uploads_failed=0,
         upload_retries=0, fly=SimpleNamespace(target=f"T{k}"),
+        shown_fly=SimpleNamespace(target=f"T{k}"),
     )
 
 
@@ -133,3 +134,15 @@ def test_plan_line_and_vehicle_rows_agree() -> None:
     assert "1 -> T1, T4, T7, T10" in plan
     row = next(line for line in lines if line.startswith("1 "))
     assert "T1, T4 +2" in row, row
+
+
+def test_a_released_vehicle_shows_no_target() -> None:
+    """Released (or taken over, or sent home), the vehicle keeps its last mission in the
+    controller, but the console shows no target for it, as the API and the page do."""
+    daemon = _daemon(3, 4)
+    released = daemon.sessions["2"]
+    released.status, released.shown_fly = "released", None
+    lines = _screen(daemon, 160, 50)
+    row = next(line for line in lines if line.startswith("2 "))
+    assert "released" in row and "T2" not in row.split("released", 1)[1].split()[:4], row
+    assert "T1" in next(line for line in lines if line.startswith("1 "))

@@ -154,6 +154,13 @@ class VehicleSession:
         return self.controller.fly
 
     @property
+    def shown_fly(self) -> FlyRecord | None:
+        """The mission floe has the vehicle fly, for the operator's views (API, page,
+        console): only while floe flies it, not once it is released, taken over or sent
+        home (its last mission is kept in :attr:`fly` for the controller)."""
+        return self.fly if self.state in (VehicleState.ACTIVE, VehicleState.JOINING) else None
+
+    @property
     def launch_held(self) -> str | None:
         """Why floe will not launch it on its own (it came down after it flew), or None."""
         return self.controller.launch_held

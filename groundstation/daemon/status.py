@@ -255,7 +255,7 @@ def _vehicles(daemon: Daemon, width: int) -> Table:
         retries = s.upload_retries
         rows.append([
             s.id, s.status, _fmt(snap.mode_name), _link_cell(s.link, s.lagging, s.telemetry_age_s),
-            _fmt(s.fly.target if s.fly else None), _fmt(snap.alt_m, ".0f"),
+            _fmt(s.shown_fly.target if s.shown_fly else None), _fmt(snap.alt_m, ".0f"),
             _fmt(snap.battery_remaining_pct, ".0f"), "yes" if snap.armed else (
                 "-" if snap.armed is None else "no"),
             _route_cell(planned_route(daemon, s.id)), str(s.system_id),

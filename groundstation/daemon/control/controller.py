@@ -20,7 +20,6 @@ from groundstation.daemon.track_views import search_dicts, track_counts, track_d
 from groundstation.daemon.vehicle_view import vehicle_panel
 from groundstation.daemon.watch_lines import watch_dict
 from groundstation.daemon.wind_view import vehicle_wind, wind_summary
-from groundstation.vehicle.state import VehicleState
 
 if TYPE_CHECKING:
     from domain.geodesy import GeoOrigin
@@ -80,7 +79,7 @@ class DaemonController:
         vehicles = []
         for s in sorted(d.sessions.values(), key=lambda s: s.system_id):
             snap = s.snapshot
-            fly = s.fly if s.state in (VehicleState.ACTIVE, VehicleState.JOINING) else None
+            fly = s.shown_fly
             vehicles.append(
                 {
                     "id": s.id,
