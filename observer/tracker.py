@@ -21,9 +21,7 @@ One scan (:meth:`Tracker.scan`), detections of one camera frame at ``t_s``:
    evidence (nobody knows where the camera looked).
 6. Lifecycle: tentative -> confirmed with ``confirm_hits`` hits in the last
    ``confirm_window`` covering frames and existence ``>= existence_confirm_min`` (or merged
-   into an old confirmed/prior track when the evidence says it is that track's iceberg,
-   :func:`observer.tracker_steps.continuation`; otherwise a new id whose record lists the
-   old tracks it might continue);
+   into a stale confirmed/prior track it gates: track coalescence, ids stay stable);
    tentative deleted (``unconfirmed``) once its window holds more than ``N - M`` misses or
    the observer calls it lost; prior -> confirmed by the same M-of-N (one false alarm
    near a listed phantom must not confirm it); confirmed and prior deleted
@@ -63,12 +61,7 @@ from observer.tracker_config import (
     TrackEvent,
     TrackRecord,
 )
-from observer.tracker_steps import (
-    Continuation,
-    continuation,
-    jpda_step,
-    reacquisition_gate,
-)
+from observer.tracker_steps import jpda_step, stale_twin
 
 COUNTER_NAMES: tuple[str, ...] = (
     "scans",
@@ -90,8 +83,6 @@ class _Life:
     born_s: float
     confirmed_s: float | None
     keep: bool = False
-    might_continue: tuple[tuple[str, float], ...] = ()
-    last_hit_s: float | None = None  # None: not hit since adopted
 
 
 class Tracker:
@@ -157,8 +148,7 @@ class Tracker:
     def records(self) -> list[TrackRecord]:
         """Every track's lifecycle, sorted by id."""
         return [
-            TrackRecord(tid, lf.status, lf.existence, lf.hits, lf.born_s, lf.confirmed_s,
-                        lf.might_continue)
+            TrackRecord(tid, lf.status, lf.existence, lf.hits, lf.born_s, lf.confirmed_s)
             for tid, lf in sorted(self._life.items())
         ]
 
@@ -233,20 +223,15 @@ class Tracker:
         miss = 1.0 - exist * pd * p_in
         hit = np.zeros(len(ids), dtype=bool)
         updated = np.zeros(len(ids), dtype=bool)  # had any update (JPDA: also hit < 0.5)
-        deferred = np.zeros(len(ids), dtype=bool)  # refused by the reacquisition gate
         assigned: dict[int, str] = {}
         taken = np.zeros(len(index), dtype=bool)
         if ids and len(index):
             lk = scan_likelihoods(
                 z, r_m2, means, covs, exist, miss, pd, math.log(lam), cfg.gate_threshold
             )
-            log_ratio = reacquisition_gate(
-                lk.log_ratio, self._stale(ids, t), cfg.continuation_min_probability
-            )
-            deferred = (np.isfinite(lk.log_ratio) & ~np.isfinite(log_ratio)).any(axis=0)
             if cfg.association == "gnn":
                 new_exist = existence_after_miss(exist, pd, p_in)
-                for i, j in sorted(gnn_assign(log_ratio).items()):
+                for i, j in sorted(gnn_assign(lk.log_ratio).items()):
                     tid = ids[j]
                     self.observer.correct(tid, t, z[i, 0], z[i, 1], r_m2[i])
                     lik = math.exp(float(lk.log_lik[i, j]))
@@ -256,17 +241,12 @@ class Tracker:
                     assigned[index[i]] = tid
             else:
                 new_exist, picks = jpda_step(
-                    self.observer, t, ids, z, r_m2, log_ratio, exist, p_in, pd,
+                    self.observer, t, ids, z, r_m2, lk.log_ratio, exist, p_in, pd,
                     cfg.jpda_max_hypotheses, hit, updated, taken,
                 )
                 assigned.update({index[i]: tid for i, tid in picks.items()})
         else:
             new_exist = existence_after_miss(exist, pd, p_in)
-        # A stale track refused a detection that may be its iceberg's was not missed: the
-        # scan is no evidence about it (the continuation test decides later).
-        deferred &= ~hit
-        new_exist = np.where(deferred, exist, new_exist)
-        updated |= deferred
         if fp is None:  # no footprint: a miss is no evidence
             new_exist = np.where(hit, new_exist, exist)
         elif ids:
@@ -278,9 +258,7 @@ class Tracker:
         for j, tid in enumerate(ids):
             if tid in self._life:  # not merged away earlier in this loop
                 self._lifecycle(tid, t, bool(hit[j]), float(new_exist[j]),
-                                fp is not None and p_in[j] >= 0.5 and not deferred[j], hit_ids,
-                                lam_b, confirmed,
-                                deleted)
+                                fp is not None and p_in[j] >= 0.5, hit_ids, confirmed, deleted)
         born = [self._birth(t, z[i, 0], z[i, 1], r_m2[i], lam_b, lam_c, confirmed)
                 for i in range(len(index)) if not taken[i]]
         self._counters["assigned"] += len(assigned)
@@ -330,13 +308,6 @@ class Tracker:
         keep = np.flatnonzero(keep_mask)
         return [ids[k] for k in keep.tolist()], means[keep], covs[keep]
 
-    def _stale(self, ids: list[str], t: float) -> np.ndarray:
-        """Tracks not hit for longer than ``reacquire_after_s`` (or not since adopted)."""
-        after = self.config.reacquire_after_s
-        return np.array(
-            [(h := self._life[i].last_hit_s) is None or t - h > after for i in ids], dtype=bool
-        )
-
     def _negative_information(
         self,
         t: float,
@@ -367,7 +338,6 @@ class Tracker:
         existence: float,
         in_view: bool,
         hit_ids: set[str],
-        lam_b: float,
         confirmed: list[TrackEvent],
         deleted: list[TrackEvent],
     ) -> None:
@@ -378,17 +348,14 @@ class Tracker:
             life.window.append(hit)
         if hit:
             life.hits += 1
-            life.last_hit_s = t
         if life.status == "tentative":
             if sum(life.window) >= cfg.confirm_hits and existence >= cfg.existence_confirm_min:
-                lives = {oid: (lf.status, lf.existence) for oid, lf in self._life.items()}
-                cont = continuation(self.observer, lives, tid, hit_ids, cfg.gate_threshold,
-                                    lam_b, cfg.continuation_min_probability)
-                if cont.take is None:
-                    life.might_continue = cont.candidates
-                    self._confirm(tid, t, "m_of_n" + _might_continue(cont), confirmed)
+                statuses = {oid: lf.status for oid, lf in self._life.items()}
+                older = stale_twin(self.observer, statuses, tid, hit_ids, cfg.gate_threshold)
+                if older is None:
+                    self._confirm(tid, t, "m_of_n", confirmed)
                 else:
-                    self._merge(cont.take, tid, t, cont, confirmed, deleted)
+                    self._merge(older, tid, t, confirmed, deleted)
             elif life.window.count(False) > cfg.confirm_window - cfg.confirm_hits:
                 self._delete(tid, t, UNCONFIRMED, deleted)
         elif (
@@ -401,25 +368,21 @@ class Tracker:
             self._delete(tid, t, "not seen in view", deleted)
 
     def _merge(
-        self, older: str, tid: str, t: float, cont: Continuation, confirmed: list[TrackEvent],
+        self, older: str, tid: str, t: float, confirmed: list[TrackEvent],
         deleted: list[TrackEvent],
     ) -> None:
         """Track coalescence: the tentative ``tid`` that reached confirmation is the stale
-        ``older`` track's iceberg found again (:func:`observer.tracker_steps.continuation`
-        says so with probability ``>= continuation_min_probability``): ``older`` takes its
-        filter and evidence and keeps its id; ``tid`` is deleted
-        (``merged into <older> (p 0.97)``)."""
+        ``older`` track's iceberg found again: ``older`` takes its filter and evidence and
+        keeps its id (stable ids); ``tid`` is deleted (``merged into <older>``)."""
         new = self._life.pop(tid)
         life = self._life[older]
         self.observer.take_over(older, tid)
         life.existence = max(life.existence, new.existence)
         life.hits += new.hits
         life.window = new.window
-        life.last_hit_s = new.last_hit_s
         if life.status == "prior":
             self._confirm(older, t, "prior_seen", confirmed)
-        deleted.append(TrackEvent(t, "deleted", tid,
-                                  f"merged into {older} (p {cont.probability:.2f})"))
+        deleted.append(TrackEvent(t, "deleted", tid, f"merged into {older}"))
 
     def _confirm(self, tid: str, t: float, reason: str, out: list[TrackEvent]) -> None:
         life = self._life[tid]
@@ -451,18 +414,8 @@ class Tracker:
             hits=1,
             born_s=t,
             confirmed_s=None,
-            last_hit_s=t,
         )
         self._life[tid] = life
         if cfg.confirm_hits <= 1 and life.existence >= cfg.existence_confirm_min:
             self._confirm(tid, t, "m_of_n", confirmed)
         return TrackEvent(t, "born", tid, "unassociated detection")
-
-
-def _might_continue(cont: Continuation) -> str:
-    """``"; might continue A (p 0.49), B (p 0.48)"`` for a confirmation's reason, or ``""``
-    when no old track is a candidate."""
-    if not cont.candidates:
-        return ""
-    listed = ", ".join(f"{oid} (p {p:.2f})" for oid, p in cont.candidates)
-    return f"; might continue {listed}"
