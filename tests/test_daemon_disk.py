@@ -209,8 +209,16 @@ def test_run_folder_files_are_whole_and_control_json_is_private(tmp_path: Path) 
     # the event loop's worst stall (loop_monitor.py), measured through the run
     assert metrics["loop_stall_max_ms"] >= 0 and metrics["loop_stalls_over_100ms"] >= 0
     assert sorted(p.name for p in run_dir.iterdir()) == [
-        "config.yaml", "control.json", "flight.tlog", "gcs.log", "journal.jsonl", "metrics.json"
+        "config.yaml", "control.json", "flight.tlog", "gcs.log", "journal.jsonl", "metrics.json",
+        "missions", "params",
     ]  # fmt: skip
+    # the files other ground stations open (docs/daemon.md): whole, none left half-written
+    waypoints = sorted((run_dir / "missions").rglob("*.waypoints"))
+    assert waypoints and all(p.read_text().startswith("QGC WPL 110\n") for p in waypoints)
+    parms = sorted((run_dir / "params").glob("*.parm"))
+    assert parms and all(len(line.split()) == 2 for p in parms
+                         for line in p.read_text().splitlines() if line.strip())
+    assert not [p for p in run_dir.rglob("*") if p.name.endswith((".tmp", ".part"))]
 
 
 # ------------------------------------------------------------------ a disk still full at exit

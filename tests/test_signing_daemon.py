@@ -32,7 +32,9 @@ def phrase_file(tmp_path: Path) -> Path:
 
 
 def no_key_in_run_folder(daemon: Daemon, tmp_path: Path) -> None:
-    for path in daemon.run_dir.iterdir():
+    files = [path for path in daemon.run_dir.rglob("*") if path.is_file()]
+    assert any(path.parent.name == "params" for path in files)  # the parameter snapshot too
+    for path in files:
         data = path.read_bytes()
         assert KEY not in data and KEY.hex().encode() not in data and PHRASE.encode() not in data
 
