@@ -66,6 +66,22 @@ def neighbour_lists(inst: Instance, count: int = NEIGHBOURS) -> list[list[int]]:
     return [[int(j) for j in row] for row in order]
 
 
+def route_cost(w: list[list[float]], h: list[list[float]], sigma: list[float], b: float,
+               m: int, u: int, route: Sequence[int]) -> float:
+    """The variable cost of UAV ``u`` flying ``route`` (target indices; node of target k is
+    m + k): sum over its targets of w(prev, k) + b sigma_k H_k, with H_k the hops flown up
+    to k, counted from scratch (the reference the incremental deltas are checked against)."""
+    total = 0.0
+    hops = 0.0
+    prev = u
+    for k in route:
+        node = m + k
+        hops += h[prev][node]
+        total += w[prev][node] + b * sigma[k] * hops
+        prev = node
+    return total
+
+
 class Descent:
     """Incremental local search state over one plan (see the module docstring)."""
 
@@ -149,16 +165,7 @@ class Descent:
         return cv[size] - cv[q - 1] - w[old][first] + w[x][first] + self.b * shift * self.S[v][q]
 
     def _direct(self, u: int, route: Sequence[int]) -> float:
-        w, h, sigma, b, m = self.w, self.h, self.sigma, self.b, self.m
-        total = 0.0
-        hops = 0.0
-        prev = u
-        for k in route:
-            node = m + k
-            hops += h[prev][node]
-            total += w[prev][node] + b * sigma[k] * hops
-            prev = node
-        return total
+        return route_cost(self.w, self.h, self.sigma, self.b, self.m, u, route)
 
     def _chain_after(self, v: int, q: int, chain: Sequence[int]) -> float:
         """Cost of route v with `chain` inserted after its position q (v without the chain)."""

@@ -17,7 +17,7 @@ import itertools
 import random
 from collections.abc import Callable, Sequence
 
-from planner.descent import Descent, neighbour_lists
+from planner.descent import Descent, neighbour_lists, route_cost
 from planner.instance import Instance
 
 Routes = list[list[int]]
@@ -42,17 +42,7 @@ class RouteCoster:
         self.b = 1.0 - inst.tau
 
     def cost(self, u: int, route: Sequence[int]) -> float:
-        w, h, sigma, b, m = self.w, self.h, self.sigma, self.b, self.m
-        total = 0.0
-        hops = 0.0
-        prev = u
-        for k in route:
-            node = m + k
-            wp = w[prev]
-            hops += h[prev][node]
-            total += wp[node] + b * sigma[k] * hops
-            prev = node
-        return total
+        return route_cost(self.w, self.h, self.sigma, self.b, self.m, u, route)
 
     def total(self, routes: Sequence[Sequence[int]]) -> float:
         return sum(self.cost(u, r) for u, r in enumerate(routes))
