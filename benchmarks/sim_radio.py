@@ -27,16 +27,19 @@ depend on the host. Prints a table.
 from __future__ import annotations
 
 import argparse
-import math
 import random
 import statistics
 from typing import Any
 
 from domain.geodesy import GeoOrigin
 from domain.radio_spec import parse_radio_spec
-from groundstation.daemon.vehicle_port import ACK_WAIT_S
 from groundstation.mavlink.codec import MavlinkEncoder, mavlink2
-from groundstation.mavlink.link_budget import PIPELINE_ITEMS, SIK_DOWNLINK_BPS, LinkBudget
+from groundstation.mavlink.link_budget import (
+    PIPELINE_ITEMS,
+    SIK_DOWNLINK_BPS,
+    LinkBudget,
+    ack_retries,
+)
 from groundstation.mavlink.mission_download import MissionDownload
 from groundstation.mavlink.mission_items import LoiterUnlimited, Waypoint, build_mission_items
 from groundstation.mavlink.mission_transfer import Send
@@ -100,7 +103,7 @@ class _Upload:
         timeout_s = self.budget.transfer_timeout_s()
         self._run(MissionUpload(1, 1, self.items, timeout_s=timeout_s, own_system=245,
                                 own_component=190, resend_items=self.resend,
-                                ack_retries=max(1, math.ceil(ACK_WAIT_S / timeout_s) - 1)),
+                                ack_retries=ack_retries(timeout_s)),
                   t_s)
 
     def _act(self, actions: list[Any], t_s: float) -> None:

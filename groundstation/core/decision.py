@@ -682,9 +682,9 @@ class DecisionCore:
         # them meanwhile) or only the repeats of its head: between neighbouring cells the
         # plan's head flips with every periodic replan (issue 28: 60-68 uploads per vehicle
         # per hour on discovery's seeds 4 and 7 from heads re-sent 15 s apart)
-        ahead = record.busy and bool(record.through)
+        routed = record.busy and bool(record.through)
         if not record.answer_due and self.uploads.too_soon(
-                record.id, t_s, self.config.route_min_interval_s if ahead else None):
+                record.id, t_s, self.config.route_min_interval_s if routed else None):
             return None  # deferred; a loiter end's answer never is (core/uploads.py)
         record.route = route
         record.busy = True

@@ -35,12 +35,17 @@ from __future__ import annotations
 import asyncio
 import collections
 import contextlib
-import math
 from collections.abc import AsyncIterator, Callable, Sequence
 from typing import Any, Protocol
 
 from groundstation.mavlink.codec import MavlinkEncoder, MAVLinkMessage, mavlink2
-from groundstation.mavlink.link_budget import MAX_HOLD_S, LinkBudget, StreamPlan, stream_plan
+from groundstation.mavlink.link_budget import (
+    MAX_HOLD_S,
+    LinkBudget,
+    StreamPlan,
+    ack_retries,
+    stream_plan,
+)
 from groundstation.mavlink.mission_commands import MissionSetCurrent
 from groundstation.mavlink.mission_download import MissionDownload
 from groundstation.mavlink.mission_items import MissionItem
@@ -65,9 +70,6 @@ _IDLE_WAIT_S = 0.5
 running; this only bounds a wait should a machine ever lack one)."""
 _MIN_WALL_WAIT_S = 0.001
 """Shortest wall-clock wait, so a deadline a rounding error away never spins the loop."""
-ACK_WAIT_S = 1.5
-"""Mission seconds an upload on a constrained link waits for a lost final ACK before its
-verifying download reads what the vehicle holds."""
 RATES_REFRESH_CALLS = 4
 """On a constrained link an unchanged stream plan is sent again only every this many
 requests (the session asks every ``rates_every_s``): ~16 frames up and 11 COMMAND_ACKs
@@ -260,14 +262,10 @@ class VehiclePort:
             raise
 
     def _ack_retries(self, timeout_s: float) -> int | None:
-        """Silent timeouts an upload waits for its final ACK (:class:`MissionUpload`'s
-        ``ack_retries``): on a constrained link as few as cover ``ACK_WAIT_S`` (ArduPlane
-        re-requests a lost last item after 1 s; the wait must outlast that and its way
-        back), at least 1; else as many as its other waits (None)."""
-        budget = self._budget()
-        if budget is None or budget.capacity_bps is None:
-            return None
-        return max(1, math.ceil(ACK_WAIT_S / timeout_s) - 1)
+        """Silent timeouts an upload waits for its final ACK: on a constrained link
+        :func:`~groundstation.mavlink.link_budget.ack_retries`; else as many as its other
+        waits (None)."""
+        return ack_retries(timeout_s) if self._constrained() else None
 
     def _constrained(self) -> bool:
         """The link has a known capacity (a radio, a serial port, ``--link-rate``): an

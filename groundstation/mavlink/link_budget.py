@@ -75,10 +75,21 @@ sets the timeout there. A timeout that comes early costs a duplicate request or 
 (answered INVALID_SEQUENCE, or ignored), tens of bytes; one that comes late costs every
 loss its lateness. ``benchmarks/sim_radio.py`` (6-item uploads at 5 % bursty loss, floe's
 own machines in simulated time): p95 3.04 s with a 0.5 s floor, 2.82 s with 0.3 s."""
+ACK_WAIT_S = 1.5
+"""Mission seconds an upload on a constrained link waits for a lost final ACK before its
+verifying download reads what the vehicle holds (:func:`ack_retries`)."""
 PIPELINE_ITEMS = 8
 """Item requests a download keeps outstanding on a constrained link (~300 B up)."""
 MAVLINK2_OVERHEAD_BYTES = 12
 """Header and checksum of an unsigned MAVLink 2 frame (a signed one adds 13)."""
+
+
+def ack_retries(timeout_s: float) -> int:
+    """Silent timeouts of ``timeout_s`` an upload on a constrained link waits for its final
+    ACK (:class:`~groundstation.mavlink.mission_upload.MissionUpload`'s ``ack_retries``):
+    as few as cover :data:`ACK_WAIT_S` (ArduPlane re-requests a lost last item after 1 s;
+    the wait must outlast that and its way back), at least 1."""
+    return max(1, math.ceil(ACK_WAIT_S / timeout_s) - 1)
 
 
 class RttEstimator:
