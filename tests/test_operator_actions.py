@@ -127,6 +127,22 @@ def test_an_operators_rtl_sends_it_home_but_never_takes_a_pilots_vehicle() -> No
     assert not ok and "pilot" in what and pilot.asked == asked  # nothing sent
 
 
+def test_a_pilot_who_takes_a_released_vehicle_keeps_it_from_an_operators_rtl() -> None:
+    """Released through floe, then switched by its pilot to FBWA: the pilot's mode change
+    is final, so an operator's RTL is refused and nothing is sent, as for any vehicle a
+    pilot took."""
+    rig = active_rig()
+    ok, _ = rig.c.operator_release(rig.t, "api")
+    rig._collect(rig.c.take_outputs())
+    assert ok and rig.c.status == "released"
+    rig.run(5.0, mode=ArduPlaneMode.FBWA, mode_name="FBWA")
+    assert rig.c.status == "overridden", rig.c.status
+    asked = list(rig.asked)
+    ok, what = rig.c.operator_rtl(rig.t, "api rtl")
+    rig.run(2.0)
+    assert not ok and "pilot" in what and rig.asked == asked  # nothing sent
+
+
 # ------------------------------------------------------------------ end to end
 class Operator:
     """Acts through the API's controller at set mission times and keeps the answers."""

@@ -119,6 +119,7 @@ class VehicleController:
         self.came_down: str | None = None
         """How it came down after it flew (None while it flies, or before it ever did)."""
         self.released_by_operator = False
+        self._released_mode: int | None = None  # its mode when the operator released it
         """Overridden because the operator released it through floe (status ``released``)."""
         self._operator_launch = False  # an operator's launch request, until it flies
         self.launch_held: str | None = None
@@ -426,6 +427,11 @@ class VehicleController:
             ):
                 self._restored(t)
         mode = s.mode
+        if self.released_by_operator and mode is not None and mode != self._released_mode:
+            # released, then switched by someone else: a pilot's (or the autopilot's) mode
+            # change, final as for any vehicle a pilot took
+            self.released_by_operator = False
+            self.journal("override", reason="mode change after a release", mode=s.mode_name)
         ours = mode is not None and self._own_mode == mode
         given_back = self.watch.heartbeat(s, t, ours, self.state in IN_HAND)
         self._resolve_mode_change(t)
@@ -623,6 +629,7 @@ class VehicleController:
         was_planned = self.state is S.ACTIVE
         self.state = S.OVERRIDDEN
         self.released_by_operator = released
+        self._released_mode = self.snap.mode
         self._left_taken = self.snap.mode is not None and self.snap.mode not in TAKEN_MODES
         self._pending_fly = self._wanted = None
         self._loiter = None
