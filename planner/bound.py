@@ -315,8 +315,7 @@ def lp_bound(
         pred = np.argsort(cost_z[0], axis=0, kind="stable")[:k]  # k x n: cheapest into j
         mask = np.zeros(cost_z.shape, dtype=bool)
         mask[:, pred, np.arange(n)[None, :]] = True
-        for u, route in enumerate(routes or []):
-            del u
+        for route in routes or []:
             for pos in range(1, len(route)):
                 mask[min(pos + 1, layers) - 2, route[pos - 1], route[pos]] = True
         mask &= np.isfinite(cost_z)

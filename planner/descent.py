@@ -225,7 +225,7 @@ class Descent:
                 if placed[j - m]:
                     t = j - m
                     u = self.where_u[t]
-                    pos = routes[u].index(t) + 1
+                    pos = self.where_p[t]
                     break
             routes[u].insert(pos, k)
             placed[k] = True

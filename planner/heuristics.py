@@ -156,10 +156,6 @@ class LocalSearch:
         """Improving moves applied so far (tests: the deadline is polled)."""
         return self._descent.moves
 
-    def should_stop(self) -> bool:
-        """The caller's stop."""
-        return self._caller_stop()
-
     # -- descent -------------------------------------------------------------------------
     def descend(self, routes: Routes, active: Sequence[int] | None = None) -> Routes:
         """A local optimum from `routes` (planner.descent); `active`: the targets whose
@@ -207,8 +203,9 @@ class LocalSearch:
         *,
         patience: int | None = None,
     ) -> tuple[Routes, float]:
-        """ILS from `start` for at most `iterations` kicks (fewer if `should_stop()` turns
-        true or `patience` kicks in a row bring no improvement); returns (best, its cost)."""
+        """ILS from `start` for at most `iterations` kicks (fewer if the caller's
+        `should_stop` turns true or `patience` kicks in a row bring no improvement); returns
+        (best, its cost)."""
         best = self.descend(start)
         best_cost = self.coster.total(best)
         current, current_cost = best, best_cost
