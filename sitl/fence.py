@@ -68,7 +68,7 @@ class SimFence:
         self.origin = origin
         self._store = store
         self._param = param
-        self._cached: tuple[int, list[Area], tuple[float, float] | None] | None = None
+        self._cached: tuple[list[StoredItem], list[Area], tuple[float, float] | None] | None = None
         self.breached = False
         self.breach_count = 0
         self.breach_time_ms = 0
@@ -77,9 +77,11 @@ class SimFence:
 
     # ------------------------------------------------------------------ reading
     def _areas(self) -> tuple[list[Area], tuple[float, float] | None]:
-        """The stored items as local areas, and the return point (cached per store)."""
+        """The stored items as local areas, and the return point (cached while the items
+        are the same: compared by value, so a store cleared or refilled in place, or a new
+        list that reuses a freed one's id, is read again)."""
         items = self._store()
-        if self._cached is not None and self._cached[0] == id(items):
+        if self._cached is not None and self._cached[0] == items:
             return self._cached[1], self._cached[2]
         areas: list[Area] = []
         ret: tuple[float, float] | None = None
@@ -103,7 +105,7 @@ class SimFence:
             elif cmd == M.MAV_CMD_NAV_FENCE_RETURN_POINT:
                 ret = (x_m, y_m)
             i += 1
-        self._cached = (id(items), areas, ret)
+        self._cached = (list(items), areas, ret)
         return areas, ret
 
     @property

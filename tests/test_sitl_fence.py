@@ -134,3 +134,20 @@ def test_fence_action_guided_flies_to_the_fence_return_point() -> None:
     nav = lb.vehicle.autopilot.nav
     assert nav is not None
     assert (round(nav.x_m), round(nav.y_m)) == (200, 100)  # the return point, not home
+
+
+def test_a_fence_cleared_in_place_is_no_longer_enforced() -> None:
+    """The simulator's store is cleared in place (MISSION_CLEAR_ALL, or a count of 0): the
+    fence it held is gone, whatever was cached of it."""
+    from domain.geodesy import GeoOrigin
+    from sitl.fence import SimFence
+    from sitl.mission_store import StoredItem
+
+    origin = GeoOrigin(78.93, 11.92)
+    lat, lon, _ = origin.to_geodetic(0.0, 0.0, 0.0)
+    store = [StoredItem(command=5003, param1=500.0, x=round(lat * 1e7), y=round(lon * 1e7))]
+    params = {"FENCE_TYPE": 4.0, "FENCE_ENABLE": 1.0}
+    fence = SimFence(origin, lambda: store, params.__getitem__)
+    assert fence.present and fence.outside(900.0, 0.0) and not fence.outside(100.0, 0.0)
+    store.clear()
+    assert not fence.present and not fence.outside(900.0, 0.0)
