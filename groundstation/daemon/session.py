@@ -264,11 +264,6 @@ class VehicleSession:
         self._carry_out(self.controller.take_outputs())
         return ok, error
 
-    def resume(self, t_s: float, reason: str) -> bool:
-        ok = self.controller.resume(t_s, reason)
-        self._carry_out(self.controller.take_outputs())
-        return ok
-
     def operator_action(self, t_s: float, action: str) -> tuple[bool, str]:
         """An operator's ``release``, ``rtl`` or ``resume`` through the control API:
         ``(ok, what happened)`` (``VehicleController.operator_*``)."""
