@@ -231,8 +231,8 @@ class VehicleController:
         (None: the fix is fresh): towards the aim point of floe's verified mission, else
         dead reckoning (:meth:`.freshness.Freshness.predict`)."""
         fly = self.fly
-        aim = (fly.x_m, fly.y_m) if (fly is not None and fly.verified_t_s is not None
-                                     and self.state is S.ACTIVE) else None
+        aim = fly.aim_now(None) if (fly is not None and fly.verified_t_s is not None
+                                    and self.state is S.ACTIVE) else None  # a route's point
         return self.fresh.predict(self.snap, self.t_s, aim, self.loiter_radius_m())
 
     def flying(self) -> bool:
