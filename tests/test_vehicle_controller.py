@@ -713,3 +713,28 @@ def test_commands_wait_while_stopping() -> None:
     rig.run(3.0)
     assert rig.asked == []
     assert math.isfinite(rig.t)
+
+
+def test_a_target_mission_does_not_wait_behind_the_parameter_snapshot() -> None:
+    """The snapshot is the lowest priority: a target arriving while it downloads (~20 s of
+    a real ArduPlane's ~1 000 parameters over a SiK radio) cancels it; the mission goes
+    first, and the snapshot is read again later, the cancelled try not counted."""
+    rig = Rig(params_snapshot=True)
+    rig.run(2.0)
+    (first,) = [o for o in rig.out if isinstance(o, vio.ReadAllParams)]
+    rig.feed(vio.ExchangeDone(rig.t, first, ({}, None)))  # a failed try: again 30 s later
+    rig.auto()
+    rig.run(3.0)
+    assert rig.c.state is S.ACTIVE and rig.c._params_tries == 1
+    rig.run(30.0)
+    reads = [o for o in rig.out if isinstance(o, vio.ReadAllParams)]
+    assert len(reads) == 2  # the second try runs: this rig never answers it
+    rig.fly()
+    rig.run(0.5)
+    cancels = [o for o in rig.out if isinstance(o, vio.CancelExchange)]
+    assert cancels, "the snapshot's download was not cancelled for the target mission"
+    rig.feed(vio.ExchangeDone(rig.t, reads[1], None))  # the driver: the exchange ended
+    rig.auto()
+    rig.run(1.0)
+    assert [r.purpose for r in rig.requests(vio.UploadMission)][-1] == "target"
+    assert rig.c._params_tries == 1 and not rig.c.params_snapshot

@@ -198,6 +198,7 @@ class VehicleController:
         """Its parameters were read once (the ``.parm`` snapshot is written)."""
         self._params_tries = 0
         self._params_retry_at_s = 0.0
+        self._params_job: Job | None = None
 
     # ------------------------------------------------------------------ reading
     @property
@@ -812,6 +813,8 @@ class VehicleController:
     # ------------------------------------------------------------------ jobs
     def _advance(self) -> None:
         """Start or step the job, one exchange at a time."""
+        if self._params_yield():
+            self._abort_job(cancel=True)  # not a try: read again when nothing else waits
         for _ in range(8):  # a job that finishes may let another start
             if self._jobs.running is not None or self.stopping:
                 return
@@ -862,9 +865,20 @@ class VehicleController:
         if fly is not None and self.s.advisory:
             self._pending_fly = None
         if self._params_due():
-            self._start(params_job(self))
+            self._params_job = params_job(self)
+            self._start(self._params_job)
             return True
         return False
+
+    def _params_yield(self) -> bool:
+        """The parameter snapshot's download is running while a job that starts at once
+        waits: an RTL, the fence, a target mission. It gives way (:meth:`_params_due`: the
+        lowest priority of all); what may wait on its own (a join's assessment, a home set
+        for a vehicle not yet flying) does not cancel it, or the two would take turns."""
+        if self._params_job is None or self._jobs.job is not self._params_job:
+            return False
+        return (self._pending_home or self._fence_due()
+                or (self._pending_fly is not None and self.commanded))
 
     def _params_due(self) -> bool:
         """The parameter snapshot is read once the vehicle was assessed (its cruise speed
