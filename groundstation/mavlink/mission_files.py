@@ -18,15 +18,13 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 
-from groundstation.mavlink.mission_items import MissionItem, f32
+from groundstation.mavlink.mission_items import NON_GEO_XY_COMMANDS, MissionItem, f32
 
 __all__ = ["WPL_HEADER", "parm_text", "wpl_text"]
 
 WPL_HEADER = "QGC WPL 110"
 _FLOAT_FRAME = {5: 0, 6: 3, 11: 10}
 """An ``_INT`` frame -> its float twin (GLOBAL, GLOBAL_RELATIVE_ALT, GLOBAL_TERRAIN_ALT)."""
-_NON_GEO_XY_COMMANDS = frozenset({202, 203, 1222, 1000})
-"""Commands whose x/y are no position (kept as integers, as pymavlink does)."""
 
 
 def _number(value: float) -> str:
@@ -44,7 +42,7 @@ def wpl_text(items: Sequence[MissionItem]) -> str:
     """``items`` as a QGC WPL 110 file (module docstring)."""
     lines = [WPL_HEADER]
     for item in items:
-        if item.command in _NON_GEO_XY_COMMANDS:
+        if item.command in NON_GEO_XY_COMMANDS:  # x/y no position: integers, as pymavlink
             x, y = str(item.x), str(item.y)
         else:
             x, y = f"{item.x / 1e7:.7f}", f"{item.y / 1e7:.7f}"

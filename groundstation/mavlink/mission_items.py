@@ -62,7 +62,7 @@ _MAX_ALT_M = 100_000.0
 # fixed wing uses). For the others, frame, x, y and z are not compared.
 LOCATION_COMMANDS = frozenset({16, 17, 18, 19, 21, 22, 30, 31, 82, 92, 179, 189, 191, 201})
 # x/y are not lat/lon for these (AP_Mission's exception list).
-_NON_GEO_XY_COMMANDS = frozenset({202, 203, 1222, 1000})
+NON_GEO_XY_COMMANDS = frozenset({202, 203, 1222, 1000})
 
 
 def f32(value: float) -> float:
@@ -128,7 +128,7 @@ class MissionItem:
             elif kind == "MISSION_ITEM":
                 if not (math.isfinite(msg.x) and math.isfinite(msg.y)):
                     return None
-                scale = 1.0 if int(msg.command) in _NON_GEO_XY_COMMANDS else 1e7
+                scale = 1.0 if int(msg.command) in NON_GEO_XY_COMMANDS else 1e7
                 x, y = round(msg.x * scale), round(msg.y * scale)
             else:
                 return None
