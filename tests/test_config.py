@@ -158,6 +158,12 @@ def _has(path: str) -> bool:
         ({"vehicles": ["sim:1"], "http": {"max_targets": 0}}, {}, "http.max_targets:"),
         ({"vehicles": ["sim:1"], "sim": {"faults": ["3:reboot:at=1"]}}, {}, "sim.faults:"),
         ({"vehicles": ["sim:1"], "speedup": True}, {}, "speedup: expected a number"),
+        # the geofence is the area: too small to leave a loiter's room inside, or beyond
+        # ArduPlane's uint16 metres
+        ({"vehicles": ["sim:1"]}, {"--operating-radius": 600.0},
+         "--operating-radius: expected 1000..65535 m"),
+        ({"vehicles": ["sim:1"], "operating_radius_m": 70000}, {},
+         "operating_radius_m: expected 1000..65535 m"),
     ],
 )
 def test_errors_name_the_field_as_the_user_spelt_it(

@@ -4,6 +4,7 @@ verified is a QGC WPL 110 file that MAVProxy's ``wp load`` reads back item for i
 
 from __future__ import annotations
 
+import math
 import re
 from pathlib import Path
 from typing import Any
@@ -14,10 +15,10 @@ from pymavlink import mavparm, mavutil, mavwp
 from groundstation.commands.embedded_sim import build_embedded_sim
 from groundstation.mavlink.codec import mavlink2 as M
 from groundstation.mavlink.fence_items import (
-    FENCE_MARGIN_M,
     build_fence_items,
     compare_fence,
     fence_circle,
+    keep_in_m,
 )
 from groundstation.mavlink.mission_items import MissionItem
 from groundstation.mavlink.mission_verify import compare_missions
@@ -78,7 +79,7 @@ def test_the_area_is_each_vehicles_fence_and_its_missions_are_wpl_files(tmp_path
     assert daemon.stop_reason == "test: awaited events seen", daemon.stop_reason
     # the fence went with the join, before the first target mission, as the area is
     fence = fence_circle((0.0, 0.0), RADIUS_M)
-    assert fence is not None and fence.radius_m == RADIUS_M + FENCE_MARGIN_M
+    assert fence is not None and fence.radius_m == RADIUS_M  # the area itself
     first = events(journal, "fence", ok=True)[0]
     assert (first["x_m"], first["y_m"], first["radius_m"]) == (0.0, 0.0, fence.radius_m)
     joined = events(journal, "vehicle_joined", vehicle=first["vehicle"])
@@ -147,13 +148,20 @@ def test_a_pilot_flying_out_of_the_area_is_brought_back_by_the_fence(tmp_path: P
     when it crosses the fence."""
     daemon, journal = run_gcs(
         tmp_path, "--vehicles", "sim:1", "--scenario", "default", "--launch",
-        "--operating-radius", "600", "--sim-fault", "1:mode:at=60,mode=FBWA",
+        "--operating-radius", "1000", "--sim-fault", "1:mode:at=60,mode=FBWA",
         "--speedup", "40", "--duration", "300",
         until=_breach_cleared, timeout_s=170.0,
     )  # fmt: skip
     assert daemon.stop_reason == "test: awaited events seen", daemon.stop_reason
     [fence] = events(journal, "fence", ok=True)
-    assert fence["radius_m"] == 600 + FENCE_MARGIN_M
+    assert fence["radius_m"] == 1000
+    # floe's own waypoint for the one target inside the area (A, 854 m out) was kept a
+    # loiter's room inside the fence: radius + capture overshoot from the edge
+    band_m = keep_in_m(120.0, around_boat=False)  # the default scenario loiters 120 m
+    clipped = events(journal, "clipped", vehicle="1")
+    assert clipped and all(
+        abs(math.hypot(c["x_m"], c["y_m"]) - (1000 - band_m)) < 0.5 for c in clipped
+    ), (band_m, clipped)
     [override] = events(journal, "override", vehicle="1")
     assert override["mode"] == "FBWA" and fence["t"] < override["t"]
     [breach] = [e for e in journal if e["event"] == "statustext"

@@ -41,7 +41,8 @@ class Host:
     def journal(self, event: str, **fields: Any) -> None:
         self.lines.append((event, fields))
 
-    def clip(self, x_m: float, y_m: float) -> tuple[float, float, bool]:
+    def clip(self, x_m: float, y_m: float, loiter_radius_m: float
+             ) -> tuple[float, float, bool]:
         return x_m, y_m, False
 
     def fence(self) -> None:
@@ -229,8 +230,12 @@ def test_a_routes_points_are_clipped_into_the_operating_area_with_its_aim() -> N
     from groundstation.core.commands import FlyToTarget, ThroughPoint
     from groundstation.vehicle import controller_io
 
+    loiters_m: list[float] = []
+
     class Edge(Host):
-        def clip(self, x_m: float, y_m: float) -> tuple[float, float, bool]:
+        def clip(self, x_m: float, y_m: float, loiter_radius_m: float
+                 ) -> tuple[float, float, bool]:
+            loiters_m.append(loiter_radius_m)
             return (min(x_m, 1000.0), y_m, x_m > 1000.0)
 
     clock = MissionClock(1.0, source=lambda: 5.0)
@@ -248,5 +253,7 @@ def test_a_routes_points_are_clipped_into_the_operating_area_with_its_aim() -> N
     assert isinstance(fly, controller_io.Fly) and fly.clipped
     assert (fly.x_m, fly.y_m) == (800.0, 0.0)
     assert fly.command.through == (inside, ThroughPoint("C3", 1000.0, 100.0))
+    # each point clipped with room for the loiter the mission flies (the fence's band)
+    assert loiters_m == [120.0] * 3
     session.command_fly(FlyToTarget(6.0, "v1", "C1", 800.0, 0.0, 0.0, 120.0, through=(inside,)))
     assert not fed[-1].clipped and fed[-1].command.through == (inside,)

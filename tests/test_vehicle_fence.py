@@ -4,10 +4,20 @@ ArduPlane expects; never to one its pilot took over."""
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
+import pytest
+
 from domain.modes import ArduPlaneMode
-from groundstation.mavlink.fence_items import FENCE_MOVE_M, FenceCircle
+from groundstation.core.area import OperatingArea
+from groundstation.mavlink.fence_items import (
+    CAPTURE_OVERSHOOT_M,
+    FENCE_MOVE_M,
+    FenceCircle,
+    fence_circle,
+    keep_in_m,
+)
 from groundstation.vehicle import controller_io as vio
 from groundstation.vehicle.controller import VehicleState
 from tests.test_vehicle_controller import Rig
@@ -143,3 +153,31 @@ def test_an_autopilot_that_refuses_the_fence_is_asked_three_times_not_all_run() 
     rig.feed(vio.FenceWanted(rig.t, FenceCircle(500.0, 0.0, AREA.radius_m)))
     rig.run(5.0)
     assert len(rig.journal("fence")) == 4
+
+
+@pytest.mark.parametrize("around_boat", [False, True])
+def test_a_loiter_at_a_clipped_waypoint_stays_inside_the_fence_the_vehicle_holds(
+    around_boat: bool,
+) -> None:
+    """The fence is the area itself; a waypoint far outside is clipped a loiter's room
+    inside, and its loiter circle (plus the capture overshoot) stays inside the fence even
+    when the boat moved the area by just under the re-upload distance since the fence went."""
+    area = OperatingArea(2000.0, around_boat)
+    area.boat_xy_m = (100.0, -50.0)
+    held = fence_circle(area.center(), area.radius_m)
+    assert held is not None and held.radius_m == 2000.0
+    assert (held.x_m, held.y_m) == ((100.0, -50.0) if around_boat else (0.0, 0.0))
+    if around_boat:  # the boat moved, the vehicle still holds the old fence
+        area.boat_xy_m = (100.0 + FENCE_MOVE_M * 0.99, -50.0)
+        assert not fence_circle(area.center(), area.radius_m).moved(held)  # type: ignore[union-attr]
+    loiter_m = 150.0
+    for bearing_deg in range(0, 360, 15):
+        b = math.radians(bearing_deg + 7.0)
+        far = (5000.0 * math.cos(b), 5000.0 * math.sin(b))
+        x_m, y_m, clipped = area.clip(*far, keep_in_m(loiter_m, around_boat))
+        assert clipped
+        reach_m = math.hypot(x_m - held.x_m, y_m - held.y_m) + loiter_m + CAPTURE_OVERSHOOT_M
+        assert reach_m <= held.radius_m + 1e-6, (bearing_deg, reach_m)
+    # a waypoint already a loiter's room inside is left alone
+    cx, cy = area.center()
+    assert area.clip(cx + 1000.0, cy, keep_in_m(loiter_m, around_boat)) == (cx + 1000.0, cy, False)

@@ -1,7 +1,10 @@
 """The operating area: a circle of ``operating_radius_m`` around home (the mission origin)
-or around the boat. Waypoints outside it are clipped onto its edge along the line from the
-centre, ``p' = c + (p - c) r / |p - c|``; targets (and prior entries) outside it are
-refused and camera detections outside it dropped, before they reach the core.
+or around the boat. Targets (and prior entries) outside it are refused and camera
+detections outside it dropped, before they reach the core. A waypoint may be kept a band
+``b`` inside its edge (``gcs run``: the band that keeps a loiter inside the area's geofence,
+``mavlink/fence_items.py`` ``keep_in_m``; none in ``gcs simulate``): one farther than
+``w = r - b`` from the centre ``c`` is clipped onto that circle along the line from the
+centre, ``p' = c + (p - c) w / |p - c|``; a band as wide as the area leaves the centre.
 
 The rule is defined here once for every frontend: the daemon (``gcs run``: its configured
 ``operating_radius_m``, 10 km by default, around home or the boat) and ``gcs simulate``
@@ -35,13 +38,16 @@ class OperatingArea:
         cx, cy = self.center()
         return math.hypot(x_m - cx, y_m - cy) <= self.radius_m
 
-    def clip(self, x_m: float, y_m: float) -> tuple[float, float, bool]:
-        """The point moved onto the edge if it lies outside; (x, y, clipped)."""
+    def clip(self, x_m: float, y_m: float, keep_in_m: float = 0.0
+             ) -> tuple[float, float, bool]:
+        """The point moved onto the circle ``keep_in_m`` inside the edge if it lies beyond
+        it (module docstring); (x, y, clipped)."""
         if self.radius_m is None:
             return x_m, y_m, False
+        w_m = max(0.0, self.radius_m - keep_in_m)
         cx, cy = self.center()
         d = math.hypot(x_m - cx, y_m - cy)
-        if d <= self.radius_m:
+        if d <= w_m:
             return x_m, y_m, False
-        k = self.radius_m / d
+        k = w_m / d
         return cx + (x_m - cx) * k, cy + (y_m - cy) * k, True

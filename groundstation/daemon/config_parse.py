@@ -49,6 +49,7 @@ from groundstation.daemon.config import (
     parse_latlon,
     parse_link_rate,
 )
+from groundstation.mavlink.fence_items import MIN_OPERATING_RADIUS_M
 from world.wind import WindSpec, parse_wind_text
 
 __all__ = ["ALIASES", "FLAGS", "check_config", "parse_config"]
@@ -476,7 +477,9 @@ _CHECKS: dict[str, Check] = {
     "planner.wind_replan_margin_s": _positive(optional=True),
     "planner.upload_min_interval_s": lambda v: None if v is None else _between(
         0, 3600, "0..3600 s")(v),
-    "mission.operating_radius_m": _positive(optional=True),
+    "mission.operating_radius_m": lambda v: None if v is None else _between(
+        MIN_OPERATING_RADIUS_M, 65535, f"{MIN_OPERATING_RADIUS_M:g}..65535 m (the geofence "
+        "is the area, in ArduPlane's whole metres; waypoints stay a loiter's room inside it)")(v),
     "mission.loiter_s": lambda v: None if v is None else _between(0, 65535, "0..65535 s")(v),
     "fleet.altitude_step_m": _between(0, math.inf, ">= 0"),
     "fleet.battery.low_pct": _between(0, 100, "0..100"),

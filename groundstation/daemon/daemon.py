@@ -55,7 +55,7 @@ from groundstation.link.base import Link
 from groundstation.link.binding import BindingRules
 from groundstation.mavlink.codec import MavlinkEncoder, mavlink2
 from groundstation.mavlink.evidence import NewSystemEvidence, is_autopilot_heartbeat
-from groundstation.mavlink.fence_items import FenceCircle, fence_circle
+from groundstation.mavlink.fence_items import FenceCircle, fence_circle, keep_in_m
 from groundstation.mavlink.mission_items import MissionItem
 from groundstation.vehicle.state import LinkState, VehicleState
 from planner import PlanResult
@@ -306,9 +306,12 @@ class Daemon:
             self._execute(command)
         return pending.verdicts
 
-    def clip(self, x_m: float, y_m: float) -> tuple[float, float, bool]:
-        """Clip a waypoint into the operating area (SessionHost)."""
-        return self.area.clip(x_m, y_m)
+    def clip(self, x_m: float, y_m: float, loiter_radius_m: float
+             ) -> tuple[float, float, bool]:
+        """Clip a waypoint into the operating area, far enough inside the fence's edge for
+        a loiter of ``loiter_radius_m`` there (SessionHost; ``fence_items.keep_in_m``)."""
+        band_m = keep_in_m(loiter_radius_m, self.area.around_boat)
+        return self.area.clip(x_m, y_m, band_m)
 
     def area_center(self) -> tuple[float, float]:
         return self.area.center()

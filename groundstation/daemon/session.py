@@ -57,7 +57,10 @@ class SessionHost(Protocol):
 
     def journal(self, event: str, *, logged: bool = False, **fields: Any) -> None: ...
 
-    def clip(self, x_m: float, y_m: float) -> tuple[float, float, bool]: ...
+    def clip(self, x_m: float, y_m: float, loiter_radius_m: float
+             ) -> tuple[float, float, bool]:
+        """The waypoint inside the operating area, a loiter's room inside the fence."""
+        ...
 
     def fence(self) -> FenceCircle | None:
         """The operating area's geofence now (None: no area)."""
@@ -230,10 +233,11 @@ class VehicleSession:
     def command_fly(self, command: FlyToTarget) -> None:
         """Core said: fly to a target (clipped into the operating area here: its aim point
         and every point of the route it flies through)."""
-        x_m, y_m, clipped = self.host.clip(command.x_m, command.y_m)
+        loiter_m = self.controller.loiter_radius_m(command.loiter_radius_m)
+        x_m, y_m, clipped = self.host.clip(command.x_m, command.y_m, loiter_m)
         through = []
         for point in command.through:
-            px_m, py_m, moved = self.host.clip(point.x_m, point.y_m)
+            px_m, py_m, moved = self.host.clip(point.x_m, point.y_m, loiter_m)
             through.append(dataclasses.replace(point, x_m=px_m, y_m=py_m) if moved else point)
             clipped = clipped or moved
         if tuple(through) != command.through:

@@ -17,9 +17,16 @@ ArduPlane acts on the fence when ``FENCE_TYPE`` has bit 2 (4, "polygon": every i
 exclusion item, circles included) and the fence is enabled (``MAV_CMD_DO_FENCE_ENABLE``
 param1 = 1, or ``FENCE_ENABLE`` = 1), with ``FENCE_ACTION`` not 0 (report only).
 
-The fence is the area plus :data:`FENCE_MARGIN_M`: floe clips its waypoints onto the area's
-edge and a loiter there circles up to its radius outside it; a fence on the edge itself would
-send a vehicle floe sent there home. :func:`fence_circle` states the rule.
+The fence is the operating area itself (:func:`fence_circle`: its centre, its radius in
+whole metres), so what a vehicle reads back equals the area. floe keeps its own waypoints
+:func:`keep_in_m` inside that edge (``core/area.py`` clips onto the smaller circle): a loiter
+there circles its radius around it, plus the overshoot of capturing the circle, and an area
+that moves with the boat is uploaded again only once its centre moved :data:`FENCE_MOVE_M`,
+so the fence the vehicle holds lags the area by up to that much. With ``r`` the area's
+radius, ``l`` the loiter radius plus overshoot and ``m`` the move allowance (0 for an area
+around home), a waypoint lies within ``r - l - m`` of the area's centre, which is within
+``m`` of the fence's: its loiter stays within ``r - l - m + m + l = r`` of the fence's
+centre, inside the fence.
 """
 
 from __future__ import annotations
@@ -35,17 +42,19 @@ from groundstation.mavlink.mission_items import MissionItem, f32
 from groundstation.mavlink.mission_verify import ItemMismatch
 
 __all__ = [
+    "CAPTURE_OVERSHOOT_M",
     "CMD_FENCE_CIRCLE_INCLUSION",
     "CMD_FENCE_RETURN_POINT",
     "FENCE_ACTION_REPORT_ONLY",
     "FENCE_ACTION_RTL",
-    "FENCE_MARGIN_M",
     "FENCE_MOVE_M",
     "FENCE_TYPE_POLYGON",
+    "MIN_OPERATING_RADIUS_M",
     "FenceCircle",
     "build_fence_items",
     "compare_fence",
     "fence_circle",
+    "keep_in_m",
 ]
 
 M = mavlink2
@@ -56,12 +65,16 @@ FENCE_TYPE_POLYGON = 4
 FENCE_ACTION_REPORT_ONLY = 0
 FENCE_ACTION_RTL = 1
 """ArduPlane's FENCE_ACTION values: 0 report only, 1 RTL, 6 GUIDED, 7 GUIDED_THR_PASS."""
-FENCE_MARGIN_M = 300.0
-"""Fence radius beyond the area's (m): a loiter clipped onto the edge (WP_LOITER_RAD, 60 m by
-default, floe's loiters up to ~200 m) plus its overshoot stays inside the fence."""
-FENCE_MOVE_M = 100.0
+CAPTURE_OVERSHOOT_M = 100.0
+"""How far beyond its loiter circle a fixed wing strays while capturing it (m)."""
+FENCE_MOVE_M = 250.0
 """An area that moves with the boat is uploaded again once its centre moved this far from
-the fence's (m): the fence lags the area by less than this, inside the margin."""
+the fence's (m): at the ship's 10 m/s, one fence transfer per flying vehicle every 25 s (a
+two-item upload and its read-back, 13 frames and ~350 bytes: ~14 B/s, under 0.3 % of a
+57 600-baud radio; measured in docs/daemon.md, "Geofence")."""
+MIN_OPERATING_RADIUS_M = 1000.0
+"""The smallest operating area floe accepts (m): room for a route inside the keep-in band
+(:func:`keep_in_m`: 220 m around home and 470 m around a boat with 120 m loiters)."""
 _UINT16_MAX = 65535
 
 
@@ -81,14 +94,22 @@ class FenceCircle:
         return math.hypot(self.x_m - other.x_m, self.y_m - other.y_m) > FENCE_MOVE_M
 
 
+def keep_in_m(loiter_radius_m: float, around_boat: bool) -> float:
+    """How far inside the fence floe keeps a waypoint it loiters at (m; module docstring):
+    the loiter radius plus :data:`CAPTURE_OVERSHOOT_M`, plus :data:`FENCE_MOVE_M` for an
+    area that moves with the boat (the fence the vehicle holds lags the area by up to that
+    much)."""
+    return loiter_radius_m + CAPTURE_OVERSHOOT_M + (FENCE_MOVE_M if around_boat else 0.0)
+
+
 def fence_circle(center_xy_m: tuple[float, float], area_radius_m: float | None
                  ) -> FenceCircle | None:
-    """The fence for an area of ``area_radius_m`` around ``center_xy_m``: the same centre,
-    radius ``round(area_radius_m + FENCE_MARGIN_M)``; None without an area (nothing is
-    fenced) or when that radius does not fit ArduPlane's uint16 metres."""
+    """The fence for an area of ``area_radius_m`` around ``center_xy_m``: the area itself,
+    radius ``round(area_radius_m)`` (ArduPlane keeps whole metres); None without an area
+    (nothing is fenced) or when that radius does not fit ArduPlane's uint16 metres."""
     if area_radius_m is None or not math.isfinite(area_radius_m) or area_radius_m <= 0:
         return None
-    radius_m = round(area_radius_m + FENCE_MARGIN_M)
+    radius_m = round(area_radius_m)
     if radius_m > _UINT16_MAX:
         return None
     return FenceCircle(float(center_xy_m[0]), float(center_xy_m[1]), float(radius_m))
