@@ -16,7 +16,7 @@ import pytest
 
 from domain.modes import ArduPlaneMode
 from groundstation.core import events as ev
-from groundstation.core.commands import FlyToTarget
+from groundstation.core.commands import FlyToTarget, ThroughPoint
 from groundstation.mavlink.codec import mavlink2
 from groundstation.mavlink.mission_items import MissionItem
 from groundstation.mavlink.mission_transfer import TransferCode, TransferResult
@@ -143,8 +143,10 @@ class Rig:
     def requests(self, kind: type) -> list[Any]:
         return [r for r in self.asked if isinstance(r, kind)]
 
-    def fly(self, target: str = "A", x_m: float = 2000.0, y_m: float = 0.0) -> None:
-        cmd = FlyToTarget(self.t, "v1", target, x_m, y_m, 0.0, 120.0, (target,))
+    def fly(self, target: str = "A", x_m: float = 2000.0, y_m: float = 0.0,
+            through: tuple[ThroughPoint, ...] = ()) -> None:
+        cmd = FlyToTarget(self.t, "v1", target, x_m, y_m, 0.0, 120.0, (target,),
+                          through=through)
         self.feed(vio.Fly(self.t, cmd, x_m, y_m))
         self.auto()
 
@@ -694,6 +696,20 @@ def test_loiter_end_needs_agreeing_signals_over_time() -> None:
     rig.run(1.0, mission_current_seq=2)
     ended = rig.core(ev.LoiterEnded)
     assert len(ended) == 1 and rig.journal("loiter_end")[0].fields["how"] == "reached"
+
+
+def test_a_routed_pass_ends_at_its_last_cell_and_is_journalled_there() -> None:
+    """A pass through search cells ends where its last cell is (the item before the hold):
+    the loiter end names that cell, not the head the mission began with."""
+    rig = active_rig()
+    rig.fly("C1", through=(ThroughPoint("C2", 2300.0, 0.0), ThroughPoint("C3", 2600.0, 0.0)))
+    rig.t += 0.1
+    rig.frame("MISSION_ITEM_REACHED", MissionItemReached(rig.t, 3))
+    rig.frame("MISSION_CURRENT", mission_current_seq=4)
+    rig.run(1.0, mission_current_seq=4)
+    assert len(rig.core(ev.LoiterEnded)) == 1
+    [end] = rig.journal("loiter_end")
+    assert end.fields["target"] == "C3", end.fields
 
 
 def test_foreign_frames_are_counted_and_change_nothing() -> None:

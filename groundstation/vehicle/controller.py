@@ -858,8 +858,10 @@ class VehicleController:
         fly = self._pending_fly
         if fly is not None and self.commanded:
             self._pending_fly = None
+            through = fly.command.through
             self.fly = FlyRecord(fly.command.target, fly.x_m, fly.y_m, fly.command.route,
-                                 through=target_mission(fly.command).through)
+                                 through=target_mission(fly.command).through,
+                                 route_end=through[-1].target if through else None)
             self._start(target_job(self, fly))
             return True
         if fly is not None and self.s.advisory:
@@ -1152,7 +1154,7 @@ class VehicleController:
         self._loiter = None
         self.last_loiter_end_s = t
         self._loiter_end_pending_s = t
-        target = self.fly.target if self.fly else None
+        target = self.fly.end_target if self.fly else None
         self.journal("loiter_end", target=target, how=loiter.ended_by)
         if self.state is S.ACTIVE:
             self._core(ev.LoiterEnded(t, self.vehicle))

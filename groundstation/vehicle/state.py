@@ -52,6 +52,14 @@ class FlyRecord:
     """The points the mission flies through after the aim (``core/route.py``)."""
     item: int = 1
     """The furthest mission item it was seen flying to (MISSION_CURRENT)."""
+    route_end: str | None = None
+    """The last cell a routed pass flies through (None: the mission ends at ``target``)."""
+
+    @property
+    def end_target(self) -> str:
+        """Where the mission's watched item is, so where its loiter end happens: the route's
+        last cell, else the target (``jobs.target_job``)."""
+        return self.route_end if self.route_end is not None else self.target
 
     def aim_now(self, seq: int | None) -> tuple[float, float]:
         """Where it flies now: item 1 is the aim, items 2.. the points flown through, the
