@@ -155,3 +155,67 @@ def test_anchors_are_thinned_not_cut_so_a_long_recording_keeps_its_late_drift() 
     assert anchors[-1][0] > 300 - 2 * ANCHOR_SPACING_S  # anchors reach the end
     timeline = MissionTimeline.from_anchors(anchors, "journal")
     assert timeline.at(250.0) == pytest.approx(11_000, abs=5)  # the late, slower rate is kept
+
+
+def _boot_tlog(path: Path, readings: list[tuple[int, float, int]]) -> None:
+    """A bare tlog of ATTITUDE frames: (system id, unix s, time_boot_ms) each."""
+    writer = TlogWriter(path)
+    encoders = {s: MavlinkEncoder(s, 1) for s, _, _ in readings}
+    for system_id, unix, boot_ms in readings:
+        msg = mavlink2.MAVLink_attitude_message(boot_ms, 0, 0, 0, 0, 0, 0)
+        writer.write(encoders[system_id].encode(msg), unix)
+    writer.close()
+
+
+def test_one_stray_clock_reading_moves_nothing_a_confirmed_reboot_goes_on(
+    tmp_path: Path,
+) -> None:
+    """A 5x recording (1 mission s per 0.2 s): one frame whose time_boot_ms leaps ahead by
+    hours, one that leaps back to 0, neither followed: the timeline ignores both. Then a
+    real reboot (the clock starts again from 0 and goes on): mission time continues from
+    where it was."""
+    readings = [(1, T0 + k * 0.2, 5000 + 1000 * k) for k in range(50)]
+    readings.insert(20, (1, T0 + 19 * 0.2 + 0.1, 9_000_000))  # forged: hours ahead
+    readings.insert(35, (1, T0 + 33 * 0.2 + 0.1, 0))  # forged: back to boot
+    t_reboot = T0 + 50 * 0.2
+    readings += [(1, t_reboot + k * 0.2, 1000 * k) for k in range(20)]  # a real reboot
+    path = tmp_path / "bare.tlog"
+    _boot_tlog(path, readings)
+    timeline = mission_timeline(path, [1])
+    assert max(timeline.mission_s) == pytest.approx(54.0 + 19.0), max(timeline.mission_s)
+    # before the reboot: the vehicle's own clock, the stray frames notwithstanding
+    assert timeline.at(T0 + 30 * 0.2) == pytest.approx(5.0 + 30.0, abs=1e-6)
+    assert timeline.at(T0 + 40 * 0.2) == pytest.approx(5.0 + 40.0, abs=1e-6)
+    # after it: on from where it was (54 s), at the same 5x
+    assert timeline.at(t_reboot + 10 * 0.2) == pytest.approx(54.0 + 10.0, abs=1e-6)
+
+
+def test_a_bare_tlogs_vehicles_share_one_mission_clock(tmp_path: Path) -> None:
+    """Two autopilots booted 500 s apart: the core on the tlog sees both at the mission
+    time of the first one's clock, at each frame's reception, not each one's own."""
+    from groundstation.runners.replay.tlog_core import _positions
+
+    path = tmp_path / "two.tlog"
+    writer = TlogWriter(path)
+    encoders = {1: MavlinkEncoder(1, 1), 2: MavlinkEncoder(2, 1)}
+    beat = mavlink2.MAVLink_heartbeat_message(
+        mavlink2.MAV_TYPE_FIXED_WING, mavlink2.MAV_AUTOPILOT_ARDUPILOTMEGA, 0, 10, 4, 3)
+    for k in range(40):
+        unix = T0 + k * 0.01
+        for system_id, boot_s in ((1, 5.0), (2, 505.0)):
+            if k % 10 == 0:
+                writer.write(encoders[system_id].encode(beat), unix)
+            msg = mavlink2.MAVLink_global_position_int_message(
+                round(1000 * (boot_s + k * 0.5)), 789_300_000 + 10 * k, 119_200_000, 100_000,
+                100_000, 2200, 0, 0, 9000)
+            writer.write(encoders[system_id].encode(msg), unix + 0.001 * system_id)
+    writer.close()
+    events, _, _ = _positions(path)
+    times: dict[str, list[float]] = {}
+    for t_s, event in events:
+        if type(event).__name__ == "Telemetry":
+            times.setdefault(event.vehicle, []).append(t_s)  # type: ignore[attr-defined]
+    assert len(times["1"]) == len(times["2"]) == 40
+    for t1, t2 in zip(times["1"], times["2"], strict=True):
+        assert t1 < t2 < t1 + 0.2  # vehicle 2's frame 1 ms later: 0.05 mission s at 50x
+        assert t1 < 30.0

@@ -10,7 +10,10 @@ source there is:
 1. ``journal.jsonl`` beside the tlog (a ``gcs run`` folder): every record holds its
    mission time ``t`` and its ``unix_s``;
 2. otherwise the vehicles' own clock: ``time_boot_ms`` of the first vehicle's messages
-   (it runs on simulated time; a reboot, where it goes back, continues from where it was);
+   (it runs on simulated time; a reboot, where it goes back, continues from where it was).
+   A frame whose clock leaps (back more than 1 s, or ahead faster than
+   :data:`MAX_CLOCK_RATE` times the tlog's time since the last, plus 1 s) counts only once
+   the vehicle's next frame goes on from it: one stray or forged frame moves nothing;
 3. otherwise none: mission time is taken to be the tlog's own time (K = 1).
 
 Between anchors mission time is linear in Unix time; outside them it is extrapolated at
@@ -103,22 +106,42 @@ def _journal_anchors(journal: Path) -> list[tuple[float, float]]:
     return anchors
 
 
+MAX_CLOCK_RATE = 1000.0
+"""The fastest a vehicle's clock can run against the tlog's (floe's top speed-up)."""
+
+
+def _follows(boot_s: float, unix_s: float, prev_boot_s: float, prev_unix_s: float) -> bool:
+    """Whether a clock reading goes on from the previous one: not back by more than 1 s,
+    ahead by at most ``MAX_CLOCK_RATE`` times the tlog time between them, plus 1 s."""
+    ahead_s = boot_s - prev_boot_s
+    return -1.0 <= ahead_s <= MAX_CLOCK_RATE * max(0.0, unix_s - prev_unix_s) + 1.0
+
+
 def _boot_anchors(tlog: Path, system_id: int) -> list[tuple[float, float]]:
-    """(unix_s, seconds of the vehicle's clock), continued across reboots."""
+    """(unix_s, seconds of the vehicle's clock), continued across reboots; a leap counts
+    once the next frame confirms it (module docstring)."""
     anchors: list[tuple[float, float]] = []
-    offset_s, last_s = 0.0, None
+    offset_s = 0.0
+    last: tuple[float, float] | None = None  # (boot_s, unix_s) of the clock as accepted
+    leap: tuple[float, float] | None = None  # a reading that leapt, awaiting the next
     for record in TlogReader(tlog):
         msg = record.message
         if int(msg.get_srcSystem()) != system_id:
             continue
         boot_ms = getattr(msg, "time_boot_ms", None)
-        if not isinstance(boot_ms, int):
+        if not isinstance(boot_ms, int) or isinstance(boot_ms, bool):
             continue
-        boot_s = boot_ms / 1000.0
-        if last_s is not None and boot_s + offset_s < last_s - 1.0:  # rebooted
-            offset_s = last_s - boot_s
-        last_s = boot_s + offset_s
-        _add_anchor(anchors, record.t_unix_s, last_s)
+        reading = (boot_ms / 1000.0, record.t_unix_s)
+        if last is not None and not _follows(*reading, *last):
+            if leap is None or not _follows(*reading, *leap):
+                leap = reading  # a stray frame, or the first of a new clock: wait
+                continue
+            # the leap confirmed (a reboot): mission time goes on from where it was
+            offset_s += last[0] - leap[0]
+            _add_anchor(anchors, leap[1], leap[0] + offset_s)
+        leap = None
+        last = reading
+        _add_anchor(anchors, reading[1], reading[0] + offset_s)
     return anchors
 
 

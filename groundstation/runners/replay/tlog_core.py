@@ -5,9 +5,11 @@ A tlog of another tool holds the vehicles but no targets and no decisions, so no
 be compared; this runs today's core on what the vehicles did and what the cameras saw, and
 returns the decisions it makes (which target each vehicle would have been sent to, when).
 
-Inputs, in mission time ``t = time_boot_ms / 1000`` of the vehicles' GLOBAL_POSITION_INT
-(the autopilot's clock, which is the built-in simulator's mission time and the clock of
-``gcs sitl --detections``):
+Inputs, in the mission time of the tlog (``replay/mission_timeline.py``: the run's journal
+beside it, else the first vehicle's ``time_boot_ms``, the autopilot's clock, which is the
+built-in simulator's mission time and the clock of ``gcs sitl --detections``), taken at each
+frame's reception; one clock for every vehicle, whatever each one's own boot time, a reboot
+or a stray frame's clock:
 
 * ``VehicleJoined`` at a vehicle's first valid position, then ``Telemetry`` for each
   GLOBAL_POSITION_INT (local ENU around the first position; heading
@@ -37,7 +39,8 @@ from groundstation.core.events import Detection, Event, PlanSolved, Telemetry, T
 from groundstation.core.records import command_to_record
 from groundstation.link.detection_feed import FeedError, parse_line
 from groundstation.link.tlog import TlogReader
-from groundstation.runners.replay.tlog import TlogError, tlog_of
+from groundstation.runners.replay.mission_timeline import mission_timeline
+from groundstation.runners.replay.tlog import TlogError, read_tlog, tlog_of
 from planner import solve_plan
 
 __all__ = ["TLOG_DEFAULT_CONFIG", "TlogCoreRun", "run_core_on_tlog"]
@@ -60,19 +63,23 @@ class TlogCoreRun:
 def _positions(
     path: Path,
 ) -> tuple[list[tuple[float, Event]], list[tuple[int, int]], tuple[float, float] | None]:
-    reader = TlogReader(tlog_of(path))
+    summary = read_tlog(tlog_of(path))
+    vehicles = set(summary.vehicles)
+    clock = mission_timeline(summary.path, sorted(vehicles)).at
+    reader = TlogReader(summary.path)
     events: list[tuple[float, Event]] = []
     origin: tuple[float, float] | None = None
     joined: set[str] = set()
     for record in reader:
         msg = record.message
-        if msg.get_type() != "GLOBAL_POSITION_INT" or (msg.lat == 0 and msg.lon == 0):
+        if (msg.get_type() != "GLOBAL_POSITION_INT" or (msg.lat == 0 and msg.lon == 0)
+                or int(msg.get_srcSystem()) not in vehicles):
             continue
         lat, lon = msg.lat / 1e7, msg.lon / 1e7
         if origin is None:
             origin = (lat, lon)
         e, n, _u = pymap3d.geodetic2enu(lat, lon, 0.0, origin[0], origin[1], 0.0)
-        t_s = msg.time_boot_ms / 1000.0
+        t_s = clock(record.t_unix_s)
         heading = enu_rad_from_compass_deg(msg.hdg / 100.0) if msg.hdg != 65535 else 0.0
         speed = math.hypot(msg.vx, msg.vy) / 100.0
         vehicle = str(msg.get_srcSystem())
