@@ -158,6 +158,46 @@ def test_pmtiles_leaf_directories_are_read_once(tmp_path: Path,
         archive.close()
 
 
+def test_cold_leaves_are_decoded_off_the_event_loop(tmp_path: Path,
+                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    """A leaf's first decode (pure Python, ~10 ms for a real leaf) runs in a worker thread,
+    never on the server's event loop: ``cold`` says a tile needs one, ``warm`` decodes it."""
+    import threading
+    import urllib.request
+
+    from test_control_fake import ServerThread
+
+    from groundstation.daemon.control.tiles import pmtiles_file
+
+    tiles = {(5, x, y): f"{x},{y}".encode() for x in range(10, 14) for y in range(3, 7)}
+    archive = TileArchive(write_pmtiles(tmp_path / "leafy.pmtiles", tiles, leaf_size=4))
+    threads: list[threading.Thread] = []
+    real = pmtiles_file.deserialize_directory
+
+    def recording(buf: bytes) -> list[Any]:
+        threads.append(threading.current_thread())
+        return real(buf)
+
+    monkeypatch.setattr(pmtiles_file, "deserialize_directory", recording)
+    assert archive.cold(5, 10, 3) and not archive.cold(5, 0, 0)  # no entry: nothing to decode
+    archive.warm(5, 10, 3)
+    assert not archive.cold(5, 10, 3) and len(threads) == 1
+    threads.clear()
+    try:
+        with ServerThread(token="t", tiles=archive) as server:
+            for (z, x, y), data in tiles.items():
+                with urllib.request.urlopen(f"{server.url}/tiles/{z}/{x}/{y}", timeout=5) as r:
+                    assert r.read() == data
+            loop_thread = server._thread  # noqa: SLF001 - the thread running the event loop
+        assert len(threads) == len(tiles) // 4 - 1  # every other leaf, once
+        assert loop_thread not in threads and threading.current_thread() not in threads
+    finally:
+        archive.close()
+    mb = TileArchive(_mbtiles(tmp_path / "a.mbtiles", rows=[(2, 1, 2, b"mb")]))
+    assert not mb.cold(2, 1, 1)
+    mb.close()
+
+
 @pytest.mark.parametrize(("tile_type", "fmt", "content_type"), [
     (TileType.PNG, "png", "image/png"), (TileType.JPEG, "jpg", "image/jpeg"),
     (TileType.WEBP, "webp", "image/webp"), (TileType.AVIF, "avif", "image/avif")])

@@ -442,6 +442,8 @@ class ControlServer:
             z, x, y = (int(request.match_info[k].split(".")[0]) for k in ("z", "x", "y"))
         except ValueError:
             raise web.HTTPNotFound() from None
+        if self.tiles.cold(z, x, y):  # a PMTiles leaf to decode first: off the loop
+            await asyncio.to_thread(self.tiles.warm, z, x, y)
         tile = self.tiles.response(z, x, y, request.headers.get("Accept-Encoding", ""))
         if tile is None:
             raise web.HTTPNotFound()

@@ -49,11 +49,24 @@ class TileArchive:
         self.content_type = self._reader.content_type
         self._faults = 0
 
+    def cold(self, z: int, x: int, y: int) -> bool:
+        """Whether answering ``z/x/y`` would first decode a directory not yet cached (a
+        PMTiles leaf: ~10 ms of pure Python); the server then runs :meth:`warm` in a worker
+        thread before :meth:`response`, so the event loop keeps turning."""
+        return self._on_grid(z, x, y) and self._reader.cold(z, x, y)
+
+    def warm(self, z: int, x: int, y: int) -> None:
+        """Decode and cache the directories answering ``z/x/y`` needs (thread-safe)."""
+        if self._on_grid(z, x, y):
+            self._reader.warm(z, x, y)
+
+    @staticmethod
+    def _on_grid(z: int, x: int, y: int) -> bool:
+        return 0 <= z <= MAX_ZOOM and 0 <= x < 2**z and 0 <= y < 2**z
+
     def stored_tile(self, z: int, x: int, y: int) -> StoredTile | None:
         """The tile at XYZ ``z/x/y`` as the file stores it, None when it has none there."""
-        if not (0 <= z <= MAX_ZOOM and 0 <= x < 2**z and 0 <= y < 2**z):
-            return None
-        return self._reader.stored(z, x, y)
+        return self._reader.stored(z, x, y) if self._on_grid(z, x, y) else None
 
     def tile(self, z: int, x: int, y: int) -> bytes | None:
         """The image at XYZ ``z/x/y`` (decompressed), None when the file has none there."""

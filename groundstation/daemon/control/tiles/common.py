@@ -85,4 +85,13 @@ class TileReader(Protocol):
         when the file has none there."""
         ...
 
+    def cold(self, z: int, x: int, y: int) -> bool:
+        """Whether reading ``z/x/y`` would first decode a directory not cached (slow: the
+        caller may run :meth:`warm` in a worker thread first)."""
+        ...
+
+    def warm(self, z: int, x: int, y: int) -> None:
+        """Decode and cache what reading ``z/x/y`` needs (thread-safe)."""
+        ...
+
     def close(self) -> None: ...

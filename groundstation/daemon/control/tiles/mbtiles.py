@@ -61,6 +61,13 @@ class MBTilesReader:
             (z, x, 2**z - 1 - y)).fetchone()
         return None if row is None else StoredTile(bytes(row[0]))
 
+    def cold(self, z: int, x: int, y: int) -> bool:
+        """Never: an indexed lookup has nothing to decode first."""
+        return False
+
+    def warm(self, z: int, x: int, y: int) -> None:
+        """Nothing to decode ahead."""
+
     def close(self) -> None:
         self._db.close()
 

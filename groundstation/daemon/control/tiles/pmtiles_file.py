@@ -16,7 +16,10 @@ root directory is read and checked, and a v2 file, vector tiles (MVT, MLT: they 
 style), an unknown tile type and a tile compression floe cannot serve (brotli, zstd) are
 refused with one line (:class:`TilesError`). A tile then costs one binary search of the
 cached root directory (and of a cached leaf: the last :data:`LEAF_CACHE` leaves read are
-kept) plus one ``pread`` of its bytes: ~10 us (docs/control.md, ``benchmarks/tiles_bench.py``).
+kept) plus one ``pread`` of its bytes: ~20 us (docs/control.md, ``benchmarks/tiles_bench.py``).
+The first read in a leaf decodes it (pure Python, ~10 ms for 4096 entries): the server
+asks :meth:`PMTilesReader.cold` first and then has :meth:`PMTilesReader.warm` do it in a
+worker thread.
 A read that fails later (the file changed under floe, a corrupt leaf) is logged once and
 answered as no tile; the daemon runs on.
 """
@@ -25,8 +28,10 @@ from __future__ import annotations
 
 import logging
 import os
+import threading
 import zlib
 from collections import OrderedDict
+from enum import Enum
 from pathlib import Path
 
 from pmtiles.tile import (
@@ -69,6 +74,9 @@ class PMTilesReader:
 
     def __init__(self, path: Path) -> None:
         self.path = path
+        self._leaves: OrderedDict[int, list[Entry]] = OrderedDict()
+        self._lock = threading.Lock()  # the leaf cache, shared with warm() in a worker
+        self._faults = 0
         self._fd = os.open(path, os.O_RDONLY)
         try:
             self._size_bytes = os.fstat(self._fd).st_size
@@ -80,8 +88,6 @@ class PMTilesReader:
             os.close(self._fd)
             raise TilesError(f"map tiles {path}: cannot be read ({exc.strerror or exc})"
                              ) from None
-        self._leaves: OrderedDict[int, list[Entry]] = OrderedDict()
-        self._faults = 0
 
     # ------------------------------------------------------------------ opening
 
@@ -169,37 +175,60 @@ class PMTilesReader:
 
     def stored(self, z: int, x: int, y: int) -> StoredTile | None:
         """The tile at XYZ ``z/x/y``: None outside the header's zooms or where no entry
-        covers its id."""
+        covers its id (a leaf not yet cached is decoded here)."""
+        entry = self._entry(z, x, y, load=True)
+        return None if not isinstance(entry, Entry) else self._read_tile(entry, z, x, y)
+
+    def cold(self, z: int, x: int, y: int) -> bool:
+        """Whether finding ``z/x/y`` would first decode a leaf directory not cached (~10 ms
+        of pure Python for a leaf of 4096 entries): the server then calls :meth:`warm` in a
+        worker thread, so the event loop keeps turning."""
+        return self._entry(z, x, y, load=False) is _COLD
+
+    def warm(self, z: int, x: int, y: int) -> None:
+        """Decode and cache the directories on the path to ``z/x/y`` (thread-safe)."""
+        self._entry(z, x, y, load=True)
+
+    def _entry(self, z: int, x: int, y: int, *, load: bool) -> Entry | _Cold | None:
+        """The entry that holds ``z/x/y``'s bytes, None when none does; without ``load``,
+        :data:`_COLD` where a leaf on the path is not cached."""
         if not self._header["min_zoom"] <= z <= self._header["max_zoom"]:
             return None
         tile_id = zxy_to_tileid(z, x, y)
         entries = self._root
         for _ in range(MAX_DEPTH):
             entry = find_tile(entries, tile_id)
-            if entry is None:
-                return None
-            if entry.run_length > 0:
-                return self._read_tile(entry, z, x, y)
-            leaf = self._leaf(entry)
+            if entry is None or entry.run_length > 0:
+                return entry
+            leaf = self._cached_leaf(entry.offset)
             if leaf is None:
-                return None
+                if not load:
+                    return _COLD
+                leaf = self._load_leaf(entry)
             entries = leaf
         self._fault(f"tile {z}/{x}/{y}: deeper than {MAX_DEPTH} directories")
         return None
 
-    def _leaf(self, entry: Entry) -> list[Entry] | None:
-        leaf = self._leaves.get(entry.offset)
-        if leaf is not None:
-            self._leaves.move_to_end(entry.offset)
+    def _cached_leaf(self, offset: int) -> list[Entry] | None:
+        with self._lock:
+            leaf = self._leaves.get(offset)
+            if leaf is not None:
+                self._leaves.move_to_end(offset)
             return leaf
+
+    def _load_leaf(self, entry: Entry) -> list[Entry]:
+        """Decode the leaf ``entry`` points to and keep it (the last :data:`LEAF_CACHE`); a
+        corrupt leaf is logged and kept as empty, so it is read (and logged) once."""
         try:
             leaf = self._directory(self._leaf_base + entry.offset, entry.length)
         except (_Corrupt, OSError) as exc:
             self._fault(f"leaf directory at {entry.offset}: {exc}")
-            leaf = []  # kept, so a bad leaf is read (and logged) once
-        self._leaves[entry.offset] = leaf
-        if len(self._leaves) > LEAF_CACHE:
-            self._leaves.popitem(last=False)
+            leaf = []
+        with self._lock:
+            self._leaves[entry.offset] = leaf
+            self._leaves.move_to_end(entry.offset)
+            if len(self._leaves) > LEAF_CACHE:
+                self._leaves.popitem(last=False)
         return leaf
 
     def _read_tile(self, entry: Entry, z: int, x: int, y: int) -> StoredTile | None:
@@ -217,19 +246,31 @@ class PMTilesReader:
 
     def _fault(self, what: str) -> None:
         """Log a failed read (the first :data:`MAX_LOGGED_FAULTS`; the daemon runs on)."""
-        self._faults += 1
-        if self._faults <= MAX_LOGGED_FAULTS:
+        with self._lock:
+            self._faults += 1
+            faults = self._faults
+        if faults <= MAX_LOGGED_FAULTS:
             log.warning("map tiles %s: %s; served as no tile", self.path, what)
 
     def close(self) -> None:
         if self._fd >= 0:
             os.close(self._fd)
             self._fd = -1
-        self._leaves.clear()
+        with self._lock:
+            self._leaves.clear()
 
 
 class _Corrupt(Exception):
     """A directory that cannot be decoded."""
+
+
+class _Cold(Enum):
+    """A tile's path goes through a leaf not cached yet."""
+
+    COLD = "cold"
+
+
+_COLD = _Cold.COLD
 
 
 def _bounds(west_e7: int, south_e7: int, east_e7: int, north_e7: int
