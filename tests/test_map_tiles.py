@@ -188,8 +188,8 @@ def test_cold_leaves_are_decoded_off_the_event_loop(tmp_path: Path,
             for (z, x, y), data in tiles.items():
                 with urllib.request.urlopen(f"{server.url}/tiles/{z}/{x}/{y}", timeout=5) as r:
                     assert r.read() == data
-            loop_thread = server._thread  # noqa: SLF001 - the thread running the event loop
-        assert len(threads) == len(tiles) // 4 - 1  # every other leaf, once
+            loop_thread = server._thread  # the thread that runs the server's event loop
+        assert len(threads) == len(tiles) // 4 - 1  # the 3 other leaves, once each
         assert loop_thread not in threads and threading.current_thread() not in threads
     finally:
         archive.close()

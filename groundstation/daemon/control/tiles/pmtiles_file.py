@@ -144,6 +144,7 @@ class PMTilesReader:
             raise self._refuse(f"a corrupt PMTiles file (root directory: {exc})") from None
         if not self._root:
             raise self._refuse("holds no tiles")
+        self._has_leaves = any(e.run_length == 0 for e in self._root)
         fmt = _RASTER[tile_type]
         self.content_type = CONTENT_TYPES[fmt]
         self.info = TileInfo("pmtiles", fmt, header["min_zoom"], header["max_zoom"],
@@ -182,8 +183,9 @@ class PMTilesReader:
     def cold(self, z: int, x: int, y: int) -> bool:
         """Whether finding ``z/x/y`` would first decode a leaf directory not cached (~10 ms
         of pure Python for a leaf of 4096 entries): the server then calls :meth:`warm` in a
-        worker thread, so the event loop keeps turning."""
-        return self._entry(z, x, y, load=False) is _COLD
+        worker thread, so the event loop keeps turning. An archive whose root directory
+        holds every entry (a small one) is never cold: no search is made."""
+        return self._has_leaves and self._entry(z, x, y, load=False) is _COLD
 
     def warm(self, z: int, x: int, y: int) -> None:
         """Decode and cache the directories on the path to ``z/x/y`` (thread-safe)."""
