@@ -301,6 +301,24 @@ def test_corrupt_gzip_tile_is_no_tile_and_logged(tmp_path: Path,
         archive.close()
 
 
+def test_an_oversized_tile_is_no_tile(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                      caplog: pytest.LogCaptureFixture) -> None:
+    """A tile longer than a tile can be is not read (logged): a corrupt entry cannot make the
+    daemon read gigabytes on its event loop."""
+    from groundstation.daemon.control.tiles import pmtiles_file
+
+    archive = TileArchive(write_pmtiles(tmp_path / "big.pmtiles",
+                                        {(2, 1, 1): b"12345678", (2, 2, 1): b"1234"}))
+    monkeypatch.setattr(pmtiles_file, "MAX_TILE_BYTES", 5)
+    try:
+        with caplog.at_level("WARNING"):
+            assert archive.tile(2, 1, 1) is None
+        assert "tile 2/1/1: 8 bytes, more than a tile's 5" in caplog.text
+        assert archive.tile(2, 2, 1) == b"1234"
+    finally:
+        archive.close()
+
+
 def test_a_file_cut_after_start_is_survived(tmp_path: Path,
                                             caplog: pytest.LogCaptureFixture) -> None:
     """The archive cut short while the daemon runs: the tiles beyond the cut are no tiles
@@ -341,6 +359,8 @@ REFUSALS: dict[str, tuple[Any, str]] = {
     "root cut": (lambda b: b[:130], "a truncated PMTiles file: its header puts the root"),
     "root corrupt": (lambda b: b[:127] + b"\x00" * 8 + b[135:],
                      "a corrupt PMTiles file (root directory"),
+    "root past 16 KiB": (lambda b: b[:8] + (20_000).to_bytes(8, "little") + b[16:] +
+                         bytes(30_000), "its root directory ends past byte 16384"),
     "version 4": (lambda b: _with_byte(b, 7, 4), "PMTiles version 4 is not read (only v3)"),
     "v2": (lambda b: b"PM\x02\x00" + b"\x00" * 200, "a PMTiles v2 file; floe reads v3 "
                                                    "(convert it: pmtiles convert"),

@@ -10,8 +10,8 @@ from typing import Any, Protocol
 
 from domain.errors import ConfigError
 
-__all__ = ["CONTENT_TYPES", "MAX_TILE_BYTES", "StoredTile", "TileInfo", "TileReader",
-           "TilesError"]
+__all__ = ["CONTENT_TYPES", "GZIP_MAGIC", "MAX_TILE_BYTES", "StoredTile", "TileInfo",
+           "TileReader", "TilesError"]
 
 CONTENT_TYPES = {"png": "image/png", "jpg": "image/jpeg", "webp": "image/webp",
                  "avif": "image/avif"}

@@ -47,16 +47,19 @@ from pmtiles.tile import (
 from groundstation.daemon.control.tiles.common import (
     CONTENT_TYPES,
     GZIP_MAGIC,
+    MAX_TILE_BYTES,
     StoredTile,
     TileInfo,
     TilesError,
 )
 
-__all__ = ["HEADER_BYTES", "LEAF_CACHE", "MAX_DEPTH", "PMTilesReader"]
+__all__ = ["HEADER_BYTES", "LEAF_CACHE", "MAX_DEPTH", "ROOT_WITHIN_BYTES", "PMTilesReader"]
 
 log = logging.getLogger(__name__)
 
 HEADER_BYTES = 127
+ROOT_WITHIN_BYTES = 16_384
+"""The spec's bound: header and root directory within the first 16 KiB."""
 LEAF_CACHE = 64
 """Leaf directories kept parsed (a leaf holds up to a few thousand entries, ~100 kB)."""
 MAX_DEPTH = 4
@@ -77,15 +80,16 @@ class PMTilesReader:
         self._leaves: OrderedDict[int, list[Entry]] = OrderedDict()
         self._lock = threading.Lock()  # the leaf cache, shared with warm() in a worker
         self._faults = 0
-        self._fd = os.open(path, os.O_RDONLY)
+        self._fd = -1
         try:
+            self._fd = os.open(path, os.O_RDONLY)
             self._size_bytes = os.fstat(self._fd).st_size
             self._open()
-        except TilesError:
-            os.close(self._fd)
-            raise
-        except OSError as exc:
-            os.close(self._fd)
+        except (TilesError, OSError) as exc:
+            if self._fd >= 0:
+                os.close(self._fd)
+            if isinstance(exc, TilesError):
+                raise
             raise TilesError(f"map tiles {path}: cannot be read ({exc.strerror or exc})"
                              ) from None
 
@@ -130,6 +134,9 @@ class PMTilesReader:
                 raise self._refuse(
                     f"a truncated PMTiles file: its header puts the {name.replace('_', ' ')} "
                     f"at bytes {offset}..{offset + length}, the file has {self._size_bytes}")
+        if header["root_offset"] + header["root_length"] > ROOT_WITHIN_BYTES:
+            raise self._refuse(f"a corrupt PMTiles header (its root directory ends past byte "
+                               f"{ROOT_WITHIN_BYTES}, where v3 keeps it)")
         if not 0 <= header["min_zoom"] <= header["max_zoom"] <= 31:
             raise self._refuse(f"a corrupt PMTiles header (zooms {header['min_zoom']}.."
                                f"{header['max_zoom']})")
@@ -234,6 +241,10 @@ class PMTilesReader:
         return leaf
 
     def _read_tile(self, entry: Entry, z: int, x: int, y: int) -> StoredTile | None:
+        if entry.length > MAX_TILE_BYTES:
+            self._fault(f"tile {z}/{x}/{y}: {entry.length} bytes, more than a tile's "
+                        f"{MAX_TILE_BYTES}")
+            return None
         try:
             data = os.pread(self._fd, entry.length, self._tile_base + entry.offset)
         except OSError as exc:
