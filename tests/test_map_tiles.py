@@ -269,6 +269,23 @@ def test_gzip_tiles_over_http(tmp_path: Path) -> None:
         archive.close()
 
 
+def test_unknown_tile_compression_is_told_per_tile(tmp_path: Path) -> None:
+    """A header that says its tile compression is unknown: each tile that starts with the
+    gzip magic is a gzip member, the others are images as they are."""
+    red = png_tile(RED, 16)
+    archive = TileArchive(write_pmtiles(
+        tmp_path / "u.pmtiles", {(3, 1, 1): gzip.compress(red, mtime=0), (3, 2, 2): red},
+        compression=Compression.UNKNOWN))
+    try:
+        assert archive.tile(3, 1, 1) == red and archive.tile(3, 2, 2) == red
+        gz = archive.response(3, 1, 1, "gzip")
+        assert gz is not None and gz.headers.get("Content-Encoding") == "gzip"
+        plain = archive.response(3, 2, 2, "gzip")
+        assert plain is not None and "Content-Encoding" not in plain.headers
+    finally:
+        archive.close()
+
+
 def test_accepts_gzip() -> None:
     assert accepts_gzip("gzip, deflate, br") and accepts_gzip("br;q=1.0, gzip;q=0.8")
     assert accepts_gzip("*") and accepts_gzip("x-gzip") and accepts_gzip("GZIP")
