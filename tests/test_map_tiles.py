@@ -1,5 +1,7 @@
-"""The operator's offline tiles (groundstation/daemon/control/tiles.py, ``--map-tiles``) and
-the vehicle panel's fields of the state document (groundstation/daemon/vehicle_view.py)."""
+"""The operator's offline tiles (groundstation/daemon/control/tiles/, ``--map-tiles``):
+MBTiles and PMTiles v3 (archives written here with the ``pmtiles`` writer, tests/tile_files.py),
+served over real HTTP; and the vehicle panel's fields of the state document
+(groundstation/daemon/vehicle_view.py)."""
 
 from __future__ import annotations
 
