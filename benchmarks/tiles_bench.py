@@ -10,6 +10,9 @@ written by the ``pmtiles`` package's Writer (its root directory then points to l
 directories, as a real regional archive's does) and as an MBTiles file. Then times, per
 read, with ``time.perf_counter_ns``:
 
+* ``loop_lag_leaf_on_loop`` / ``loop_lag_leaf_in_worker``: the event loop's worst lag
+  (ms; a 1 ms ticker) while all the leaves are decoded one after the other, on the loop or
+  in a worker thread (``asyncio.to_thread``, as the server does);
 * ``pmtiles``: ``TileArchive.cold(z, x, y)`` then ``TileArchive.response(z, x, y, "gzip,
   deflate")``, what the server calls for ``/tiles/z/x/y``, after one pass has read every
   leaf (the daemon's steady state);
@@ -29,6 +32,7 @@ before (the 2-core development machine is shared: the tails are its other work).
 from __future__ import annotations
 
 import argparse
+import asyncio
 import functools
 import json
 import math
@@ -172,6 +176,8 @@ def main() -> None:
             archive.close()
         result["pmtiles_cold_check"] = figures(check)
         result["pmtiles_leaf_decode"] = figures(cold)
+        result["loop_lag_leaf_on_loop"] = asyncio.run(loop_lag(pm, leaves, threaded=False))
+        result["loop_lag_leaf_in_worker"] = asyncio.run(loop_lag(pm, leaves, threaded=True))
         archive = TileArchive(pm)
         timed(served(archive), tiles)  # every leaf read
         result["pmtiles"] = figures(timed(served(archive),
@@ -188,6 +194,37 @@ def main() -> None:
     print(text)
     if args.json:
         args.json.write_text(text + "\n")
+
+
+async def loop_lag(path: Path, leaves: list[tuple[int, int, int]], *, threaded: bool
+                   ) -> dict[str, float]:
+    """The event loop's worst lag (ms) while every leaf is decoded, one after the other, on
+    the loop itself or (as the server does) in a worker thread: a ticker asks for 1 ms
+    sleeps and records how late each wakes."""
+    archive = TileArchive(path)
+    lags: list[float] = []
+    done = asyncio.Event()
+
+    async def ticker() -> None:
+        while not done.is_set():
+            t0 = time.perf_counter()
+            await asyncio.sleep(0.001)
+            lags.append((time.perf_counter() - t0 - 0.001) * 1000)
+
+    task = asyncio.create_task(ticker())
+    await asyncio.sleep(0.05)
+    for zxy in leaves:
+        if threaded:
+            await asyncio.to_thread(archive.warm, *zxy)
+        else:
+            archive.warm(*zxy)
+        await asyncio.sleep(0)
+    done.set()
+    await task
+    archive.close()
+    ordered = sorted(lags)
+    return {"ticks": len(lags), "max_ms": round(ordered[-1], 2),
+            "p99_ms": round(ordered[int(0.99 * (len(lags) - 1))], 2)}
 
 
 def leaf_starts(path: Path) -> list[tuple[int, int, int]]:

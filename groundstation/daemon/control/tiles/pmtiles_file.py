@@ -16,7 +16,7 @@ root directory is read and checked, and a v2 file, vector tiles (MVT, MLT: they 
 style), an unknown tile type and a tile compression floe cannot serve (brotli, zstd) are
 refused with one line (:class:`TilesError`). A tile then costs one binary search of the
 cached root directory (and of a cached leaf: the last :data:`LEAF_CACHE` leaves read are
-kept) plus one ``pread`` of its bytes: ~20 us (docs/control.md, ``benchmarks/tiles_bench.py``).
+kept) plus one ``pread`` of its bytes: 20-30 us (docs/control.md, ``benchmarks/tiles_bench.py``).
 The first read in a leaf decodes it (pure Python, ~10 ms for 4096 entries): the server
 asks :meth:`PMTilesReader.cold` first and then has :meth:`PMTilesReader.warm` do it in a
 worker thread.
