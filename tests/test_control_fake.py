@@ -253,7 +253,7 @@ class ServerThread:
         self.token = token
         self.tick_s = tick_s
         self.push_hz = push_hz
-        self.tiles = tiles  # a TileArchive (control/tiles.py) served as /tiles/{z}/{x}/{y}
+        self.tiles = tiles  # a TileArchive (control/tiles/) served as /tiles/{z}/{x}/{y}
         self.url = ""
         self.loop = asyncio.new_event_loop()
         self._ready = threading.Event()

@@ -1,6 +1,7 @@
 """The live map's geography in a real headless browser (Debian's chromium, as
 test_live_map_browser.py): Leaflet (from the xstatic-leaflet package, served by the daemon
-itself: /vendor/leaflet/) under the page's canvas, tiles from the operator's MBTiles file,
+itself: /vendor/leaflet/) under the page's canvas, tiles from the operator's MBTiles file
+(and from a PMTiles file, gzip-compressed tiles sent as they are stored),
 latitude/longitude under the cursor, a scale bar, ship-up, the commanded loiter drawn round,
 and the vehicle panel.
 
@@ -21,11 +22,13 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from pmtiles.tile import Compression
 from test_control_fake import FakeControl, ServerThread
 from test_live_map_browser import driver, open_page, screenshot, wait_for
+from tile_files import around, png_tile, write_pmtiles
 
 from domain.geodesy import GeoOrigin
-from groundstation.daemon.control.tiles import TileArchive
+from groundstation.daemon.control.tiles import TileArchive, TileBody
 
 __all__ = ["driver"]  # the browser fixture, shared
 
@@ -203,6 +206,54 @@ def test_geographic_map(driver: Any, tmp_path: Path) -> None:
         drv.find_element(By.ID, "orient").click()
         wait_for(lambda: drv.execute_script("return window.floe.rotation === 0"),
                  "north-up again")
+        drv.get("about:blank")
+    tiles.close()
+
+
+PM_RGB = (150, 205, 230)
+
+
+class RecordingArchive(TileArchive):
+    """The operator's file, recording the Content-Encoding of each tile it answers."""
+
+    def __init__(self, path: Path) -> None:
+        super().__init__(path)
+        self.sent: list[str | None] = []
+
+    def response(self, z: int, x: int, y: int, accept_encoding: str) -> TileBody | None:
+        body = super().response(z, x, y, accept_encoding)
+        if body is not None:
+            self.sent.append(body.headers.get("Content-Encoding"))
+        return body
+
+
+def test_tiles_from_a_pmtiles_file(driver: Any, tmp_path: Path) -> None:
+    """The same map from a PMTiles v3 archive (made here with the pmtiles writer): PNG tiles
+    stored gzip-compressed, zooms 8..10 around the origin, sent to the browser as stored
+    (``Content-Encoding: gzip``) and drawn; the archive's max zoom reaches the page (Leaflet
+    scales zoom 10 up instead of asking for tiles the file lacks)."""
+    from PIL import Image
+
+    drv = driver
+    png = png_tile(PM_RGB)
+    path = write_pmtiles(tmp_path / "sea.pmtiles",
+                         dict.fromkeys(around(ORIGIN.lat_deg, ORIGIN.lon_deg, range(8, 11)),
+                                       png),
+                         compression=Compression.GZIP)
+    tiles = RecordingArchive(path)
+    with ServerThread(tick_s=0.1, token="t", control=GeoFake(), tiles=tiles) as server:
+        open_page(drv, server.url + "/")
+        wait_for(lambda: drv.execute_script("return window.floe.basemap.geo"),
+                 "Leaflet under the map, in the origin's frame")
+        wait_for(lambda: (drv.execute_script("return window.floe.basemap.tileEvents") or
+                          {}).get("load", 0) >= 1, "tiles loaded from the PMTiles file")
+        time.sleep(0.5)
+        image = Image.open(io.BytesIO(screenshot(drv, tmp_path / "pmtiles.png"))).convert("RGB")
+        region = image.crop((0, 40, int(image.width * 0.6), image.height))
+        counts = {rgb: n for n, rgb in region.getcolors(maxcolors=1_000_000) or []}
+        share = counts.get(PM_RGB, 0) / (region.width * region.height)
+        assert share > 0.3, f"tiles cover {share:.0%} of the map"
+        assert tiles.sent and set(tiles.sent) == {"gzip"}, tiles.sent
         drv.get("about:blank")
     tiles.close()
 

@@ -97,7 +97,8 @@ def _parser() -> argparse.ArgumentParser:
         help="also accept live pages/writes from this origin (scheme://host:port; repeatable)",
     )
     a("--map-tiles", metavar="FILE",
-      help="the live map's tiles, offline: a raster MBTiles file (default: a plain background)")
+      help="the live map's tiles, offline: a raster MBTiles or PMTiles v3 file (told apart "
+           "by content; default: a plain background)")
     a("--http-max-targets", type=int, metavar="N", help="targets the API may add up to (100)")
     a("--http-max-ws-clients", type=int, metavar="N", help="live pages at once (default 16)")
     a("--http-max-writes-per-s", type=float, metavar="R", help="API write rate (default 20)")

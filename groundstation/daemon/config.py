@@ -243,7 +243,8 @@ class HttpConfig:
     max_writes_per_s: float = 20.0
     header_timeout_s: float = 5.0
     map_tiles: str | None = None
-    """The live map's offline tiles: a raster MBTiles file (``control/tiles.py``)."""
+    """The live map's offline tiles: a raster MBTiles or PMTiles v3 file
+    (``control/tiles/``)."""
 
 
 @dataclass(frozen=True, slots=True)

@@ -160,8 +160,9 @@ class ControlServer:
     ``port`` 0 binds an ephemeral port; :attr:`url` is the bound address after ``start()``.
     ``push_hz`` is the rate of full-state pushes to pages; ``tile_url`` an optional map tile
     URL template (``https://.../{z}/{x}/{y}.png``) handed to pages (no default: offline);
-    ``tiles`` the operator's MBTiles file (``tiles.py``), served as ``/tiles/{z}/{x}/{y}``
-    (it sets ``tile_url``). Leaflet's files are served from ``xstatic-leaflet``.
+    ``tiles`` the operator's MBTiles or PMTiles file (``tiles/``), served as
+    ``/tiles/{z}/{x}/{y}`` (it sets ``tile_url``). Leaflet's files are served from
+    ``xstatic-leaflet``.
     ``allow_origins``: origins (``scheme://host[:port]``) allowed besides the page's own;
     ``limits``: see :class:`ControlLimits`; ``budget``: the work allowed per loop turn and
     ``document``: the shared state document (``pacing.py``; by default 8 units per turn and
@@ -441,11 +442,13 @@ class ControlServer:
             z, x, y = (int(request.match_info[k].split(".")[0]) for k in ("z", "x", "y"))
         except ValueError:
             raise web.HTTPNotFound() from None
-        data = self.tiles.tile(z, x, y)
-        if data is None:
+        if self.tiles.cold(z, x, y):  # a PMTiles leaf to decode first: off the loop
+            await asyncio.to_thread(self.tiles.warm, z, x, y)
+        tile = self.tiles.response(z, x, y, request.headers.get("Accept-Encoding", ""))
+        if tile is None:
             raise web.HTTPNotFound()
-        return web.Response(body=data, content_type=self.tiles.content_type,
-                            headers={"Cache-Control": "max-age=3600"})
+        return web.Response(body=tile.data, content_type=tile.content_type,
+                            headers=tile.headers)
 
     # ----------------------------------------------------------------- reads
 

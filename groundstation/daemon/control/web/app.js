@@ -33,7 +33,7 @@
     dirty: true,
     hover: false,              // pointer over the map
     layers: { search: 0, confirmed: 0, tentative: 0, prior: 0 },  // drawn in the last frame
-    tileInfo: null,            // the daemon's MBTiles metadata (/api/session)
+    tileInfo: null,            // the daemon's tile file's metadata (/api/session)
     orient: "north",           // north | ship (ship-up: the ship's course points up)
     rotation: 0,               // rad the map is turned by (ship-up), 0 north-up
     shipCourse: null,          // rad, compass, from the ship's predicted track or its moves

@@ -9,7 +9,7 @@
 //   (and takes every pointer event); each frame the map is set to the canvas' view (centre
 //   and metres per pixel, fractional zoom) and the canvas projects through the map's Web
 //   Mercator, so tiles and drawings agree. Tiles from the daemon's /tiles/{z}/{x}/{y} (the
-//   operator's MBTiles file) or none (a plain background); Leaflet's scale bar.
+//   operator's MBTiles or PMTiles file) or none (a plain background); Leaflet's scale bar.
 // * vehicle panel rows: airspeed, ground speed, heading, altitude, GPS, battery, link.
 (function () {
   "use strict";
