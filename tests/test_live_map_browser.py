@@ -337,6 +337,7 @@ def test_live_page(driver: Any, backend: Backend, tmp_path: Path) -> None:
     if isinstance(backend, FakeBackend):
         check_pan_and_zoom(drv, backend)
         check_reconnect(drv, backend)
+    check_fence_and_gps(drv, backend)
     errors = [e for e in drv.get_log("browser") if e.get("level") == "SEVERE"
               and "401" not in e.get("message", "")]  # the read-only writes above
     drv.get("about:blank")  # leave no page reconnecting to a stopped server
@@ -599,6 +600,42 @@ def check_fence_drawn(drv: Any, origin: Any, fence: tuple[float, float, float]) 
         }
         return [hits, inside];""", f["points"], list(FENCE_RGB))
     assert inside >= 12 and hits >= 0.85 * inside, f"fence outline at {hits} of {inside}"
+
+
+def check_fence_and_gps(drv: Any, backend: Backend) -> None:
+    """The real daemon (sim:3 on loopback, real MAVLink): every vehicle holds the area's
+    fence, verified, and the page draws that fence (zoomed out until it fits), while the
+    panel shows each vehicle's GPS_RAW_INT fix as the simulator sends it (ArduPlane SITL's:
+    RTK fixed, 10 satellites, HDOP 1.21). The fake daemon has no fence: none is drawn."""
+    from selenium.webdriver.common.by import By
+
+    from domain.geodesy import GeoOrigin
+
+    if not backend.real:
+        assert drv.execute_script("return window.floe.fence") is None
+        assert not drv.find_element(By.ID, "legend-fence").is_displayed()
+        return
+    state = wait_for(lambda: (s := drv.execute_script("return window.floe.state")) and all(
+        v.get("fence_verified") for v in s["vehicles"]) and s,
+        "every vehicle to hold the fence, verified", timeout_s=30.0)
+    fence = state["fence"]
+    assert fence is not None and fence["radius_m"] > 0, fence
+    origin = GeoOrigin(state["origin"]["lat_deg"], state["origin"]["lon_deg"])
+    for _ in range(20):  # zoom out until the fence is on the map
+        w, h, f = drv.execute_script("const c = document.getElementById('map');"
+                                     "return [c.clientWidth, c.clientHeight, window.floe.fence]")
+        r_px = max(math.hypot(x - f["cx"], y - f["cy"]) for x, y in f["points"])
+        if r_px < 0.4 * min(w, h):
+            break
+        drv.find_element(By.ID, "zoom-out").click()
+        time.sleep(0.1)
+    check_fence_drawn(drv, origin, (fence["x_m"], fence["y_m"], fence["radius_m"]))
+    legend = drv.find_element(By.ID, "legend").text
+    assert "verified on 3 of 3" in legend, legend
+    rows = drv.find_elements(By.CSS_SELECTOR, "#vehicle-panel tbody tr")
+    cells = [row.find_elements(By.TAG_NAME, "td")[5].text for row in rows]
+    assert cells == ["RTK fixed, 10 sats, HDOP 1.2"] * 3, cells
+    drv.find_element(By.ID, "fit").click()
 
 
 def test_fence_and_gps_fix_on_the_map(driver: Any) -> None:
