@@ -77,8 +77,9 @@ class GpsFix:
     @property
     def name(self) -> str:
         """``3D fix``, ``RTK fixed``, ``no fix`` ... or ``unknown fix``."""
-        return GPS_FIX_NAMES.get(self.fix_type, "unknown fix") if self.fix_type is not None \
-            else "unknown fix"
+        if self.fix_type is None:
+            return "unknown fix"
+        return GPS_FIX_NAMES.get(self.fix_type, "unknown fix")
 
 
 def _integer(value: object) -> int | None:
