@@ -126,10 +126,29 @@ def _battery(v: VehicleView) -> Any:
     )
 
 
+GPS_FIX_LOCKED = M.GPS_FIX_TYPE_RTK_FIXED
+"""GPS_RAW_INT ``fix_type`` with a lock, as ArduPlane SITL reports it: its simulated u-blox
+(SIM_GPS1_TYPE 1, the default) sends NAV-PVT with a 3D fix and the carrier solution
+"fixed" flag, which AP_GPS_UBLOX reads as GPS_OK_FIX_3D_RTK_FIXED (6)."""
+GPS_FIX_SEARCHING = M.GPS_FIX_TYPE_NO_FIX
+"""``fix_type`` before the lock (SIM_GPS1_LCKTIME): NAV-PVT fix type 0, read as NO_FIX (1)."""
+GPS_SATELLITES_LOCKED = 10
+"""``satellites_visible`` with a lock: SIM_GPS1_NUMSATS, 10 by default."""
+GPS_SATELLITES_SEARCHING = 3
+"""``satellites_visible`` before the lock: the simulated u-blox reports 3."""
+GPS_HDOP_X100 = 121
+GPS_VDOP_X100 = 200
+"""``eph``/``epv``: the simulated u-blox's NAV-DOP (hDOP 1.21, vDOP 2.00), locked or not."""
+
+
 def _gps(v: VehicleView) -> Any:
+    """GPS_RAW_INT as ArduPlane SITL sends it (the constants above): no fix and 3
+    satellites until the simulated lock, then an RTK fixed fix with 10."""
     t_us = int(v.t_s * 1e6)
     if not v.ready_flags["gps"]:
-        return M.MAVLink_gps_raw_int_message(t_us, 1, 0, 0, 0, 9999, 9999, 0, 0, 0)
+        return M.MAVLink_gps_raw_int_message(
+            t_us, GPS_FIX_SEARCHING, 0, 0, 0, GPS_HDOP_X100, GPS_VDOP_X100, 0, 0,
+            GPS_SATELLITES_SEARCHING)
     lat, lon, alt = v.position_geodetic()
     af = v.airframe
     course_deg = v.heading_deg()
@@ -137,15 +156,15 @@ def _gps(v: VehicleView) -> Any:
         course_deg = compass_deg_from_enu_rad(af.course_rad)
     return M.MAVLink_gps_raw_int_message(
         t_us,
-        3,
+        GPS_FIX_LOCKED,
         round(lat * 1e7),
         round(lon * 1e7),
         round(alt * 1000),
-        121,
-        200,
+        GPS_HDOP_X100,
+        GPS_VDOP_X100,
         round(af.ground_speed_m_s * 100),
         round(course_deg * 100) % 36000,
-        10,
+        GPS_SATELLITES_LOCKED,
     )
 
 

@@ -168,7 +168,7 @@ def test_stream_rates_fit_a_share_of_the_link() -> None:
     radio = stream_plan(2.0, 24_000.0)
     rates = dict(radio.intervals)
     assert rates[pos] == 2.0 and rates[M.MAVLINK_MSG_ID_SYS_STATUS] == 1.0
-    assert rates[M.MAVLINK_MSG_ID_GPS_RAW_INT] == 0.0  # floe never reads it: off
+    assert rates[M.MAVLINK_MSG_ID_GPS_RAW_INT] == 0.5  # the panel's GPS fix, slowly
     assert radio.bytes_s <= TELEMETRY_SHARE * 24_000 / 8
     slow = stream_plan(2.0, 4_800.0)  # a 4 800-baud serial link
     assert slow.bytes_s == pytest.approx(TELEMETRY_SHARE * 4_800 / 8)
@@ -192,7 +192,8 @@ def test_the_port_asks_a_constrained_link_only_for_what_floe_reads() -> None:
 
     intervals = dict(run(main()))
     assert intervals[M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT] == pytest.approx(5e5)
-    assert intervals[M.MAVLINK_MSG_ID_GPS_RAW_INT] == -1  # disabled
+    assert intervals[M.MAVLINK_MSG_ID_GPS_RAW_INT] == pytest.approx(2e6)  # 0.5 Hz
+    assert intervals[M.MAVLINK_MSG_ID_SYSTEM_TIME] == -1  # never read: disabled
     assert intervals[M.MAVLINK_MSG_ID_ATTITUDE] == pytest.approx(2e6)
 
 

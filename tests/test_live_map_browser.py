@@ -37,7 +37,7 @@ from typing import Any
 
 import pytest
 from environment import need
-from test_control_fake import ServerThread
+from test_control_fake import FakeControl, ServerThread
 
 pytestmark = pytest.mark.browser
 
@@ -337,6 +337,7 @@ def test_live_page(driver: Any, backend: Backend, tmp_path: Path) -> None:
     if isinstance(backend, FakeBackend):
         check_pan_and_zoom(drv, backend)
         check_reconnect(drv, backend)
+    check_fence_and_gps(drv, backend)
     errors = [e for e in drv.get_log("browser") if e.get("level") == "SEVERE"
               and "401" not in e.get("message", "")]  # the read-only writes above
     drv.get("about:blank")  # leave no page reconnecting to a stopped server
@@ -513,3 +514,187 @@ def test_tile_layer_only_when_configured(driver: Any, tmp_path: Path) -> None:
     finally:
         tiles.shutdown()
         tiles.server_close()
+
+
+# ------------------------------------------------------------------ the geofence and GPS fix
+
+FENCE = (150.0, -100.0, 900.0)  # the fence of FenceFake: centre x, y and radius (m)
+FENCE_RGB = (0xD9, 0x48, 0x0F)  # app.js FENCE_COLOUR
+
+
+class FenceFake(FakeControl):
+    """The fake daemon with an operating area, its geofence (held verified by two of the
+    three vehicles) and a GPS fix per vehicle: uav1 RTK fixed, uav2 without a fix, uav3 no
+    GPS_RAW_INT yet (SYS_STATUS' health)."""
+
+    def state(self) -> dict[str, Any]:
+        doc = super().state()
+        doc["operating_center_m"] = [FENCE[0], FENCE[1]]
+        doc["operating_radius_m"] = FENCE[2] - 300.0
+        doc["fence"] = {"x_m": FENCE[0], "y_m": FENCE[1], "radius_m": FENCE[2]}
+        fixes = [({"fix_type": 6, "fix": "RTK fixed", "satellites": 10, "hdop": 1.21,
+                   "ok": True}, "RTK fixed, 10 sats, HDOP 1.2"),
+                 ({"fix_type": 1, "fix": "no fix", "satellites": 3, "hdop": 1.21,
+                   "ok": False}, "no fix, 3 sats, HDOP 1.2"),
+                 (None, "ok")]
+        for v, (fix, text) in zip(doc["vehicles"], fixes, strict=True):
+            v.update(gps="ok", gps_fix=fix, gps_text=text,
+                     fence_verified=v["id"] != "uav2")
+        return doc
+
+
+def fence_as_drawn(drv: Any) -> dict[str, Any]:
+    """The fence the page drew in its last frame, with the latitude/longitude of its centre
+    and of each of its points under the map's transform of that same frame (one script:
+    no frame can come between)."""
+    drawn: dict[str, Any] | None = drv.execute_script("""
+        const f = window.floe.fence;
+        if (!f) return null;
+        f.centre = window.floe.toLatLon(f.cx, f.cy);
+        f.latlon = f.points.map(p => window.floe.toLatLon(p[0], p[1]));
+        return f;""")
+    assert drawn is not None, "no fence drawn"
+    return drawn
+
+
+def check_fence_drawn(drv: Any, origin: Any, fence: tuple[float, float, float]) -> None:
+    """The page's fence is a circle round on the screen, centred on the fence's lat/lon,
+    whose every point lies ``radius`` metres from that centre, drawn in the fence's colour
+    all round (the canvas' pixels)."""
+    x_m, y_m, radius_m = fence
+    f = fence_as_drawn(drv)
+    assert f["segments"] >= 96 and len(f["points"]) == f["segments"]
+    lat0, lon0, _ = origin.to_geodetic(x_m, y_m, 0.0)
+    assert f["centre"][0] == pytest.approx(lat0, abs=1e-7), (f["centre"], lat0)
+    assert f["centre"][1] == pytest.approx(lon0, abs=1e-7), (f["centre"], lon0)
+    for lat, lon in f["latlon"]:
+        ex, ny, _ = origin.to_local(lat, lon)
+        assert math.hypot(ex - x_m, ny - y_m) == pytest.approx(radius_m, abs=1.0)
+        # and on the sphere (haversine), within its flattening at 79 N
+        p1, p2 = math.radians(lat0), math.radians(lat)
+        a = (math.sin((p2 - p1) / 2) ** 2 + math.cos(p1) * math.cos(p2)
+             * math.sin(math.radians(lon - lon0) / 2) ** 2)
+        assert 2 * 6_371_000 * math.asin(math.sqrt(a)) == pytest.approx(radius_m, rel=0.01)
+    radii = [math.hypot(px - f["cx"], py - f["cy"]) for px, py in f["points"]]
+    assert max(radii) / min(radii) < 1.01, (min(radii), max(radii))  # round on the screen
+    assert min(radii) > 50
+    hits, inside = drv.execute_script("""
+        const c = document.getElementById('map'), d = window.devicePixelRatio || 1;
+        const ctx = c.getContext('2d');
+        const [points, want] = arguments;
+        let hits = 0, inside = 0;
+        for (let k = 0; k < points.length; k += 5) {
+          const [x, y] = points[k];
+          if (x < 3 || y < 3 || x > c.clientWidth - 3 || y > c.clientHeight - 3) continue;
+          inside += 1;
+          let found = false;
+          for (let dx = -1; dx <= 1 && !found; dx++) {
+            for (let dy = -1; dy <= 1 && !found; dy++) {
+              const p = ctx.getImageData(Math.round((x + dx) * d), Math.round((y + dy) * d),
+                                         1, 1).data;
+              found = Math.abs(p[0] - want[0]) + Math.abs(p[1] - want[1]) +
+                      Math.abs(p[2] - want[2]) < 60;
+            }
+          }
+          if (found) hits += 1;
+        }
+        return [hits, inside];""", f["points"], list(FENCE_RGB))
+    assert inside >= 12 and hits >= 0.85 * inside, f"fence outline at {hits} of {inside}"
+
+
+def check_fence_and_gps(drv: Any, backend: Backend) -> None:
+    """The real daemon (sim:3 on loopback, real MAVLink): every vehicle holds the area's
+    fence, verified, and the page draws that fence (zoomed out until it fits), while the
+    panel shows each vehicle's GPS_RAW_INT fix as the simulator sends it (ArduPlane SITL's:
+    RTK fixed, 10 satellites, HDOP 1.21). The fake daemon has no fence: none is drawn."""
+    from selenium.webdriver.common.by import By
+
+    from domain.geodesy import GeoOrigin
+
+    if not backend.real:
+        assert drv.execute_script("return window.floe.fence") is None
+        assert not drv.find_element(By.ID, "legend-fence").is_displayed()
+        return
+    state = wait_for(lambda: (s := drv.execute_script("return window.floe.state")) and all(
+        v.get("fence_verified") for v in s["vehicles"]) and s,
+        "every vehicle to hold the fence, verified", timeout_s=30.0)
+    fence = state["fence"]
+    assert fence is not None and fence["radius_m"] > 0, fence
+    origin = GeoOrigin(state["origin"]["lat_deg"], state["origin"]["lon_deg"])
+    for _ in range(20):  # zoom out until the fence is on the map
+        w, h, f = drv.execute_script("const c = document.getElementById('map');"
+                                     "return [c.clientWidth, c.clientHeight, window.floe.fence]")
+        r_px = max(math.hypot(x - f["cx"], y - f["cy"]) for x, y in f["points"])
+        if r_px < 0.4 * min(w, h):
+            break
+        drv.find_element(By.ID, "zoom-out").click()
+        time.sleep(0.1)
+    check_fence_drawn(drv, origin, (fence["x_m"], fence["y_m"], fence["radius_m"]))
+    legend = drv.find_element(By.ID, "legend").text
+    assert "verified on 3 of 3" in legend, legend
+    rows = drv.find_elements(By.CSS_SELECTOR, "#vehicle-panel tbody tr")
+    cells = [row.find_elements(By.TAG_NAME, "td")[5].text for row in rows]
+    assert cells == ["RTK fixed, 10 sats, HDOP 1.2"] * 3, cells
+    drv.find_element(By.ID, "fit").click()
+
+
+def test_fence_and_gps_fix_on_the_map(driver: Any) -> None:
+    """The geofence of the state document drawn as a circle on the geographic map, with its
+    own style and a legend, north-up and ship-up; the vehicle panel's GPS fix, a vehicle
+    without a fix shown as a warning."""
+    from selenium.webdriver.common.action_chains import ActionChains
+    from selenium.webdriver.common.by import By
+
+    from domain.geodesy import GeoOrigin
+
+    drv = driver
+    origin = GeoOrigin(78.93, 11.92)  # the fake's origin
+    with ServerThread(tick_s=0.1, token="t", push_hz=5.0, control=FenceFake()) as server:
+        open_page(drv, server.url + "/")
+        wait_for(lambda: drv.execute_script("return window.floe.basemap.geo"),
+                 "Leaflet under the map, in the origin's frame")
+        ActionChains(drv).move_to_element(drv.find_element(By.ID, "map")).perform()
+        time.sleep(0.3)  # hovering: the view no longer re-fits
+        wait_for(lambda: drv.execute_script("return window.floe.fence"), "the fence drawn")
+        check_fence_drawn(drv, origin, FENCE)
+        legend = drv.find_element(By.ID, "legend").text
+        assert "operating area" in legend, legend
+        assert "geofence 900 m · verified on 2 of 3" in legend, legend
+
+        # ---- ship-up: the map (and the fence with it) turns by the ship's course
+        drv.find_element(By.ID, "orient").click()
+        rotation = wait_for(lambda: drv.execute_script("return window.floe.rotation"),
+                            "the map to turn ship-up")
+        assert rotation == pytest.approx(math.pi / 2, abs=0.05)
+        ActionChains(drv).move_to_element(drv.find_element(By.ID, "map")).perform()
+        time.sleep(0.3)
+        check_fence_drawn(drv, origin, FENCE)
+        # the canvas draws north-up inside the turned box: the fence's north point straight
+        # above its centre on the canvas, the box turned a quarter (east up on the screen)
+        f = fence_as_drawn(drv)
+        north = f["points"][len(f["points"]) // 4]  # angle pi/2 in ENU: north
+        assert north[1] < f["cy"] and abs(north[0] - f["cx"]) < 2.0, (north, f["cx"], f["cy"])
+        transform = drv.execute_script(
+            "return getComputedStyle(document.getElementById('stack')).transform")
+        a, b = (float(v) for v in transform[len("matrix("):].split(",")[:2])
+        assert math.atan2(b, a) == pytest.approx(-math.pi / 2, abs=0.05), transform
+        drv.find_element(By.ID, "orient").click()
+        wait_for(lambda: drv.execute_script("return window.floe.rotation === 0"),
+                 "north-up again")
+
+        # ---- the GPS fix per vehicle in the panel; no fix is a warning
+        def gps_cells() -> dict[str, tuple[str, str]]:
+            out = {}
+            for row in drv.find_elements(By.CSS_SELECTOR, "#vehicle-panel tbody tr"):
+                cell = row.find_elements(By.TAG_NAME, "td")[5]
+                out[row.get_attribute("data-id")] = (cell.text, cell.get_attribute("class"))
+            return out
+
+        cells = wait_for(lambda: (c := gps_cells()) and len(c) == 3 and c, "the panel")
+        assert cells["uav1"] == ("RTK fixed, 10 sats, HDOP 1.2", ""), cells
+        assert cells["uav2"][0] == "no fix, 3 sats, HDOP 1.2", cells
+        assert "gps-warn" in cells["uav2"][1], cells
+        assert cells["uav3"] == ("ok", ""), cells  # no GPS_RAW_INT yet: SYS_STATUS' health
+        errors = [e for e in drv.get_log("browser") if e.get("level") == "SEVERE"]
+        drv.get("about:blank")
+    assert errors == [], errors

@@ -238,10 +238,10 @@ _NEEDED_HZ: tuple[tuple[int, float], ...] = (
     (M.MAVLINK_MSG_ID_ATTITUDE, 0.5),  # time_boot_ms between positions (reboots)
     (M.MAVLINK_MSG_ID_BATTERY_STATUS, 0.5),
     (M.MAVLINK_MSG_ID_WIND, 0.5),
+    (M.MAVLINK_MSG_ID_GPS_RAW_INT, 0.5),  # the panel's GPS fix, satellites, HDOP
 )
 """What floe reads besides the position, at the rates it needs on a constrained link."""
 _NOT_NEEDED: tuple[int, ...] = (
-    M.MAVLINK_MSG_ID_GPS_RAW_INT,
     M.MAVLINK_MSG_ID_NAV_CONTROLLER_OUTPUT,
     M.MAVLINK_MSG_ID_SYSTEM_TIME,
 )

@@ -14,6 +14,9 @@
   progress (MISSION_CURRENT, MISSION_ITEM_REACHED), battery (SYS_STATUS, BATTERY_STATUS),
   pre-arm state (SYS_STATUS health bit 0x10000000, the best single "ready" signal), and
   SYS_STATUS's three sensor bitmasks as they came (``sensors``).
+* GPS fix: GPS_RAW_INT ``fix_type``, ``satellites_visible``, ``eph`` (HDOP x 100) ->
+  ``gps_fix`` (:mod:`.gps_message`: unknown values and garbage are None, garbage also an
+  :class:`InvalidTelemetry`), ``last_gps_s``; a reboot forgets it.
 
 Values that are NaN or out of range are never stored: they are dropped and reported as
 :class:`InvalidTelemetry`. Messages from another system id, and HEARTBEATs of components
@@ -56,6 +59,7 @@ from domain.geodesy import GeoOrigin, enu_rad_from_compass_deg, wrap_pi
 from domain.modes import ArduPlaneMode
 from groundstation.mavlink.codec import MAVLinkMessage, mavlink2
 from groundstation.mavlink.evidence import MAV_STATE_BOOT, RebootEvidence, WindEvidence
+from groundstation.mavlink.gps_message import parse_gps_raw_int
 from groundstation.mavlink.telemetry_events import (
     ARDUPLANE_MODES,
     Armed,
@@ -258,6 +262,8 @@ class VehicleTelemetry:
             landed_state=None,
             reboot_suspected=False,
             wind_xy_m_s=None,
+            gps_fix=None,
+            last_gps_s=None,
             home=None,
             home_xy_m=None,
             position_boot_ms=None,
@@ -465,6 +471,13 @@ class VehicleTelemetry:
         self._snap = replace(self._snap, wind_xy_m_s=accepted, last_wind_s=now_s)
         return [WindReported(now_s, accepted[0], accepted[1], wind.speed_z_m_s)]
 
+    def _on_gps_raw_int(self, msg: MAVLinkMessage, now_s: float) -> list[TelemetryEvent]:
+        """GPS_RAW_INT: the fix type, satellites and HDOP (:func:`parse_gps_raw_int`); a
+        field that is garbage is stored as unknown and reported."""
+        fix = parse_gps_raw_int(msg)
+        self._snap = replace(self._snap, gps_fix=fix, last_gps_s=now_s)
+        return [InvalidTelemetry(now_s, "GPS_RAW_INT", b.field, b.value) for b in fix.bad]
+
     def _on_item_reached(self, msg: MAVLinkMessage, now_s: float) -> list[TelemetryEvent]:
         return [MissionItemReached(now_s, int(msg.seq))]
 
@@ -512,6 +525,7 @@ _HANDLERS = {
     "EXTENDED_SYS_STATE": VehicleTelemetry._on_extended_sys_state,
     "HOME_POSITION": VehicleTelemetry._on_home_position,
     "WIND": VehicleTelemetry._on_wind,
+    "GPS_RAW_INT": VehicleTelemetry._on_gps_raw_int,
 }
 
 

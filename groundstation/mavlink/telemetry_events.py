@@ -10,6 +10,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from domain.modes import ARDUPLANE_MODES, mode_name
+from groundstation.mavlink.gps_message import GpsFix
 
 __all__ = [
     "ARDUPLANE_MODES",
@@ -189,6 +190,11 @@ class VehicleSnapshot:
     last_wind_s: float | None = None
     sensors: tuple[int, int, int] | None = None
     """SYS_STATUS ``onboard_control_sensors_present``, ``_enabled``, ``_health`` (the last)."""
+    gps_fix: GpsFix | None = None
+    """The last GPS_RAW_INT's fix type, satellites and HDOP (:mod:`.gps_message`; a field
+    that was unknown or garbage is None); None before the first, and after a reboot."""
+    last_gps_s: float | None = None
+    """When that GPS_RAW_INT arrived (mission s)."""
 
     @property
     def course_rad(self) -> float | None:

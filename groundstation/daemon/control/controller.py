@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 
 from groundstation.core import events as ev
 from groundstation.daemon.control.contract import FLEET_ACTIONS, VEHICLE_ACTIONS
+from groundstation.daemon.fence_view import fence_dict, holds_fence
 from groundstation.daemon.hosts import CoreHost, FleetHost
 from groundstation.daemon.link_budgets import LinkBudgets
 from groundstation.daemon.log_lines import is_operator_event
@@ -27,6 +28,7 @@ if TYPE_CHECKING:
     from groundstation.daemon.config import DaemonConfig
     from groundstation.daemon.journal import Journal
     from groundstation.daemon.session import VehicleSession
+    from groundstation.mavlink.fence_items import FenceCircle
 
 __all__ = ["ControllerHost", "DaemonController"]
 
@@ -57,6 +59,7 @@ class ControllerHost(FleetHost, CoreHost, Protocol):
 
     def add_detection(self, event: ev.Detection) -> None: ...
     def area_center(self) -> tuple[float, float]: ...
+    def fence(self) -> FenceCircle | None: ...
 
 
 def _refuse(error: str) -> dict[str, Any]:
@@ -76,6 +79,7 @@ class DaemonController:
         t = d.clock.now_s()
         origin = d.origin_or_none
         view = d.core.view()
+        fence = d.fence()
         vehicles = []
         for s in sorted(d.sessions.values(), key=lambda s: s.system_id):
             snap = s.snapshot
@@ -109,6 +113,7 @@ class DaemonController:
                     "aim": [fly.x_m, fly.y_m] if fly else None,
                     "track": [list(p) for p in s.track],
                     "wind": vehicle_wind(snap.wind_xy_m_s),
+                    "fence_verified": holds_fence(fence, s.controller.fence_held),
                     **vehicle_panel(snap, s.fly, d.core_config.loiter_radius_m,
                                     s.link, s.telemetry_age_s,
                                     d.budgets.for_system(s.system_id)),
@@ -138,6 +143,7 @@ class DaemonController:
             "origin": {"lat_deg": origin.lat_deg, "lon_deg": origin.lon_deg} if origin else None,
             "operating_radius_m": d.config.mission.operating_radius_m,
             "operating_center_m": list(d.area_center()),
+            "fence": fence_dict(fence),
             "vehicles": vehicles,
             "targets": targets,
             "tracks": tracks,

@@ -38,6 +38,7 @@
     rotation: 0,               // rad the map is turned by (ship-up), 0 north-up
     shipCourse: null,          // rad, compass, from the ship's predicted track or its moves
     loiters: [],               // the commanded loiter circles drawn in the last frame
+    fence: null,               // the geofence drawn in the last frame (canvas px), or null
   };
   const L = window.floeLayers;
 
@@ -747,6 +748,44 @@
     });
   }
 
+  // The geofence every vehicle is given (doc.fence: centre in ENU m, radius m), drawn like
+  // the loiters as a circle of FENCE_SEGMENTS points in the ENU frame projected through the
+  // map: round on the map at any zoom, north-up or ship-up. Solid, orange, over the dashed
+  // grey operating area; the legend says how many vehicles hold it verified.
+  const FENCE_SEGMENTS = 180;
+  const FENCE_COLOUR = "#d9480f";
+  function drawFence(doc) {
+    const f = doc.fence;
+    app.fence = null;
+    const vehicles = Array.isArray(doc.vehicles) ? doc.vehicles : [];
+    const held = vehicles.filter((v) => v.fence_verified === true).length;
+    const key = $("legend-fence");
+    if (!f || !num(f.x_m) || !num(f.y_m) || !num(f.radius_m) || f.radius_m <= 0) {
+      key.hidden = true;
+      return;
+    }
+    const text = "geofence " + fmt(f.radius_m) + " m · verified on " + held + " of " +
+      vehicles.length;
+    key.hidden = false;
+    if ($("legend-fence-text").textContent !== text) $("legend-fence-text").textContent = text;
+    const points = [];
+    ctx.strokeStyle = FENCE_COLOUR; ctx.lineWidth = 2.5; ctx.setLineDash([]);
+    ctx.beginPath();
+    for (let i = 0; i <= FENCE_SEGMENTS; i++) {
+      const a = 2 * Math.PI * i / FENCE_SEGMENTS;
+      const [px, py] = toScreen(f.x_m + f.radius_m * Math.cos(a), f.y_m + f.radius_m * Math.sin(a));
+      if (i === 0) ctx.moveTo(px, py); else ctx.lineTo(px, py);
+      if (i < FENCE_SEGMENTS) points.push([px, py]);
+    }
+    ctx.stroke();
+    const [cx, cy] = toScreen(f.x_m, f.y_m);
+    const top = toScreen(f.x_m, f.y_m + f.radius_m);
+    ctx.fillStyle = FENCE_COLOUR; ctx.font = "bold 11px system-ui, sans-serif";
+    ctx.fillText("geofence", top[0] + 4, top[1] - 5);
+    app.fence = { cx, cy, radius_m: f.radius_m, colour: FENCE_COLOUR, segments: FENCE_SEGMENTS,
+                  points, verified: held, vehicles: vehicles.length };
+  }
+
   function drawVehicles(doc, fov) {
     const targets = new Map((doc.targets || []).map((t) => [String(t.id), t]));
     (doc.vehicles || []).forEach((v, index) => {
@@ -915,11 +954,12 @@
         ctx.beginPath(); ctx.arc(cx, cy, doc.operating_radius_m * app.view.scale, 0, 2 * Math.PI);
         ctx.stroke(); ctx.setLineDash([]);
         ctx.fillStyle = "#5d7388"; ctx.font = "11px system-ui, sans-serif";
-        ctx.fillText("operating area (fence)", cx - 55,
+        ctx.fillText("operating area", cx - 35,
           cy - doc.operating_radius_m * app.view.scale - 5);
       }
       app.layers = { search: 0, confirmed: 0, tentative: 0, prior: 0 };
       app.layers.search = L.drawSearch(ctx, doc, toScreen, app.view.scale);
+      drawFence(doc);  // over the search cells' shading
       drawShipTrack(doc);
       drawBoat(doc);
       drawTargets(doc, fov);
@@ -1143,6 +1183,7 @@
     toScreen, toWorld, toLatLon,
     get cursor() { return app.cursor || null; },
     get loiters() { return app.loiters.slice(); },
+    get fence() { return app.fence ? JSON.parse(JSON.stringify(app.fence)) : null; },
     get orient() { return app.orient; },
     get rotation() { return app.rotation; },
     get basemap() {

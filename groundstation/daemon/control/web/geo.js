@@ -10,7 +10,9 @@
 //   and metres per pixel, fractional zoom) and the canvas projects through the map's Web
 //   Mercator, so tiles and drawings agree. Tiles from the daemon's /tiles/{z}/{x}/{y} (the
 //   operator's MBTiles or PMTiles file) or none (a plain background); Leaflet's scale bar.
-// * vehicle panel rows: airspeed, ground speed, heading, altitude, GPS, battery, link.
+// * vehicle panel rows: airspeed, ground speed, heading, altitude, GPS (GPS_RAW_INT's fix,
+//   satellites and HDOP: "RTK fixed, 10 sats, HDOP 1.2", a warning below a 3D fix; else
+//   SYS_STATUS' GPS health), battery, link.
 (function () {
   "use strict";
 
@@ -145,6 +147,19 @@
     return text;
   }
 
+  // The GPS cell: the daemon's gps_text (GPS_RAW_INT's fix, else SYS_STATUS' health).
+  function gpsText(v) {
+    if (typeof v.gps_text === "string" && v.gps_text) return v.gps_text;
+    return v.gps || "–";
+  }
+
+  // A warning: a GPS_RAW_INT below a 3D fix (fix_type < 3, or unknown), else an unhealthy
+  // or absent SYS_STATUS GPS.
+  function gpsWarning(v) {
+    if (v.gps_fix && typeof v.gps_fix === "object") return v.gps_fix.ok !== true;
+    return !!v.gps && v.gps !== "ok";
+  }
+
   // One row per vehicle: keyed by id, cells updated in place; `position(v)` its
   // [lat, lon] (the name's tooltip) or null.
   function updatePanel(tbody, vehicles, colourOf, position) {
@@ -166,14 +181,16 @@
         fmt(v.groundspeed_m_s, 1),
         num(v.heading_deg) ? fmt(v.heading_deg) + "°" : "–",
         fmt(v.alt_m),
-        v.gps || "–",
+        gpsText(v),
         fmt(v.battery_v, 1),
         num(v.battery_pct) ? fmt(v.battery_pct) : "–",
         linkText(v.link_quality),
       ];
       texts.forEach((t, i) => { if (c[i].textContent !== t) c[i].textContent = t; });
       c[0].style.borderLeft = "4px solid " + colourOf(index);
-      c[5].className = v.gps === "ok" ? "" : (v.gps ? "st-lost" : "");
+      c[5].className = gpsWarning(v) ? "st-lost gps-warn" : "";
+      c[5].title = v.gps_fix ? "GPS_RAW_INT" + (v.gps ? "; SYS_STATUS GPS: " + v.gps : "")
+        : (v.gps ? "SYS_STATUS GPS sensor (no GPS_RAW_INT yet)" : "");
       const q = v.link_quality || {};
       c[8].className = q.state === "ok" ? "" : (q.state ? "st-lost" : "");
       const ll = position ? position(v) : null;
@@ -184,5 +201,5 @@
     }
   }
 
-  window.floeGeo = { frame, zoomFor, Basemap, latLonText, updatePanel };
+  window.floeGeo = { frame, zoomFor, Basemap, latLonText, updatePanel, gpsText, gpsWarning };
 })();
