@@ -424,7 +424,7 @@ class Tracker:
         if life.status == "prior":
             self._confirm(older, t, "prior_seen", confirmed)
         deleted.append(TrackEvent(t, "deleted", tid,
-                                  f"merged into {older} (p {cont.probability:.2f})"))
+                                  f"merged into {older} (p {cont.probability:.2f})", older))
 
     def _succeed(
         self, older: str, tid: str, t: float, cont: Continuation, confirmed: list[TrackEvent],
@@ -443,7 +443,7 @@ class Tracker:
         life.hits += old.hits
         life.might_continue = cont.candidates
         p_older = dict(cont.candidates).get(older, 0.0)
-        self._delete(older, t, f"succeeded by {tid} (p {p_older:.2f})", deleted)
+        self._delete(older, t, f"succeeded by {tid} (p {p_older:.2f})", deleted, successor=tid)
         self._confirm(tid, t, "m_of_n" + _might_continue(cont), confirmed)
 
     def _confirm(self, tid: str, t: float, reason: str, out: list[TrackEvent]) -> None:
@@ -452,11 +452,12 @@ class Tracker:
         life.confirmed_s = t
         out.append(TrackEvent(t, "confirmed", tid, reason))
 
-    def _delete(self, tid: str, t: float, reason: str, out: list[TrackEvent]) -> None:
+    def _delete(self, tid: str, t: float, reason: str, out: list[TrackEvent],
+                successor: str | None = None) -> None:
         del self._life[tid]
         if tid in self.observer.target_ids:
             self.observer.remove_target(tid)
-        out.append(TrackEvent(t, "deleted", tid, reason))
+        out.append(TrackEvent(t, "deleted", tid, reason, successor))
 
     def _birth(
         self, t: float, x: float, y: float, r: float, lam_b: float, lam_c: float,

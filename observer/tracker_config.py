@@ -181,6 +181,9 @@ class TrackEvent:
     kind: str
     track_id: str
     reason: str
+    successor: str | None = None
+    """A deletion by coalescence: the track that goes on with this one's iceberg estimate
+    (``merged into`` it, or ``succeeded by`` it); None for every other event."""
 
 
 @dataclass(frozen=True)

@@ -351,6 +351,9 @@ def test_a_crossing_pair_after_a_gap_does_not_hand_over_an_old_id(
         ("deleted", "A", f"succeeded by N1 (p {p_a})"),
     ]
     assert tracker.track_ids == ["B", "N1"]
+    # the deletion names the track that goes on with A's estimate (the core hands A's
+    # vehicles over to it: core/fleet.py hand_over)
+    assert [e.successor for e in events] == [None, None, "N1"]
     record = {r.id: r for r in tracker.records()}["N1"]
     assert [oid for oid, _ in record.might_continue] == ["A", "B"]
     old = tracker.observer.track("B")

@@ -69,7 +69,13 @@ from groundstation.core.events import (
     WindReport,
     WindWithdrawn,
 )
-from groundstation.core.fleet import FleetStatus, VehicleRecord, free_vehicles, status_change
+from groundstation.core.fleet import (
+    FleetStatus,
+    VehicleRecord,
+    free_vehicles,
+    hand_over,
+    status_change,
+)
 from groundstation.core.intercept import intercept, travel_time_s
 from groundstation.core.mission import MIN_LOITER_S
 from groundstation.core.planning_targets import build_problem, search_targets, track_targets
@@ -783,7 +789,9 @@ class DecisionCore:
     def _process_scans(self, t_s: float) -> list[Command]:
         """Buffered scans due by ``t_s`` through the tracker; its events become notes, a
         confirmation or deletion marks the plan dirty, a deleted track (already gone from
-        the observer: the tracker removes it) frees its vehicles (as ``TargetRemoved``).
+        the observer: the tracker removes it) frees its vehicles (as ``TargetRemoved``), or,
+        deleted by coalescence, hands them over to the track that goes on with its estimate
+        (``fleet.hand_over``: a new id alone sends no new mission).
         An unconfirmed deletion (mostly clutter) that no vehicle's route held asks for
         no plan (on ``discovery`` seed 6 they were 903 of 1 078 plans, each a chance to
         turn a vehicle away from the track it was about to reach).
@@ -798,6 +806,10 @@ class DecisionCore:
                                 ev.reason))
                 if ev.kind == "confirmed":
                     self._mark_dirty("track confirmed")
+                elif ev.kind == "deleted" and ev.successor is not None:
+                    # coalescence: the same estimate under the successor's id
+                    hand_over(self.vehicles.values(), ev.track_id, ev.successor)
+                    self._mark_dirty("track deleted")
                 elif ev.kind == "deleted":  # the tracker removed it from the observer
                     held = any(ev.track_id in v.route for v in self.vehicles.values())
                     freed = free_vehicles(self.vehicles.values(), ev.track_id)
