@@ -131,7 +131,7 @@ class DecisionCore:
         self.wind_replan = WindReplan(config.wind_replan_m_s, config.wind_replan_margin_s,
                                       config.observer.fov_radius_m)
         self.uploads = UploadRule(config.upload_min_interval_s, config.retarget_m,
-                                  config.revisit_growth)
+                                  config.revisit_growth, config.upload_budget_per_h)
         """When a vehicle is sent a new mission (``core/uploads.py``)."""
         self.ship = ShipTrack()
         """The ship's track from every ``BoatPosition`` (``core/ship.py``): the watch's
@@ -280,7 +280,7 @@ class DecisionCore:
                                          self.active_vehicles(), self._leg_time_s)
             notes = self.wind_replan.replan(t_s, legs, self.config.policy.commit)
             for leg in legs:  # bounded by its own rule (a 2 m/s change): not delayed
-                self.uploads.reset(leg.vehicle.id)
+                self.uploads.reset(leg.vehicle.id, t_s)
             if notes:
                 self._mark_dirty("wind changed")
                 out += notes
@@ -381,7 +381,7 @@ class DecisionCore:
                                        event.speed_m_s, event.t_s)
                 self.vehicles[event.vehicle] = record
             record.status, record.busy, record.target = FleetStatus.ACTIVE, False, None
-            self.uploads.reset(event.vehicle)
+            self.uploads.reset(event.vehicle, event.t_s)
             self._on_pose(event.vehicle, event.t_s, event.x_m, event.y_m, event.heading_rad,
                           event.speed_m_s)
             if self.watch is not None:
@@ -497,7 +497,7 @@ class DecisionCore:
             return []
         out, reason = status_change(record, event, self.config.battery_low_action)
         if reason is not None:
-            self.uploads.reset(record.id)  # its next leg is not delayed
+            self.uploads.reset(record.id, event.t_s)  # its next leg is not delayed
             self._mark_dirty(reason)
         return out
 
