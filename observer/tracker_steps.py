@@ -97,21 +97,28 @@ def reacquisition_gate(
     """``log_ratio`` with the pairs a stale track may not take forbidden (``-inf``).
 
     A stale track (``stale[j]``: not hit for longer than ``reacquire_after_s``, or never
-    since it was adopted) is found again only when the detection is its iceberg with
-    probability ``>= min_probability`` against every track and "clutter or new"
-    (``a_ij`` as in :mod:`observer.association`, the 1 being "clutter or new"):
+    since it was adopted) takes a detection directly only when the detection is its
+    iceberg's rather than another track's with probability ``>= min_probability``
+    (``a_ij`` as in :mod:`observer.association`, the sum over every track that gates
+    detection ``i``):
 
-        P_ij = a_ij / (1 + sum_k a_ik)
+        Q_ij = a_ij / sum_k a_ik
 
-    Otherwise the detection is left to the other tracks or starts a track, and at that
-    track's confirmation :func:`continuation` decides with more evidence."""
+    So a lone stale track found again takes the detection as any track does (whether it is
+    a new iceberg instead is the association's own "clutter or new" cost), while two
+    stale tracks near one detection (icebergs that may have passed each other unseen) take
+    it only when one is clearly likelier. Otherwise the detection is left to the other
+    tracks or starts a track, and at that track's confirmation :func:`continuation` decides
+    with more evidence, "a new iceberg" included."""
     if not stale.any() or log_ratio.size == 0:
         return log_ratio
     finite = np.isfinite(log_ratio)
-    top = np.maximum(np.where(finite, log_ratio, -np.inf).max(axis=1, initial=0.0), 0.0)
-    total = np.exp(-top) + np.where(finite, np.exp(log_ratio - top[:, None]), 0.0).sum(axis=1)
-    log_p = log_ratio - top[:, None] - np.log(total)[:, None]
-    forbid = stale[None, :] & finite & (log_p < math.log(min_probability))
+    top = np.where(finite, log_ratio, -np.inf).max(axis=1, initial=-np.inf)
+    rows = np.isfinite(top)
+    shifted = np.where(finite, log_ratio - np.where(rows, top, 0.0)[:, None], -np.inf)
+    total = np.where(finite, np.exp(shifted), 0.0).sum(axis=1)
+    log_q = shifted - np.log(np.where(rows, total, 1.0))[:, None]
+    forbid = stale[None, :] & finite & (log_q < math.log(min_probability))
     return np.where(forbid, -np.inf, log_ratio)
 
 

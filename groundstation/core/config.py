@@ -158,10 +158,11 @@ class CoreConfig:
     """The minimum interval for a vehicle flying a routed pass (it keeps flying its route,
     or holds over its head, while a new head waits; ``core/route.py``); at least
     ``upload_min_interval_s``. None: that interval for every vehicle (journals before)."""
-    upload_budget_per_h: float | None = 50.0
+    upload_budget_per_h: float | None = None
     """FlyToTargets per vehicle per hour the hourly budget refills (a token bucket holding
     two; a loiter end's answer is never delayed, a redirect waits for a token;
-    ``core/uploads.py``). None: no budget (journals written before it)."""
+    ``core/uploads.py``). None: no budget (the default: the paper's 5 s replanning sends
+    paper-boat's vehicles 200-300 an hour; ``discovery`` sets 50)."""
     revisit_growth: float | None = 2.0
     """A target a vehicle's visit did not see is not given to that vehicle again at the same
     place until its value (sigma, m^2) grew by this factor or its aim moved farther than the
