@@ -2,7 +2,13 @@
 recorded detections.
 
     nice -n 10 python benchmarks/tracker_bench.py [--seed 0] [--duration-s 600] [--rounds 3]
+        [--cases lawnmower,crossing,pd-0.6,clutter-5x] [--lost-sigma-m 300] [--q-per-s 0.1]
         [--frames benchmarks/tracker_bench_frames.json] [--json benchmarks/tracker_bench.json]
+
+Every case flies the same fixed lawnmower (:data:`CASES`; detections floe's planner did not
+produce): ``lawnmower`` (the world below), ``crossing`` (8 of the 12 icebergs in pairs that
+pass within 50 m of each other), ``pd-0.6`` and ``clutter-5x`` (0.5 false alarms per frame);
+both trackers are told the case's pd and clutter.
 
 1. Recording (:mod:`benchmarks.tracker_bench_world`): a discovery-like world of 12 icebergs
    drifting in 3 km x 3 km, three UAVs flying lawnmower strips at 22 m/s with a 150 m
@@ -15,8 +21,18 @@ recorded detections.
 3. Every second of mission time the confirmed tracks (extrapolated to the second from their
    last state) and the true icebergs in the area go to an
    :class:`observer.track_quality.TrackQualityRecorder` (GOSPA c = 150 m, p = 2, alpha = 2);
-   beside its measures, ``track_truth_changes`` (a track assigned to another iceberg than
-   its last one: a stale track taking over another iceberg's detections).
+   true icebergs outside the area are passed as such (a track on one is not false). The
+   measures and their one definition each, the same for every tracker
+   (:mod:`observer.track_quality`): GOSPA mean; confirmed fraction at the end; time to
+   confirm; false tracks per hour; ID switches; ``identity_errors`` (confirmed track ids
+   assigned to more than one true iceberg over the run) and ``track_truth_changes`` (times
+   a track is assigned to another iceberg than its last one); and, from each tracker's own
+   record of what it associated, ``mixed_update_tracks``: confirmed track ids updated by
+   detections of two or more true icebergs (clutter left out; a merge's updates go with the
+   id it keeps; JPDA counts a detection whose association probability exceeds 0.5). It
+   tells "a detection of another iceberg updated this track" (a wrong identity) from "a
+   stale track's extrapolated mean passed near another iceberg" (which the matching-based
+   ``identity_errors`` counts too).
 4. Time per scan: the CPU time of this thread (``thread_time``) and the wall time
    (``perf_counter``) around the scan call only (inputs are built before), median and 90th
    percentile over all scans of a run; the trackers run interleaved, round
@@ -38,7 +54,8 @@ Initiation: ``MultiMeasurementInitiator`` (the same GNN inside, 3 updates to con
 tentative track dropped after 1 s without an update, i.e. three missed 2 Hz frames: about
 floe's 3 of 5), the new track's velocity variance 0.5 m^2/s^2 (floe's
 ``new_track_vel_var_m2_s2``). Deletion: ``CovarianceBasedDeleter`` on the
-position variances (``--ss-delete-trace-m2``).
+position variances at ``--lost-sigma-m`` squared, the trace at which floe's
+``lost_sigma_m`` deletes (the same rule on both sides); both use ``--q-per-s``.
 
 Mismatches (honest list): Stone Soup's ConstantVelocity is the continuous white-noise
 acceleration model, ``Q = q [[dt^3/3, dt^2/2], [dt^2/2, dt]]`` per axis; floe adds
@@ -60,7 +77,7 @@ import statistics
 import sys
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any, Protocol
 
@@ -101,17 +118,23 @@ class _Adapter(Protocol):
 
     def confirmed(self, t_s: float) -> dict[str, tuple[float, float]]: ...
 
+    def update_sources(self) -> dict[str, set[str]]:
+        """Per track id ever confirmed: the true icebergs whose detections updated it
+        (clutter left out), from the tracker's own record of what it associated."""
+        ...
+
 
 class FloeAdapter:
     """floe's ``observer.Tracker`` (GNN or JPDA) with the frame's footprint."""
 
-    def __init__(self, rec: Recording, association: str) -> None:
+    def __init__(self, rec: Recording, association: str, lost_sigma_m: float | None = None,
+                 q_per_s: float = Q_PER_S) -> None:
         from observer import Observer, ObserverConfig
 
         Footprint, ScanDetection, Tracker, TrackerConfig = floe_tracker_types()
 
         p = rec.params
-        self.observer = Observer(ObserverConfig(q_per_s=Q_PER_S, r_m2=p.r_m2))
+        self.observer = Observer(ObserverConfig(q_per_s=q_per_s, r_m2=p.r_m2))
         self.tracker = Tracker(
             self.observer,
             TrackerConfig(
@@ -121,6 +144,7 @@ class FloeAdapter:
                 confirm_hits=CONFIRM_HITS,
                 new_track_vel_var_m2_s2=NEW_TRACK_VEL_VAR_M2_S2,
                 gate_probability=GATE_PROBABILITY,
+                lost_sigma_m=lost_sigma_m,
             ),
         )
         self.inputs = [
@@ -133,8 +157,27 @@ class FloeAdapter:
             for f in rec.frames
         ]
 
+        self.labels = [[label for _, _, label in f.detections] for f in rec.frames]
+        self.sources: dict[str, set[str]] = {}
+        self.ever_confirmed: set[str] = set()
+
     def scan(self, k: int) -> None:
-        self.tracker.scan(*self.inputs[k])
+        result = self.tracker.scan(*self.inputs[k])
+        for i, tid in result.assigned.items():
+            label = self.labels[k][i]
+            if label is not None:
+                self.sources.setdefault(tid, set()).add(label)
+        for event in result.events:
+            if event.kind == "confirmed":
+                self.ever_confirmed.add(event.track_id)
+            elif event.kind == "deleted" and event.reason.startswith("merged into "):
+                # coalescence: the old id goes on with this track's updates
+                into = event.reason.split()[2]
+                self.sources.setdefault(into, set()).update(
+                    self.sources.pop(event.track_id, set()))
+
+    def update_sources(self) -> dict[str, set[str]]:
+        return {tid: self.sources.get(tid, set()) for tid in self.ever_confirmed}
 
     def confirmed(self, t_s: float) -> dict[str, tuple[float, float]]:
         out: dict[str, tuple[float, float]] = {}
@@ -149,7 +192,8 @@ class FloeAdapter:
 class StoneSoupAdapter:
     """Stone Soup's GNN (MultiTargetTracker) or JPDA (MultiTargetMixtureTracker)."""
 
-    def __init__(self, rec: Recording, association: str, delete_trace_m2: float) -> None:
+    def __init__(self, rec: Recording, association: str, delete_trace_m2: float,
+                 q_per_s: float = Q_PER_S) -> None:
         import datetime
 
         import numpy as np
@@ -174,7 +218,7 @@ class StoneSoupAdapter:
 
         p = rec.params
         transition = CombinedLinearGaussianTransitionModel(
-            [ConstantVelocity(Q_PER_S), ConstantVelocity(Q_PER_S)]
+            [ConstantVelocity(q_per_s), ConstantVelocity(q_per_s)]
         )
         measurement = LinearGaussian(
             ndim_state=4, mapping=(0, 2), noise_covar=np.diag([p.r_m2, p.r_m2])
@@ -228,15 +272,42 @@ class StoneSoupAdapter:
         for f in rec.frames:
             stamp = epoch + datetime.timedelta(seconds=f.t_s)
             dets = {
-                Detection(np.array([[x], [y]]), timestamp=stamp, measurement_model=measurement)
-                for x, y, _ in f.detections
+                Detection(np.array([[x], [y]]), timestamp=stamp, measurement_model=measurement,
+                          metadata={"truth": label})
+                for x, y, label in f.detections
             }
             self.inputs.append((stamp, dets))
         self.epoch = epoch
         self.ids: dict[int, str] = {}
+        self.seen: dict[str, Any] = {}
 
     def scan(self, k: int) -> None:
         self.tracker.update_tracker(*self.inputs[k])
+        for track in self.tracker.tracks:  # every confirmed track, before a deleter drops it
+            name = self.ids.setdefault(id(track), f"S{len(self.ids) + 1}")
+            self.seen[name] = track
+
+    def update_sources(self) -> dict[str, set[str]]:
+        """Each track's updates: an ``Update`` state's hypothesis names the detection it
+        took (GNN); JPDA's mixture update counts the detection whose hypothesis weighs more
+        than 0.5 (floe's JPDA rule for ``assigned``)."""
+        out: dict[str, set[str]] = {}
+        for name, track in self.seen.items():
+            labels: set[str] = set()
+            for state in track.states:
+                hypothesis = getattr(state, "hypothesis", None)
+                if hypothesis is None:
+                    continue
+                mixture = getattr(hypothesis, "single_hypotheses", None)
+                for h in mixture if mixture is not None else [hypothesis]:
+                    if mixture is not None and float(getattr(h, "probability", 0.0)) <= 0.5:
+                        continue
+                    detection = getattr(h, "measurement", None)
+                    label = getattr(detection, "metadata", {}).get("truth")
+                    if label is not None:
+                        labels.add(label)
+            out[name] = labels
+        return out
 
     def confirmed(self, t_s: float) -> dict[str, tuple[float, float]]:
         out: dict[str, tuple[float, float]] = {}
@@ -270,15 +341,20 @@ def run(rec: Recording, make: Callable[[], _Adapter]) -> RunResult:
             k += 1
         confirmed = adapter.confirmed(next_sample_s)
         ever.update(confirmed)
+        everywhere = rec.truth_at(next_sample_s)
         truth = {
             tid: xy
-            for tid, xy in rec.truth_at(next_sample_s).items()
+            for tid, xy in everywhere.items()
             if area.x_min_m <= xy[0] <= area.x_max_m and area.y_min_m <= xy[1] <= area.y_max_m
         }
-        quality.sample(next_sample_s, confirmed, truth)
+        outside = {tid: xy for tid, xy in everywhere.items() if tid not in truth}
+        quality.sample(next_sample_s, confirmed, truth, outside)
         next_sample_s += 1.0
     measures = quality.to_dict(rec.params.duration_s)
     measures["track_truth_changes"] = quality.truth_changes
+    measures["identity_errors"] = quality.identity_errors
+    sources = adapter.update_sources()
+    measures["mixed_update_tracks"] = sum(1 for labels in sources.values() if len(labels) > 1)
     return RunResult(measures, times, cpu_times, len(ever))
 
 
@@ -323,15 +399,35 @@ def floe_available() -> str | None:
     return None
 
 
+#: The benchmark's cases: overrides of :class:`WorldParams` on the chosen seed and duration.
+#: All fly the fixed lawnmower (detections floe's planner did not produce).
+CASES: dict[str, dict[str, Any]] = {
+    "lawnmower": {},
+    "crossing": {"crossing_pairs": 4},  # 8 of the 12 icebergs pass within 50 m in pairs
+    "pd-0.6": {"pd": 0.6},
+    "clutter-5x": {"clutter_per_frame": 0.5},
+}
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(allow_abbrev=False, description=__doc__.split("\n\n")[0])
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--duration-s", type=float, default=600.0)
     parser.add_argument("--rounds", type=int, default=3)
-    parser.add_argument("--frames", type=Path, default=Path("benchmarks/tracker_bench_frames.json"))
+    parser.add_argument(
+        "--cases", default="lawnmower", help=f"comma list among {', '.join(CASES)}"
+    )
+    parser.add_argument("--frames", type=Path, default=Path("benchmarks/tracker_bench_frames.json"),
+                        help="the lawnmower case's recording (written, or read with --load)")
     parser.add_argument("--load", action="store_true", help="read --frames instead of recording")
     parser.add_argument("--json", type=Path, default=Path("benchmarks/tracker_bench.json"))
-    parser.add_argument("--ss-delete-trace-m2", type=float, default=2.0e6)
+    parser.add_argument(
+        "--lost-sigma-m", type=float, default=300.0,
+        help="both trackers delete a confirmed track once sqrt(trace P_xy) exceeds this (m): "
+             "floe's lost_sigma_m, Stone Soup's CovarianceBasedDeleter at its square",
+    )
+    parser.add_argument("--q-per-s", type=float, default=Q_PER_S,
+                        help="both trackers' constant-velocity process noise (m^2/s^3)")
     parser.add_argument(
         "--only", default=",".join(DEFAULT_TRACKERS), help="comma list of trackers to run"
     )
@@ -342,29 +438,54 @@ def main(argv: Sequence[str] | None = None) -> int:
     unknown = [n for n in wanted if n not in TRACKERS]
     if unknown or not wanted:
         parser.error(f"--only: choose among {', '.join(TRACKERS)}")
-    if not math.isfinite(args.ss_delete_trace_m2) or args.ss_delete_trace_m2 <= 0:
-        parser.error("--ss-delete-trace-m2 must be finite and > 0")
+    cases = [c for c in args.cases.split(",") if c]
+    if not cases or any(c not in CASES for c in cases):
+        parser.error(f"--cases: choose among {', '.join(CASES)}")
+    if args.load and cases != ["lawnmower"]:
+        parser.error("--load reads one recording: use it with --cases lawnmower")
+    if not all(math.isfinite(v) and v > 0 for v in (args.lost_sigma_m, args.q_per_s)):
+        parser.error("--lost-sigma-m and --q-per-s must be finite and > 0")
     missing_floe = floe_available()
     if missing_floe:
         print(missing_floe, "-- running Stone Soup only", file=sys.stderr)
         wanted = [n for n in wanted if not n.startswith("floe")]
         if not wanted:
             parser.error("nothing to run without floe's tracker")
-    if args.load:
-        try:
-            rec = load_recording(args.frames)
-        except (OSError, ValueError, KeyError, TypeError) as exc:
-            parser.error(f"--frames {args.frames}: not a recording ({exc})")
-    else:
-        rec = record(WorldParams(seed=args.seed, duration_s=args.duration_s))
-        save_recording(rec, args.frames)
+    out: dict[str, Any] = {
+        "rounds": args.rounds,
+        "lost_sigma_m": args.lost_sigma_m,
+        "q_per_s": args.q_per_s,
+        "floe_missing": missing_floe,
+        "cases": {},
+    }
+    for case in cases:
+        if args.load:
+            try:
+                rec = load_recording(args.frames)
+            except (OSError, ValueError, KeyError, TypeError) as exc:
+                parser.error(f"--frames {args.frames}: not a recording ({exc})")
+        else:
+            rec = record(WorldParams(seed=args.seed, duration_s=args.duration_s, **CASES[case]))
+            if case == "lawnmower":
+                save_recording(rec, args.frames)
+        print(f"case {case}")
+        out["cases"][case] = run_case(rec, wanted, args.rounds, args.lost_sigma_m, args.q_per_s)
+    args.json.write_text(json.dumps(out, indent=2) + "\n")
+    print(f"wrote {args.json}")
+    return 0
+
+
+def run_case(rec: Recording, wanted: list[str], rounds: int, lost_sigma_m: float,
+             q_per_s: float) -> dict[str, Any]:
+    """Every wanted tracker over one recording, ``rounds`` interleaved rounds; prints the
+    table and returns the recording's summary and each tracker's measures."""
     makers: dict[str, Callable[[], _Adapter]] = {
-        "floe-gnn": lambda: FloeAdapter(rec, "gnn"),
-        "floe-jpda": lambda: FloeAdapter(rec, "jpda"),
-        "stonesoup-gnn": lambda: StoneSoupAdapter(rec, "gnn", args.ss_delete_trace_m2),
-        "stonesoup-jpda": lambda: StoneSoupAdapter(rec, "jpda", args.ss_delete_trace_m2),
+        "floe-gnn": lambda: FloeAdapter(rec, "gnn", lost_sigma_m, q_per_s),
+        "floe-jpda": lambda: FloeAdapter(rec, "jpda", lost_sigma_m, q_per_s),
+        "stonesoup-gnn": lambda: StoneSoupAdapter(rec, "gnn", lost_sigma_m**2, q_per_s),
+        "stonesoup-jpda": lambda: StoneSoupAdapter(rec, "jpda", lost_sigma_m**2, q_per_s),
         "stonesoup-gnn-maha": lambda: StoneSoupAdapter(
-            rec, "gnn-mahalanobis", args.ss_delete_trace_m2
+            rec, "gnn-mahalanobis", lost_sigma_m**2, q_per_s
         ),
     }
     n_det = sum(len(f.detections) for f in rec.frames)
@@ -375,7 +496,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         f"{len(rec.truth)} icebergs"
     )
     results: dict[str, list[RunResult]] = {n: [] for n in wanted}
-    for r in range(args.rounds):
+    for r in range(rounds):
         order = wanted[r % len(wanted) :] + wanted[: r % len(wanted)]
         for name in order:
             results[name].append(run(rec, makers[name]))
@@ -403,7 +524,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             "scan_wall_ms_p90": statistics.median(1e3 * percentile(r.scan_s, 90) for r in runs),
         }
     print_table(summary)
-    out = {
+    return {
         "recording": {
             "seed": rec.params.seed,
             "duration_s": rec.params.duration_s,
@@ -411,15 +532,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             "detections": n_det,
             "clutter": n_clutter,
             "icebergs": len(rec.truth),
+            "params": asdict(rec.params),
         },
-        "rounds": args.rounds,
-        "stonesoup_delete_trace_m2": args.ss_delete_trace_m2,
-        "floe_missing": missing_floe,
         "trackers": summary,
     }
-    args.json.write_text(json.dumps(out, indent=2) + "\n")
-    print(f"wrote {args.json}")
-    return 0
 
 
 def print_table(summary: dict[str, dict[str, Any]]) -> None:
@@ -439,7 +555,9 @@ def print_table(summary: dict[str, dict[str, Any]]) -> None:
         ("time to confirm max (s)", lambda s: s["time_to_confirm_s"]["max"]),
         ("false tracks / h", lambda s: s["false_tracks_per_hour"]),
         ("id switches", lambda s: s["id_switches"]),
+        ("identity errors", lambda s: s.get("identity_errors")),
         ("track truth changes", lambda s: s.get("track_truth_changes")),
+        ("tracks updated by 2+ icebergs", lambda s: s.get("mixed_update_tracks")),
         ("confirmed tracks ever", lambda s: s["confirmed_tracks_ever"]),
         ("scan CPU median (ms)", lambda s: s["scan_cpu_ms_median"]),
         ("scan CPU p90 (ms)", lambda s: s["scan_cpu_ms_p90"]),

@@ -13,6 +13,14 @@ depend on any scenario's random streams).
   at its position plus N(0, r I); a Poisson(``clutter_per_frame``) number of false alarms
   uniform over the disc. Detections are shuffled (unlabelled: the truth id is kept only to
   score). All draws come from ``numpy.random.default_rng(seed)``, in a fixed order.
+- Crossing pairs (``crossing_pairs`` > 0, the benchmark's ``crossing`` stress case): the
+  first ``2 crossing_pairs`` icebergs are redrawn as pairs that pass each other: pair ``k``
+  meets at a point ``c`` uniform in the area inset by ``crossing_inset_m``, at a time ``t_c``
+  uniform in ``[0.3, 0.7] duration_s``; each has a heading uniform in ``[0, 2 pi)`` (the
+  second's ``pi/3 .. pi`` from the first's) and a speed uniform in ``[0.5, 1] v_max``; the
+  closest approach ``d`` is uniform in ``[0, crossing_miss_m]``, at ``t_c``: positions
+  ``c +- (d / 2) n`` with ``n`` the unit normal of the relative velocity. These draws come
+  after the other icebergs', so a recording without crossing pairs is unchanged.
 """
 
 from __future__ import annotations
@@ -45,6 +53,9 @@ class WorldParams:
     pd: float = 0.85
     clutter_per_frame: float = 0.1
     r_m2: float = 5.0
+    crossing_pairs: int = 0
+    crossing_miss_m: float = 50.0
+    crossing_inset_m: float = 500.0
 
 
 @dataclass(frozen=True)
@@ -110,6 +121,33 @@ def position_on(path: np.ndarray, s_m: float) -> tuple[float, float]:
     return (float(path[-1, 0]), float(path[-1, 1]))
 
 
+def crossing_pairs(p: WorldParams, rng: np.random.Generator) -> tuple[Iceberg, ...]:
+    """``p.crossing_pairs`` pairs of icebergs that pass within ``p.crossing_miss_m`` of each
+    other (see the module docstring), named ``B1 .. B{2 k}``."""
+    if 2 * p.crossing_pairs > p.n_icebergs:
+        raise ValueError(f"crossing_pairs {p.crossing_pairs} needs more than "
+                         f"{p.n_icebergs} icebergs")
+    out: list[Iceberg] = []
+    inset = p.crossing_inset_m
+    for k in range(p.crossing_pairs):
+        cx = float(rng.uniform(p.x_min_m + inset, p.x_max_m - inset))
+        cy = float(rng.uniform(p.y_min_m + inset, p.y_max_m - inset))
+        t_c = float(rng.uniform(0.3, 0.7)) * p.duration_s
+        h1 = float(rng.uniform(0.0, 2.0 * math.pi))
+        h2 = h1 + float(rng.uniform(math.pi / 3.0, math.pi))
+        s1, s2 = (float(rng.uniform(0.5, 1.0)) * p.v_max_m_s for _ in range(2))
+        v1 = (s1 * math.cos(h1), s1 * math.sin(h1))
+        v2 = (s2 * math.cos(h2), s2 * math.sin(h2))
+        miss = float(rng.uniform(0.0, p.crossing_miss_m))
+        rx, ry = v1[0] - v2[0], v1[1] - v2[1]
+        norm = math.hypot(rx, ry)
+        nx, ny = -ry / norm, rx / norm
+        for sign, (vx, vy), n in ((1.0, v1, 2 * k + 1), (-1.0, v2, 2 * k + 2)):
+            x_c, y_c = cx + sign * 0.5 * miss * nx, cy + sign * 0.5 * miss * ny
+            out.append(Iceberg(f"B{n}", x_c - vx * t_c, y_c - vy * t_c, vx, vy))
+    return tuple(out)
+
+
 def record(p: WorldParams) -> Recording:
     """Generate the truth and every frame of a recording (deterministic in ``p.seed``)."""
     rng = np.random.default_rng(p.seed)
@@ -123,6 +161,8 @@ def record(p: WorldParams) -> Recording:
         )
         for i in range(p.n_icebergs)
     )
+    if p.crossing_pairs:
+        truth = crossing_pairs(p, rng) + truth[2 * p.crossing_pairs :]
     paths = [lawnmower(p, k) for k in range(p.n_uavs)]
     sigma_m = math.sqrt(p.r_m2)
     frames: list[Frame] = []

@@ -30,7 +30,9 @@ Definitions (:meth:`TrackQualityRecorder.to_dict`):
 Beside ``to_dict`` (not in ``metrics.json``): :attr:`TrackQualityRecorder.truth_changes`,
 the track-side view: the number of times a confirmed track is assigned to a true iceberg
 other than the last one it was assigned to (gaps allowed), e.g. a stale track that takes
-over another iceberg's detections.
+over another iceberg's detections; and :attr:`TrackQualityRecorder.identity_errors`, the
+*identity errors*: the number of confirmed track ids assigned, over the run, to more than one
+true iceberg (a track counts once however often it changes).
 """
 
 from __future__ import annotations
@@ -79,6 +81,7 @@ class TrackQualityRecorder:
         self._ever_matched: dict[str, bool] = {}
         self._previous: dict[str, str] = {}
         self._track_truth: dict[str, str] = {}
+        self._track_truths: dict[str, set[str]] = {}
         self._truth_changes = 0
         self._id_switches = 0
         self._last_in_area = 0
@@ -134,6 +137,7 @@ class TrackQualityRecorder:
             if last_truth is not None and last_truth != truth_id:
                 self._truth_changes += 1
             self._track_truth[track_id] = truth_id
+            self._track_truths.setdefault(track_id, set()).add(truth_id)
             seen = self._first_seen_s.get(truth_id)
             if seen is not None and truth_id not in self._confirm_delay_s and t >= seen:
                 self._confirm_delay_s[truth_id] = t - seen
@@ -169,6 +173,11 @@ class TrackQualityRecorder:
     def truth_changes(self) -> int:
         """Times a track was assigned to a true iceberg other than its last one."""
         return self._truth_changes
+
+    @property
+    def identity_errors(self) -> int:
+        """Confirmed track ids assigned to more than one true iceberg over the run."""
+        return sum(len(truths) > 1 for truths in self._track_truths.values())
 
     @property
     def false_track_ids(self) -> list[str]:

@@ -21,7 +21,9 @@ One scan (:meth:`Tracker.scan`), detections of one camera frame at ``t_s``:
    evidence (nobody knows where the camera looked).
 6. Lifecycle: tentative -> confirmed with ``confirm_hits`` hits in the last
    ``confirm_window`` covering frames and existence ``>= existence_confirm_min`` (or merged
-   into a stale confirmed/prior track it gates: track coalescence, ids stay stable);
+   into an old confirmed/prior track when the evidence says it is that track's iceberg,
+   :func:`observer.tracker_steps.continuation`; otherwise a new id whose record lists the
+   old tracks it might continue);
    tentative deleted (``unconfirmed``) once its window holds more than ``N - M`` misses or
    the observer calls it lost; prior -> confirmed by the same M-of-N (one false alarm
    near a listed phantom must not confirm it); confirmed and prior deleted
@@ -61,7 +63,13 @@ from observer.tracker_config import (
     TrackEvent,
     TrackRecord,
 )
-from observer.tracker_steps import jpda_step, stale_twin
+from observer.tracker_steps import (
+    Continuation,
+    continuation,
+    jpda_step,
+    reacquisition_gate,
+    stale_twin,
+)
 
 COUNTER_NAMES: tuple[str, ...] = (
     "scans",
@@ -83,6 +91,8 @@ class _Life:
     born_s: float
     confirmed_s: float | None
     keep: bool = False
+    might_continue: tuple[tuple[str, float], ...] = ()
+    last_hit_s: float | None = None  # None: not hit since adopted
 
 
 class Tracker:
@@ -148,7 +158,8 @@ class Tracker:
     def records(self) -> list[TrackRecord]:
         """Every track's lifecycle, sorted by id."""
         return [
-            TrackRecord(tid, lf.status, lf.existence, lf.hits, lf.born_s, lf.confirmed_s)
+            TrackRecord(tid, lf.status, lf.existence, lf.hits, lf.born_s, lf.confirmed_s,
+                        lf.might_continue)
             for tid, lf in sorted(self._life.items())
         ]
 
@@ -223,15 +234,20 @@ class Tracker:
         miss = 1.0 - exist * pd * p_in
         hit = np.zeros(len(ids), dtype=bool)
         updated = np.zeros(len(ids), dtype=bool)  # had any update (JPDA: also hit < 0.5)
+        deferred = np.zeros(len(ids), dtype=bool)  # refused by the reacquisition gate
         assigned: dict[int, str] = {}
         taken = np.zeros(len(index), dtype=bool)
         if ids and len(index):
             lk = scan_likelihoods(
                 z, r_m2, means, covs, exist, miss, pd, math.log(lam), cfg.gate_threshold
             )
+            log_ratio = reacquisition_gate(
+                lk.log_ratio, self._stale(ids, t), cfg.continuation_min_probability
+            )
+            deferred = (np.isfinite(lk.log_ratio) & ~np.isfinite(log_ratio)).any(axis=0)
             if cfg.association == "gnn":
                 new_exist = existence_after_miss(exist, pd, p_in)
-                for i, j in sorted(gnn_assign(lk.log_ratio).items()):
+                for i, j in sorted(gnn_assign(log_ratio).items()):
                     tid = ids[j]
                     self.observer.correct(tid, t, z[i, 0], z[i, 1], r_m2[i])
                     lik = math.exp(float(lk.log_lik[i, j]))
@@ -241,12 +257,17 @@ class Tracker:
                     assigned[index[i]] = tid
             else:
                 new_exist, picks = jpda_step(
-                    self.observer, t, ids, z, r_m2, lk.log_ratio, exist, p_in, pd,
+                    self.observer, t, ids, z, r_m2, log_ratio, exist, p_in, pd,
                     cfg.jpda_max_hypotheses, hit, updated, taken,
                 )
                 assigned.update({index[i]: tid for i, tid in picks.items()})
         else:
             new_exist = existence_after_miss(exist, pd, p_in)
+        # A stale track refused a detection that may be its iceberg's was not missed: the
+        # scan is no evidence about it (the continuation test decides later).
+        deferred &= ~hit
+        new_exist = np.where(deferred, exist, new_exist)
+        updated |= deferred
         if fp is None:  # no footprint: a miss is no evidence
             new_exist = np.where(hit, new_exist, exist)
         elif ids:
@@ -258,7 +279,9 @@ class Tracker:
         for j, tid in enumerate(ids):
             if tid in self._life:  # not merged away earlier in this loop
                 self._lifecycle(tid, t, bool(hit[j]), float(new_exist[j]),
-                                fp is not None and p_in[j] >= 0.5, hit_ids, confirmed, deleted)
+                                fp is not None and p_in[j] >= 0.5 and not deferred[j], hit_ids,
+                                lam_b, confirmed,
+                                deleted)
         born = [self._birth(t, z[i, 0], z[i, 1], r_m2[i], lam_b, lam_c, confirmed)
                 for i in range(len(index)) if not taken[i]]
         self._counters["assigned"] += len(assigned)
@@ -308,6 +331,13 @@ class Tracker:
         keep = np.flatnonzero(keep_mask)
         return [ids[k] for k in keep.tolist()], means[keep], covs[keep]
 
+    def _stale(self, ids: list[str], t: float) -> np.ndarray:
+        """Tracks not hit for longer than ``reacquire_after_s`` (or not since adopted)."""
+        after = self.config.reacquire_after_s
+        return np.array(
+            [(h := self._life[i].last_hit_s) is None or t - h > after for i in ids], dtype=bool
+        )
+
     def _negative_information(
         self,
         t: float,
@@ -338,6 +368,7 @@ class Tracker:
         existence: float,
         in_view: bool,
         hit_ids: set[str],
+        lam_b: float,
         confirmed: list[TrackEvent],
         deleted: list[TrackEvent],
     ) -> None:
@@ -348,14 +379,21 @@ class Tracker:
             life.window.append(hit)
         if hit:
             life.hits += 1
+            life.last_hit_s = t
         if life.status == "tentative":
             if sum(life.window) >= cfg.confirm_hits and existence >= cfg.existence_confirm_min:
                 statuses = {oid: lf.status for oid, lf in self._life.items()}
                 older = stale_twin(self.observer, statuses, tid, hit_ids, cfg.gate_threshold)
+                lives = {oid: (lf.status, lf.existence) for oid, lf in self._life.items()}
+                cont = continuation(self.observer, lives, tid, hit_ids, cfg.gate_threshold,
+                                    lam_b, cfg.continuation_min_probability)
                 if older is None:
-                    self._confirm(tid, t, "m_of_n", confirmed)
+                    life.might_continue = cont.candidates
+                    self._confirm(tid, t, "m_of_n" + _might_continue(cont), confirmed)
+                elif cont.take == older or self._life[older].keep:
+                    self._merge(older, tid, t, cont, confirmed, deleted)
                 else:
-                    self._merge(older, tid, t, confirmed, deleted)
+                    self._succeed(older, tid, t, cont, confirmed, deleted)
             elif life.window.count(False) > cfg.confirm_window - cfg.confirm_hits:
                 self._delete(tid, t, UNCONFIRMED, deleted)
         elif (
@@ -368,21 +406,45 @@ class Tracker:
             self._delete(tid, t, "not seen in view", deleted)
 
     def _merge(
-        self, older: str, tid: str, t: float, confirmed: list[TrackEvent],
+        self, older: str, tid: str, t: float, cont: Continuation, confirmed: list[TrackEvent],
         deleted: list[TrackEvent],
     ) -> None:
         """Track coalescence: the tentative ``tid`` that reached confirmation is the stale
-        ``older`` track's iceberg found again: ``older`` takes its filter and evidence and
-        keeps its id (stable ids); ``tid`` is deleted (``merged into <older>``)."""
+        ``older`` track's iceberg found again (:func:`observer.tracker_steps.continuation`
+        says so with probability ``>= continuation_min_probability``): ``older`` takes its
+        filter and evidence and keeps its id; ``tid`` is deleted
+        (``merged into <older> (p 0.97)``)."""
         new = self._life.pop(tid)
         life = self._life[older]
         self.observer.take_over(older, tid)
         life.existence = max(life.existence, new.existence)
         life.hits += new.hits
         life.window = new.window
+        life.last_hit_s = new.last_hit_s
         if life.status == "prior":
             self._confirm(older, t, "prior_seen", confirmed)
-        deleted.append(TrackEvent(t, "deleted", tid, f"merged into {older}"))
+        deleted.append(TrackEvent(t, "deleted", tid,
+                                  f"merged into {older} (p {cont.probability:.2f})", older))
+
+    def _succeed(
+        self, older: str, tid: str, t: float, cont: Continuation, confirmed: list[TrackEvent],
+        deleted: list[TrackEvent],
+    ) -> None:
+        """Track coalescence without the identity: ``tid`` replaces the stale ``older``
+        track's estimate, as :meth:`_merge` does, but the evidence does not say it is the
+        same iceberg (its continuation probability is below ``continuation_min_probability``,
+        or another old track or "a new iceberg" is likelier). So the id is ``tid``'s:
+        ``older`` is deleted (``succeeded by <tid> (p 0.43)``) and ``tid`` is confirmed with
+        the evidence of both and the old tracks it might continue in its record. The
+        estimates are those :meth:`_merge` leaves; only the id differs."""
+        old = self._life[older]
+        life = self._life[tid]
+        life.existence = max(life.existence, old.existence)
+        life.hits += old.hits
+        life.might_continue = cont.candidates
+        p_older = dict(cont.candidates).get(older, 0.0)
+        self._delete(older, t, f"succeeded by {tid} (p {p_older:.2f})", deleted, successor=tid)
+        self._confirm(tid, t, "m_of_n" + _might_continue(cont), confirmed)
 
     def _confirm(self, tid: str, t: float, reason: str, out: list[TrackEvent]) -> None:
         life = self._life[tid]
@@ -390,11 +452,12 @@ class Tracker:
         life.confirmed_s = t
         out.append(TrackEvent(t, "confirmed", tid, reason))
 
-    def _delete(self, tid: str, t: float, reason: str, out: list[TrackEvent]) -> None:
+    def _delete(self, tid: str, t: float, reason: str, out: list[TrackEvent],
+                successor: str | None = None) -> None:
         del self._life[tid]
         if tid in self.observer.target_ids:
             self.observer.remove_target(tid)
-        out.append(TrackEvent(t, "deleted", tid, reason))
+        out.append(TrackEvent(t, "deleted", tid, reason, successor))
 
     def _birth(
         self, t: float, x: float, y: float, r: float, lam_b: float, lam_c: float,
@@ -414,8 +477,18 @@ class Tracker:
             hits=1,
             born_s=t,
             confirmed_s=None,
+            last_hit_s=t,
         )
         self._life[tid] = life
         if cfg.confirm_hits <= 1 and life.existence >= cfg.existence_confirm_min:
             self._confirm(tid, t, "m_of_n", confirmed)
         return TrackEvent(t, "born", tid, "unassociated detection")
+
+
+def _might_continue(cont: Continuation) -> str:
+    """``"; might continue A (p 0.49), B (p 0.48)"`` for a confirmation's reason, or ``""``
+    when no old track is a candidate."""
+    if not cont.candidates:
+        return ""
+    listed = ", ".join(f"{oid} (p {p:.2f})" for oid, p in cont.candidates)
+    return f"; might continue {listed}"

@@ -68,6 +68,15 @@ class TrackerConfig:
             reused.
         jpda_max_hypotheses: clusters with more joint hypotheses than this are solved by
             independent per-track PDA instead of exact enumeration.
+        continuation_min_probability: a new track takes an old track's id only when the
+            probability that it is that track's iceberg, against every other old track and
+            "an iceberg no track had" (birth density), is at least this
+            (:func:`observer.tracker_steps.continuation`); otherwise it keeps its new id
+            (and still replaces the stale track's estimate it coalesced with). The
+            same bound holds when a stale track would take a detection directly
+            (:func:`observer.tracker_steps.reacquisition_gate`).
+        reacquire_after_s: a track not hit for longer than this (s), or not since it was
+            adopted, is stale: it takes a detection only through the reacquisition gate.
     """
 
     association: str = "gnn"
@@ -86,6 +95,8 @@ class TrackerConfig:
     default_radius_m: float = 150.0
     id_prefix: str = "N"
     jpda_max_hypotheses: int = 20000
+    continuation_min_probability: float = 0.9
+    reacquire_after_s: float = 10.0
 
     def __post_init__(self) -> None:
         if self.association not in ASSOCIATIONS:
@@ -100,7 +111,8 @@ class TrackerConfig:
             raise ValueError(
                 f"TrackerConfig.clutter_per_frame must be >= 0, got {self.clutter_per_frame!r}"
             )
-        for name in ("birth_per_frame", "new_track_vel_var_m2_s2", "default_radius_m"):
+        for name in ("birth_per_frame", "new_track_vel_var_m2_s2", "default_radius_m",
+                     "reacquire_after_s"):
             if _number(name, getattr(self, name)) <= 0.0:
                 raise ValueError(f"TrackerConfig.{name} must be > 0, got {getattr(self, name)!r}")
         m = _integer("confirm_hits", self.confirm_hits, 1)
@@ -114,7 +126,7 @@ class TrackerConfig:
             v = _number(name, getattr(self, name))
             if not 0.0 < v < 1.0:
                 raise ValueError(f"TrackerConfig.{name} must be in (0, 1), got {v!r}")
-        for name in ("existence_max", "pd_evidence_max"):
+        for name in ("existence_max", "pd_evidence_max", "continuation_min_probability"):
             v = _number(name, getattr(self, name))
             if not 0.0 < v < 1.0:
                 raise ValueError(f"TrackerConfig.{name} must be in (0, 1), got {v!r}")
@@ -169,6 +181,9 @@ class TrackEvent:
     kind: str
     track_id: str
     reason: str
+    successor: str | None = None
+    """A deletion by coalescence: the track that goes on with this one's iceberg estimate
+    (``merged into`` it, or ``succeeded by`` it); None for every other event."""
 
 
 @dataclass(frozen=True)
@@ -191,7 +206,7 @@ class ScanResult:
 
 @dataclass(frozen=True)
 class TrackRecord:
-    """A tracked object's lifecycle state."""
+    """A tracked object's lifecycle state; ``might_continue``: see below."""
 
     id: str
     status: str
@@ -199,3 +214,6 @@ class TrackRecord:
     hits: int
     born_s: float
     confirmed_s: float | None
+    might_continue: tuple[tuple[str, float], ...] = ()
+    """Old tracks this one might continue, ``(id, probability)`` likeliest first, as judged
+    when it was confirmed under a new id (empty: no candidate, or not born here)."""

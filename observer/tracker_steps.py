@@ -1,11 +1,15 @@
 """Two steps of :class:`observer.Tracker` kept apart to keep the tracker readable: the JPDA
-update of one scan (:func:`jpda_step`) and the track-coalescence test (:func:`stale_twin`).
+update of one scan (:func:`jpda_step`), the reacquisition gate (:func:`reacquisition_gate`),
+track coalescence (:func:`stale_twin`: which old track's estimate a newly confirmable track
+replaces) and the continuation test (:func:`continuation`: whether it is that old track's
+iceberg, so takes its id).
 Equations: observer.association, observer.existence and docs/tracker.md."""
 
 from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -18,6 +22,28 @@ from observer.observer import Observer
 #: (4 seeds, q = 0.1): 59 changes of a true iceberg's track id at 1, 65 at 3, 88 at 20 (an
 #: ambiguous case left unmerged leaves a duplicate that is later merged or deleted anyway).
 MERGE_ODDS = 1.0
+
+#: Old tracks whose continuation probability is below this are not listed in a new track's
+#: ``might_continue`` (they are counted in the denominator all the same).
+CONTINUATION_LIST_MIN = 0.01
+
+
+@dataclass(frozen=True)
+class Continuation:
+    """Which old track, if any, a newly confirmable track continues (:func:`continuation`).
+
+    Attributes:
+        take: the old track whose id the new track takes, or None (a new id).
+        probability: ``P_j`` of ``take`` (0.0 when None).
+        candidates: ``(old id, P_j)`` of every gated old track with ``P_j >=``
+            :data:`CONTINUATION_LIST_MIN`, likeliest first (the new track's history).
+        new_probability: ``P_new``, the probability that it is an iceberg no track had.
+    """
+
+    take: str | None
+    probability: float
+    candidates: tuple[tuple[str, float], ...]
+    new_probability: float
 
 
 def jpda_step(
@@ -65,6 +91,37 @@ def jpda_step(
     return new_exist, picks
 
 
+def reacquisition_gate(
+    log_ratio: np.ndarray, stale: np.ndarray, min_probability: float
+) -> np.ndarray:
+    """``log_ratio`` with the pairs a stale track may not take forbidden (``-inf``).
+
+    A stale track (``stale[j]``: not hit for longer than ``reacquire_after_s``, or never
+    since it was adopted) takes a detection directly only when the detection is its
+    iceberg's rather than another track's with probability ``>= min_probability``
+    (``a_ij`` as in :mod:`observer.association`, the sum over every track that gates
+    detection ``i``):
+
+        Q_ij = a_ij / sum_k a_ik
+
+    So a lone stale track found again takes the detection as any track does (whether it is
+    a new iceberg instead is the association's own "clutter or new" cost), while two
+    stale tracks near one detection (icebergs that may have passed each other unseen) take
+    it only when one is clearly likelier. Otherwise the detection is left to the other
+    tracks or starts a track, and at that track's confirmation :func:`continuation` decides
+    with more evidence, "a new iceberg" included."""
+    if not stale.any() or log_ratio.size == 0:
+        return log_ratio
+    finite = np.isfinite(log_ratio)
+    top = np.where(finite, log_ratio, -np.inf).max(axis=1, initial=-np.inf)
+    rows = np.isfinite(top)
+    shifted = np.where(finite, log_ratio - np.where(rows, top, 0.0)[:, None], -np.inf)
+    total = np.where(finite, np.exp(shifted), 0.0).sum(axis=1)
+    log_q = shifted - np.log(np.where(rows, total, 1.0))[:, None]
+    forbid = stale[None, :] & finite & (log_q < math.log(min_probability))
+    return np.where(forbid, -np.inf, log_ratio)
+
+
 def stale_twin(
     observer: Observer,
     statuses: Mapping[str, str],
@@ -102,3 +159,56 @@ def stale_twin(
     if len(costs) > 1 and costs[1][0] - best_cost < 2.0 * math.log(MERGE_ODDS):
         return None
     return best
+
+
+def continuation(
+    observer: Observer,
+    lives: Mapping[str, tuple[str, float]],
+    tid: str,
+    hit_ids: set[str],
+    gate: float,
+    birth_density_m2: float,
+    min_probability: float,
+) -> Continuation:
+    """Is the newly confirmable tentative ``tid`` an old track's iceberg found again?
+
+    ``lives``: every track's ``(status, existence)``. The hypotheses for ``tid``'s iceberg:
+    it is old track ``j`` (each confirmed or prior track not hit in this scan; all in the
+    observer, predicted to the scan's time), or an iceberg no track had (birth density
+    ``lambda_b``, per m^2). With ``dx = x_new - x_j``, ``S_j = P_j + P_new`` (positions) and
+    ``r_j`` the old track's existence,
+
+        g_j = r_j N(dx; 0, S_j)                      (0 outside the gate dx' S_j^-1 dx > gate)
+        P_j = g_j / (lambda_b + sum_k g_k),          P_new = lambda_b / (lambda_b + sum_k g_k)
+
+    so a nearby old track of another iceberg lowers every ``P_j`` (the ambiguity counts) and
+    a vague old track (``det S`` large) loses to "new" by itself. The new track takes the id
+    of the likeliest ``j`` only when ``P_j >= min_probability`` and ``j`` is vaguer than the
+    new track (larger ``trace P``: a precise old track that did not take this detection is
+    another iceberg); otherwise it keeps its own id and ``candidates`` says which old
+    tracks it might continue."""
+    new = observer.track(tid)
+    liks: list[tuple[float, str]] = []
+    for oid, (status, existence) in lives.items():
+        if oid == tid or status == "tentative" or oid in hit_ids:
+            continue
+        old = observer.track(oid)
+        a = old.cov_xy[0] + new.cov_xy[0]
+        b = old.cov_xy[1] + new.cov_xy[1]
+        c = old.cov_xy[2] + new.cov_xy[2]
+        det = a * c - b * b
+        dx, dy = new.x_m - old.x_m, new.y_m - old.y_m
+        d2 = (c * dx * dx - 2.0 * b * dx * dy + a * dy * dy) / det
+        if d2 <= gate:
+            liks.append((existence * math.exp(-0.5 * d2) / (2.0 * math.pi * math.sqrt(det)),
+                         oid))
+    total = birth_density_m2 + sum(g for g, _ in liks)
+    ranked = sorted(((g / total, oid) for g, oid in liks), key=lambda x: (-x[0], x[1]))
+    candidates = tuple((oid, p) for p, oid in ranked if p >= CONTINUATION_LIST_MIN)
+    take: str | None = None
+    probability = 0.0
+    if ranked:
+        p_best, best = ranked[0]
+        if p_best >= min_probability and observer.sigma(best) > new.sigma:
+            take, probability = best, p_best
+    return Continuation(take, probability, candidates, birth_density_m2 / total)

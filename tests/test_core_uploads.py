@@ -29,7 +29,10 @@ from groundstation.core.events import (
     Tick,
     VehicleJoined,
 )
+from groundstation.core.scenario_config import core_config_for
+from groundstation.core.uploads import UploadRule
 from observer import ObserverConfig
+from world.scenario import load_scenario
 
 
 def flies(commands: list[Command]) -> list[FlyToTarget]:
@@ -130,6 +133,39 @@ def test_journals_from_before_the_rule_replay_as_they_ran() -> None:
     assert config.revisit_growth is None
     assert config.retarget_m == 50.0
     assert CoreConfig().retarget_m == CoreConfig().loiter_radius_m
+
+
+def test_the_hourly_budget_delays_redirects_never_answers() -> None:
+    """The token bucket (core/uploads.py, "Hourly budget"): 36 an hour (one token per
+    100 s), two held. Two redirects go at once, the third waits for a token; a loiter end's
+    answer (the caller skips too_soon) spends one all the same, in debt, and the next
+    redirect waits until the debt is repaid. A rejoining vehicle's command never waits."""
+    rule = UploadRule(None, 100.0, None, budget_per_h=36.0)
+    assert not rule.too_soon("1", 0.0)
+    rule.sent("1", 0.0)
+    assert not rule.too_soon("1", 1.0)
+    rule.sent("1", 1.0)
+    assert rule.too_soon("1", 2.0)  # 0.02 tokens left: due when one has refilled
+    assert not rule.due(99.9) and rule.due(100.0)
+    assert not rule.too_soon("1", 101.0)
+    rule.sent("1", 101.0)
+    rule.sent("1", 102.0)  # a loiter end's answer: never asked, spends into debt
+    assert rule.too_soon("1", 150.0)  # at -0.98 + 0.48: due at 300 s
+    assert not rule.due(299.9) and rule.due(300.0)
+    rule.reset("1", 160.0)  # rejoined: its next command is not delayed
+    assert not rule.too_soon("1", 160.0)
+    # over an hour at most burst + rate tokens: here 2 + 36, whatever the pressure
+    busy = UploadRule(15.0, 100.0, None, budget_per_h=36.0)
+    sent = 0
+    for k in range(3600):
+        if not busy.too_soon("2", float(k)):
+            busy.sent("2", float(k))
+            sent += 1
+    assert sent == 2 + 36 - 1  # the last token would be due at 3600 s exactly
+    # journals from before the budget read without it
+    assert config_from_dict({"loiter_s": 0.0}).upload_budget_per_h is None
+    assert CoreConfig().upload_budget_per_h is None  # paper-boat: the paper's replanning
+    assert core_config_for(load_scenario("discovery")).upload_budget_per_h == 50.0
 
 
 def test_gcs_simulate_discovery_keeps_each_vehicle_under_sixty_uploads_an_hour(

@@ -100,6 +100,19 @@ def test_truth_changes_count_a_track_taking_over_another_iceberg_after_a_gap() -
     rec.sample(2.0, {"N1": (2000.0, 5.0)}, truth)  # takes over b
     assert rec.truth_changes == 1
     assert rec.to_dict(3.0)["id_switches"] == 0  # neither iceberg saw two ids in a row
+    assert rec.identity_errors == 1
+
+
+def test_identity_errors_count_tracks_not_changes() -> None:
+    """A track matched to a, then b, then a again is one identity error (three truth
+    changes would count it thrice); a track that only ever matched a is none."""
+    rec = TrackQualityRecorder()
+    truth = {"a": (0.0, 0.0), "b": (2000.0, 0.0)}
+    for k, x in enumerate((0.0, 2000.0, 0.0, 2000.0)):
+        rec.sample(float(k), {"N1": (x, 0.0), "N2": (2000.0 - x, 3.0)}, truth)
+    rec.sample(9.0, {"N3": (1.0, 0.0)}, truth)
+    assert rec.truth_changes == 6
+    assert rec.identity_errors == 2  # N1 and N2, not N3
 
 
 def test_results_do_not_depend_on_the_callers_order() -> None:

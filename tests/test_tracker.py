@@ -283,31 +283,83 @@ def test_config_errors_name_the_field(field: str, value: object) -> None:
     assert "\n" not in str(err.value)
 
 
-def test_a_stale_track_found_again_keeps_its_id() -> None:
-    """A confirmed track unseen for long (sigma ~ 300 m per axis) is too vague to claim one
-    detection against "clutter or new", so its iceberg found 250 m away starts a tentative
-    track; when that one is confirmed it is merged into the stale track, which keeps its id
-    and takes the new, precise estimate (no duplicate, no new confirmed id)."""
-    tracker = make(pd=0.85)
-    tracker.observer.add_target("A", 0.0, 0.0, 0.0, p0=[1e5, 1e5, 0.1, 0.1], q_per_s=0.0)
-    tracker.adopt("A")
-    tracker.observer.add_target("B", 0.0, 3000.0, 0.0, p0=[1e5, 1e5, 0.1, 0.1], q_per_s=0.0)
-    tracker.adopt("B")
+def _vague(tracker: Tracker, tid: str, x_m: float, y_m: float, var_m2: float) -> None:
+    """A confirmed track unseen for long: position variance ``var_m2`` per axis, still."""
+    tracker.observer.add_target(tid, 0.0, x_m, y_m, p0=[var_m2, var_m2, 0.1, 0.1], q_per_s=0.0)
+    tracker.adopt(tid)
+
+
+def _see(tracker: Tracker, xy: tuple[float, float], frames: int) -> list[TrackEvent]:
+    """``frames`` frames at 2 Hz centred on an iceberg at ``xy`` that is seen in each."""
     events: list[TrackEvent] = []
-    for k in range(1, 5):
-        det = ScanDetection(250.0 + 0.1 * k, 100.0, R_M2)
-        events += tracker.scan(0.5 * k, "u1", Footprint(200.0, 100.0, RADIUS_M), [det]).events
-    assert [(e.kind, e.track_id, e.reason) for e in events] == [
+    for k in range(1, frames + 1):
+        det = ScanDetection(xy[0] + 0.1 * k, xy[1], R_M2)
+        events += tracker.scan(0.5 * k, "u1", Footprint(xy[0], xy[1], RADIUS_M), [det]).events
+    return events
+
+
+@pytest.mark.parametrize(("var_m2", "merge"), [(1e5, "merged into A (p 0.91)"),
+                                               (1e4, None)])
+def test_a_stale_track_found_again_keeps_its_id(var_m2: float, merge: str | None) -> None:
+    """A confirmed track unseen for long (sigma 316 or 100 m per axis), its iceberg found
+    126 m from its mean, no other track near. sigma 100 m: it claims the detection against
+    "clutter or new" (a_ij ~ 6) and, alone, against every other track (Q = 1): it takes it
+    as any track does. sigma 316 m: too vague to claim one detection against "clutter or
+    new"; the detections start a tentative track, and at confirmation P_A = g_A /
+    (lambda_b + g_A) >= 0.9: the new track is merged into A, which keeps its id and takes
+    the new, precise estimate; the merge names its probability (the journal's note)."""
+    tracker = make(pd=0.85)
+    _vague(tracker, "A", 0.0, 0.0, var_m2)
+    _vague(tracker, "B", 3000.0, 0.0, 1e5)
+    events = _see(tracker, (120.0, 40.0), 4)
+    expected = [] if merge is None else [
         ("born", "N1", "unassociated detection"),
-        ("deleted", "N1", "merged into A"),
+        ("deleted", "N1", merge),
     ]
+    assert [(e.kind, e.track_id, e.reason) for e in events] == expected
     a = tracker.observer.track("A")
-    assert math.hypot(a.x_m - 250.0, a.y_m - 100.0) < 3.0 and a.sigma < 20.0
+    assert math.hypot(a.x_m - 120.4, a.y_m - 40.0) < 3.0 and a.sigma < 20.0
     assert a.q_per_s == 0.0  # A keeps its own process noise
     assert tracker.track_ids == ["A", "B"] and tracker.status("A") == "confirmed"
-    det = ScanDetection(250.5, 100.0, R_M2)
-    res = tracker.scan(3.0, "u1", Footprint(200.0, 100.0, RADIUS_M), [det])
+    det = ScanDetection(120.5, 40.0, R_M2)
+    res = tracker.scan(3.0, "u1", Footprint(120.0, 40.0, RADIUS_M), [det])
     assert res.assigned == {0: "A"}
+
+
+@pytest.mark.parametrize(("var_m2", "might"), [(1e5, "A (p 0.48), B (p 0.47)"),
+                                               (1e4, "A (p 0.54), B (p 0.45)")])
+@pytest.mark.parametrize("association", ["gnn", "jpda"])
+def test_a_crossing_pair_after_a_gap_does_not_hand_over_an_old_id(
+    var_m2: float, might: str, association: str
+) -> None:
+    """Icebergs a and b passed each other while unseen: their tracks A and B are stale
+    (sigma 316 or 100 m per axis) and 120 m apart, and b is found 45 m from A's mean and
+    75 m from B's. Positions cannot say whose iceberg it is (P_A ~ P_B ~ 0.5). Before, b's
+    detections went to A (sigma 100 m: the likeliest association) or its new track was
+    merged into A (sigma 316 m: the likeliest coalescence): a confident wrong identity.
+    Now the new track replaces A's estimate as coalescence did (A, the likeliest, is
+    deleted: no stale duplicate is left to draw the planner) but keeps a new id, and its
+    confirmation and record say which old tracks it might continue; B stays as it was."""
+    tracker = make(pd=0.85, association=association)
+    _vague(tracker, "A", 0.0, 0.0, var_m2)
+    _vague(tracker, "B", 120.0, 0.0, var_m2)
+    events = _see(tracker, (45.0, 0.0), 4)
+    p_a = might.split("(p ")[1].split(")")[0]
+    assert [(e.kind, e.track_id, e.reason) for e in events] == [
+        ("born", "N1", "unassociated detection"),
+        ("confirmed", "N1", f"m_of_n; might continue {might}"),
+        ("deleted", "A", f"succeeded by N1 (p {p_a})"),
+    ]
+    assert tracker.track_ids == ["B", "N1"]
+    # the deletion names the track that goes on with A's estimate (the core hands A's
+    # vehicles over to it: core/fleet.py hand_over)
+    assert [e.successor for e in events] == [None, None, "N1"]
+    record = {r.id: r for r in tracker.records()}["N1"]
+    assert [oid for oid, _ in record.might_continue] == ["A", "B"]
+    old = tracker.observer.track("B")
+    assert (old.x_m, old.y_m) == (120.0, 0.0) and old.sigma >= 2 * var_m2
+    new = tracker.observer.track("N1")
+    assert math.hypot(new.x_m - 45.4, new.y_m) < 3.0 and new.sigma < 20.0
 
 
 def test_tentative_tracks_never_looked_at_again_die_when_lost() -> None:

@@ -108,6 +108,21 @@ def test_scoring_an_oracle_and_a_blind_tracker(rec: Recording) -> None:
     assert blind.measures["gospa_mean_m"] > m["gospa_mean_m"]
 
 
+def test_crossing_pairs_pass_within_50_m() -> None:
+    """The ``crossing`` stress case: the first 2 k icebergs pass each other in pairs within
+    ``crossing_miss_m`` (closest approach inside the run), the rest are as without pairs."""
+    params = WorldParams(seed=5, duration_s=100.0, crossing_pairs=3)
+    rec = record(params)
+    plain = record(WorldParams(seed=5, duration_s=100.0))
+    assert rec.truth[6:] == plain.truth[6:] and rec.truth[:6] != plain.truth[:6]
+    for k in range(3):
+        a, b = rec.truth[2 * k], rec.truth[2 * k + 1]
+        gaps = [math.dist(rec.truth_at(t)[a.id], rec.truth_at(t)[b.id]) for t in range(101)]
+        closest = min(range(101), key=gaps.__getitem__)
+        assert gaps[closest] <= 50.0 + 0.5 and 25 <= closest <= 75
+    assert tracker_bench.CASES["crossing"] == {"crossing_pairs": 4}
+
+
 def test_percentile_is_nearest_rank() -> None:
     assert tracker_bench.percentile([3.0, 1.0, 2.0, 4.0], 90) == 4.0
     assert tracker_bench.percentile([3.0, 1.0, 2.0, 4.0], 50) == 2.0

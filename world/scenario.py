@@ -201,6 +201,9 @@ class PolicySpec:
     upload_min_interval_s: float | None = None
     """At most one new mission per vehicle per this many mission s
     (``groundstation/core/uploads.py``; 0: no minimum); None: the core's default."""
+    upload_budget_per_h: float | None = None
+    """New missions per vehicle per hour the hourly budget allows (a token bucket; a loiter
+    end's answer never waits; ``groundstation/core/uploads.py``); None: no budget."""
 
 
 @dataclass(frozen=True)
@@ -560,9 +563,10 @@ def _parse_policy(f: Fields) -> PolicySpec:
         raise FieldError(f.path_of("period_s"), f"is required when replan is {replan!r}")
     commit = f.boolean("commit", replan == "event")
     interval = f.optional_number("upload_min_interval_s", minimum=0.0)
+    budget = f.optional_number("upload_budget_per_h", minimum=0.0, exclusive_minimum=True)
     f.done()
     return PolicySpec(replan=replan, period_s=period, commit=commit,
-                      upload_min_interval_s=interval)
+                      upload_min_interval_s=interval, upload_budget_per_h=budget)
 
 
 def _parse_wind(f: Fields) -> WindSpec:

@@ -158,6 +158,11 @@ class CoreConfig:
     """The minimum interval for a vehicle flying a routed pass (it keeps flying its route,
     or holds over its head, while a new head waits; ``core/route.py``); at least
     ``upload_min_interval_s``. None: that interval for every vehicle (journals before)."""
+    upload_budget_per_h: float | None = None
+    """FlyToTargets per vehicle per hour the hourly budget refills (a token bucket holding
+    two; a loiter end's answer is never delayed, a redirect waits for a token;
+    ``core/uploads.py``). None: no budget (the default: the paper's 5 s replanning sends
+    paper-boat's vehicles 200-300 an hour; ``discovery`` sets 50)."""
     revisit_growth: float | None = 2.0
     """A target a vehicle's visit did not see is not given to that vehicle again at the same
     place until its value (sigma, m^2) grew by this factor or its aim moved farther than the
@@ -242,6 +247,7 @@ class CoreConfig:
         for name, value, low in (("retarget_threshold_m", self.retarget_threshold_m, 0.0),
                                  ("upload_min_interval_s", self.upload_min_interval_s, 0.0),
                                  ("route_min_interval_s", self.route_min_interval_s, 0.0),
+                                 ("upload_budget_per_h", self.upload_budget_per_h, 0.0),
                                  ("revisit_growth", self.revisit_growth, 1.0)):
             if value is None:
                 continue
@@ -320,6 +326,7 @@ def config_from_dict(data: Mapping[str, Any]) -> CoreConfig:
     values.setdefault("keep_held_cells", False)
     values.setdefault("route_cells", None)  # written before routes (core/route.py)
     values.setdefault("route_min_interval_s", None)
+    values.setdefault("upload_budget_per_h", None)  # written before the budget
     values.setdefault("retarget_threshold_m", 50.0)  # the default before the rule
     try:
         if "policy" in values:

@@ -69,7 +69,13 @@ from groundstation.core.events import (
     WindReport,
     WindWithdrawn,
 )
-from groundstation.core.fleet import FleetStatus, VehicleRecord, free_vehicles, status_change
+from groundstation.core.fleet import (
+    FleetStatus,
+    VehicleRecord,
+    free_vehicles,
+    hand_over,
+    status_change,
+)
 from groundstation.core.intercept import intercept, travel_time_s
 from groundstation.core.mission import MIN_LOITER_S
 from groundstation.core.planning_targets import build_problem, search_targets, track_targets
@@ -125,7 +131,7 @@ class DecisionCore:
         self.wind_replan = WindReplan(config.wind_replan_m_s, config.wind_replan_margin_s,
                                       config.observer.fov_radius_m)
         self.uploads = UploadRule(config.upload_min_interval_s, config.retarget_m,
-                                  config.revisit_growth)
+                                  config.revisit_growth, config.upload_budget_per_h)
         """When a vehicle is sent a new mission (``core/uploads.py``)."""
         self.ship = ShipTrack()
         """The ship's track from every ``BoatPosition`` (``core/ship.py``): the watch's
@@ -274,7 +280,7 @@ class DecisionCore:
                                          self.active_vehicles(), self._leg_time_s)
             notes = self.wind_replan.replan(t_s, legs, self.config.policy.commit)
             for leg in legs:  # bounded by its own rule (a 2 m/s change): not delayed
-                self.uploads.reset(leg.vehicle.id)
+                self.uploads.reset(leg.vehicle.id, t_s)
             if notes:
                 self._mark_dirty("wind changed")
                 out += notes
@@ -375,7 +381,7 @@ class DecisionCore:
                                        event.speed_m_s, event.t_s)
                 self.vehicles[event.vehicle] = record
             record.status, record.busy, record.target = FleetStatus.ACTIVE, False, None
-            self.uploads.reset(event.vehicle)
+            self.uploads.reset(event.vehicle, event.t_s)
             self._on_pose(event.vehicle, event.t_s, event.x_m, event.y_m, event.heading_rad,
                           event.speed_m_s)
             if self.watch is not None:
@@ -491,7 +497,7 @@ class DecisionCore:
             return []
         out, reason = status_change(record, event, self.config.battery_low_action)
         if reason is not None:
-            self.uploads.reset(record.id)  # its next leg is not delayed
+            self.uploads.reset(record.id, event.t_s)  # its next leg is not delayed
             self._mark_dirty(reason)
         return out
 
@@ -783,7 +789,9 @@ class DecisionCore:
     def _process_scans(self, t_s: float) -> list[Command]:
         """Buffered scans due by ``t_s`` through the tracker; its events become notes, a
         confirmation or deletion marks the plan dirty, a deleted track (already gone from
-        the observer: the tracker removes it) frees its vehicles (as ``TargetRemoved``).
+        the observer: the tracker removes it) frees its vehicles (as ``TargetRemoved``), or,
+        deleted by coalescence, hands them over to the track that goes on with its estimate
+        (``fleet.hand_over``: a new id alone sends no new mission).
         An unconfirmed deletion (mostly clutter) that no vehicle's route held asks for
         no plan (on ``discovery`` seed 6 they were 903 of 1 078 plans, each a chance to
         turn a vehicle away from the track it was about to reach).
@@ -798,6 +806,10 @@ class DecisionCore:
                                 ev.reason))
                 if ev.kind == "confirmed":
                     self._mark_dirty("track confirmed")
+                elif ev.kind == "deleted" and ev.successor is not None:
+                    # coalescence: the same estimate under the successor's id
+                    hand_over(self.vehicles.values(), ev.track_id, ev.successor)
+                    self._mark_dirty("track deleted")
                 elif ev.kind == "deleted":  # the tracker removed it from the observer
                     held = any(ev.track_id in v.route for v in self.vehicles.values())
                     freed = free_vehicles(self.vehicles.values(), ev.track_id)

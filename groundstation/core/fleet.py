@@ -119,6 +119,21 @@ def status_change(record: VehicleRecord, event: Event,
     return out, reason
 
 
+def hand_over(records: Iterable[VehicleRecord], target: str, successor: str) -> bool:
+    """``target`` went on as ``successor`` (the tracker's coalescence: the successor's
+    estimate is where the target's was replaced): the vehicles flying to it, or through it,
+    fly to the successor, whose leg is then the same (``UploadRule.same_leg``), so a new
+    id alone sends no new mission. True if any vehicle flew to it."""
+    handed = False
+    for record in records:
+        if record.target == target:
+            record.target = successor
+            handed = True
+        record.through = tuple(successor if t == target else t for t in record.through)
+        record.route = tuple(successor if t == target else t for t in record.route)
+    return handed
+
+
 def free_vehicles(records: Iterable[VehicleRecord], target: str) -> bool:
     """Release the vehicles flying to ``target`` (it is gone); True if there were any."""
     freed = False

@@ -38,10 +38,12 @@ def core_config_for(scenario: Scenario, objective: str | None = None) -> CoreCon
     """The decision core's configuration as a scenario describes it."""
     obs = scenario.observer
     config = _core_config(scenario, obs, objective)
-    interval = scenario.policy.upload_min_interval_s  # core/uploads.py; None: the default
-    if interval is None:
-        return config
-    return dataclasses.replace(config, upload_min_interval_s=interval)
+    policy = scenario.policy  # core/uploads.py; None: the core's default
+    if policy.upload_min_interval_s is not None:
+        config = dataclasses.replace(config, upload_min_interval_s=policy.upload_min_interval_s)
+    if policy.upload_budget_per_h is not None:
+        config = dataclasses.replace(config, upload_budget_per_h=policy.upload_budget_per_h)
+    return config
 
 
 def _core_config(scenario: Scenario, obs: Any, objective: str | None) -> CoreConfig:

@@ -34,8 +34,19 @@ each way on a radio link), so the core sends one only when it matters:
   once the estimate moved or grew enough to be worth one (or the target was seen since);
   a miss that grew or was seen asks for a replan (:meth:`UploadRule.review`, each tick).
 
-``min_interval_s`` and ``revisit_growth`` None: that part of the rule is off (journals
-written before the rule replay as they ran). Pure: no clock, no I/O.
+* **Hourly budget.** Beside the intervals, a vehicle's FlyToTargets are paced by a token
+  bucket: ``budget_per_h`` tokens an hour, up to :data:`BUDGET_BURST` held, one spent per
+  FlyToTarget. A redirect (anything but a loiter end's answer) waits while fewer than one
+  token is held and is due when the bucket refills to one; a loiter end's answer is never
+  delayed and may take the bucket below zero, which later redirects repay. Over ``T``
+  mission seconds a vehicle is sent at most ``BUDGET_BURST + budget_per_h T / 3600`` plus
+  the answers sent while in debt: the intervals alone bound redirects (one per
+  ``route_min_interval_s``) but not redirects and loiter-end answers together (issue 28:
+  60 uploads per vehicle per hour on discovery, and 62-68 on some seeds once the
+  trajectories differ).
+
+``min_interval_s``, ``revisit_growth`` and ``budget_per_h`` None: that part of the rule is
+off (journals written before the rule replay as they ran). Pure: no clock, no I/O.
 """
 
 from __future__ import annotations
@@ -44,7 +55,10 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
-__all__ = ["Miss", "UploadRule"]
+__all__ = ["BUDGET_BURST", "Miss", "UploadRule"]
+
+BUDGET_BURST = 2.0
+"""Tokens of the hourly budget a vehicle can hold: two FlyToTargets back to back."""
 
 
 @dataclass(frozen=True)
@@ -61,10 +75,12 @@ class UploadRule:
     """See the module docstring."""
 
     def __init__(self, min_interval_s: float | None, retarget_m: float,
-                 revisit_growth: float | None) -> None:
+                 revisit_growth: float | None, budget_per_h: float | None = None) -> None:
         self.min_interval_s = min_interval_s
         self.retarget_m = retarget_m
         self.revisit_growth = revisit_growth
+        self.budget_per_h = budget_per_h
+        self._tokens: dict[str, tuple[float, float]] = {}  # vehicle -> (tokens, at t_s)
         self._sent_s: dict[str, float] = {}
         self._due_s: dict[str, float] = {}
         self._misses: dict[tuple[str, str], Miss] = {}
@@ -84,27 +100,49 @@ class UploadRule:
         ``interval_s``, a longer one: a vehicle with points of its route still ahead,
         ``core/route.py``); the caller defers it and :meth:`due` asks for a replan when
         the interval has passed."""
+        due_s = self._budget_due_s(vehicle, t_s)
         last = self._sent_s.get(vehicle)
-        if self.min_interval_s is None:
+        if self.min_interval_s is not None and last is not None:
+            interval_s = self.min_interval_s if interval_s is None else max(
+                interval_s, self.min_interval_s)
+            if t_s - last < interval_s - 1e-9:
+                due_s = max(due_s or t_s, last + interval_s)
+        if due_s is None:
             return False
-        interval_s = self.min_interval_s if interval_s is None else max(
-            interval_s, self.min_interval_s)
-        if last is None or t_s - last >= interval_s - 1e-9:
-            return False
-        self._due_s[vehicle] = last + interval_s
+        self._due_s[vehicle] = due_s
         self.deferred += 1
         return True
 
+    def _level(self, vehicle: str, t_s: float) -> float:
+        """Tokens ``vehicle`` holds at ``t_s`` (module docstring, "Hourly budget")."""
+        assert self.budget_per_h is not None
+        tokens, at_s = self._tokens.get(vehicle, (BUDGET_BURST, t_s))
+        return min(BUDGET_BURST, tokens + max(0.0, t_s - at_s) * self.budget_per_h / 3600.0)
+
+    def _budget_due_s(self, vehicle: str, t_s: float) -> float | None:
+        """When the bucket holds a token again, if it holds none now (else None)."""
+        if not self.budget_per_h:
+            return None
+        level = self._level(vehicle, t_s)
+        if level >= 1.0 - 1e-9:
+            return None
+        return t_s + (1.0 - level) * 3600.0 / self.budget_per_h
+
     def sent(self, vehicle: str, t_s: float) -> None:
-        """A FlyToTarget went to ``vehicle`` at ``t_s``."""
+        """A FlyToTarget went to ``vehicle`` at ``t_s``: a token spent."""
         self._sent_s[vehicle] = t_s
         self._due_s.pop(vehicle, None)
+        if self.budget_per_h:
+            self._tokens[vehicle] = (self._level(vehicle, t_s) - 1.0, t_s)
 
-    def reset(self, vehicle: str) -> None:
-        """``vehicle`` (re)entered the plan or left it, or the wind moved its leg: its
-        next command is not delayed (the interval starts afresh)."""
+    def reset(self, vehicle: str, t_s: float) -> None:
+        """``vehicle`` (re)entered the plan or left it, or the wind moved its leg (at
+        ``t_s``): its next command is not delayed (the interval starts afresh, and the
+        bucket holds at least the one token that command spends)."""
         self._sent_s.pop(vehicle, None)
         self._due_s.pop(vehicle, None)
+        if self.budget_per_h and vehicle in self._tokens:
+            self._tokens[vehicle] = (max(1.0, self._level(vehicle, t_s)), t_s)
 
     def due(self, t_s: float) -> bool:
         """A deferred FlyToTarget's interval has passed: replan now (once per deferral)."""
