@@ -77,6 +77,9 @@ class Oracle(tracker_bench._Adapter):
         truth = self.rec.truth_at(t_s)
         return {f"N{tid}": truth[tid] for tid in sorted(self.seen)}
 
+    def update_sources(self) -> dict[str, set[str]]:
+        return {f"N{tid}": {tid} for tid in self.seen}
+
 
 class Blind(tracker_bench._Adapter):
     def scan(self, k: int) -> None:
@@ -84,6 +87,9 @@ class Blind(tracker_bench._Adapter):
 
     def confirmed(self, t_s: float) -> dict[str, tuple[float, float]]:
         return {"ghost": (-5000.0, -5000.0)}
+
+    def update_sources(self) -> dict[str, set[str]]:
+        return {"ghost": {"B1", "B2"}, "other": {"B3"}}  # one track fed by two icebergs
 
 
 def test_scoring_an_oracle_and_a_blind_tracker(rec: Recording) -> None:
@@ -94,6 +100,7 @@ def test_scoring_an_oracle_and_a_blind_tracker(rec: Recording) -> None:
     assert m["false_tracks_per_hour"] == 0.0
     assert m["id_switches"] == 0
     assert m["track_truth_changes"] == 0
+    assert m["mixed_update_tracks"] == 0
     assert m["gospa_mean_m"] > 0.0  # icebergs not yet seen are missed
     assert m["time_to_confirm_s"]["max"] <= 1.0  # confirmed at the next 1 s sample
     seen = made[0].seen
@@ -106,6 +113,7 @@ def test_scoring_an_oracle_and_a_blind_tracker(rec: Recording) -> None:
     assert blind.measures["true_confirmed_fraction"] == 0.0
     assert blind.measures["false_tracks_per_hour"] == pytest.approx(3600.0 / PARAMS.duration_s)
     assert blind.measures["gospa_mean_m"] > m["gospa_mean_m"]
+    assert blind.measures["mixed_update_tracks"] == 1
 
 
 def test_crossing_pairs_pass_within_50_m() -> None:
