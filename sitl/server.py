@@ -62,7 +62,7 @@ from sitl.ship import describe_watch
 from sitl.signing_endpoint import VehicleSigning
 from sitl.vehicle import SimEvent, SimVehicle, VehicleConfig
 
-__all__ = ["Feed", "ServerOptions", "SitlServer", "TickCadence"]
+__all__ = ["Feed", "ServerOptions", "SitlServer"]
 
 _MAX_CLIENT_BUFFER = 1 << 20
 _EVENTS = logging.getLogger("sitl.events")
@@ -100,33 +100,6 @@ class ServerOptions:
     radio_seed: int = 0
     """Vehicle ``sysid``'s radio loss is seeded ``radio_seed * 1000 + sysid`` (unless its
     spec has a seed)."""
-
-
-class TickCadence:
-    """When the simulator's next tick is due: tick ``n`` at ``start + n * period_s`` wall
-    s, so the wait after a tick is ``period_s`` less the tick's own work, and a tick that
-    ran late is followed by a shorter wait (none when it was a whole period late).
-
-    A wait of a whole period after each tick made every period ``period_s + work``; with
-    the embedded simulator's cap of one period's worth of simulated time per tick, its
-    clock then ran at ``period_s / (period_s + work)`` of the speed-up even on an idle
-    host (``gcs run --vehicles sim:2 --speedup 20``: 11-12x measured). :meth:`restart`
-    counts the cadence from now again, after a tick that fell behind."""
-
-    def __init__(self, period_s: float, now_s: float) -> None:
-        self.period_s = period_s
-        self.due_s = now_s
-
-    def restart(self, now_s: float) -> None:
-        """The next tick is due one period after ``now_s``."""
-        self.due_s = now_s
-
-    def wait_s(self, now_s: float) -> float:
-        """Wall seconds to wait at ``now_s`` (just after a tick) for the next tick: to
-        ``due + period_s``; none when that has passed (the cadence then counts from
-        ``now_s``: a tick more than a period late is not followed by a burst)."""
-        self.due_s = max(self.due_s + self.period_s, now_s)
-        return self.due_s - now_s
 
 
 @dataclass
@@ -499,19 +472,16 @@ class SitlServer:
         slot.events_seen = len(vehicle.events)
 
     async def run(self, duration_s: float | None = None) -> None:
-        """Tick until :meth:`stop` or ``duration_s`` simulated seconds, on a fixed cadence
-        (:class:`TickCadence`)."""
-        cadence = TickCadence(self.options.tick_s, time.monotonic())
+        """Tick until :meth:`stop` or ``duration_s`` simulated seconds."""
         while not self._stop.is_set():
             self.tick()
             if duration_s is not None and self.t_s >= duration_s:
                 break
             if self._behind:  # overloaded: yield to I/O, then tick again at once
                 await asyncio.sleep(0)
-                cadence.restart(time.monotonic())
                 continue
             with contextlib.suppress(TimeoutError):
-                await asyncio.wait_for(self._stop.wait(), cadence.wait_s(time.monotonic()))
+                await asyncio.wait_for(self._stop.wait(), self.options.tick_s)
 
     def stop(self) -> None:
         """Ask :meth:`run` to return."""

@@ -16,7 +16,7 @@ from pymavlink import mavutil
 
 from domain.geodesy import GeoOrigin
 from sitl.detections import DetectionSource
-from sitl.server import ServerOptions, SitlServer, TickCadence
+from sitl.server import ServerOptions, SitlServer
 from sitl.vehicle import VehicleConfig
 from world.model import Boat, Camera, Iceberg, World
 
@@ -334,19 +334,3 @@ def test_downlink_loss_and_link_drop_through_the_server(mav2: None) -> None:
             assert conn.recv_match(type="HEARTBEAT", blocking=True, timeout=0.5) is None
         for conn in conns:
             conn.close()
-
-
-def test_ticks_keep_a_fixed_cadence_whatever_their_work() -> None:
-    """Issue 30: tick n is due at start + n x period; the wait after a tick is the period
-    less its work (a whole period after it made every period period + work, and the
-    embedded simulator ran at period / (period + work) of its speed-up); a tick more
-    than a period late is followed by no wait, then the cadence counts from then."""
-    cadence = TickCadence(0.005, 100.0)
-    assert cadence.wait_s(100.003) == pytest.approx(0.002)  # 3 ms of work: 2 ms left
-    # the next woke 1.5 ms late (100.0065) and worked 0.5 ms: still due at 100.010
-    assert cadence.wait_s(100.007) == pytest.approx(0.003)
-    assert cadence.wait_s(100.0149) == pytest.approx(0.0001)  # 4.9 ms of work: at once
-    assert cadence.wait_s(100.040) == 0.0  # 20 ms late: no wait, and no burst after it
-    assert cadence.wait_s(100.041) == pytest.approx(0.004)
-    cadence.restart(200.0)  # after a tick that fell behind
-    assert cadence.wait_s(200.001) == pytest.approx(0.004)

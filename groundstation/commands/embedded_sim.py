@@ -14,10 +14,9 @@ scenario's ``radio:`` and then ``sim.radio`` (``--sim-radio``) say (:mod:`sitl.r
 :meth:`EmbeddedSim.radio_stats` gives their figures). The vehicles fly in
 ``WindField(wind, config.mission.seed)`` (the seed the daemon's world draws the icebergs
 with): ``wind`` as given, else the scenario's, else calm. The
-mission clock follows the simulator's simulated time. The simulator ticks every 5 ms (a
-fixed cadence: the wait after a tick is 5 ms less its work) and advances by at most
-max(0.05 s, min(0.5 s, 7.5 ms x K)) per tick, so a loaded host slows the run down instead
-of making the vehicles' clocks jump (a jump of a few simulated seconds
+mission clock follows the simulator's simulated time. The simulator ticks every 5 ms and
+advances by at most max(0.05 s, min(0.5 s, 5 ms x K)) per tick, so a loaded host slows the
+run down instead of making the vehicles' clocks jump (a jump of a few simulated seconds
 fires ArduPlane's 1 s re-request and 8 s upload timers for nothing).
 """
 
@@ -126,10 +125,6 @@ def build_embedded_sim(
     # than 0.5 s (ArduPlane answers within a 20 ms loop; a transfer times out after 1.5 s).
     # Above 100x the tick gets shorter instead of longer: at 200x, 5 ms ticks of 1 s made
     # every round trip look like 1-2 s to the daemon (12 of 12 target uploads failed).
-    # A tick may move the clock one and a half ticks' worth (never past 0.5 s): the
-    # simulator keeps the asked speed-up although a tick wakes a little late, and falls
-    # behind (slows down) only when ticks run late by more than half a period. With one
-    # tick's worth, every late wake-up was lost: 20x ran at 11-12x on an idle host.
     step_s = max(0.05, min(0.5, speedup * SIM_TICK_S))
     tick_s = min(SIM_TICK_S, step_s / speedup)
     options = ServerOptions(
@@ -138,7 +133,7 @@ def build_embedded_sim(
         base_port=0,
         tick_s=tick_s,
         max_step_s=step_s,
-        max_stall_s=min(1.5 * tick_s, 0.5 / speedup),
+        max_stall_s=tick_s,
         signing_keys=dict(signing_keys or {}),
         radios=radios,
         radio_seed=config.mission.seed,
