@@ -129,8 +129,9 @@ def test_table_keeps_the_live_map_url_and_shows_operator_events(tmp_path: Path) 
 def test_unreachable_tcp_on_a_terminal_warns_and_exits_1(tmp_path: Path, mode: str) -> None:
     port = closed_port()
     code, out = gcs_run_pty(
-        # the silence is counted on the link's clock (wall s): 10 s after its start
-        ["--vehicles", f"tcp:127.0.0.1:{port}", "--speedup", "1", "--duration", "20",
+        # the silence is counted on the link's clock (wall s): 10 s after its start, seen
+        # at the alerts' next look (at most a wall second later); the run ends at 15 s
+        ["--vehicles", f"tcp:127.0.0.1:{port}", "--speedup", "1", "--duration", "15",
          "--http", "127.0.0.1:0", "--detections", "off", "--status", mode,
          "--run-dir", str(tmp_path)], tmp_path)  # fmt: skip
     plain = ANSI.sub("", out).replace("\r", "")
@@ -154,8 +155,9 @@ def test_unreachable_tcp_on_a_terminal_warns_and_exits_1(tmp_path: Path, mode: s
 def test_unreachable_tcp_in_log_mode_on_a_pipe(tmp_path: Path) -> None:
     port = closed_port()
     result = gcs_run_pipe(
-        # the silence is counted on the link's clock (wall s): 10 s after its start
-        ["--vehicles", f"tcp:127.0.0.1:{port}", "--speedup", "1", "--duration", "20",
+        # the silence is counted on the link's clock (wall s): 10 s after its start, seen
+        # at the alerts' next look (at most a wall second later); the run ends at 15 s
+        ["--vehicles", f"tcp:127.0.0.1:{port}", "--speedup", "1", "--duration", "15",
          "--http", "off", "--detections", "off", "--run-dir", str(tmp_path)], tmp_path)
     out, err = result.stdout, result.stderr
     assert result.returncode == EXIT_NO_VEHICLE, out + err

@@ -85,8 +85,22 @@ def test_paper_boat_three_vehicles(tmp_path: Path) -> None:
     assert any(r.message.get_type() == "MISSION_COUNT" for r in ours)
 
 
+def _field_test_done(journal: list[dict[str, Any]]) -> bool:
+    """All five targets seen, four loiter ends each answered by a plan, four verified
+    target uploads: at ~450 of the 800 mission s (measured), the rest of the run adds
+    nothing the test asserts on."""
+    ends = events(journal, "loiter_end", vehicle="1")
+    return (
+        set(visits(journal)) == {"T1", "T2", "T3", "T4", "T5"}
+        and len(ends) >= 4
+        and len(events(journal, "plan", reason="loiter ended")) >= len(ends)
+        and len(events(journal, "upload", purpose="target", ok=True)) >= 4
+    )
+
+
 @pytest.mark.timeout(90)
 def test_field_test_one_vehicle(tmp_path: Path) -> None:
+    """Stops once :func:`_field_test_done` holds; ``--duration`` bounds it."""
     daemon, journal = run_gcs(
         tmp_path,
         "--vehicles",
@@ -98,6 +112,7 @@ def test_field_test_one_vehicle(tmp_path: Path) -> None:
         "80",
         "--duration",
         "800",
+        until=_field_test_done,
     )
     assert not events(journal, "task_error")
     seen = visits(journal)

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 import yaml
-from daemon_run import events, run_gcs
+from daemon_run import Journal, events, run_gcs
 
 from groundstation.link.tlog import TlogReader
 from groundstation.mavlink.codec import mavlink2 as M
@@ -31,11 +31,35 @@ def _short_watch(tmp_path: Path) -> Path:
     return path
 
 
+def _one_turn_of_the_watch(journal: Journal) -> bool:
+    """The watch has gone round once: homes moved with the ship (>= 10 verified, > 1 km
+    apart), a spare launched to relieve a vehicle that went home, and the first vehicle
+    recovered on deck is a spare again after its battery swap (~360 mission s of the
+    1000 s bound, measured)."""
+    homes = events(journal, "home_set")
+    if len(homes) < 10:
+        return False
+    x0, y0 = homes[0]["x_m"], homes[0]["y_m"]
+    if max(math.hypot(h["x_m"] - x0, h["y_m"] - y0) for h in homes) <= 1000.0:
+        return False
+    if not events(journal, "launch_order", reason="relief"):
+        return False
+    if not [e for e in events(journal, "send_home") if "relieved by" in e["reason"]]:
+        return False
+    recovered = events(journal, "vehicle_recovered")
+    return bool(recovered) and any(
+        e["t"] > recovered[0]["t"]
+        for e in events(journal, "vehicle_spare", vehicle=recovered[0]["vehicle"])
+    )
+
+
 def test_a_short_watch_relieves_recovers_and_moves_homes_with_the_ship(tmp_path: Path) -> None:
+    """The run stops once the watch has gone round (:func:`_one_turn_of_the_watch`);
+    ``--duration`` bounds it."""
     scenario = _short_watch(tmp_path)
     daemon, journal = run_gcs(tmp_path / "run", "--vehicles", "sim:3", "--scenario", str(scenario),
                               "--launch", "--speedup", "30", "--duration", "1000",
-                              timeout_s=200.0)
+                              timeout_s=200.0, until=_one_turn_of_the_watch)
     assert not events(journal, "task_error") and not events(journal, "core_error")
     # homes: verified by HOME_POSITION, and moving with the ship
     homes = events(journal, "home_set")

@@ -169,6 +169,9 @@ class Operator:
             self.states[name] = control.state()
         if self.step_t is not None and t_s < self.step_t + 8.0:
             return
+        if "resume" in self.states:  # all four answered, and 8 s of the resumed fleet
+            daemon.request_stop("test: the operator's actions were answered")
+            return
         state = control.state()
         if "fix" not in self.replies:
             flying = [v for v in state["vehicles"] if v["status"] == "active" and v["route"]]
@@ -188,6 +191,8 @@ class Operator:
 
 @pytest.mark.timeout(150)
 def test_fleet_actions_and_the_fix_answer_per_vehicle_and_replay(tmp_path: Path) -> None:
+    """The run stops 8 mission s after the last action's answer (``--duration`` bounds
+    it)."""
     op = Operator()
     daemon, _, journal = run_watching(
         tmp_path, ["--vehicles", "sim:3", "--scenario", "default", "--speedup", "25",
