@@ -16,6 +16,7 @@ import numpy as np
 from observer.association import jpda_marginals
 from observer.existence import existence_after_miss
 from observer.observer import Observer
+from observer.records import TrackSnapshot
 
 #: Track coalescence needs the likeliest gating track this many times likelier than the
 #: runner-up. 1: the likeliest wins. Measured on a 3-UAV random-flight proxy of `discovery`
@@ -122,6 +123,18 @@ def reacquisition_gate(
     return np.where(forbid, -np.inf, log_ratio)
 
 
+def _pair_distance(new: TrackSnapshot, old: TrackSnapshot) -> tuple[float, float]:
+    """Two tracks' positions against each other: ``S = P_old + P_new`` (position blocks,
+    ``cov_xy = (a, b, c)``), ``d2 = dx' S^-1 dx`` with ``dx = x_new - x_old``, and
+    ``det S``."""
+    a = old.cov_xy[0] + new.cov_xy[0]
+    b = old.cov_xy[1] + new.cov_xy[1]
+    c = old.cov_xy[2] + new.cov_xy[2]
+    det = a * c - b * b
+    dx, dy = new.x_m - old.x_m, new.y_m - old.y_m
+    return (c * dx * dx - 2.0 * b * dx * dy + a * dy * dy) / det, det
+
+
 def stale_twin(
     observer: Observer,
     statuses: Mapping[str, str],
@@ -141,13 +154,7 @@ def stale_twin(
     for oid, status in statuses.items():
         if oid == tid or status == "tentative":
             continue
-        old = observer.track(oid)
-        a = old.cov_xy[0] + new.cov_xy[0]
-        b = old.cov_xy[1] + new.cov_xy[1]
-        c = old.cov_xy[2] + new.cov_xy[2]
-        det = a * c - b * b
-        dx, dy = new.x_m - old.x_m, new.y_m - old.y_m
-        d2 = (c * dx * dx - 2.0 * b * dx * dy + a * dy * dy) / det
+        d2, det = _pair_distance(new, observer.track(oid))
         if d2 <= gate:
             costs.append((d2 + math.log((2.0 * math.pi) ** 2 * det), oid))
     if not costs:
@@ -192,13 +199,7 @@ def continuation(
     for oid, (status, existence) in lives.items():
         if oid == tid or status == "tentative" or oid in hit_ids:
             continue
-        old = observer.track(oid)
-        a = old.cov_xy[0] + new.cov_xy[0]
-        b = old.cov_xy[1] + new.cov_xy[1]
-        c = old.cov_xy[2] + new.cov_xy[2]
-        det = a * c - b * b
-        dx, dy = new.x_m - old.x_m, new.y_m - old.y_m
-        d2 = (c * dx * dx - 2.0 * b * dx * dy + a * dy * dy) / det
+        d2, det = _pair_distance(new, observer.track(oid))
         if d2 <= gate:
             liks.append((existence * math.exp(-0.5 * d2) / (2.0 * math.pi * math.sqrt(det)),
                          oid))
