@@ -219,34 +219,49 @@ def test_event_buffer_keeps_operator_events_and_marks_problems() -> None:
         ("plan", False), ("link_lost", True)]
 
 
-def test_silent_link_advice_and_drops_come_from_the_link_and_the_daemon(tmp_path: Path) -> None:
-    """The advice switches on the link's kind (an upper-case ``TCP:`` is a TCP client), the
-    URL is the link's own, and the drops read the daemon's two counters."""
+class _Warnings(logging.Handler):
+    """Keeps the text of every record it is given."""
+
+    def __init__(self) -> None:
+        super().__init__(logging.WARNING)
+        self.records: list[str] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.records.append(record.getMessage())
+
+
+def _offline_daemon(tmp_path: Path, speedup: float, t: list[float]) -> tuple[Daemon, Any]:
+    """A daemon with no link started and a hand-driven mission clock (``t[0]``): the
+    operator alerts' tests add links to its router and check them; returns it and its
+    journal (to close)."""
     from groundstation.core.config import CoreConfig
-    from groundstation.daemon.alerts import OperatorAlerts
     from groundstation.daemon.clock import MissionClock
     from groundstation.daemon.config_parse import parse_config
     from groundstation.daemon.journal import Journal
-    from groundstation.link import open_link
 
-    records: list[str] = []
-
-    class Keep(logging.Handler):
-        def emit(self, record: logging.LogRecord) -> None:
-            records.append(record.getMessage())
-
-    t = [0.0]
     config = parse_config({"vehicles": ["udpin:127.0.0.1:0"]}, {})
     journal = Journal(tmp_path / "journal.jsonl", lambda: t[0], lambda: 1.7e9)
-    daemon = Daemon(config, CoreConfig(), MissionClock(1.0, source=lambda: t[0]), tmp_path,
+    daemon = Daemon(config, CoreConfig(), MissionClock(speedup, source=lambda: t[0]), tmp_path,
                     None, journal, None)
+    return daemon, journal
+
+
+def test_silent_link_advice_and_drops_come_from_the_link_and_the_daemon(tmp_path: Path) -> None:
+    """The advice switches on the link's kind (an upper-case ``TCP:`` is a TCP client), the
+    URL is the link's own, and the drops read the daemon's two counters."""
+    from groundstation.daemon.alerts import OperatorAlerts
+    from groundstation.link import open_link
+
+    t = [0.0]
+    daemon, journal = _offline_daemon(tmp_path, 1.0, t)
     for i, url in enumerate(("TCP:127.0.0.1:5760", "tcpin:127.0.0.1:5761",
                              "udpout:127.0.0.1:14550")):
         daemon.router.add_vehicle_link(open_link(url, link_id=f"vehicles{i}"))
     daemon.drops.detections_no_origin, daemon.drops.detections_dropped = 3, 2
     wall = [100.0]
     alerts = OperatorAlerts(daemon, wall_s=lambda: wall[0])
-    keep = Keep(logging.WARNING)
+    keep = _Warnings()
+    records = keep.records
     logging.getLogger("groundstation").addHandler(keep)
     try:
         alerts.check(0.0)  # the links' count starts at the first check, on their clock
@@ -294,29 +309,17 @@ def test_link_silence_counts_from_the_links_own_connect_and_first_frame(
     connected but silent" (17 *mission* seconds, counted from the mission's start, with
     37 frames received). Silence is counted on the link's clock, from its latest
     progress: the start, its connect, its first frame; the advice fits the progress."""
-    from groundstation.core.config import CoreConfig
     from groundstation.daemon.alerts import OperatorAlerts
-    from groundstation.daemon.clock import MissionClock
-    from groundstation.daemon.config_parse import parse_config
-    from groundstation.daemon.journal import Journal
     from groundstation.link import open_link
 
-    records: list[str] = []
-
-    class Keep(logging.Handler):
-        def emit(self, record: logging.LogRecord) -> None:
-            records.append(record.getMessage())
-
     t = [0.0]
-    config = parse_config({"vehicles": ["udpin:127.0.0.1:0"]}, {})
-    journal = Journal(tmp_path / "journal.jsonl", lambda: t[0], lambda: 1.7e9)
-    daemon = Daemon(config, CoreConfig(), MissionClock(10.0, source=lambda: t[0]), tmp_path,
-                    None, journal, None)
+    daemon, journal = _offline_daemon(tmp_path, 10.0, t)
     link = open_link("tcp:127.0.0.1:5760", link_id="vehicles0")
     daemon.router.add_vehicle_link(link)
     wall = [0.0]
     alerts = OperatorAlerts(daemon, wall_s=lambda: wall[0])
-    keep = Keep(logging.WARNING)
+    keep = _Warnings()
+    records = keep.records
     logging.getLogger("groundstation").addHandler(keep)
 
     def at(wall_s: float) -> None:
