@@ -9,18 +9,17 @@ from __future__ import annotations
 
 import random
 import time
-from typing import Any, ClassVar
+from typing import Any
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from planner_fixtures import problems, random_problem
+from planner_fixtures import FakeCpSatRun, problems, random_problem
 
 from planner import PlanSolver, cpsat_model
 from planner.bound import _layered_costs, _price, in_arc_bound, lp_bound
 from planner.budget import Budget, Poll
-from planner.cpsat_model import CpSatOutcome
 from planner.exact_dp import solve_dp
 from planner.heuristics import LocalSearch, RouteCoster, greedy
 from planner.instance import Instance, build_instance
@@ -182,7 +181,12 @@ def test_poll_stops_one_gap_early() -> None:
 def test_lp_is_sized_by_the_cpu_obtained(rate: float, lp_runs: bool) -> None:
     """The same wall clock, two CPU rates: with all of it the LP runs; with 2 % of it the
     LP's estimated CPU does not fit what the rest of the second will give and it is not
-    started (the in-arc bound stands)."""
+    started (the in-arc bound stands). scipy is loaded first: whether its own import fits
+    is another test's (``test_scipy_is_imported_only_when_the_lp_can_pay_for_it``), and
+    without it this one passed or failed with the tests run before it in the process."""
+    import planner.solve
+
+    planner.solve.warm_up()
     clocks = FakeClocks(5e-4, rate)
     p = random_problem(6, 10, 50, time_limit_s=1.0)
     solver = PlanSolver(p, clock=clocks.wall, cpu_clock=clocks.cpu)
@@ -191,23 +195,6 @@ def test_lp_is_sized_by_the_cpu_obtained(rate: float, lp_runs: bool) -> None:
     assert r.bound is not None and r.bound >= in_arc_bound(build_instance(p))
     if lp_runs:
         assert solver.lp is not None and r.bound >= solver.lp.value
-
-
-class RecordingRun:
-    built: ClassVar[list[str]] = []
-
-    def __init__(self, inst: Instance, model: str, keep: Any = None) -> None:
-        RecordingRun.built.append(model)
-        self.kind = model
-
-    def add_hint(self, routes: list[list[int]]) -> None:
-        pass
-
-    def stop(self) -> None:
-        pass
-
-    def solve(self, time_limit_s: float, **options: Any) -> CpSatOutcome:
-        return CpSatOutcome("none", None, 0.0, False, self.kind)
 
 
 @pytest.mark.parametrize(("objective", "circuit"), [("sequence", False), ("latency", True)])
@@ -219,12 +206,12 @@ def test_circuit_model_only_where_it_pays(
     import planner.solve
 
     planner.solve.warm_up()
-    RecordingRun.built = []
-    monkeypatch.setattr(cpsat_model, "CpSatRun", RecordingRun)
+    FakeCpSatRun.built = []
+    monkeypatch.setattr(cpsat_model, "CpSatRun", FakeCpSatRun)
     clocks = FakeClocks(2e-3, 1.0)
     p = random_problem(7, 4, 40, time_limit_s=5.0, objective=objective)
     PlanSolver(p, clock=clocks.wall, cpu_clock=clocks.cpu).solve()
-    assert (RecordingRun.built == ["circuit"]) is circuit
+    assert (FakeCpSatRun.built == ["circuit"]) is circuit
 
 
 _IMPORT_PROBE = """
