@@ -6,10 +6,13 @@ from __future__ import annotations
 import math
 import random
 from collections.abc import Sequence
+from typing import Any, ClassVar
 
 from hypothesis import strategies as st
 
 from planner import PlanningProblem, TargetEstimate, UavPose
+from planner.cpsat_model import CpSatOutcome
+from planner.instance import Instance
 
 SIDE_M = 1500.0
 
@@ -62,3 +65,26 @@ def problems(
         objective=draw(st.sampled_from(list(objectives))),  # type: ignore[arg-type]
         speed_m_s=draw(st.sampled_from(list(speeds_m_s))),
     )
+
+
+class FakeCpSatRun:
+    """Stands in for ``planner.cpsat_model.CpSatRun`` (monkeypatched): records each model it
+    is built for (``built``) and each budget its solve is given (``budgets``), and finds
+    no plan. Reset both lists in each test."""
+
+    built: ClassVar[list[str]] = []
+    budgets: ClassVar[list[float]] = []
+
+    def __init__(self, inst: Instance, model: str, keep: Any = None) -> None:
+        FakeCpSatRun.built.append(model)
+        self.kind = model
+
+    def add_hint(self, routes: list[list[int]]) -> None:
+        pass
+
+    def stop(self) -> None:
+        pass
+
+    def solve(self, time_limit_s: float, **options: Any) -> CpSatOutcome:
+        FakeCpSatRun.budgets.append(time_limit_s)
+        return CpSatOutcome("none", None, 0.0, False, self.kind)

@@ -8,14 +8,11 @@ stop() arrives during the LP.
 
 from __future__ import annotations
 
-from typing import Any, ClassVar
-
 import pytest
-from planner_fixtures import random_problem
+from planner_fixtures import FakeCpSatRun, random_problem
 
 from planner import cpsat_model
 from planner.bound import LpBound
-from planner.cpsat_model import CpSatOutcome
 from planner.exact_dp import dp_is_cheap
 from planner.instance import Instance
 from planner.solve import CPSAT_STOP_S, END_MARGIN, PlanSolver, cpsat_build_s, warm_up
@@ -37,33 +34,12 @@ class FakeClock:
         return now
 
 
-class FakeRun:
-    """Stands in for CpSatRun: records its construction and the budget it is given."""
-
-    built: ClassVar[list[str]] = []
-    budgets: ClassVar[list[float]] = []
-
-    def __init__(self, inst: Instance, model: str, keep: Any = None) -> None:
-        FakeRun.built.append(model)
-        self.kind = model
-
-    def add_hint(self, routes: list[list[int]]) -> None:
-        pass
-
-    def stop(self) -> None:
-        pass
-
-    def solve(self, time_limit_s: float, **options: Any) -> CpSatOutcome:
-        FakeRun.budgets.append(time_limit_s)
-        return CpSatOutcome("none", None, 0.0, False, self.kind)
-
-
 @pytest.fixture
-def fake_cpsat(monkeypatch: pytest.MonkeyPatch) -> type[FakeRun]:
+def fake_cpsat(monkeypatch: pytest.MonkeyPatch) -> type[FakeCpSatRun]:
     warm_up()  # OR-Tools loaded: its import is no part of the estimates below
-    FakeRun.built, FakeRun.budgets = [], []
-    monkeypatch.setattr(cpsat_model, "CpSatRun", FakeRun)
-    return FakeRun
+    FakeCpSatRun.built, FakeCpSatRun.budgets = [], []
+    monkeypatch.setattr(cpsat_model, "CpSatRun", FakeCpSatRun)
+    return FakeCpSatRun
 
 
 def _solver(clock: FakeClock) -> PlanSolver:
@@ -71,7 +47,7 @@ def _solver(clock: FakeClock) -> PlanSolver:
     return PlanSolver(random_problem(31, M, N, time_limit_s=LIMIT_S), clock=clock)
 
 
-def test_cpsat_gets_the_time_left_minus_its_stop_allowance(fake_cpsat: type[FakeRun]) -> None:
+def test_cpsat_gets_the_time_left_minus_its_stop_allowance(fake_cpsat: type[FakeCpSatRun]) -> None:
     """CP-SAT overshoots max_time_in_seconds (0.1 s measured at 5x30): with the clock frozen
     at the start, it is given the whole end minus that allowance, not the whole end."""
     r = _solver(FakeClock()).solve()
@@ -82,7 +58,7 @@ def test_cpsat_gets_the_time_left_minus_its_stop_allowance(fake_cpsat: type[Fake
 
 @pytest.mark.parametrize(("left_s", "built"), [(0.1, False), (1.0, True)])
 def test_mid_size_cpsat_only_when_its_build_fits(
-    fake_cpsat: type[FakeRun], monkeypatch: pytest.MonkeyPatch, left_s: float, built: bool
+    fake_cpsat: type[FakeCpSatRun], monkeypatch: pytest.MonkeyPatch, left_s: float, built: bool
 ) -> None:
     """Up to 30 targets CP-SAT runs only if the time left after the LP covers its estimated
     build, its stop allowance and 0.05 s; otherwise the local search takes the rest."""
@@ -103,7 +79,7 @@ def test_mid_size_cpsat_only_when_its_build_fits(
 
 
 def test_stop_during_the_lp_builds_no_model(
-    fake_cpsat: type[FakeRun], monkeypatch: pytest.MonkeyPatch
+    fake_cpsat: type[FakeCpSatRun], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     clock = FakeClock()
     solver = _solver(clock)
