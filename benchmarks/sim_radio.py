@@ -13,9 +13,12 @@
 2. **A target upload**, through floe's own sans-IO machines with the daemon's settings on a
    constrained link (``_Upload``): ``--uploads`` of them at random times on link 1 while its
    telemetry runs, for each mission length of ``--items`` (3: paper-boat's target mission;
-   6: a discovery pass through 3 more cells), each with floe's upload rule before issue 28's
-   resends and now (a lost item resent after one timeout, a lost final ACK probed for):
-   frames each way and seconds from MISSION_COUNT to the verified read-back (p50/p95/max).
+   6: a discovery pass through 3 more cells), each with three of floe's upload rules:
+   ``before`` issue 28's resends, ``resend`` (a lost item resent after one timeout, a lost
+   final ACK probed for: one item per request) and ``now`` (the same, pipelined: item 0 with
+   MISSION_COUNT and the rest once the vehicle's first request shows the upload open,
+   ``MissionUpload``'s ``window``): frames each way and seconds from MISSION_COUNT to the
+   verified read-back (p50/p95/max).
 3. With ``--daemon``: ``gcs run --vehicles sim:3 --scenario paper-boat --sim-radio RADIO
    --speedup 20 --duration 300`` in this process; the radios' figures from
    ``SitlServer.radio_stats()`` and the run's uploads.
@@ -52,6 +55,8 @@ from sitl.vehicle import SimVehicle, VehicleConfig
 
 M = mavlink2
 STEP_S = 0.02
+RULES = (("before", False, 1), ("resend", True, 1), ("now", True, PIPELINE_ITEMS))
+"""floe's upload rules compared: (name, resend_items, window)."""
 ORIGIN = GeoOrigin(78.93, 11.92)
 
 
@@ -85,8 +90,8 @@ class _Upload:
     RETRY_PAUSE_S = 0.5
 
     def __init__(self, enc: MavlinkEncoder, budget: LinkBudget, t_s: float, count: int,
-                 resend: bool) -> None:
-        self.enc, self.budget, self.resend = enc, budget, resend
+                 resend: bool, window: int = 1) -> None:
+        self.enc, self.budget, self.resend, self.window = enc, budget, resend, window
         self.t0_s = t_s
         self.items = _mission(count)
         self.sent = self.received = 0
@@ -103,7 +108,7 @@ class _Upload:
         timeout_s = self.budget.transfer_timeout_s()
         self._run(MissionUpload(1, 1, self.items, timeout_s=timeout_s, own_system=245,
                                 own_component=190, resend_items=self.resend,
-                                ack_retries=ack_retries(timeout_s)),
+                                ack_retries=ack_retries(timeout_s), window=self.window),
                   t_s)
 
     def _act(self, actions: list[Any], t_s: float) -> None:
@@ -159,7 +164,7 @@ def _mission(count: int) -> list[Any]:
 
 
 def run(radio: str, duration_s: float, uploads: int, seed: int, count: int = 3,
-        resend: bool = True) -> dict[str, Any]:
+        resend: bool = True, window: int = 1) -> dict[str, Any]:
     server, grounds = _server(3, radio)
     encoders = [MavlinkEncoder(245, 190) for _ in grounds]
     budget = LinkBudget(configured_bps=SIK_DOWNLINK_BPS)
@@ -178,7 +183,7 @@ def run(radio: str, duration_s: float, uploads: int, seed: int, count: int = 3,
             if slot.index == 0:
                 if upload is None and starts and t >= starts[0]:
                     starts.pop(0)
-                    upload = _Upload(enc, budget, t, count, resend)
+                    upload = _Upload(enc, budget, t, count, resend, window)
                     upload.start(t)
                 if upload is not None:
                     for msg in ground.msgs:
@@ -259,14 +264,15 @@ def main() -> None:
     first = True
     rows = []
     for count in args.items:
-        for resend in (False, True):
-            result = run(args.radio, args.duration, args.uploads, args.seed, count, resend)
+        for rule, resend, window in RULES:
+            result = run(args.radio, args.duration, args.uploads, args.seed, count, resend,
+                         window)
             if first:
                 _print_links(result["links"])
                 first = False
             done: list[_Upload] = result["uploads"]
             seconds = [u.done_s - u.t0_s for u in done if u.done_s is not None]
-            rows.append((count, "now" if resend else "before", len(done), done, seconds))
+            rows.append((count, rule, len(done), done, seconds))
     print(f"\ntarget upload + verifying download, link 1, {args.uploads} at random times "
           "(s from MISSION_COUNT to the verified read-back; floe's own machines):")
     print("items  upload rule  done   frames up/down   p50 s   p95 s   max s")

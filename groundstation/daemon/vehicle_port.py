@@ -308,6 +308,7 @@ class VehiclePort:
                 timeout_s=timeout_s,
                 ack_retries=self._ack_retries(timeout_s),
                 resend_items=self._constrained(),
+                window=self._pipeline(),
                 retries=self.retries,
                 own_system=self._own_system,
                 own_component=self._own_component,

@@ -79,7 +79,9 @@ ACK_WAIT_S = 1.5
 """Mission seconds an upload on a constrained link waits for a lost final ACK before its
 verifying download reads what the vehicle holds (:func:`ack_retries`)."""
 PIPELINE_ITEMS = 8
-"""Item requests a download keeps outstanding on a constrained link (~300 B up)."""
+"""Items a transfer keeps on their way on a constrained link: a download's outstanding item
+requests (~300 B up), an upload's items sent ahead of the vehicle's requests (~400 B up,
+``MissionUpload``'s ``window``)."""
 MAVLINK2_OVERHEAD_BYTES = 12
 """Header and checksum of an unsigned MAVLink 2 frame (a signed one adds 13)."""
 
@@ -203,8 +205,9 @@ class LinkBudget:
 
     @property
     def pipeline(self) -> int:
-        """Item requests a download keeps outstanding: 1 on an unlimited link (as floe
-        always did), :data:`PIPELINE_ITEMS` on a constrained one."""
+        """Items a transfer keeps on their way (download requests, upload items ahead of
+        the requests): 1 on an unlimited link (as floe always did), :data:`PIPELINE_ITEMS`
+        on a constrained one."""
         return 1 if self.capacity_bps is None else PIPELINE_ITEMS
 
     def streams(self, position_hz: float, signed: bool = False) -> StreamPlan:

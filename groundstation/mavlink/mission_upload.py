@@ -52,6 +52,28 @@ Rules (MAVSDK's MissionTransferClient semantics, adapted to ArduPlane):
   last item) the upload ends as TIMEOUT with ``maybe_stored``, and the verifying download
   reads what the vehicle holds, instead of waiting ``retries`` timeouts for nothing.
 
+* ``window`` > 1 (a constrained link, as the download's window): the items go *ahead of
+  the vehicle's requests*, ``window`` of them past the newest item it asked for. ArduPlane
+  takes any item whose seq is the one it expects next, asked for or not
+  (``MissionItemProtocol::handle_mission_item`` checks only ``seq == request_i``; its
+  requests for items already on their way are then just read), so an n-item upload over a
+  TDM radio costs two round trips instead of n + 1: item 0 goes with MISSION_COUNT (one
+  small radio packet, lost or carried together), the rest once the vehicle's first request
+  shows the upload open. Items are never sent ahead of a count the vehicle has not
+  acknowledged: an item with no upload open is a stray (ArduPlane answers MISSION_ACK
+  ERROR; some versions raised an internal error), and at most item 0 can be one. Losses:
+  an item that arrives out of order (an earlier one was lost) is answered INVALID_SEQUENCE
+  while the vehicle still waits for the newest item it asked for, so that answer resends
+  the items from there (once per newest request: the rest of the batch answers alike); a
+  request seen twice (ArduPlane's own re-request) does the same. Silence before any request
+  sends MISSION_COUNT and the first items again; silence once every item went at least once
+  probes with MISSION_REQUEST_LIST as above (DENIED: the items from the newest request go
+  again; MISSION_COUNT: done, verify by download), so no item is ever sent to a vehicle that
+  may have finished; silence before that sends the items from the newest request again.
+  MISSION_ACK ERROR (an item with no upload in progress: the count was lost, or the items
+  of a resend came after the end) is only noted; the silence rules settle it. ACCEPTED
+  completes once every item was sent. One round-trip sample per upload: the first request.
+
 Remember (design.md): ArduPlane truncates its stored mission as soon as MISSION_COUNT
 arrives, so a failed upload leaves a partial mission; retry until verified by download.
 """
@@ -61,6 +83,7 @@ from __future__ import annotations
 import enum
 from collections.abc import Sequence
 
+from domain.errors import LocalProtocolError
 from groundstation.mavlink.codec import MAVLinkMessage, mavlink2
 from groundstation.mavlink.mission_items import MissionItem, validate_items
 from groundstation.mavlink.mission_transfer import (
@@ -112,6 +135,7 @@ class MissionUpload(TransferBase[UploadState]):
         own_component: int | None = None,
         ack_retries: int | None = None,
         resend_items: bool = False,
+        window: int = 1,
     ) -> None:
         super().__init__(
             target_system,
@@ -123,6 +147,11 @@ class MissionUpload(TransferBase[UploadState]):
             own_component=own_component,
         )
         validate_items(items, mission_type)
+        if not 1 <= window <= _UINT16_MAX:
+            raise LocalProtocolError(f"window must be 1..{_UINT16_MAX}, got {window}")
+        self.window = window
+        self._pushed = 0  # pipelined: items 0.._pushed-1 went at least once
+        self._tail_for: int | None = None  # pipelined: the newest request a resend answered
         self.items: tuple[MissionItem, ...] = tuple(items)
         self._requested: set[int] = set()
         self.items_sent = 0  # MISSION_ITEM_INT answers sent, duplicates included
@@ -141,10 +170,35 @@ class MissionUpload(TransferBase[UploadState]):
         """The item numbers the vehicle has asked for so far."""
         return frozenset(self._requested)
 
+    @property
+    def pipelined(self) -> bool:
+        """Items go ahead of the requests (``window`` > 1: module docstring)."""
+        return self.window > 1
+
     def start(self, now_s: float) -> list[Action]:
-        """Begin: send MISSION_COUNT."""
+        """Begin: send MISSION_COUNT (pipelined: and the first ``window`` items with it)."""
         self._begin(now_s, UploadState.SENDING_COUNT)
-        return [Send(self._count_message())]
+        return [Send(self._count_message()), *self._send_from(0, again=False, most=1)]
+
+    def _send_from(self, first: int, *, again: bool, most: int | None = None) -> list[Action]:
+        """Pipelined: items ``first`` .. ``first + window - 1`` (at most ``most`` of them;
+        ``again`` False: only those not sent yet). Nothing when not pipelined."""
+        if not self.pipelined:
+            return []
+        end = min(first + min(self.window, most or self.window), len(self.items))
+        start = first if again else max(first, self._pushed)
+        self._pushed = max(self._pushed, end)
+        self.items_sent += max(0, end - start)
+        return [Send(self._item_message(seq)) for seq in range(start, end)]
+
+    def _resend_tail(self, now_s: float) -> list[Action]:
+        """Pipelined: the items from the newest one asked for (0 before any request) go
+        again; the timer restarts without refilling the retry budget."""
+        first = 0 if self._newest is None else self._newest
+        self._tail_for = first
+        self._probing = False
+        self._arm(now_s, reset_retries=False)
+        return self._send_from(first, again=True)
 
     # -- internals ------------------------------------------------------------------------
 
@@ -157,10 +211,13 @@ class MissionUpload(TransferBase[UploadState]):
                 maybe_stored=self._state is UploadState.WAITING_ACK,
             )
         if self._state is UploadState.SENDING_COUNT:
-            return [Send(self._count_message())]
-        if not self.resend_items or self._newest is None:
+            return [Send(self._count_message()), *self._send_from(0, again=True, most=1)]
+        if self.pipelined and self._pushed < len(self.items):
+            self._tail_for = self._newest
+            return self._send_from(0 if self._newest is None else self._newest, again=True)
+        if not (self.resend_items or self.pipelined) or self._newest is None:
             return []
-        if self._state is UploadState.WAITING_ACK:
+        if self._state is UploadState.WAITING_ACK or self.pipelined:
             self._probing = True
             self._probes_out += 1
             return [Send(mavlink2.MAVLink_mission_request_list_message(
@@ -221,11 +278,35 @@ class MissionUpload(TransferBase[UploadState]):
                 f"{len(self.items)}-item mission",
                 send=self._mission_ack(mavlink2.MAV_MISSION_OPERATION_CANCELLED),
             )
+        if self.pipelined:
+            return self._on_request_pipelined(seq, kind, now_s)
         if seq in self._requested:
             self._notes.append(f"duplicate {kind} for item {seq} at t={now_s:.3f}s")
         else:  # a new request answers our count or our last item
             self._answered(now_s)
         return self._send_item(seq, now_s)
+
+    def _on_request_pipelined(self, seq: int, kind: str, now_s: float) -> list[Action]:
+        """Item ``seq`` asked for while items go ahead (module docstring, ``window``)."""
+        if not self._requested:
+            self._answered(now_s)  # the one round-trip sample: count and batch -> request
+        again = seq in self._requested
+        if again:
+            self._notes.append(f"duplicate {kind} for item {seq} at t={now_s:.3f}s")
+        self._requested.add(seq)
+        self._probing = False
+        if self._newest is None or seq > self._newest:
+            self._newest = seq
+        self._state = (UploadState.WAITING_ACK if self._newest == len(self.items) - 1
+                       else UploadState.SENDING_ITEMS)
+        if again and seq == self._newest:  # the vehicle still waits for it: it was lost
+            out = self._resend_tail(now_s)
+        else:
+            self._arm(now_s)
+            out = self._send_from(seq, again=seq >= self._pushed)
+        if self._state is UploadState.WAITING_ACK:
+            self._retries_left = self.ack_retries
+        return out
 
     def _send_item(self, seq: int, now_s: float) -> list[Action]:
         """Item ``seq``, asked for (or known to be awaited): the state follows."""
@@ -250,7 +331,8 @@ class MissionUpload(TransferBase[UploadState]):
             self._notes.append(f"unreadable MISSION_ACK ignored at t={now_s:.3f}s")
             return []
         if ack_type == mavlink2.MAV_MISSION_ACCEPTED:
-            missing = len(self.items) - len(self._requested)
+            missing = len(self.items) - (self._pushed if self.pipelined
+                                         else len(self._requested))
             if missing:
                 return self._finish(
                     TransferCode.PROTOCOL_ERROR,
@@ -258,7 +340,8 @@ class MissionUpload(TransferBase[UploadState]):
                     "requested: the vehicle may hold a partial mission",
                     remote_code=mission_result_name(ack_type),
                 )
-            self._answered(now_s)
+            if not self.pipelined:
+                self._answered(now_s)
             return self._finish(
                 TransferCode.SUCCESS,
                 f"{len(self.items)} items accepted",
@@ -270,12 +353,22 @@ class MissionUpload(TransferBase[UploadState]):
             self._probes_out -= 1
             if self._probing and self._newest is not None:
                 self._notes.append(f"probe answered DENIED at t={now_s:.3f}s: item resent")
+                if self.pipelined:
+                    return self._resend_tail(now_s)
                 return self._send_item(self._newest, now_s)
             self._notes.append(f"probe answered DENIED at t={now_s:.3f}s (item sent since)")
+            return []
+        if self.pipelined and ack_type == mavlink2.MAV_MISSION_ERROR:
+            # an item with no upload in progress (module docstring, ``window``)
+            self._notes.append(f"MAV_MISSION_ERROR at t={now_s:.3f}s (an item after the "
+                               "upload's end, or before its count): noted")
             return []
         if ack_type == mavlink2.MAV_MISSION_INVALID_SEQUENCE:
             # ArduPlane: an item arrived out of order; it will ask again. Not fatal.
             self._notes.append(f"MAV_MISSION_INVALID_SEQUENCE at t={now_s:.3f}s (not fatal)")
+            if self.pipelined:
+                first = 0 if self._newest is None else self._newest
+                return [] if self._tail_for == first else self._resend_tail(now_s)
             resent = self._resent_seq
             if resent is not None and resent == self._newest and resent + 1 < len(self.items):
                 # it holds the item we resent and waits for the next (module docstring)
