@@ -72,6 +72,7 @@ C_T = C.T
 
 
 _I4 = np.eye(4)
+_I2 = np.eye(2)  # r I as r * _I2: the same numbers as r * numpy.eye(2), without a new eye
 
 
 class CvFilter:
@@ -208,15 +209,15 @@ class KalmanTrack:
     def innovation(self, x_m: float, y_m: float, r_m2: float) -> float:
         """Squared Mahalanobis distance ``y' S^-1 y`` of ``z`` against the current estimate."""
         y = np.array([x_m, y_m]) - (C @ self.x_view).ravel()
-        s = C @ self.p_view @ C.T + r_m2 * np.eye(2)
+        s = C @ self.p_view @ C_T + r_m2 * _I2
         return float(y @ np.linalg.solve(s, y))
 
     def correct(self, t_s: float, x_m: float, y_m: float, r_m2: float) -> None:
         """Commit the prediction at ``t_s`` (== self.t_s) and apply eq. (9)-(11)."""
-        self.kf.x = self.x_view.copy()
-        self.kf.P = self.p_view.copy()
+        self.kf.x = self.x_view  # not copied: update replaces them, changes none in place
+        self.kf.P = self.p_view
         self.t_anchor_s = t_s
-        self.kf.update(np.array([x_m, y_m]), R=r_m2 * np.eye(2))
+        self.kf.update(np.array([x_m, y_m]), R=r_m2 * _I2)
         self.kf.P = 0.5 * (self.kf.P + self.kf.P.T)
         self.x_view = self.kf.x
         self.p_view = self.kf.P
@@ -291,13 +292,13 @@ class KalmanTrack:
     # --- read-out -------------------------------------------------------------------------
     @property
     def state(self) -> tuple[float, float, float, float]:
-        x = self.x_view.ravel()
-        return float(x[0]), float(x[1]), float(x[2]), float(x[3])
+        x = self.x_view  # 4x1; item(k): element k as a Python float, exactly
+        return x.item(0), x.item(1), x.item(2), x.item(3)
 
     @property
     def cov_xy(self) -> tuple[float, float, float]:
-        p = self.p_view
-        return float(p[0, 0]), float(p[0, 1]), float(p[1, 1])
+        p = self.p_view  # 4x4: flat 0, 1, 5 are (0, 0), (0, 1), (1, 1)
+        return p.item(0), p.item(1), p.item(5)
 
 
 class KalmanBatch:
