@@ -100,7 +100,9 @@ def _subset_tables(n: int) -> tuple[IntArray, IntArray, list[list[tuple[IntArray
     return masks, bits, layers
 
 
-_cached_subset_tables = lru_cache(maxsize=4)(_subset_tables)
+_cached_subset_tables = lru_cache(maxsize=CACHED_LAYERS_MAX_TARGETS)(_subset_tables)
+"""Every size up to the cap is kept (a fleet's plans come in many sizes: paper-boat's
+3 UAVs plan 3 to 10 targets)."""
 
 
 def solve_dp(inst: Instance) -> list[list[int]]:
@@ -151,7 +153,7 @@ def solve_dp(inst: Instance) -> list[list[int]]:
     routes: list[list[int]] = [[] for _ in range(m)]
     remaining = full
     for u in range(m - 1, 0, -1):
-        subs = _submasks(remaining)
+        subs = _submasks(remaining, masks)
         vals = h[u - 1][remaining ^ subs] + g[u][subs]
         take = int(subs[int(np.argmin(vals))])
         routes[u] = _path(take, int(first[u, take]), nxt)
@@ -160,13 +162,13 @@ def solve_dp(inst: Instance) -> list[list[int]]:
     return routes
 
 
-def _submasks(mask: int) -> IntArray:
-    out = [0]
-    sub = mask
-    while sub:
-        out.append(sub)
-        sub = (sub - 1) & mask
-    return np.array(out, dtype=np.int64)
+def _submasks(mask: int, masks: IntArray) -> IntArray:
+    """Every subset of ``mask``: the empty one, then the others in decreasing order (the
+    order of ``sub = (sub - 1) & mask`` from ``mask``, whose first minimum is taken), out
+    of ``masks`` (``0 .. 2^n - 1``)."""
+    upto = masks[:mask + 1]
+    subs = upto[(upto & mask) == upto]  # increasing, 0 first
+    return np.concatenate((subs[:1], subs[:0:-1]))
 
 
 def _path(mask: int, start: int, nxt: IntArray) -> list[int]:
