@@ -60,7 +60,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Any
 
 import numpy as np
 
@@ -73,6 +72,7 @@ C_T = C.T
 
 
 _I4 = np.eye(4)
+_I2 = np.eye(2)  # r I as r * _I2: the same numbers as r * numpy.eye(2), without a new eye
 
 
 class CvFilter:
@@ -209,15 +209,15 @@ class KalmanTrack:
     def innovation(self, x_m: float, y_m: float, r_m2: float) -> float:
         """Squared Mahalanobis distance ``y' S^-1 y`` of ``z`` against the current estimate."""
         y = np.array([x_m, y_m]) - (C @ self.x_view).ravel()
-        s = C @ self.p_view @ C.T + r_m2 * np.eye(2)
+        s = C @ self.p_view @ C_T + r_m2 * _I2
         return float(y @ np.linalg.solve(s, y))
 
     def correct(self, t_s: float, x_m: float, y_m: float, r_m2: float) -> None:
         """Commit the prediction at ``t_s`` (== self.t_s) and apply eq. (9)-(11)."""
-        self.kf.x = self.x_view.copy()
-        self.kf.P = self.p_view.copy()
+        self.kf.x = self.x_view  # not copied: update replaces them, changes none in place
+        self.kf.P = self.p_view
         self.t_anchor_s = t_s
-        self.kf.update(np.array([x_m, y_m]), R=r_m2 * np.eye(2))
+        self.kf.update(np.array([x_m, y_m]), R=r_m2 * _I2)
         self.kf.P = 0.5 * (self.kf.P + self.kf.P.T)
         self.x_view = self.kf.x
         self.p_view = self.kf.P
@@ -292,13 +292,13 @@ class KalmanTrack:
     # --- read-out -------------------------------------------------------------------------
     @property
     def state(self) -> tuple[float, float, float, float]:
-        x = self.x_view.ravel()
-        return float(x[0]), float(x[1]), float(x[2]), float(x[3])
+        x = self.x_view  # 4x1; item(k): element k as a Python float, exactly
+        return x.item(0), x.item(1), x.item(2), x.item(3)
 
     @property
     def cov_xy(self) -> tuple[float, float, float]:
-        p = self.p_view
-        return float(p[0, 0]), float(p[0, 1]), float(p[1, 1])
+        p = self.p_view  # 4x4: flat 0, 1, 5 are (0, 0), (0, 1), (1, 1)
+        return p.item(0), p.item(1), p.item(5)
 
 
 class KalmanBatch:
@@ -309,8 +309,10 @@ class KalmanBatch:
     :meth:`KalmanTrack.predict_to`. Every track shares the batch's grid step (the
     observer's ``max_step_s``).
 
-    The stacks of one call are kept: when the next call advances the same tracks, untouched
-    since (no correction, no new ``q``), its products start from them without re-stacking.
+    The stacks of one call are kept: when the next call advances the same tracks, its
+    products start from them without re-stacking; the rows of tracks changed since (a
+    correction, a new ``q``) are replaced in a copy. Tracks committed at the same time share
+    the decision to batch them (computed once per distinct committed time).
     """
 
     def __init__(self, grid_step_s: float) -> None:
@@ -318,7 +320,10 @@ class KalmanBatch:
         f = transition(grid_step_s)
         self._f, self._f_t = f, f.T.copy()
         self._tracks: list[KalmanTrack] = []
-        self._rows: list[tuple[Any, Any, np.ndarray]] = []  # (kf.x, kf.P, Q) as left
+        # each track's kf.x, kf.P and Q as the last step left them (views of the stacks)
+        self._x_rows: list[np.ndarray] = []
+        self._p_rows: list[np.ndarray] = []
+        self._q_rows: list[np.ndarray] = []
         self._x = np.empty((0, 4, 1))
         self._p = np.empty((0, 4, 4))
         self._q = np.empty((0, 4, 4))
@@ -326,48 +331,77 @@ class KalmanBatch:
     def predict_to(self, tracks: Sequence[KalmanTrack], t_s: float) -> None:
         """Advance every track of ``tracks`` (all on this batch's grid step) to ``t_s``
         (tracks at or past it are left). A track is batched when its next commit, as
-        :meth:`KalmanTrack._grid_steps` decides it, is the last one and one whole step."""
+        :meth:`KalmanTrack._grid_steps` decides it, is the last one and one whole step.
+        Tracks committed at the same time (nearly always all of them) share that
+        decision: it is computed once per distinct committed time, by the same
+        arithmetic."""
         h = self.grid_step_s
+        k_last = math.floor(t_s / h + _GRID_EPS)
+        whole_step: dict[float, bool] = {}  # committed time -> its next commit is batched
         batch: list[KalmanTrack] = []
         for track in tracks:
             if t_s <= track.t_s:
                 continue
-            k_first, k_last, first_dt = track._grid_steps(t_s)
-            if k_first == k_last and abs(first_dt - h) <= _TINY_S:
+            anchor = track.t_anchor_s
+            batched = whole_step.get(anchor)
+            if batched is None:
+                k_first = math.floor(anchor / h + _GRID_EPS) + 1
+                batched = whole_step[anchor] = (
+                    k_first == k_last and abs(k_first * h - anchor - h) <= _TINY_S)
+            if batched:
                 batch.append(track)
             else:
                 track.predict_to(t_s)
         if batch:
-            self._predict_one_step(batch, t_s, math.floor(t_s / h + _GRID_EPS) * h)
+            self._predict_one_step(batch, t_s, k_last * h)
 
     def _predict_one_step(self, batch: list[KalmanTrack], t_s: float, t_grid_s: float) -> None:
-        if not self._same_as_last(batch):
-            self._x = np.stack([tr.kf.x for tr in batch])
-            self._p = np.stack([tr.kf.P for tr in batch])
-            self._q = np.stack([tr._full_step[1] for tr in batch])
+        self._restack(batch)
         self._x = xs = np.matmul(self._f, self._x)
         self._p = ps = np.matmul(np.matmul(self._f, self._p), self._f_t) + self._q
-        sigmas = (ps[:, 0, 0] + ps[:, 1, 1]).tolist()
-        on_grid = t_s - t_grid_s <= _TINY_S  # else each view is predicted on from the grid
-        rows = []
-        for k, tr in enumerate(batch):
-            x, p = xs[k], ps[k]
-            tr.kf.x = x
-            tr.kf.P = p
-            tr.t_anchor_s = t_grid_s
-            tr.t_s = t_s
-            if on_grid:
-                tr.x_view, tr.p_view, tr.sigma = x, p, sigmas[k]
-            else:
+        x_rows, p_rows = list(xs), list(ps)  # each track's x (4x1) and P (4x4), views
+        if t_s - t_grid_s <= _TINY_S:  # on the grid: the view is the committed state
+            sigmas = (ps[:, 0, 0] + ps[:, 1, 1]).tolist()
+            for tr, x, p, sigma in zip(batch, x_rows, p_rows, sigmas, strict=True):
+                kf = tr.kf
+                kf.x = tr.x_view = x
+                kf.P = tr.p_view = p
+                tr.t_anchor_s = t_grid_s
+                tr.t_s = t_s
+                tr.sigma = sigma
+        else:  # each view is predicted on from the grid
+            for tr, x, p in zip(batch, x_rows, p_rows, strict=True):
+                kf = tr.kf
+                kf.x = x
+                kf.P = p
+                tr.t_anchor_s = t_grid_s
+                tr.t_s = t_s
                 tr._refresh_view()
-            rows.append((x, p, tr._full_step[1]))
         self._tracks = batch
-        self._rows = rows
+        self._x_rows, self._p_rows = x_rows, p_rows
 
-    def _same_as_last(self, batch: list[KalmanTrack]) -> bool:
-        if len(batch) != len(self._tracks):
-            return False
-        for tr, last, (x, p, q) in zip(batch, self._tracks, self._rows, strict=True):
-            if tr is not last or tr.kf.x is not x or tr.kf.P is not p or tr._full_step[1] is not q:
-                return False
-        return True
+    def _restack(self, batch: list[KalmanTrack]) -> None:
+        """The stacks ``_x``, ``_p``, ``_q`` of ``batch``'s committed states and noises: kept
+        when the last step advanced the same tracks, untouched since; when only some were
+        changed since (a correction, a new ``q``), a copy with their rows replaced; else
+        stacked anew. Every way holds the same numbers as ``numpy.stack`` of the tracks'."""
+        last = self._tracks
+        if len(batch) == len(last) and all(a is b for a, b in zip(batch, last, strict=True)):
+            changed = [
+                k for k, (tr, x, p, q) in enumerate(
+                    zip(batch, self._x_rows, self._p_rows, self._q_rows, strict=True))
+                if tr.kf.x is not x or tr.kf.P is not p or tr._full_step[1] is not q
+            ]
+            if not changed:
+                return
+            xs, ps, qs = self._x.copy(), self._p.copy(), self._q.copy()
+            for k in changed:
+                tr = batch[k]
+                xs[k], ps[k], qs[k] = tr.kf.x, tr.kf.P, tr._full_step[1]
+                self._q_rows[k] = tr._full_step[1]
+            self._x, self._p, self._q = xs, ps, qs
+            return
+        self._x = np.stack([tr.kf.x for tr in batch])
+        self._p = np.stack([tr.kf.P for tr in batch])
+        self._q_rows = [tr._full_step[1] for tr in batch]
+        self._q = np.stack(self._q_rows)

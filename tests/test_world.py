@@ -150,3 +150,20 @@ def test_random_icebergs_follow_table_1() -> None:
     again = random_icebergs(np.random.default_rng(0), 10, (0, 1500), (0, 1500), (-3, 3))
     assert again == ice
     assert len({(i.x_m, i.y_m) for i in ice}) == 10
+
+
+@pytest.mark.parametrize("dt", [0.1, 0.07, 0.5])
+def test_frames_due_says_whether_observe_frames_has_frames(dt: float) -> None:
+    """The simulator asks before building the vehicles' positions (issue 30): the answer is
+    observe_frames' own rule, asked without taking the frames."""
+    world = World([Iceberg("a", 0.0, 0.0, 1.0, 0.0)], None, Camera(rate_hz=2.0),
+                  np.random.default_rng(3))
+    due_steps = 0
+    for _ in range(60):
+        due = world.frames_due()
+        assert world.frames_due() == due  # asking takes nothing
+        frames = world.observe_frames({"u1": (0.0, 0.0)})
+        assert bool(frames) == due
+        due_steps += due
+        world.step(dt)
+    assert 0 < due_steps < 60 or dt == 0.5

@@ -227,6 +227,11 @@ class World:
             self.boat.step(dt_s)
         self.t_s += dt_s
 
+    def frames_due(self) -> bool:
+        """Whether :meth:`observe_frames` has frames now: a camera tick passed since the
+        last frames (4 steps in 5 of a 0.1 s loop with a 2 Hz camera have none)."""
+        return self._last_tick is None or self.camera.tick(self.t_s) > self._last_tick
+
     def observe(self, uav_positions: Mapping[str, Sequence[float]]) -> list[Measurement]:
         """Measurements due at the current time (empty between camera ticks): the
         detections of :meth:`observe_frames`, frame after frame."""

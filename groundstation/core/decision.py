@@ -273,11 +273,12 @@ class DecisionCore:
 
     def _update_wind(self, t_s: float) -> list[Command]:
         """The estimate at ``t_s``; legs it moved are replanned (``core/wind_replan.py``)."""
-        out = self.wind.update(t_s, {v.id for v in self.active_vehicles()})
+        active = self.active_vehicles()  # the estimate's update changes no vehicle
+        out = self.wind.update(t_s, {v.id for v in active})
         if self.config.wind_aware:
             state = self.wind.current
-            legs = self.wind_replan.legs(t_s, state.xy_m_s, state.source,
-                                         self.active_vehicles(), self._leg_time_s)
+            legs = self.wind_replan.legs(t_s, state.xy_m_s, state.source, active,
+                                         self._leg_time_s)
             notes = self.wind_replan.replan(t_s, legs, self.config.policy.commit)
             for leg in legs:  # bounded by its own rule (a 2 m/s change): not delayed
                 self.uploads.reset(leg.vehicle.id, t_s)
@@ -297,8 +298,8 @@ class DecisionCore:
 
     def _on_pose(self, vehicle: str, t_s: float, x_m: float, y_m: float, heading_rad: float,
                  speed_m_s: float) -> None:
-        values = (x_m, y_m, heading_rad, speed_m_s)
-        if not all(math.isfinite(v) for v in values):
+        if not (math.isfinite(x_m) and math.isfinite(y_m) and math.isfinite(heading_rad)
+                and math.isfinite(speed_m_s)):
             self._count("invalid_telemetry")
             return
         record = self.vehicles.get(vehicle)

@@ -101,18 +101,26 @@ def result_from_record(data: Mapping[str, Any]) -> PlanResult:
         raise RecordError(f"bad plan result record: {exc}") from exc
 
 
+_RECORD_FIELDS: dict[type, tuple[str, ...]] = {}
+"""Each input class's fields but ``t_s``, in declaration order (what
+``dataclasses.fields`` gives; kept per class, as every tick and telemetry is journalled)."""
+
+
 def event_to_record(event: Event) -> dict[str, Any]:
     """``{"event": "input", "kind": <class name>, "t": t_s, ...fields}``."""
-    record: dict[str, Any] = {"event": "input", "kind": type(event).__name__, "t": event.t_s}
-    for f in dataclasses.fields(event):
-        if f.name == "t_s":
-            continue
-        value = getattr(event, f.name)
-        if f.name == "prior" and value is False:
+    cls = type(event)
+    record: dict[str, Any] = {"event": "input", "kind": cls.__name__, "t": event.t_s}
+    names = _RECORD_FIELDS.get(cls)
+    if names is None:
+        names = _RECORD_FIELDS[cls] = tuple(
+            f.name for f in dataclasses.fields(event) if f.name != "t_s")
+    for name in names:
+        value = getattr(event, name)
+        if name == "prior" and value is False:
             continue  # TargetAdded lines read as before priors existed
-        if f.name in _OPTIONAL_TELEMETRY and value is None:
+        if name in _OPTIONAL_TELEMETRY and value is None:
             continue  # a fix's Telemetry line reads as before predictions existed
-        record[f.name] = result_to_record(value) if isinstance(value, PlanResult) else value
+        record[name] = result_to_record(value) if isinstance(value, PlanResult) else value
     return record
 
 

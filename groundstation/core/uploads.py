@@ -146,6 +146,8 @@ class UploadRule:
 
     def due(self, t_s: float) -> bool:
         """A deferred FlyToTarget's interval has passed: replan now (once per deferral)."""
+        if not self._due_s:
+            return False
         done = [v for v, due_s in self._due_s.items() if t_s >= due_s - 1e-9]
         for vehicle in done:
             del self._due_s[vehicle]

@@ -184,9 +184,9 @@ class WindEstimator:
     def update(self, t_s: float, active: set[str]) -> list[Command]:
         """Recompute the estimate at ``t_s`` from the reports of the ``active`` vehicles;
         the journal lines this causes (a changed estimate, a newly flagged outlier)."""
-        reports = self.fresh(t_s, active)
+        reports = self.fresh(t_s, active) if self.reports else {}
         self.current = self._combine(reports)
-        out: list[Command] = self._outliers(t_s, reports)
+        out: list[Command] = self._outliers(t_s, reports) if reports or self._outlier_since else []
         if self._changed(self.current, self.journalled):
             self.journalled = self.current
             c = self.current
@@ -235,6 +235,8 @@ class WindEstimator:
         return out
 
     def _changed(self, new: WindState, old: WindState) -> bool:
+        if new is old and self.change_speed_m_s >= 0.0 and self.change_deg >= 0.0:
+            return False  # what the rules below give for one state (every calm tick)
         if new.source != old.source:
             return True
         if abs(new.speed_m_s - old.speed_m_s) > self.change_speed_m_s:

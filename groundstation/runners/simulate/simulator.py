@@ -417,6 +417,8 @@ class _Simulation:
                                                      "vehicle": vehicle.id})
                         self.feed(LoiterEnded(t_s + self.dt_s, vehicle.id))
                 self.world.step(self.dt_s)
+                if not self.world.frames_due():
+                    continue  # no camera frame this step
                 positions = {v.id: (v.state.x_m, v.state.y_m) for v in self.vehicles.values()}
                 if self.discovery is not None:
                     for event in self.discovery.observe(self.world, positions,
