@@ -7,8 +7,6 @@ import contextlib
 import io
 import json
 import math
-import subprocess
-import sys
 from html.parser import HTMLParser
 from pathlib import Path
 
@@ -181,35 +179,11 @@ def test_daemon_run_folder(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -
     """A short ``gcs run --vehicles sim:3`` at 50x: reported (tracks from its tlog) and
     replayed when its journal holds the core's inputs (else a clear error)."""
     runs = tmp_path / "runs"
-    proc = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "groundstation.cli",
-            "run",
-            "--vehicles",
-            "sim:3",
-            "--scenario",
-            "paper-boat",
-            "--duration",
-            "30",
-            "--speedup",
-            "50",
-            "--sim-airborne",
-            "--run-dir",
-            str(runs),
-            "--http",
-            "off",
-            "--detections",
-            "off",
-            "--status",
-            "quiet",
-        ],
-        capture_output=True,
-        text=True,
-        timeout=90,
-    )
-    assert proc.returncode == 0, proc.stderr[-2000:]
+    # in this process (the console script's code path): no new interpreter's imports
+    status = main(["run", "--vehicles", "sim:3", "--scenario", "paper-boat", "--duration", "30",
+                   "--speedup", "50", "--sim-airborne", "--run-dir", str(runs), "--http", "off",
+                   "--detections", "off", "--status", "quiet"])
+    assert status == 0, capsys.readouterr().err[-2000:]
     [run] = list(runs.iterdir())
     out = tmp_path / "report"
     assert main(["report", str(run), "--out", str(out), "--quiet"]) == 0
