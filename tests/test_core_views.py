@@ -3,6 +3,8 @@ state lines of ``core/records.py``, the observer's single writer and ``core/miss
 
 from __future__ import annotations
 
+from test_core_tracking import make_core
+
 from groundstation.core.commands import FlyToTarget
 from groundstation.core.config import CoreConfig
 from groundstation.core.events import (
@@ -22,7 +24,6 @@ from groundstation.core.records import (
 )
 from observer import ObserverConfig
 from planner.search_cells import SearchConfig
-from tests.test_core_tracking import make_core
 
 
 def test_view_copies_the_tracks_floats_with_their_status() -> None:

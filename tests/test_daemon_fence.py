@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from daemon_run import Journal, events, run_gcs
 from pymavlink import mavparm, mavutil, mavwp
 
 from groundstation.commands.embedded_sim import build_embedded_sim
@@ -24,7 +25,6 @@ from groundstation.mavlink.mission_items import MissionItem
 from groundstation.mavlink.mission_verify import compare_missions
 from groundstation.runners.report.data import load_run_data
 from groundstation.runners.report.page import render_html
-from tests.daemon_run import Journal, events, run_gcs
 
 RADIUS_M = 4000.0
 

@@ -10,13 +10,13 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from test_vehicle_port import run
 
 from groundstation.core.config import CoreConfig
 from groundstation.daemon.clock import MissionClock
 from groundstation.daemon.config_parse import parse_config
 from groundstation.daemon.daemon import Daemon
 from groundstation.daemon.journal import Journal, read_journal
-from tests.test_vehicle_port import run
 
 
 class FakeService:

@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from daemon_run import Journal, events, stop_when
 
 from domain.geodesy import GeoOrigin
 from groundstation.commands.run import build_config, run, run_daemon
@@ -22,7 +23,6 @@ from groundstation.daemon.journal import read_journal
 from groundstation.daemon.ship_feed import UERE_M
 from groundstation.link.nmea import KNOT_M_S, NmeaReader
 from groundstation.link.nmea_source import NmeaSource, parse_ship_url
-from tests.daemon_run import Journal, events, stop_when
 
 WALL_TIMEOUT_S = 90.0
 

@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from daemon_run import events, run_gcs
 
 from domain.errors import (
     ConfigError,
@@ -22,7 +23,6 @@ from groundstation.core.decision import DecisionCore
 from groundstation.daemon.daemon import Daemon
 from groundstation.daemon.session import VehicleSession
 from groundstation.daemon.supervision import RestartPolicy, Supervisor
-from tests.daemon_run import events, run_gcs
 
 
 class FakeTime:

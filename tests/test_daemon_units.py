@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import asyncio
 import json
-import os
 import signal
 import socket
 import subprocess
@@ -165,18 +164,6 @@ def test_journal_lines_are_flushed_json(tmp_path: Path) -> None:
 
 
 # ------------------------------------------------------------------ the command line
-def gcs_run(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
-    env = dict(os.environ, PYTHONWARNINGS="ignore")
-    return subprocess.run(
-        [sys.executable, "-m", "groundstation.cli", "run", *args],
-        cwd=cwd,
-        capture_output=True,
-        text=True,
-        timeout=60,
-        env=env,
-    )
-
-
 def gcs_run_here(capsys: pytest.CaptureFixture[str], *args: str) -> tuple[int, str, str]:
     """``gcs run`` in this process (same code path as the console script)."""
     from groundstation.cli import main
@@ -231,8 +218,11 @@ def test_port_in_use_is_one_line_exit_2(tmp_path: Path, capsys: pytest.CaptureFi
     assert len(lines) == 1 and "cannot listen" in lines[0] and "Traceback" not in err
 
 
-def test_short_cli_run_writes_the_run_folder(tmp_path: Path) -> None:
-    result = gcs_run(
+def test_short_cli_run_writes_the_run_folder(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    code, out, err = gcs_run_here(
+        capsys,
         "--vehicles",
         "sim:1",
         "--scenario",
@@ -250,10 +240,9 @@ def test_short_cli_run_writes_the_run_folder(tmp_path: Path) -> None:
         "off",
         "--targets",
         write(tmp_path / "t.yaml", "- {id: A, x_m: 600, y_m: 100}\n"),
-        cwd=tmp_path,
     )
-    assert result.returncode == 0, result.stderr
-    assert "stopped (duration)" in result.stdout
+    assert code == 0, err
+    assert "stopped (duration)" in out
     (run,) = list(tmp_path.glob("2*"))
     names = {p.name for p in run.iterdir()}
     assert {"journal.jsonl", "flight.tlog", "config.yaml", "gcs.log", "metrics.json"} <= names

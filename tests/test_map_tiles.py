@@ -9,8 +9,6 @@ import gzip
 import json
 import math
 import sqlite3
-import subprocess
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -18,6 +16,7 @@ import pytest
 from pmtiles.tile import Compression, TileType, serialize_directory, zxy_to_tileid
 from tile_files import png_tile, write_pmtiles
 
+from groundstation.cli import main
 from groundstation.daemon.control.tiles import TileArchive, TilesError, accepts_gzip
 from groundstation.daemon.vehicle_view import gps_state, heading_deg, vehicle_panel
 from groundstation.mavlink.telemetry_events import VehicleSnapshot
@@ -75,16 +74,28 @@ def test_unusable_tiles_are_one_line(tmp_path: Path, name: str, content: object,
     assert "\n" not in str(err.value) and str(path) in str(err.value)
 
 
-def test_gcs_run_refuses_bad_tiles_in_one_line(tmp_path: Path) -> None:
+def gcs_run_here(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                 monkeypatch: pytest.MonkeyPatch, *args: str) -> tuple[int, str, str]:
+    """``gcs run ARGS`` in this process from ``tmp_path`` (the console script's code path,
+    :func:`groundstation.cli.main`, without a new interpreter's ~3 CPU-s of imports): its
+    exit status, stdout and stderr. An exception escaping ``main`` fails the test."""
+    monkeypatch.chdir(tmp_path)
+    capsys.readouterr()
+    code = main(["run", *args])
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def test_gcs_run_refuses_bad_tiles_in_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                               monkeypatch: pytest.MonkeyPatch) -> None:
     (tmp_path / "bad.mbtiles").write_text("x")
-    done = subprocess.run(
-        [sys.executable, "-m", "groundstation.cli", "run", "--vehicles", "sim:1",
-         "--map-tiles", "bad.mbtiles", "--duration", "5", "--status", "log",
-         "--detections", "off", "--run-dir", str(tmp_path / "runs")],
-        cwd=tmp_path, capture_output=True, text=True, timeout=100, check=False)
-    assert done.returncode != 0
-    assert "Traceback" not in done.stderr + done.stdout
-    assert "map tiles bad.mbtiles: not an MBTiles or PMTiles file" in done.stderr + done.stdout
+    code, out, err = gcs_run_here(
+        tmp_path, capsys, monkeypatch, "--vehicles", "sim:1", "--map-tiles", "bad.mbtiles",
+        "--duration", "5", "--status", "log", "--detections", "off",
+        "--run-dir", str(tmp_path / "runs"))  # fmt: skip
+    assert code != 0
+    assert "Traceback" not in err + out
+    assert "map tiles bad.mbtiles: not an MBTiles or PMTiles file" in err + out
 
 
 # ---------------------------------------------------------------- PMTiles v3
@@ -427,18 +438,19 @@ def test_no_tiles_pmtiles_is_refused(tmp_path: Path) -> None:
         TileArchive(path)
 
 
-def test_gcs_run_refuses_vector_pmtiles_in_one_line(tmp_path: Path) -> None:
+def test_gcs_run_refuses_vector_pmtiles_in_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
     """``gcs run --map-tiles`` with vector PMTiles: exit 2, one line, no traceback."""
     write_pmtiles(tmp_path / "roads.pmtiles", {(2, 1, 1): b"mvt"}, tile_type=TileType.MVT)
-    done = subprocess.run(
-        [sys.executable, "-m", "groundstation.cli", "run", "--vehicles", "sim:1",
-         "--map-tiles", "roads.pmtiles", "--duration", "5", "--status", "log",
-         "--detections", "off", "--run-dir", str(tmp_path / "runs")],
-        cwd=tmp_path, capture_output=True, text=True, timeout=100, check=False)
-    assert done.returncode == 2, done.stderr
-    assert "Traceback" not in done.stderr + done.stdout
-    lines = [line for line in done.stderr.splitlines() if "roads.pmtiles" in line]
-    assert len(lines) == 1, done.stderr
+    code, out, err = gcs_run_here(
+        tmp_path, capsys, monkeypatch, "--vehicles", "sim:1", "--map-tiles", "roads.pmtiles",
+        "--duration", "5", "--status", "log", "--detections", "off",
+        "--run-dir", str(tmp_path / "runs"))  # fmt: skip
+    assert code == 2, err
+    assert "Traceback" not in err + out
+    lines = [line for line in err.splitlines() if "roads.pmtiles" in line]
+    assert len(lines) == 1, err
     assert "map tiles roads.pmtiles: holds vector tiles (MVT), which need a style" in lines[0]
 
 

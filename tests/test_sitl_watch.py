@@ -11,6 +11,7 @@ import time
 from typing import Any
 
 import pytest
+from test_sitl_server import ServerThread, wait
 
 from domain.geodesy import GeoOrigin
 from groundstation.mavlink.codec import mavlink2 as M
@@ -19,7 +20,6 @@ from sitl.mission_store import StoredItem
 from sitl.server import ServerOptions, SitlServer
 from sitl.sitl_setup import scenario_setup
 from sitl.vehicle import SimVehicle, VehicleConfig
-from tests.test_sitl_server import ServerThread, wait
 from world.battery import BatteryModel
 from world.scenario import BoatSpec, WatchSpec, load_scenario
 from world.wind import WindSpec

@@ -180,7 +180,7 @@ def test_journal_holds_lines_and_reads_back_complete(
 
 
 def test_tlog_survives_a_full_disk(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    from tests.test_link_tlog import T0, frames
+    from test_link_tlog import T0, frames
 
     path = tmp_path / "flight.tlog"
     disk = Disk(path)

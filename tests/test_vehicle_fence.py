@@ -8,6 +8,7 @@ import math
 from typing import Any
 
 import pytest
+from test_vehicle_controller import Rig
 
 from domain.modes import ArduPlaneMode
 from groundstation.core.area import OperatingArea
@@ -20,7 +21,6 @@ from groundstation.mavlink.fence_items import (
 )
 from groundstation.vehicle import controller_io as vio
 from groundstation.vehicle.controller import VehicleState
-from tests.test_vehicle_controller import Rig
 
 S = VehicleState
 AREA = FenceCircle(0.0, 0.0, 10300.0)
