@@ -24,7 +24,11 @@ Printed (and written as JSON with ``--json FILE``):
   ``time_boot_ms`` going back on the tap; ``override`` and ``link_lost`` by nothing (no
   fault is scheduled). (The daemon's journal alone is not the truth: the fuzz on vehicle
   1's link destroys some of its real frames, e.g. a "Loiter time complete" text, as noise
-  on a radio does; the daemon then sees the end from MISSION_CURRENT.)
+  on a radio does; the daemon then sees the end from MISSION_CURRENT.) A ``loiter_end``
+  that the tap saw earlier than that, but within the 30 mission seconds before (a loiter
+  lasts far longer, so it is the same end), is **late**, not false: the fuzz destroyed the
+  end's own frames and the daemon found it later. Late ends are counted apart, with how
+  late (mission s), and are no failure.
 * the worst gap between frames the daemon received (tlog reception times) from each of
   the other vehicles during the fuzz window, and in the same length of time before it;
 * the daemon's resident memory (VmRSS) just before the fuzz and at the end;
@@ -172,6 +176,29 @@ class Tap:
         return any(unix_s - before_s <= t <= unix_s + 0.2 and k == kind for t, k in self.events)
 
 
+LATE_WINDOW_MISSION_S = 30.0
+"""A loiter end the tap saw up to this long before the daemon's is the same end, found late."""
+
+
+def _late_loiter_ends(
+    false: list[dict[str, Any]], taps: dict[str, Tap], speedup: float
+) -> tuple[list[dict[str, Any]], list[float]]:
+    """Split ``false``: the loiter ends a tap saw in the :data:`LATE_WINDOW_MISSION_S`
+    before are late (their delays, mission s); the rest stay false."""
+    still: list[dict[str, Any]] = []
+    late_s: list[float] = []
+    window_s = LATE_WINDOW_MISSION_S / speedup
+    for e in false:
+        tap = taps.get(str(e.get("vehicle")))
+        seen = [t for t, kind in (tap.events if tap else []) if kind == "loiter_end"
+                and e["unix_s"] - window_s <= t < e["unix_s"]]
+        if e["event"] == "loiter_end" and seen:
+            late_s.append(round((e["unix_s"] - max(seen)) * speedup, 1))
+        else:
+            still.append(e)
+    return still, late_s
+
+
 def _false_changes(
     journal: list[dict[str, Any]], taps: dict[str, Tap], speedup: float
 ) -> list[dict[str, Any]]:
@@ -277,7 +304,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         )
         for (w, v), ts in times.items()
     }
-    false = _false_changes(journal, taps, k)
+    false, late_s = _late_loiter_ends(_false_changes(journal, taps, k), taps, k)
     served = {str(v) for v in range(1, args.vehicles + 1)}
     by_kind: dict[str, int] = {}
     for e in false:
@@ -292,6 +319,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         "task_errors": len([e for e in journal if e["event"] in ("task_error", "core_error")]),
         "false_state_changes": len(false),
         "false_state_changes_by_event": by_kind,
+        "late_loiter_ends_mission_s": late_s,
         "false_on_served_vehicles": [
             {k2: e.get(k2) for k2 in ("t", "event", "vehicle")}
             for e in false
