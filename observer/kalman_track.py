@@ -75,6 +75,15 @@ _I4 = np.eye(4)
 _I2 = np.eye(2)  # r I as r * _I2: the same numbers as r * numpy.eye(2), without a new eye
 
 
+def grid_steps(anchor_s: float, t_s: float, h: float) -> tuple[int, int, float]:
+    """``(k_first, k_last, first_dt)``: the grid points k h to commit on the way from the
+    committed time ``anchor_s`` to ``t_s`` (none if ``k_last < k_first``), with
+    k_last = floor(t_s / h + eps) and k_first = floor(anchor_s / h + eps) + 1, and the
+    length of the first step, k_first h - anchor_s."""
+    k_first = math.floor(anchor_s / h + _GRID_EPS) + 1
+    return k_first, math.floor(t_s / h + _GRID_EPS), k_first * h - anchor_s
+
+
 class CvFilter:
     """The state ``x`` (4x1), covariance ``P`` (4x4) and last gain ``K`` (4x2) of one track,
     with filterpy 2.0's ``KalmanFilter`` arithmetic (``dim_x=4``, ``dim_z=2``, no control
@@ -167,12 +176,8 @@ class KalmanTrack:
         self._refresh_view()
 
     def _grid_steps(self, t_s: float) -> tuple[int, int, float]:
-        """``(k_first, k_last, first_dt)``: the grid points to commit on the way to ``t_s``
-        (none if ``k_last < k_first``) and the length of the first step."""
-        h = self.grid_step_s
-        k_last = math.floor(t_s / h + _GRID_EPS)
-        k_first = math.floor(self.t_anchor_s / h + _GRID_EPS) + 1
-        return k_first, k_last, k_first * h - self.t_anchor_s
+        """:func:`grid_steps` from this track's committed time."""
+        return grid_steps(self.t_anchor_s, t_s, self.grid_step_s)
 
     def _commit_grid_until(self, t_s: float) -> None:
         h = self.grid_step_s
@@ -345,9 +350,9 @@ class KalmanBatch:
             anchor = track.t_anchor_s
             batched = whole_step.get(anchor)
             if batched is None:
-                k_first = math.floor(anchor / h + _GRID_EPS) + 1
+                k_first, _, first_dt = grid_steps(anchor, t_s, h)
                 batched = whole_step[anchor] = (
-                    k_first == k_last and abs(k_first * h - anchor - h) <= _TINY_S)
+                    k_first == k_last and abs(first_dt - h) <= _TINY_S)
             if batched:
                 batch.append(track)
             else:

@@ -187,14 +187,11 @@ class Observer:
         if kalman:
             self._batch.predict_to(kalman, t)  # all tracks at once (bit-identical results)
         ever_lost = self._ever_lost
-        fov_radius_m = self.config.fov_radius_m
         for target_id, track in due:
             if not isinstance(track, KalmanTrack):
                 track.predict_to(t)
-            if not ever_lost[target_id]:
-                sigma = track.sigma  # _is_lost, inline: this runs for every track each tick
-                if sigma > 0.0 and math.sqrt(sigma) > fov_radius_m:
-                    ever_lost[target_id] = True
+            if not ever_lost[target_id] and self._is_lost(track):
+                ever_lost[target_id] = True
 
     # --- measurements ---------------------------------------------------------------------
     def measure(

@@ -30,21 +30,22 @@ def test_a_tick_of_tracks_on_the_grid_decides_once_and_restacks_nothing(
     obs.predict_to(0.1)  # the first step stacks the tracks
     grid_steps: list[float] = []
     stacks: list[int] = []
-    real_grid_steps, real_stack = KalmanTrack._grid_steps, np.stack
+    real_grid_steps, real_stack = kalman_track.grid_steps, np.stack
 
-    def counting_grid_steps(self: KalmanTrack, t_s: float) -> tuple[int, int, float]:
+    def counting_grid_steps(anchor_s: float, t_s: float, h: float) -> tuple[int, int, float]:
         grid_steps.append(t_s)
-        return real_grid_steps(self, t_s)
+        return real_grid_steps(anchor_s, t_s, h)
 
     def counting_stack(arrays: list[np.ndarray], *args: object, **kw: object) -> np.ndarray:
         stacks.append(len(arrays))
         return real_stack(arrays, *args, **kw)  # type: ignore[call-overload]
 
-    monkeypatch.setattr(KalmanTrack, "_grid_steps", counting_grid_steps)
+    monkeypatch.setattr(kalman_track, "grid_steps", counting_grid_steps)
     monkeypatch.setattr(kalman_track.np, "stack", counting_stack)
     for k in range(2, 12):
         obs.predict_to(k * 0.1)
-    assert grid_steps == []  # one decision per committed time, not one per track
+    # one decision per committed time (all 10 tracks share it), not one per track
+    assert grid_steps == [k * 0.1 for k in range(2, 12)]
     # a correction just after the grid point (the simulator's camera clock), then ticks
     assert obs.measure(11 * 0.1 + 3e-14, 300.0, 30.0, "T3").accepted
     obs.predict_to(1.2)

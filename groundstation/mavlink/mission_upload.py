@@ -66,7 +66,7 @@ Rules (MAVSDK's MissionTransferClient semantics, adapted to ArduPlane):
   while the vehicle still waits for the newest item it asked for, so that answer resends
   the items from there (once per newest request: the rest of the batch answers alike); a
   request seen twice (ArduPlane's own re-request) does the same. Silence before any request
-  sends MISSION_COUNT and the first items again; silence once every item went at least once
+  sends MISSION_COUNT and item 0 again; silence once every item went at least once
   probes with MISSION_REQUEST_LIST as above (DENIED: the items from the newest request go
   again; MISSION_COUNT: done, verify by download), so no item is ever sent to a vehicle that
   may have finished; silence before that sends the items from the newest request again.
@@ -176,7 +176,7 @@ class MissionUpload(TransferBase[UploadState]):
         return self.window > 1
 
     def start(self, now_s: float) -> list[Action]:
-        """Begin: send MISSION_COUNT (pipelined: and the first ``window`` items with it)."""
+        """Begin: send MISSION_COUNT (pipelined: and item 0 with it)."""
         self._begin(now_s, UploadState.SENDING_COUNT)
         return [Send(self._count_message()), *self._send_from(0, again=False, most=1)]
 
@@ -185,17 +185,23 @@ class MissionUpload(TransferBase[UploadState]):
         ``again`` False: only those not sent yet). Nothing when not pipelined."""
         if not self.pipelined:
             return []
-        end = min(first + min(self.window, most or self.window), len(self.items))
+        span = self.window if most is None else min(most, self.window)
+        end = min(first + span, len(self.items))
         start = first if again else max(first, self._pushed)
         self._pushed = max(self._pushed, end)
         self.items_sent += max(0, end - start)
         return [Send(self._item_message(seq)) for seq in range(start, end)]
 
+    @property
+    def _expected(self) -> int:
+        """The item the vehicle waits for, as far as we know: its newest request (0 before
+        any)."""
+        return 0 if self._newest is None else self._newest
+
     def _resend_tail(self, now_s: float) -> list[Action]:
-        """Pipelined: the items from the newest one asked for (0 before any request) go
-        again; the timer restarts without refilling the retry budget."""
-        first = 0 if self._newest is None else self._newest
-        self._tail_for = first
+        """Pipelined: the items from :attr:`_expected` go again; the timer restarts without
+        refilling the retry budget."""
+        first = self._tail_for = self._expected
         self._probing = False
         self._arm(now_s, reset_retries=False)
         return self._send_from(first, again=True)
@@ -212,9 +218,8 @@ class MissionUpload(TransferBase[UploadState]):
             )
         if self._state is UploadState.SENDING_COUNT:
             return [Send(self._count_message()), *self._send_from(0, again=True, most=1)]
-        if self.pipelined and self._pushed < len(self.items):
-            self._tail_for = self._newest
-            return self._send_from(0 if self._newest is None else self._newest, again=True)
+        if self.pipelined and self._pushed < len(self.items):  # it cannot have finished
+            return self._resend_tail(now_s)
         if not (self.resend_items or self.pipelined) or self._newest is None:
             return []
         if self._state is UploadState.WAITING_ACK or self.pipelined:
@@ -366,9 +371,8 @@ class MissionUpload(TransferBase[UploadState]):
         if ack_type == mavlink2.MAV_MISSION_INVALID_SEQUENCE:
             # ArduPlane: an item arrived out of order; it will ask again. Not fatal.
             self._notes.append(f"MAV_MISSION_INVALID_SEQUENCE at t={now_s:.3f}s (not fatal)")
-            if self.pipelined:
-                first = 0 if self._newest is None else self._newest
-                return [] if self._tail_for == first else self._resend_tail(now_s)
+            if self.pipelined:  # once per newest request: the rest of the batch alike
+                return [] if self._tail_for == self._expected else self._resend_tail(now_s)
             resent = self._resent_seq
             if resent is not None and resent == self._newest and resent + 1 < len(self.items):
                 # it holds the item we resent and waits for the next (module docstring)
