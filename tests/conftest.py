@@ -18,26 +18,34 @@ tests would wait for nothing. :func:`pytest_configure` gives the suite (and so i
 children) the default Ctrl-C back.
 
 Every xdist worker collects every test module, and pytest's assertion rewriting of the
-158 test modules (36 000 lines) is about 6 CPU-s of each worker's 16-21 CPU-s of collection
-(measured in the controller). In a fresh checkout the workers would all rewrite the same
-modules at once; :func:`pytest_sessionstart` rewrites
-them once in the controller, before the workers start, into pytest's own cache (the same
-files pytest would write), so each worker only reads them. With ``PYTHONDONTWRITEBYTECODE``
-set (the team's shared machines set it) nothing is written, and every worker rewrites them
-itself, as before.
+158 test modules (36 000 lines) is about half of a worker's collection (8 of 16 CPU-s
+beside two busy loops). In a fresh checkout the workers would all rewrite the same modules
+at once; :func:`pytest_sessionstart` rewrites them once in the controller, before the
+workers start, into pytest's own cache (the same files pytest would write), so each worker
+only reads them. With ``PYTHONDONTWRITEBYTECODE`` set (the team's shared machines set it,
+to keep ``__pycache__`` out of checkouts) nothing is written beside the sources: the
+controller's rewrites go to a temporary folder, removed when the session ends, that the
+workers read them from (:func:`_read_rewrites_from_the_controller`).
 """
 
 from __future__ import annotations
 
 import fnmatch
 import os
+import shutil
 import signal
 import sys
+import tempfile
 from pathlib import Path
 
 import pytest
 
 SUITE_WORKERS = min(8, 2 * (os.cpu_count() or 1))
+
+REWRITES_ENV = "FLOE_TEST_REWRITES"
+"""The controller's temporary folder of rewritten test modules, for its workers (set only
+with ``PYTHONDONTWRITEBYTECODE``)."""
+TESTS = Path(__file__).resolve().parent
 
 
 def pytest_xdist_auto_num_workers(config: pytest.Config) -> int:
@@ -60,18 +68,48 @@ def pytest_configure(config: pytest.Config) -> None:
 @pytest.hookimpl(tryfirst=True)
 def pytest_sessionstart(session: pytest.Session) -> None:
     """In xdist's controller, before its workers start (xdist starts them last): rewrite
-    the test modules once into pytest's cache (module docstring)."""
+    the test modules once, into pytest's cache or, when bytecode is not to be written, a
+    temporary folder the workers are told of (module docstring)."""
     config = session.config
-    if (not config.pluginmanager.has_plugin("dsession") or sys.dont_write_bytecode
+    if (not config.pluginmanager.has_plugin("dsession")
             or config.getoption("assertmode") != "rewrite"):
         return
-    _rewrite_test_modules_once(config, Path(__file__).resolve().parent)
+    if not sys.dont_write_bytecode:
+        _rewrite_test_modules_once(config, TESTS, None)
+        return
+    folder = Path(tempfile.mkdtemp(prefix="floe-test-rewrites-"))
+    config.add_cleanup(lambda: shutil.rmtree(folder, ignore_errors=True))
+    if _rewrite_test_modules_once(config, TESTS, folder):
+        os.environ[REWRITES_ENV] = str(folder)
 
 
-def _rewrite_test_modules_once(config: pytest.Config, folder: Path) -> int:
-    """Rewrite every test module of ``folder`` whose cached rewrite is missing or stale,
-    as pytest's import hook would; the number rewritten. pytest's rewrite helpers are
-    internal: if they change, nothing is rewritten here and the workers do it as before."""
+def _read_rewrites_from_the_controller() -> None:
+    """In a worker whose controller rewrote the test modules into a temporary folder
+    (``PYTHONDONTWRITEBYTECODE``): pytest's import hook looks for them there. It only reads
+    (bytecode is not written) and checks each against its source's hash, as always."""
+    folder = os.environ.get(REWRITES_ENV)
+    if not folder or "PYTEST_XDIST_WORKER" not in os.environ:
+        return
+    try:
+        from _pytest.assertion import rewrite
+        own_cache_dir = rewrite.get_cache_dir
+    except (ImportError, AttributeError):
+        return
+
+    def cache_dir(file_path: Path) -> Path:
+        return Path(folder) if file_path.resolve().parent == TESTS else own_cache_dir(file_path)
+
+    rewrite.get_cache_dir = cache_dir
+
+
+_read_rewrites_from_the_controller()
+
+
+def _rewrite_test_modules_once(config: pytest.Config, folder: Path, into: Path | None) -> int:
+    """Rewrite every test module of ``folder`` whose rewrite in ``into`` (None: pytest's
+    own cache) is missing or stale, as pytest's import hook would; the number there now.
+    pytest's rewrite helpers are internal: if they change, nothing is rewritten here and
+    the workers do it as before."""
     try:
         from _pytest.assertion import rewrite
     except ImportError:
@@ -82,13 +120,13 @@ def _rewrite_test_modules_once(config: pytest.Config, folder: Path) -> int:
         if not any(fnmatch.fnmatch(fn.name, pattern) for pattern in patterns):
             continue
         try:
-            pyc = rewrite.get_cache_dir(fn) / (fn.name[:-3] + rewrite.PYC_TAIL)
-            if rewrite._read_pyc(fn, pyc) is not None:
-                continue
-            source_hash, code = rewrite._rewrite_test(fn, config)
-            if not rewrite.try_makedirs(pyc.parent):
-                return done
-            rewrite._write_pyc(config.stash[rewrite.assertstate_key], code, source_hash, pyc)
+            pyc = (into or rewrite.get_cache_dir(fn)) / (fn.name[:-3] + rewrite.PYC_TAIL)
+            if rewrite._read_pyc(fn, pyc) is None:
+                source_hash, code = rewrite._rewrite_test(fn, config)
+                if not rewrite.try_makedirs(pyc.parent):
+                    return done
+                rewrite._write_pyc(config.stash[rewrite.assertstate_key], code, source_hash,
+                                   pyc)
         except (AttributeError, TypeError, KeyError, OSError, SyntaxError):
             return done
         done += 1
