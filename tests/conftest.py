@@ -26,11 +26,22 @@ only reads them. With ``PYTHONDONTWRITEBYTECODE`` set (the team's shared machine
 to keep ``__pycache__`` out of checkouts) nothing is written beside the sources: the
 controller's rewrites go to a temporary folder, removed when the session ends, that the
 workers read them from (:func:`_read_rewrites_from_the_controller`).
+
+xdist's ``worksteal`` gives each worker a contiguous share of the collection and lets an
+idle worker take the back half of a busy one's queue. A share that ended on a 47 s flood
+test left one worker running alone for the last half minute, so
+:func:`pytest_collection_modifyitems` deals the modules by their measured wall time
+(``tests/durations.json``, written by ``benchmarks/suite_cpu.py durations``): the long
+modules (15 s or more) go, longest first, to the share with the least so far, at the front
+of it, and the rest follow in their usual order; a module's tests stay together (their
+module fixtures are made once). A test missing from the file counts as short; without the
+file nothing is reordered.
 """
 
 from __future__ import annotations
 
 import fnmatch
+import json
 import os
 import shutil
 import signal
@@ -46,6 +57,9 @@ REWRITES_ENV = "FLOE_TEST_REWRITES"
 """The controller's temporary folder of rewritten test modules, for its workers (set only
 with ``PYTHONDONTWRITEBYTECODE``)."""
 TESTS = Path(__file__).resolve().parent
+DURATIONS = TESTS / "durations.json"
+LONG_MODULE_S = 15.0
+"""A module whose tests took this much wall time or more is dealt first (module docstring)."""
 
 
 def pytest_xdist_auto_num_workers(config: pytest.Config) -> int:
@@ -131,3 +145,44 @@ def _rewrite_test_modules_once(config: pytest.Config, folder: Path, into: Path |
             return done
         done += 1
     return done
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """In an xdist worker under ``worksteal``: the order of the module docstring (every
+    worker computes the same one, as xdist requires)."""
+    workerinput = getattr(config, "workerinput", None)
+    if workerinput is None or getattr(config.option, "dist", None) != "worksteal":
+        return
+    try:
+        known = {str(k): float(v) for k, v in json.loads(DURATIONS.read_text()).items()}
+    except (OSError, ValueError, AttributeError):
+        return
+    items[:] = deal(items, int(workerinput["workercount"]), known)
+
+
+def deal(items: list[pytest.Item], workers: int, wall_s: dict[str, float]) -> list[pytest.Item]:
+    """``items`` reordered so that xdist's first shares (``n // workers`` items, then the
+    rest split alike) each start with long modules of about equal total wall time."""
+    modules: dict[str, list[pytest.Item]] = {}
+    for item in items:
+        modules.setdefault(item.nodeid.split("::", 1)[0], []).append(item)
+    cost = {m: sum(wall_s.get(i.nodeid, 0.0) for i in its) for m, its in modules.items()}
+    long = sorted((m for m in modules if cost[m] >= LONG_MODULE_S), key=lambda m: -cost[m])
+    sizes, left = [], len(items)
+    for k in range(workers):
+        sizes.append(left // (workers - k))
+        left -= sizes[-1]
+    shares: list[list[pytest.Item]] = [[] for _ in range(workers)]
+    loads = [0.0] * workers
+    for m in long:
+        k = min(range(workers), key=lambda j: (loads[j], j))
+        shares[k] += modules[m]
+        loads[k] += cost[m]
+    rest = [i for m, its in modules.items() if m not in long for i in its]
+    out: list[pytest.Item] = []
+    for k in range(workers):
+        out += shares[k]
+        need = max(0, sum(sizes[: k + 1]) - len(out))
+        out += rest[:need]
+        rest = rest[need:]
+    return out + rest
