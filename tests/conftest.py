@@ -148,10 +148,11 @@ def _rewrite_test_modules_once(config: pytest.Config, folder: Path, into: Path |
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """In an xdist worker under ``worksteal``: the order of the module docstring (every
-    worker computes the same one, as xdist requires)."""
+    """In an xdist worker: the order of the module docstring (every worker computes the
+    same one, as xdist requires; under ``--dist load`` it only changes which worker runs
+    what)."""
     workerinput = getattr(config, "workerinput", None)
-    if workerinput is None or getattr(config.option, "dist", None) != "worksteal":
+    if workerinput is None:
         return
     try:
         known = {str(k): float(v) for k, v in json.loads(DURATIONS.read_text()).items()}
