@@ -2,6 +2,7 @@
 
     python benchmarks/suite_cpu.py run OUT [pytest arguments...]
     python benchmarks/suite_cpu.py report OUT [--top 25] [--modules 15]
+    python benchmarks/suite_cpu.py durations OUT [--min-s 2] > tests/durations.json
 
 With other work beside it (two busy loops on two cores, issue 30) the suite gets a share of
 the CPU, not the whole machine, so its wall time is about its total CPU over that share:
@@ -158,6 +159,26 @@ def report(out: Path, top: int, modules: int) -> None:
         print(f"{own + kids:7.1f} {own:6.1f} {kids:6.1f} {wall:6.1f} {int(count):5d}  {name}")
 
 
+def _rows(out: Path) -> list[dict[str, Any]]:
+    """Every test's row of a run (``cpu-*.jsonl``)."""
+    rows: list[dict[str, Any]] = []
+    for path in sorted(glob.glob(str(out / "cpu-*.jsonl"))):
+        for line in Path(path).read_text(encoding="utf-8").splitlines():
+            row = json.loads(line)
+            if "mark" not in row:
+                rows.append(row)
+    return rows
+
+
+def durations(out: Path, min_s: float) -> str:
+    """``tests/durations.json``: each test of at least ``min_s`` wall s in the run, by node
+    id, its wall s (one decimal), longest first; what ``tests/conftest.py`` orders the
+    workers' shares by."""
+    walls = {row["id"]: round(row["wall"], 1) for row in _rows(out) if row["wall"] >= min_s}
+    ranked = dict(sorted(walls.items(), key=lambda kv: (-kv[1], kv[0])))
+    return json.dumps(ranked, indent=0) + "\n"
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     sub = parser.add_subparsers(dest="command", required=True)
@@ -168,9 +189,15 @@ def main(argv: list[str] | None = None) -> int:
     rep.add_argument("out", type=Path)
     rep.add_argument("--top", type=int, default=25)
     rep.add_argument("--modules", type=int, default=15)
+    dur = sub.add_parser("durations", help="the slow tests' wall s, for tests/durations.json")
+    dur.add_argument("out", type=Path)
+    dur.add_argument("--min-s", type=float, default=2.0)
     args = parser.parse_args(argv)
     if args.command == "run":
         return run(args.out, list(args.pytest_args))
+    if args.command == "durations":
+        sys.stdout.write(durations(args.out, args.min_s))
+        return 0
     report(args.out, args.top, args.modules)
     return 0
 

@@ -202,7 +202,9 @@ class CpSatRun:
             self._pos = pos
             return
         total = float(sigma.sum())
-        unit = total / _SIGMA_STEPS if total > 0 else 1.0
+        unit = total / _SIGMA_STEPS
+        if not 0.0 < unit < float("inf"):  # none, or so small that the step underflows
+            unit = 1.0
         sig_int = [round(s / unit) for s in sigma]
         cap = sum(sig_int)
         h = inst.hop

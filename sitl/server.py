@@ -480,8 +480,9 @@ class SitlServer:
             if self._behind:  # overloaded: yield to I/O, then tick again at once
                 await asyncio.sleep(0)
                 continue
-            with contextlib.suppress(TimeoutError):
-                await asyncio.wait_for(self._stop.wait(), self.options.tick_s)
+            # a plain sleep, not wait_for(stop.wait()): a stop waits at most one tick, and
+            # each of the 200 ticks a wall second costs 60 us less (a task and a timeout less)
+            await asyncio.sleep(self.options.tick_s)
 
     def stop(self) -> None:
         """Ask :meth:`run` to return."""

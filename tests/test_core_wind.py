@@ -291,12 +291,16 @@ def test_without_commitment_the_leg_is_re_commanded_even_to_the_same_aim_point()
 
 
 def test_wind_replan_skips_a_vehicle_at_its_aim_and_re_predicts_a_leg_once() -> None:
+    """The rest of a leg is flown again in the old and the new wind from the same pose: the
+    difference, the wind's alone, is what replans (here 2 and 11 s a m/s of east wind)."""
     rule = WindReplan(2.0, 5.0, fov_radius_m=150.0)
-    calls: list[str] = []
+    calls: list[tuple[str, tuple[float, float]]] = []
+    per_m_s = {"1": 0.0, "2": 2.0, "3": 11.0}
 
-    def flight_time_s(v: VehicleRecord, aim: tuple[float, float]) -> float:
-        calls.append(v.id)
-        return 100.0
+    def flight_time_s(v: VehicleRecord, aim: tuple[float, float],
+                      wind: tuple[float, float]) -> float:
+        calls.append((v.id, wind))
+        return 100.0 + per_m_s[v.id] * wind[0]
 
     there = VehicleRecord("1", 1000.0, 100.0, 0.0, 22.0, 0.0, busy=True, target="A",
                           aim_xy_m=(1000.0, 0.0), eta_s=50.0, leg_wind_xy_m_s=(0.0, 0.0),
@@ -308,12 +312,35 @@ def test_wind_replan_skips_a_vehicle_at_its_aim_and_re_predicts_a_leg_once() -> 
                         aim_xy_m=(2000.0, 0.0), eta_s=90.0, leg_wind_xy_m_s=(0.0, 0.0),
                         leg_wind_source="fallback")
     legs = rule.legs(1.0, (1.0, 0.0), "vehicles", [there, near, far], flight_time_s)
-    assert calls == ["2", "3"]  # "1" is within the footprint of its aim point
+    # "1" is within the footprint of its aim point; the others flown in both winds
+    assert calls == [("2", (1.0, 0.0)), ("2", (0.0, 0.0)), ("3", (1.0, 0.0)), ("3", (0.0, 0.0))]
+    # "2" moved 2 s (kept), "3" 11 s: replanned, its arrival the commanded one moved by 11 s
     assert [(leg.vehicle.id, leg.eta_s, leg.new_eta_s) for leg in legs] == [("3", 90.0, 101.0)]
     assert rule.legs(2.0, (2.5, 0.0), "vehicles", [near], flight_time_s) == []
-    assert calls == ["2", "3"]  # 1.5 m/s from the wind it was last predicted in: not again
-    assert len(rule.legs(3.0, (3.5, 0.0), "vehicles", [near], flight_time_s)) == 0
-    assert calls == ["2", "3", "2"]  # 2.5 m/s away: predicted again (103 vs 103: kept)
+    assert len(calls) == 4  # 1.5 m/s from the wind it was last predicted in: not again
+    assert rule.legs(3.0, (3.5, 0.0), "vehicles", [near], flight_time_s) == []
+    assert calls[4:] == [("2", (3.5, 0.0)), ("2", (1.0, 0.0))]  # 2.5 m/s: 5 s, kept
+
+
+def test_a_late_vehicle_in_a_right_wind_is_not_replanned_by_the_first_estimate() -> None:
+    """A leg predicted in a right ``--wind`` whose vehicle is 20 s behind its prediction
+    (a slow upload, a loaded host): the first estimate, 0.1 m/s from the fallback, changes
+    the rest of the leg by far less than the margin, so nothing is replanned; the lateness
+    is not the wind's. Compared as ``t + T(pose; w)`` against the commanded arrival, it
+    replanned."""
+    rule = WindReplan(2.0, 5.0, fov_radius_m=150.0)
+    late = VehicleRecord("1", 0.0, 0.0, 0.0, 22.0, 30.0, busy=True, target="A",
+                         aim_xy_m=(2200.0, 0.0), eta_s=110.0, leg_wind_xy_m_s=(-15.0, 0.0),
+                         leg_wind_source="fallback")
+
+    def flight_time_s(v: VehicleRecord, aim: tuple[float, float],
+                      wind: tuple[float, float]) -> float:
+        return math.dist((v.x_m, v.y_m), aim) / (22.0 + wind[0])  # straight, into the wind
+
+    legs = rule.legs(30.0, (-14.9, 0.0), "vehicles", [late], flight_time_s)
+    assert legs == []
+    assert 30.0 + flight_time_s(late, (2200.0, 0.0), (-14.9, 0.0)) - 110.0 > 200.0
+    assert late.leg_wind_source == "vehicles"  # counted as predicted in the estimate now
 
 
 def test_wind_replan_settings_and_old_journals() -> None:

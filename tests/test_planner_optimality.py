@@ -131,6 +131,20 @@ def test_each_exact_method_matches_brute_force(p: PlanningProblem, method: str) 
     assert close(result.f1 * -(1 - p.tau) + p.tau * result.f2, result.objective, p)
 
 
+@pytest.mark.parametrize("sigmas", [(5e-324,), (0.0, 5e-324)])
+def test_subnormal_uncertainties_do_not_break_the_circuit_model(
+        sigmas: tuple[float, ...]) -> None:
+    """Hypothesis found these: a sigma sum so small that the flow's integer step
+    (sum / steps) underflowed to 0 made the model divide by zero (inf, NaN)."""
+    p = PlanningProblem(
+        uavs=(UavPose("u0", 0.0, 0.0, 0.0),),
+        targets=tuple(TargetEstimate(f"t{i}", 0.0, 0.0, s) for i, s in enumerate(sigmas)),
+        turn_radius_m=1.0, tau=0.0, time_limit_s=5.0, objective="arrival")
+    result = PlanSolver(p, method="circuit").solve()
+    assert result.status == "optimal"
+    assert close(result.objective, brute_force(p), p)
+
+
 @settings(max_examples=20, deadline=None)
 @given(problems(max_targets=6))
 def test_heuristic_is_feasible_and_never_better_than_optimum(p: PlanningProblem) -> None:

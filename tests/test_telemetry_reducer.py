@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import pytest
@@ -21,7 +22,9 @@ from groundstation.mavlink.telemetry import (
     Rebooted,
     StatusText,
     VehicleTelemetry,
+    _evolve,
 )
+from groundstation.mavlink.telemetry_events import VehicleSnapshot
 
 M = mavlink2
 ORIGIN = GeoOrigin(78.9, 11.9, 0.0)  # Ny-Alesund: cos(lat) ~ 0.19
@@ -387,3 +390,17 @@ def test_garbage_messages_never_raise() -> None:
     for value in (snap.x_m, snap.y_m, snap.heading_rad, snap.speed_m_s, snap.alt_m):
         assert value is None or math.isfinite(value)
     assert snap.battery_remaining_pct is None
+
+
+def test_the_reducer_s_copies_are_what_dataclasses_replace_gives() -> None:
+    """The reducer's own copy (``_evolve``, cheaper than ``dataclasses.replace``) gives an
+    equal, frozen snapshot and refuses a name that is not a field, as ``replace`` does."""
+    snap = VehicleSnapshot(system_id=3, x_m=1.0, mode=10, home=(78.9, 11.9, 5.0))
+    changes: dict[str, object] = {"x_m": 2.5, "armed": True, "last_heard_s": 7.0}
+    got = _evolve(snap, **changes)
+    assert got == dataclasses.replace(snap, **changes)  # type: ignore[arg-type]
+    assert snap.x_m == 1.0 and snap.armed is None  # the original untouched
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        got.x_m = 3.0  # type: ignore[misc]
+    with pytest.raises(TypeError, match="no_such_field"):
+        _evolve(snap, no_such_field=1)

@@ -287,9 +287,11 @@ class DecisionCore:
                 out += notes
         return out
 
-    def _leg_time_s(self, record: VehicleRecord, aim_xy_m: tuple[float, float]) -> float:
-        """Flight time from ``record``'s pose to the fixed point ``aim_xy_m`` now."""
-        wind = self.planning_wind_m_s()
+    def _leg_time_s(self, record: VehicleRecord, aim_xy_m: tuple[float, float],
+                    wind_xy_m_s: tuple[float, float] | None = None) -> float:
+        """Flight time from ``record``'s pose to the fixed point ``aim_xy_m`` in
+        ``wind_xy_m_s`` (None: the planning wind now)."""
+        wind = self.planning_wind_m_s() if wind_xy_m_s is None else wind_xy_m_s
         return intercept(record, aim_xy_m, (0.0, 0.0), wind, self.config.turn_radius_m)[2]
 
     # ------------------------------------------------------------------ event handlers

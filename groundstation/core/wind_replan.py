@@ -8,20 +8,28 @@ commitment such a leg was kept until its loiter ended, however wrong its predict
 
 **Rule.** A busy vehicle's leg, commanded in the wind ``w_0`` from source ``s_0``, is
 *re-predicted* when the planning wind ``w`` is from another source (the first estimate
-replaces the fallback, or the fallback comes back) or ``|w - w_0| > change_m_s``::
+replaces the fallback, or the fallback comes back) or ``|w - w_0| > change_m_s``: the rest
+of the leg is flown again in both winds, from where the vehicle is now, ::
 
-    t_new = t + T(pose, aim; w)         T: the intercept's flight time to the fixed aim
-                                        point (planner.wind.time_in_wind_s; Dubins in the
-                                        moving air, at the vehicle's cruise airspeed)
+    shift = T(pose, aim; w) - T(pose, aim; w_0)     T: the intercept's flight time to the
+                                                    fixed aim point (planner.wind.
+                                                    time_in_wind_s; Dubins in the moving
+                                                    air, at the vehicle's cruise airspeed)
 
-and *replanned* when ``|t_new - eta| > margin_s`` (``eta`` the leg's predicted arrival,
-``FlyToTarget.eta_s``): with commitment the vehicle becomes idle (its target is no longer
-covered, the next plan may give it the same target or another), without it the vehicle
-is re-commanded even if its new aim point is within ``retarget_threshold_m`` of the old
-one. A leg re-predicted within the margin keeps flying and counts as predicted in ``w``
-(it is re-predicted only after a further change of ``change_m_s``). A vehicle within the
-camera's footprint radius of its aim point is there: not re-predicted. Each replanned leg
-is a ``wind_replan`` note (vehicle, target, old and new arrival).
+and it is *replanned* when ``|shift| > margin_s``; its new arrival is ``eta + shift``
+(``eta`` the leg's predicted arrival, ``FlyToTarget.eta_s``). Both times start from the
+same pose, so the shift is the wind's alone: how late the vehicle already is (an upload
+that took seconds on a slow link, a pose a few frames old, a loaded host) is in both and
+cancels. Comparing ``t + T(pose, aim; w)`` with ``eta`` instead made a first estimate
+equal to a right ``--wind`` replan legs whose upload had been slow (5.2-5.6 s "moved" by
+14.9 against 15 m/s, with four suite workers beside two busy loops). With commitment the
+vehicle becomes idle (its target is no longer covered, the next plan may give it the same
+target or another), without it the vehicle is re-commanded even if its new aim point is
+within ``retarget_threshold_m`` of the old one. A leg re-predicted within the margin keeps
+flying and counts as predicted in ``w`` (it is re-predicted only after a further change of
+``change_m_s``). A vehicle within the camera's footprint radius of its aim point is there:
+not re-predicted. Each replanned leg is a ``wind_replan`` note (vehicle, target, old and
+new arrival).
 
 Pure (no clock, no I/O): the core calls :meth:`WindReplan.legs` on every wind update, with
 the active vehicles and a function that re-predicts a leg.
@@ -62,11 +70,12 @@ class WindReplan:
         wind_xy_m_s: tuple[float, float],
         source: str,
         vehicles: Iterable[VehicleRecord],
-        flight_time_s: Callable[[VehicleRecord, tuple[float, float]], float],
+        flight_time_s: Callable[[VehicleRecord, tuple[float, float], tuple[float, float]],
+                                float],
     ) -> list[LegReplan]:
         """The legs to replan now; every leg it re-predicts counts as predicted in
-        ``wind_xy_m_s`` (``source``) from now on. ``flight_time_s(vehicle, aim)``: the
-        flight time from the vehicle's pose to the aim point in ``wind_xy_m_s``."""
+        ``wind_xy_m_s`` (``source``) from now on. ``flight_time_s(vehicle, aim, wind)``:
+        the flight time from the vehicle's pose to the aim point in ``wind`` (ENU m/s)."""
         if self.change_m_s is None:
             return []
         out: list[LegReplan] = []
@@ -77,12 +86,13 @@ class WindReplan:
             moved = math.dist(wind_xy_m_s, v.leg_wind_xy_m_s)
             if source == v.leg_wind_source and not moved > self.change_m_s:
                 continue
+            old_wind = v.leg_wind_xy_m_s
             v.leg_wind_xy_m_s, v.leg_wind_source = wind_xy_m_s, source
             if math.dist((v.x_m, v.y_m), aim) <= self.fov_radius_m:
                 continue  # there already
-            new_eta = t_s + flight_time_s(v, aim)
-            if math.isfinite(new_eta) and abs(new_eta - eta) > self.margin_s:
-                out.append(LegReplan(v, eta, new_eta))
+            shift_s = flight_time_s(v, aim, wind_xy_m_s) - flight_time_s(v, aim, old_wind)
+            if math.isfinite(shift_s) and abs(shift_s) > self.margin_s:
+                out.append(LegReplan(v, eta, eta + shift_s))
         return out
 
     @staticmethod
