@@ -8,8 +8,9 @@ ENU is pymap3d's ``geodetic2enu``; ENU -> geodetic is pymap3d's ``enu2geodetic``
 for scalars (:func:`geodetic_from_enu`), the same equations in the same order in ``math``
 instead of NumPy 0-d arrays: 45x cheaper (6.6 against 296 us a point on the shared 2-core
 machine, `python benchmarks/geodesy_bench.py`), within 1.4e-14 deg and 7e-10 m of pymap3d
-(``tests/test_geodesy_scalar.py`` holds it to 1e-12 deg and 1e-8 m). The built-in simulator converts every
-position it reports with it, ten times a simulated second per vehicle.
+(``tests/test_geodesy_scalar.py`` holds it to 1e-12 deg and 1e-8 m). The built-in
+simulator converts every position it reports with it, ten times a simulated second per
+vehicle.
 
 Compass heading ``hdg`` (clockwise from north) and ENU heading ``psi`` (counter-clockwise
 from east) are related by ``psi = pi/2 - hdg``.
