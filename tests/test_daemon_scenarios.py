@@ -28,7 +28,10 @@ def visits(journal: list[dict[str, Any]]) -> dict[str, list[float]]:
 
 @pytest.mark.timeout(90)
 def test_paper_boat_three_vehicles(tmp_path: Path) -> None:
-    # the paper's UAVs are launched from the boat at t = 0: start them flying there
+    # the paper's UAVs are launched from the boat at t = 0: start them flying there. 25x,
+    # not 50x: the daemon's plans and round trips take wall time while the simulator's
+    # clock runs on, and beside two busy loops at 50x the mean uncertainty came out just
+    # over its bound below (23 327 against 22 829)
     daemon, journal = run_gcs(
         tmp_path,
         "--vehicles",
@@ -37,7 +40,7 @@ def test_paper_boat_three_vehicles(tmp_path: Path) -> None:
         "paper-boat",
         "--sim-airborne",
         "--speedup",
-        "50",
+        "25",
         "--duration",
         "200",
     )
