@@ -109,10 +109,13 @@ def _read_rewrites_from_the_controller() -> None:
         own_cache_dir = rewrite.get_cache_dir
     except (ImportError, AttributeError):
         return
+    if getattr(own_cache_dir, "floe_rewrites", False):
+        return  # this module imported a second time (tests/test_suite_order.py)
 
     def cache_dir(file_path: Path) -> Path:
         return Path(folder) if file_path.resolve().parent == TESTS else own_cache_dir(file_path)
 
+    cache_dir.floe_rewrites = True  # type: ignore[attr-defined]
     rewrite.get_cache_dir = cache_dir
 
 
@@ -169,6 +172,7 @@ def deal(items: list[pytest.Item], workers: int, wall_s: dict[str, float]) -> li
         modules.setdefault(item.nodeid.split("::", 1)[0], []).append(item)
     cost = {m: sum(wall_s.get(i.nodeid, 0.0) for i in its) for m, its in modules.items()}
     long = sorted((m for m in modules if cost[m] >= LONG_MODULE_S), key=lambda m: -cost[m])
+    dealt = set(long)
     sizes, left = [], len(items)
     for k in range(workers):
         sizes.append(left // (workers - k))
@@ -179,11 +183,13 @@ def deal(items: list[pytest.Item], workers: int, wall_s: dict[str, float]) -> li
         k = min(range(workers), key=lambda j: (loads[j], j))
         shares[k] += modules[m]
         loads[k] += cost[m]
-    rest = [i for m, its in modules.items() if m not in long for i in its]
+    rest = [i for m, its in modules.items() if m not in dealt for i in its]
     out: list[pytest.Item] = []
-    for k in range(workers):
-        out += shares[k]
-        need = max(0, sum(sizes[: k + 1]) - len(out))
+    end = 0  # where xdist's share k ends
+    for share, size in zip(shares, sizes, strict=True):
+        end += size
+        out += share
+        need = max(0, end - len(out))
         out += rest[:need]
-        rest = rest[need:]
+        del rest[:need]
     return out + rest

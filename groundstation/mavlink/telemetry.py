@@ -120,8 +120,9 @@ _SNAPSHOT_FIELDS = frozenset(f.name for f in fields(VehicleSnapshot))
 
 
 def _evolve(snap: VehicleSnapshot, **changes: object) -> VehicleSnapshot:
-    """``dataclasses._evolve(snap, **changes)`` without running ``__init__`` again: every
-    frame passes here several times, a flood's too, and ``replace`` rebuilds all 35 fields
+    """``dataclasses.replace(snap, **changes)`` without running ``__init__`` again: every
+    frame passes here (a handler gathers its changes into one copy), a flood's too, and
+    ``replace`` rebuilds all 35 fields
     through ``__init__`` (6 against 72 us a call on a loaded host; the drain of a backlog is
     that much faster). The copy is as frozen as the original (the snapshot has no
     ``__post_init__``); a name that is not a field raises TypeError, as ``replace`` does."""
@@ -248,10 +249,10 @@ class VehicleTelemetry:
         self._boot_verdict = verdict
         if verdict == "reboot":
             return self._rebooted(boot_ms, now_s)
-        snap = _evolve(self._snap, reboot_suspected=self.reboot.suspected)
+        changes: dict[str, object] = {"reboot_suspected": self.reboot.suspected}
         if verdict in ("ok", "resync") and (last is None or boot_ms > last):
-            snap = _evolve(snap, time_boot_ms=boot_ms)
-        self._snap = snap
+            changes["time_boot_ms"] = boot_ms
+        self._snap = _evolve(self._snap, **changes)
         return []
 
     def _rebooted(self, boot_ms: int, now_s: float) -> list[TelemetryEvent]:
@@ -289,17 +290,18 @@ class VehicleTelemetry:
             latest = self.reboot.latest_ms()
             self.reboot.booting()
             events += self._rebooted(latest if latest is not None else 0, now_s)
-        snap = _evolve(self._snap, last_heartbeat_s=now_s, system_status=status)
+        snap = self._snap
         armed = bool(int(msg.base_mode) & _ARMED_FLAG)
         if snap.armed is not None and armed != snap.armed:  # transitions only
             events.append(Armed(now_s) if armed else Disarmed(now_s))
-        snap = _evolve(snap, armed=armed)
+        changes: dict[str, object] = {"last_heartbeat_s": now_s, "system_status": status,
+                                      "armed": armed}
         if int(msg.base_mode) & _CUSTOM_MODE_FLAG:
             mode = int(msg.custom_mode)
             if mode != snap.mode:
                 events.append(ModeChanged(now_s, snap.mode, mode, snap.mode_name, mode_name(mode)))
-            snap = _evolve(snap, mode=mode, mode_name=mode_name(mode))
-        self._snap = snap
+            changes.update(mode=mode, mode_name=mode_name(mode))
+        self._snap = _evolve(snap, **changes)
         return events
 
     def _on_global_position(self, msg: MAVLinkMessage, now_s: float) -> list[TelemetryEvent]:
@@ -311,34 +313,32 @@ class VehicleTelemetry:
         if self._boot_verdict != "ahead":  # a held-back boot time orders nothing
             self._last_position_boot_ms = boot_ms
         lat, lon = int(msg.lat), int(msg.lon)
-        snap = self._snap
+        changes: dict[str, object] = {}
         if lat == 0 and lon == 0:
             pass  # no GPS fix yet: ArduPilot sends 0/0; not an error, nothing to store
         elif abs(lat) > 900_000_000 or abs(lon) > 1_800_000_000:
             events.append(InvalidTelemetry(now_s, "GLOBAL_POSITION_INT", "lat/lon", (lat, lon)))
         else:
             x_m, y_m, _ = self.origin.to_local(lat * 1e-7, lon * 1e-7)
-            snap = _evolve(snap, x_m=x_m, y_m=y_m, last_position_s=now_s,
-                           position_boot_ms=boot_ms)
+            changes.update(x_m=x_m, y_m=y_m, last_position_s=now_s, position_boot_ms=boot_ms)
         alt_m = int(msg.relative_alt) / 1000.0
         if abs(alt_m) > _MAX_ALT_M:
             events.append(InvalidTelemetry(now_s, "GLOBAL_POSITION_INT", "relative_alt", alt_m))
         else:
-            snap = _evolve(snap, alt_m=alt_m)
+            changes["alt_m"] = alt_m
         vn_m_s, ve_m_s = int(msg.vx) / 100.0, int(msg.vy) / 100.0
-        snap = _evolve(snap, ve_m_s=ve_m_s, vn_m_s=vn_m_s, speed_m_s=math.hypot(ve_m_s, vn_m_s))
+        changes.update(ve_m_s=ve_m_s, vn_m_s=vn_m_s, speed_m_s=math.hypot(ve_m_s, vn_m_s))
         hdg = int(msg.hdg)
         if hdg != _UINT16_UNKNOWN:
             if 0 <= hdg <= 36000:
-                snap = _evolve(snap, heading_rad=enu_rad_from_compass_deg(hdg / 100.0))
+                changes["heading_rad"] = enu_rad_from_compass_deg(hdg / 100.0)
             else:
                 events.append(InvalidTelemetry(now_s, "GLOBAL_POSITION_INT", "hdg", hdg))
-        self._snap = snap
+        self._snap = _evolve(self._snap, **changes)
         return events
 
     def _on_vfr_hud(self, msg: MAVLinkMessage, now_s: float) -> list[TelemetryEvent]:
         events: list[TelemetryEvent] = []
-        snap = self._snap
         speeds: dict[str, float] = {}
         for name in ("groundspeed", "airspeed"):
             value = float(getattr(msg, name))
@@ -346,16 +346,17 @@ class VehicleTelemetry:
                 speeds[name] = max(value, 0.0)
             else:
                 events.append(InvalidTelemetry(now_s, "VFR_HUD", name, value))
+        changes: dict[str, object] = {}
         if "groundspeed" in speeds:
-            snap = _evolve(snap, speed_m_s=speeds["groundspeed"])
+            changes["speed_m_s"] = speeds["groundspeed"]
         if "airspeed" in speeds:
-            snap = _evolve(snap, airspeed_m_s=speeds["airspeed"])
+            changes["airspeed_m_s"] = speeds["airspeed"]
         heading = int(msg.heading)
         if 0 <= heading <= 360:
-            snap = _evolve(snap, heading_rad=enu_rad_from_compass_deg(float(heading)))
+            changes["heading_rad"] = enu_rad_from_compass_deg(float(heading))
         else:
             events.append(InvalidTelemetry(now_s, "VFR_HUD", "heading", heading))
-        self._snap = snap
+        self._snap = _evolve(self._snap, **changes)
         return events
 
     def _on_attitude(self, msg: MAVLinkMessage, now_s: float) -> list[TelemetryEvent]:
@@ -398,24 +399,24 @@ class VehicleTelemetry:
         current_ca: int = -1,
     ) -> list[TelemetryEvent]:
         events: list[TelemetryEvent] = []
-        snap = self._snap
+        changes: dict[str, object] = {}
         if current_ca == -1:  # ArduPilot: no current sensor / not known
-            snap = _evolve(snap, battery_current_a=None)
+            changes["battery_current_a"] = None
         elif abs(current_ca) <= _MAX_CURRENT_CA:
-            snap = _evolve(snap, battery_current_a=current_ca / 100.0)
+            changes["battery_current_a"] = current_ca / 100.0
         else:
             events.append(InvalidTelemetry(now_s, kind, "current_battery", current_ca))
         if remaining != -1:
             if 0 <= remaining <= 100:
-                snap = _evolve(snap, battery_remaining_pct=float(remaining))
+                changes["battery_remaining_pct"] = float(remaining)
             else:
                 events.append(InvalidTelemetry(now_s, kind, "battery_remaining", remaining))
         if voltage_mv is not None:
             if 0 <= voltage_mv <= 100_000:
-                snap = _evolve(snap, battery_voltage_v=voltage_mv / 1000.0)
+                changes["battery_voltage_v"] = voltage_mv / 1000.0
             else:
                 events.append(InvalidTelemetry(now_s, kind, "voltage", voltage_mv))
-        self._snap = snap
+        snap = self._snap = _evolve(self._snap, **changes)
         pct, volts = snap.battery_remaining_pct, snap.battery_voltage_v
         low = (pct is not None and pct < self.battery_low_pct) or (
             self.battery_low_v is not None and volts is not None and 0 < volts < self.battery_low_v
