@@ -7,8 +7,9 @@ WGS-84 ellipsoid, so a missing cos(lat) at 78.9 N, a 5x error, cannot creep in: 
 ENU is pymap3d's ``geodetic2enu``; ENU -> geodetic is pymap3d's ``enu2geodetic`` written out
 for scalars (:func:`geodetic_from_enu`), the same equations in the same order in ``math``
 instead of NumPy 0-d arrays, the origin's terms computed once: 48x cheaper (4.8 against
-230 us a point on the idle 2-core machine, `python benchmarks/geodesy_bench.py`), within 1.4e-14 deg and 7e-10 m of pymap3d
-(``tests/test_geodesy_scalar.py`` holds it to 1e-12 deg and 1e-8 m). The built-in
+230 us a point on the idle 2-core machine, `python benchmarks/geodesy_bench.py`), within
+1.4e-14 deg and 7e-10 m of pymap3d (``tests/test_geodesy_scalar.py`` holds it to 1e-12
+deg and 1e-8 m). The built-in
 simulator converts every position it reports with it, ten times a simulated second per
 vehicle.
 
