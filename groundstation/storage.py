@@ -290,6 +290,8 @@ class AppendLog:
             return False
         self._seq += 1
         queue = self._vital if vital else self._high if keep else self._low
+        if not (self.failing or self._low or self._high or self._vital):
+            return self._write_now(queue, data)  # nothing held: the common case
         queue.append((self._seq, data))
         self.held_bytes += len(data)
         if self.failing:
@@ -412,6 +414,32 @@ class AppendLog:
         except OSError:
             return 0
         return size
+
+    def _write_now(self, queue: collections.deque[tuple[int, bytes]], data: bytes) -> bool:
+        """:meth:`append` with nothing held: one write, as :meth:`_drain` would make it, the
+        record queued only when it did not go whole (held on an error, the rest written by
+        :meth:`_drain` after a short write)."""
+        assert self._fd is not None
+        try:
+            n = _os_write(self._fd, data)
+            if n <= 0:
+                raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        except OSError as exc:
+            queue.append((self._seq, data))
+            self.held_bytes += len(data)
+            self._last_try_s = self._monotonic()
+            self._fail(exc)
+            return False
+        if n == len(data):
+            self._committed += n
+            self.records += 1
+            self.bytes_written += n
+            return True
+        queue.append((self._seq, data))  # a short write: _drain writes the rest or fails
+        self.held_bytes += len(data)
+        self._head_done = n
+        self._drain()
+        return not self.failing and self.held == 0
 
     def _head(self) -> collections.deque[tuple[int, bytes]] | None:
         queues = [q for q in (self._low, self._high, self._vital) if q]

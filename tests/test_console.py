@@ -129,9 +129,11 @@ def test_table_keeps_the_live_map_url_and_shows_operator_events(tmp_path: Path) 
 def test_unreachable_tcp_on_a_terminal_warns_and_exits_1(tmp_path: Path, mode: str) -> None:
     port = closed_port()
     code, out = gcs_run_pty(
-        # the silence is counted on the link's clock (wall s): 10 s after its start, seen
-        # at the alerts' next look (at most a wall second later); the run ends at 15 s
-        ["--vehicles", f"tcp:127.0.0.1:{port}", "--speedup", "1", "--duration", "15",
+        # the silence is counted on the link's clock (wall s): 2 s after its start
+        # (--link-silent-after), seen at the alerts' next look (at most a wall second
+        # later); the run ends at 6 s
+        ["--vehicles", f"tcp:127.0.0.1:{port}", "--speedup", "1", "--duration", "6",
+         "--link-silent-after", "2",
          "--http", "127.0.0.1:0", "--detections", "off", "--status", mode,
          "--run-dir", str(tmp_path)], tmp_path)  # fmt: skip
     plain = ANSI.sub("", out).replace("\r", "")
@@ -155,10 +157,12 @@ def test_unreachable_tcp_on_a_terminal_warns_and_exits_1(tmp_path: Path, mode: s
 def test_unreachable_tcp_in_log_mode_on_a_pipe(tmp_path: Path) -> None:
     port = closed_port()
     result = gcs_run_pipe(
-        # the silence is counted on the link's clock (wall s): 10 s after its start, seen
-        # at the alerts' next look (at most a wall second later); the run ends at 15 s
-        ["--vehicles", f"tcp:127.0.0.1:{port}", "--speedup", "1", "--duration", "15",
-         "--http", "off", "--detections", "off", "--run-dir", str(tmp_path)], tmp_path)
+        # the silence is counted on the link's clock (wall s): 2 s after its start
+        # (--link-silent-after), seen at the alerts' next look (at most a wall second
+        # later); the run ends at 6 s
+        ["--vehicles", f"tcp:127.0.0.1:{port}", "--speedup", "1", "--duration", "6",
+         "--link-silent-after", "2", "--http", "off", "--detections", "off",
+         "--run-dir", str(tmp_path)], tmp_path)
     out, err = result.stdout, result.stderr
     assert result.returncode == EXIT_NO_VEHICLE, out + err
     assert "\x1b" not in out + err  # no colour or cursor codes on a pipe

@@ -285,6 +285,43 @@ def test_silent_link_advice_and_drops_come_from_the_link_and_the_daemon(tmp_path
         "TCP:127.0.0.1:5760", "tcpin:127.0.0.1:5761", "udpout:127.0.0.1:14550"]
 
 
+def test_link_silence_threshold_is_the_configured_one(tmp_path: Path) -> None:
+    """``links.silent_after_s`` (``--link-silent-after``): a link is reported silent at
+    that many wall seconds after its start, not before, whatever the default; the flag
+    sets it and a threshold that is not a positive number is refused, naming the flag."""
+    from domain.errors import ConfigError
+    from groundstation.daemon.alerts import OperatorAlerts
+    from groundstation.daemon.config_parse import parse_config
+    from groundstation.link import open_link
+
+    config = parse_config({"vehicles": ["udpin:127.0.0.1:0"]}, {"--link-silent-after": 2.5})
+    assert config.links.silent_after_s == 2.5
+    assert parse_config({"vehicles": ["udpin:127.0.0.1:0"]}, {}).links.silent_after_s == (
+        SILENT_AFTER_S)
+    for bad in (0.0, -1.0, float("nan")):
+        with pytest.raises(ConfigError, match="--link-silent-after"):
+            parse_config({"vehicles": ["udpin:127.0.0.1:0"]}, {"--link-silent-after": bad})
+    t = [0.0]
+    daemon, journal = _offline_daemon(tmp_path, 1.0, t)
+    daemon.router.add_vehicle_link(open_link("tcp:127.0.0.1:5760", link_id="vehicles0"))
+    wall = [50.0]
+    alerts = OperatorAlerts(daemon, wall_s=lambda: wall[0],
+                            silent_after_s=config.links.silent_after_s)
+    try:
+        alerts.check(0.0)
+        wall[0] += 2.4
+        alerts.check(2.4)
+        assert not alerts.silent_links()
+        wall[0] += 0.1
+        alerts.check(2.5)
+        assert [x.link_id for x in alerts.silent_links()] == ["vehicles0"]
+    finally:
+        journal.close()
+    (line,) = [e for e in read_journal(tmp_path / "journal.jsonl")
+               if e["event"] == "link_silent"]
+    assert line["silent_s"] == 2.5 and line["since"] == "start"
+
+
 def test_upload_retries_are_counted_by_the_controller() -> None:
     """The table's retries column reads the controller's count (every upload job's
     retries), not the journal subscription that may drop lines."""

@@ -166,6 +166,14 @@ def _parser() -> argparse.ArgumentParser:
         "mission seconds and its heartbeats came consistently on the new one (default 10)",
     )
     a(
+        "--link-silent-after",
+        dest="link_silent_after_s",
+        type=float,
+        metavar="S",
+        help="warn when a vehicle link made no vehicle S wall seconds after its start or "
+        "its connect (default 10)",
+    )
+    a(
         "--link-rate",
         dest="link_rate",
         action="append",

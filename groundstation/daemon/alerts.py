@@ -4,7 +4,8 @@
   seconds, whatever the mission's speed-up), from the link's own progress, never from the
   mission clock: from the daemon's start while it never connected, from its connect once
   it connected, from its first frame once frames arrive. A vehicle link none of whose
-  frames made a vehicle (a session bound to it) ``SILENT_AFTER_S`` seconds after the latest
+  frames made a vehicle (a session bound to it) ``silent_after_s`` seconds
+  (``links.silent_after_s``, ``--link-silent-after``, default ``SILENT_AFTER_S``) after the latest
   of these (``NO_VEHICLE_AFTER_S`` after its first frame: frames arrive, the vehicle is
   not made yet) says so, and again every ``SILENT_REPEAT_S`` while it stays so: one
   ``link_silent`` journal line (``link``, ``url``, ``silent_s``: seconds since ``since``,
@@ -82,9 +83,11 @@ class OperatorAlerts:
 
     def __init__(
         self, daemon: AlertsHost, feed_counters: Callable[[], Mapping[str, int]] | None = None,
-        wall_s: Callable[[], float] = time.monotonic,
+        wall_s: Callable[[], float] = time.monotonic, silent_after_s: float = SILENT_AFTER_S,
     ) -> None:
         self.daemon = daemon
+        self.silent_after_s = silent_after_s
+        """Wall seconds of silence after the start or connect (``links.silent_after_s``)."""
         self.feed_counters = feed_counters
         self.wall_s = wall_s
         """The links' own clock (wall seconds): silence is counted on it."""
@@ -159,7 +162,7 @@ class OperatorAlerts:
             since, since_s = self._progress(link, wall_s)
             silent_s = wall_s - since_s
             due = self._next_silent_s.get(link_id)
-            after_s = NO_VEHICLE_AFTER_S if since == "first frame" else SILENT_AFTER_S
+            after_s = NO_VEHICLE_AFTER_S if since == "first frame" else self.silent_after_s
             if silent_s < after_s or (due is not None and wall_s < due):
                 continue
             self._next_silent_s[link_id] = wall_s + SILENT_REPEAT_S

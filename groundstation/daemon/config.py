@@ -135,6 +135,10 @@ class LinksConfig:
     vehicles: tuple[str, ...] = ()
     out: tuple[str, ...] = ()
     rebind_after_s: float = 10.0
+    silent_after_s: float = 10.0
+    """A vehicle link that made no vehicle this many wall seconds after its start (or its
+    connect) is reported silent, on the console and in the journal (``link_silent``;
+    ``daemon/alerts.py``)."""
     gcs_system_id: int = 245
     transfer_timeout_s: float = 1.5
     transfer_retries: int = 5

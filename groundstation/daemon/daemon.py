@@ -640,16 +640,13 @@ class Daemon:
             due.tick_s = now - MAX_TICKS_PER_WAKE * tick_s
         while due.tick_s <= now + 1e-9:
             t = due.tick_s
+            on_second = t >= due.sample_s - 1e-9
             if self.world is not None:
                 for event in self.world.step_to(t):
                     self.feed.scenario_event(event)
-                if self.world.boat_xy_m is not None and (
-                    self.core_config.watch is None or t >= due.sample_s - 1e-9
-                ):  # on a watch the ship's fix once a second, with its velocity
-                    self.set_boat(*self.world.boat_xy_m, self.world.boat_velocity_m_s
-                                  if self.core_config.watch is not None else None)
+                self._scenario_boat(on_second)
             self.core_event(ev.Tick(t))
-            if t >= due.sample_s - 1e-9:
+            if on_second:
                 self.feed.sample(t)
                 self.watch_metrics.sample(self.core.watch_view())
                 due.sample_s += 1.0
@@ -669,6 +666,21 @@ class Daemon:
         """Journal ``link_drops`` where a link's receive trouble grew (see LinkReporter)."""
         for line in self._due.link_reporter.changes(self.router.links):
             self.journal("link_drops", **line)
+
+    def _scenario_boat(self, on_second: bool) -> None:
+        """The scenario's boat at this tick. The operating area follows it every tick; the
+        core hears it (``BoatPosition``, journalled) every tick only where its priorities
+        read it (``priority_gain`` > 0), else once a mission second, with its velocity on
+        a watch: as ``gcs simulate`` feeds it. (Every tick cost a ship-filter update and a
+        journal line each 0.1 mission s: a tenth of a paper-boat run's CPU.)"""
+        assert self.world is not None
+        boat = self.world.boat_xy_m
+        if boat is None or self.config.ship.url is not None:
+            return
+        self.area.boat_xy_m = boat
+        watch = self.core_config.watch is not None
+        if on_second or (not watch and self.core_config.priority_gain > 0):
+            self.set_boat(*boat, self.world.boat_velocity_m_s if watch else None)
 
     def set_boat(self, x_m: float, y_m: float,
                  velocity_m_s: tuple[float, float] | None = None) -> None:

@@ -257,7 +257,8 @@ async def run_daemon(
         feed = await start_detection_feed(config, daemon, print_fn, stack)
         ship = await start_ship_feed(config, daemon, print_fn, stack)
         services += [ship] if ship is not None else []
-        alerts = OperatorAlerts(daemon, feed_counters(feed))
+        alerts = OperatorAlerts(daemon, feed_counters(feed),
+                                silent_after_s=config.links.silent_after_s)
         services += [FnService("alerts", alerts.run), *([control] if control else [])]
         beacon = ship_beacon_service(config, daemon)
         services += [beacon] if beacon is not None else []
