@@ -209,26 +209,40 @@ class _Peer(asyncio.DatagramProtocol):
         self.got += [(time.monotonic(), m) for m in self.decoder.feed(data)]
 
 
+FORGED_VEHICLE = {"other_component": 1, "same_component": 2, "other_link": 3}
+"""Which vehicle each kind of forgery claims to be: the three share one run (below)."""
+
+
 def _inject(how: str, peer: _Peer, seed: int) -> Action:
+    sysid = FORGED_VEHICLE[how]
+
     def action(daemon: Daemon, server: SitlServer) -> None:
         if how == "other_link":
             assert peer.transport is not None and peer.addr is not None
-            for frame in forged_frames(1, 1, seed=seed):
+            for frame in forged_frames(sysid, 1, seed=seed):
                 peer.transport.sendto(frame, peer.addr)
             return
         compid = 191 if how == "other_component" else 1
-        data = b"".join(forged_frames(1, compid, seed=seed))
-        slot = next(s for s in server.slots if s.config.system_id == 1)
-        assert slot.clients, "the daemon is not connected to vehicle 1"
+        data = b"".join(forged_frames(sysid, compid, seed=seed))
+        slot = next(s for s in server.slots if s.config.system_id == sysid)
+        assert slot.clients, f"the daemon is not connected to vehicle {sysid}"
         for writer in slot.clients:  # on the vehicle's own link, between its frames
             writer.write(data)
 
     return action
 
 
-@pytest.mark.timeout(120)
-@pytest.mark.parametrize("how", ["other_component", "same_component", "other_link"])
-def test_single_forged_frames_change_nothing(tmp_path: Path, how: str) -> None:
+_FORGED_AT_S = (40.0, 70.0, 100.0)
+
+
+@pytest.fixture(scope="module")
+def forged_run(
+    tmp_path_factory: pytest.TempPathFactory,
+) -> tuple[SitlServer, Journal, list[tuple[float, Any]]]:
+    """One run of three airborne vehicles, each forged in its own way at 40, 70 and 100
+    mission s (:data:`FORGED_VEHICLE`): vehicle 1 by another component on its link,
+    vehicle 2 by its own autopilot's ids on its link, vehicle 3 from the ``--out`` peer.
+    Returns the simulator (what reached each vehicle), the journal and what the peer got."""
     sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     sock.bind(("127.0.0.1", 0))
     peer = _Peer()
@@ -236,46 +250,60 @@ def test_single_forged_frames_change_nothing(tmp_path: Path, how: str) -> None:
     async def before() -> None:
         await asyncio.get_running_loop().create_datagram_endpoint(lambda: peer, sock=sock)
 
-    injections = [40.0, 70.0, 100.0]
     _, server, journal = run_with_actions(
-        tmp_path,
+        tmp_path_factory.mktemp("forged"),
         ["--vehicles", "sim:3", "--scenario", "default", "--sim-airborne", "--loiter", "20",
          "--out", f"udpout:127.0.0.1:{sock.getsockname()[1]}",
          "--speedup", "25", "--duration", "220"],
-        [(t, _inject(how, peer, seed=i)) for i, t in enumerate(injections)],
+        [(t, _inject(how, peer, seed=i)) for i, t in enumerate(_FORGED_AT_S)
+         for how in FORGED_VEHICLE],
         before=before,
     )  # fmt: skip
     sock.close()  # its transport died with the event loop
+    return server, journal, peer.got
+
+
+@pytest.mark.timeout(120)
+@pytest.mark.parametrize("how", ["other_component", "same_component", "other_link"])
+def test_single_forged_frames_change_nothing(
+    forged_run: tuple[SitlServer, Journal, list[tuple[float, Any]]], how: str
+) -> None:
+    server, journal, peer_got = forged_run
+    sysid = FORGED_VEHICLE[how]
     assert not events(journal, "task_error")
     # nothing really happened to any vehicle: every such line would be caused by a forgery
     for name in FALSE_STATE_EVENTS:
         assert not events(journal, name), f"{name}: {events(journal, name)}"
     # every loiter end is a real one: the vehicle said "Loiter time complete" just before
+    ends = events(journal, "loiter_end", vehicle=str(sysid))
+    assert ends, f"vehicle {sysid} ended no loiter"
     for end in events(journal, "loiter_end"):
         texts = [
             e for e in events(journal, "statustext", vehicle=end["vehicle"])
             if "Loiter time complete" in e["text"] and end["t"] - 3.0 <= e["t"] <= end["t"]
         ]  # fmt: skip
         assert texts, f"loiter_end without the vehicle's own loiter end: {end}"
-    # no RTL sent to vehicle 1, and its commands still go to its real link
-    to_v1 = from_gcs(server, 1)
+    # no RTL sent to the forged vehicle, and its commands still go to its real link
+    to_vehicle = from_gcs(server, sysid)
     assert not [
-        c for c in to_v1
+        c for c in to_vehicle
         if c.command == M.MAV_CMD_NAV_RETURN_TO_LAUNCH or is_set_mode(c, RTL)
     ]  # fmt: skip
-    uploads = [e for e in events(journal, "upload", vehicle="1", ok=True) if e["t"] > 40.0]
-    assert uploads, "vehicle 1 got no new mission after the first forgery"
-    counts = [c.t_s for c in to_v1 if c.kind == "MISSION_COUNT"]
+    first_s = _FORGED_AT_S[0]
+    uploads = [e for e in events(journal, "upload", vehicle=str(sysid), ok=True)
+               if e["t"] > first_s]
+    assert uploads, f"vehicle {sysid} got no new mission after the first forgery"
+    counts = [c.t_s for c in to_vehicle if c.kind == "MISSION_COUNT"]
     for up in uploads:
         assert [t for t in counts if up["t"] - 15.0 <= t <= up["t"] + 1.0], (
-            f"not via its link: {up}; {[(c.t_s, c.kind, c.command) for c in to_v1]}"
+            f"not via its link: {up}; {[(c.t_s, c.kind, c.command) for c in to_vehicle]}"
         )
     # and not to the other link (which is only a forwarding peer)
     commands = {"MISSION_COUNT", "COMMAND_LONG", "COMMAND_INT", "SET_MODE", "MISSION_ITEM_INT"}
     to_peer = [
-        m for _, m in peer.got
+        m for _, m in peer_got
         if m.get_srcSystem() == GCS_SYSID and m.get_type() in commands
-        and getattr(m, "target_system", 0) == 1
+        and getattr(m, "target_system", 0) == sysid
     ]  # fmt: skip
     assert not to_peer, to_peer[:3]
 

@@ -44,6 +44,9 @@ RESERVE_BYTES = 1024 * 1024
 #: Events written first at the end of a run on a full disk (never dropped).
 VITAL_EVENTS = frozenset({"stop"})
 
+_ENCODE = json.JSONEncoder(separators=(",", ":")).encode
+"""One compact encoder for every line (``json.dumps`` with separators builds one a call)."""
+
 _RECENT = 200
 _SUBSCRIBER_QUEUE = 1000
 #: Journal events dropped first when held lines exceed the cap (periodic, re-derivable).
@@ -133,7 +136,7 @@ class Journal:
         if self.file is None:
             return
         try:
-            data = (json.dumps(line, separators=(",", ":")) + "\n").encode("utf-8")
+            data = (_ENCODE(line) + "\n").encode("utf-8")
         except (TypeError, ValueError) as exc:  # cannot happen after _clean; never fatal
             log.error("journal: line not written: %s", exc)
             return
