@@ -8,9 +8,10 @@ on one machine they are bit-for-bit equal, the same BLAS products). The observer
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import pytest
-from filterpy.kalman import KalmanFilter
 
 from observer import Observer, ObserverConfig
 from observer.kalman_track import (
@@ -36,9 +37,17 @@ def _random_track(rng: np.random.Generator, grid_step_s: float) -> KalmanTrack:
     return track
 
 
+def _kalman_filter() -> Any:
+    """filterpy's KalmanFilter, the reference (imported here: it pulls in scipy.stats, a
+    second of CPU that the workers which never run these tests need not pay)."""
+    from filterpy.kalman import KalmanFilter
+
+    return KalmanFilter(dim_x=4, dim_z=2)
+
+
 def _filterpy_predict(x: np.ndarray, p: np.ndarray, dt_s: float, q_per_s: float
                       ) -> tuple[np.ndarray, np.ndarray]:
-    kf = KalmanFilter(dim_x=4, dim_z=2)
+    kf = _kalman_filter()
     kf.x, kf.P = x.copy(), p.copy()
     kf.predict(F=transition(dt_s), Q=process_noise(q_per_s, dt_s))
     return kf.x, kf.P
@@ -138,7 +147,7 @@ def test_floe_filter_predicts_and_updates_as_filterpy_bit_for_bit(seed: int) -> 
         p = m @ m.T + np.eye(4) * 1e-3
         dt_s, q_per_s = float(rng.uniform(0.01, 5.0)), float(rng.uniform(0.0, 2.0))
         z, r = rng.normal(0.0, 500.0, size=2), float(rng.uniform(0.1, 400.0)) * np.eye(2)
-        ref = KalmanFilter(dim_x=4, dim_z=2)
+        ref = _kalman_filter()
         ref.x, ref.P, ref.H = x.copy(), p.copy(), C.copy()
         ours = CvFilter(x.copy(), p.copy())
         for f in (ref, ours):
