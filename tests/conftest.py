@@ -48,6 +48,7 @@ import signal
 import sys
 import tempfile
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -124,18 +125,36 @@ _read_rewrites_from_the_controller()
 
 def _rewrite_test_modules_once(config: pytest.Config, folder: Path, into: Path | None) -> int:
     """Rewrite every test module of ``folder`` whose rewrite in ``into`` (None: pytest's
-    own cache) is missing or stale, as pytest's import hook would; the number there now.
-    pytest's rewrite helpers are internal: if they change, nothing is rewritten here and
-    the workers do it as before."""
+    own cache) is missing or stale, as pytest's import hook would; the number rewritten
+    or found fresh. A forked child takes every other module, so two processes share the
+    work where the workers wait for it (beside two busy loops on two cores they get a whole
+    core, one process two thirds of one); a child that fails leaves its modules to the
+    workers' own import hook. pytest's rewrite helpers are internal: if they change,
+    nothing is rewritten here and the workers do it as before."""
     try:
         from _pytest.assertion import rewrite
     except ImportError:
         return 0
     patterns = [*config.getini("python_files"), "conftest.py"]
+    modules = [fn for fn in sorted(folder.glob("*.py"))
+               if any(fnmatch.fnmatch(fn.name, pattern) for pattern in patterns)]
+    child = os.fork() if hasattr(os, "fork") and len(modules) > 8 else -1
+    if child == 0:  # the child: every other module, then out without pytest's exit hooks
+        done = _rewrite_modules(rewrite, config, modules[1::2], into)
+        os._exit(0 if done == len(modules[1::2]) else 1)
+    done = _rewrite_modules(rewrite, config, modules[::2] if child > 0 else modules, into)
+    if child > 0:
+        _, status = os.waitpid(child, 0)
+        done += len(modules[1::2]) if os.waitstatus_to_exitcode(status) == 0 else 0
+    return done
+
+
+def _rewrite_modules(rewrite: Any, config: pytest.Config, modules: list[Path],
+                     into: Path | None) -> int:
+    """:func:`_rewrite_test_modules_once` for ``modules``: how many it did before a
+    failure (pytest's internals changed, a folder that cannot be written)."""
     done = 0
-    for fn in sorted(folder.glob("*.py")):
-        if not any(fnmatch.fnmatch(fn.name, pattern) for pattern in patterns):
-            continue
+    for fn in modules:
         try:
             pyc = (into or rewrite.get_cache_dir(fn)) / (fn.name[:-3] + rewrite.PYC_TAIL)
             if rewrite._read_pyc(fn, pyc) is None:
