@@ -56,6 +56,11 @@ def test_paper_boat_three_vehicles(tmp_path: Path) -> None:
         # vehicle need not complete a pass over its aim point before its next target)
         assert events(journal, "detection", vehicle=vid, accepted=True)
     assert events(journal, "loiter_end")
+    # the boat reaches the core (and the journal) once a mission second, without a
+    # velocity: no watch and no priority knob to read it every tick (it was every 0.1 s:
+    # 2 001 lines in this run)
+    boat = [e for e in events(journal, "input") if e["kind"] == "BoatPosition"]
+    assert 180 <= len(boat) <= 202 and all(e.get("vx_m_s") is None for e in boat), len(boat)
     # altitudes differ (no shared circle height)
     alts = {e["vehicle"]: e["altitude_m"] for e in events(journal, "vehicle_joined")}
     assert len(set(alts.values())) == 3
