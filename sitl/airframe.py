@@ -37,7 +37,7 @@ from world.dynamics import (
     turn_rate_to_point,
 )
 
-__all__ = ["Airframe", "Guidance"]
+__all__ = ["GLIDE", "GROUND", "STRAIGHT", "Airframe", "Guidance"]
 
 GRAVITY_M_S2 = 9.80665
 CLIMB_MAX_M_S = 5.0
@@ -60,6 +60,12 @@ class Guidance:
     y_m: float = 0.0
     radius_m: float = 0.0
     clockwise: bool = True
+
+
+GROUND = Guidance("ground")
+GLIDE = Guidance("glide")
+STRAIGHT = Guidance("straight")
+"""The guidance kinds without a target, built once (a Guidance is immutable)."""
 
 
 @dataclass

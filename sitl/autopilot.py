@@ -44,7 +44,7 @@ from domain.fault_spec import SIM_MODES
 from domain.geodesy import GeoOrigin, wrap_pi
 from domain.modes import ArduPlaneMode
 from groundstation.mavlink.codec import mavlink2
-from sitl.airframe import Airframe, Guidance
+from sitl.airframe import GLIDE, GROUND, STRAIGHT, Airframe, Guidance
 from sitl.mission_store import MissionStore, StoredItem
 from sitl.params import ParamStore
 from sitl.statustext import StatusTextFactory
@@ -409,12 +409,12 @@ class Autopilot:
         if af.on_ground and not (
             self.armed and self.mode == AUTO and self.nav is not None and self.nav.kind == "takeoff"
         ):
-            return Guidance("ground"), 0.0
+            return GROUND, 0.0
         nav = self.nav
         if self.mode in GLIDE_MODES:
-            return Guidance("glide"), 0.0
+            return GLIDE, 0.0
         if self.mode not in FLYING_MODES or nav is None:
-            return Guidance("straight"), self.alt_hold_m
+            return STRAIGHT, self.alt_hold_m
         if nav.kind in ("hold", "loiter_unlim", "loiter_time", "loiter_turns"):
             return Guidance("loiter", nav.x_m, nav.y_m, nav.radius_m, nav.clockwise), nav.alt_m
         if nav.kind == "landing":

@@ -355,11 +355,11 @@ class SitlServer:
         self, slot: _Slot, msgs: list[Any], origin: Any = None, t_s: float | None = None
     ) -> None:
         t = self.t_s if t_s is None else t_s
-        faults = slot.faults
-        for msg in msgs:
-            private = origin is not None and bool(getattr(msg, "target_system", 0))
-            faults.send_down((msg, origin if private else None), t)
-        for msg, dest in faults.down.pop_due(t):
+        if origin is None:
+            sent = [(msg, None) for msg in msgs]
+        else:
+            sent = [(msg, origin if getattr(msg, "target_system", 0) else None) for msg in msgs]
+        for msg, dest in slot.faults.pass_down(sent, t):
             try:
                 data = slot.encoder.encode(msg)
             except Exception:  # a message that cannot be packed is dropped, never fatal
@@ -388,10 +388,13 @@ class SitlServer:
             if writer.transport.get_write_buffer_size() < _MAX_CLIENT_BUFFER:
                 writer.write(data)
                 self.bytes_out += len(data)
-        udp_backlog = getattr(self._udp, "get_write_buffer_size", lambda: 0)
-        if self._udp is not None and udp_backlog() < _MAX_CLIENT_BUFFER:
+        udp = self._udp
+        if udp is None or not self._udp_peers:
+            return
+        udp_backlog = getattr(udp, "get_write_buffer_size", None)
+        if udp_backlog is None or udp_backlog() < _MAX_CLIENT_BUFFER:
             for peer in self._udp_peers:
-                self._udp.sendto(data, peer)
+                udp.sendto(data, peer)
                 self.bytes_out += len(data)
 
     # ------------------------------------------------------------------ loop

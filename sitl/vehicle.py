@@ -51,7 +51,7 @@ from domain.geodesy import compass_deg_from_enu_rad
 from domain.modes import ArduPlaneMode
 from groundstation.mavlink.codec import mavlink2
 from sitl import command_handler
-from sitl.airframe import Airframe, Guidance
+from sitl.airframe import GLIDE, GROUND, Airframe
 from sitl.autopilot import AUTO, GUIDED, INITIALISING, LOITER, MANUAL, MODE_NAMES, RTL, Autopilot
 from sitl.faults import FaultEvent
 from sitl.fence import SimFence
@@ -481,7 +481,7 @@ class SimVehicle:
             self._place_on_deck(self.t_s - dt_s)
         guidance, alt_cmd = ap.guidance(af)
         if self.motor_stopped:  # no thrust: wings level, sinking V / 10; no take-off
-            guidance = Guidance("ground" if af.on_ground else "glide")
+            guidance = GROUND if af.on_ground else GLIDE
         was_on_ground = af.on_ground
         alt0_m = af.alt_m
         wind = self.wind.at(self.t_s - dt_s, self.params)
@@ -538,7 +538,7 @@ class SimVehicle:
         af = self.airframe
         motor_on = not af.on_ground and guidance_kind != "glide" and not self.motor_stopped
         voltage_v = self.battery.voltage_v
-        self.battery.drain(dt_s, af.speed_m_s, math.hypot(*wind), climb_m_s, motor_on)
+        self.battery.drain(dt_s, af.speed_m_s, math.hypot(wind[0], wind[1]), climb_m_s, motor_on)
         self.battery_energy_wh += voltage_v * self.battery.current_a * dt_s / 3600.0
         if not self.battery.empty or self.motor_stopped or af.on_ground:
             return []
@@ -630,10 +630,12 @@ class SimVehicle:
         return []
 
     def _boot_progress(self) -> list[Any]:
+        flags = self.ready_flags
+        if flags["init"] and flags["gps"] and flags["ekf"]:
+            return []  # booted: nothing more to report until the next boot
         init_s, gps_s, ekf_s = self.config.boot_times_s
         age = self.t_s - self.t_boot_s
         out: list[Any] = []
-        flags = self.ready_flags
         if not flags["init"] and age >= init_s:
             flags["init"] = True
             self.store.capacity = MAX_MISSION_ITEMS

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 __all__ = ["GRAVITY_M_S2", "Battery", "BatteryModel"]
 
@@ -63,9 +64,9 @@ class BatteryModel:
         if self.empty_v >= self.full_v:
             raise ValueError("empty_v must be below full_v")
 
-    @property
+    @cached_property
     def cruise_current_a(self) -> float:
-        """``I_c = 3.6 * capacity_mah / endurance_s``."""
+        """``I_c = 3.6 * capacity_mah / endurance_s`` (computed once: the model is frozen)."""
         return 3.6 * self.capacity_mah / self.endurance_s
 
     def current_a(self, airspeed_m_s: float, wind_m_s: float = 0.0, climb_m_s: float = 0.0,
