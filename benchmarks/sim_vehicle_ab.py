@@ -8,8 +8,9 @@ the same MAVLink bytes, frame for frame.
 Each tree gets one long-lived interpreter (``PYTHONPATH`` set to it) that runs a fixed,
 socket-free script through :class:`sitl.server.SitlServer`: three vehicles (two with the
 fast boot, one booting as ArduPlane SITL does) in gusty wind, advanced by fixed simulated
-ticks of 0.5, 0.37 and 0.13 s in turn; a scripted ground station that asks for faster
-streams (REQUEST_DATA_STREAM, SET_MESSAGE_INTERVAL), uploads a fence (an inclusion
+ticks of 0.5, 0.37 and 0.13 s in turn; a scripted ground station that asks for the
+daemon's streams (REQUEST_DATA_STREAM: every group at 1 Hz; SET_MESSAGE_INTERVAL:
+GLOBAL_POSITION_INT at 2 Hz, but ATTITUDE at 10 Hz from vehicle 2), uploads a fence (an inclusion
 circle; FENCE_ACTION report-only or GUIDED; FENCE_ENABLE), sets the low-battery action,
 uploads a mission (take-off, waypoints, loiter turns and time, a waypoint outside the
 fence, loiter), arms and starts it, changes SIM_WIND_SPD in flight, and puts vehicle 2
@@ -176,8 +177,9 @@ def script(gcs, t_s):
     i = gcs.sysid
     steps = {
         3.0: lambda: gcs.send(M.MAVLink_heartbeat_message(6, 8, 0, 0, 4, 3)),
-        3.5: lambda: (gcs.send(M.MAVLink_request_data_stream_message(i, 1, 0, 4, 1))
-                      if i == 1 else gcs.command(M.MAV_CMD_SET_MESSAGE_INTERVAL, 30, 1e5)),
+        3.4: lambda: gcs.send(M.MAVLink_request_data_stream_message(i, 1, 0, 1, 1)),
+        3.5: lambda: (gcs.command(M.MAV_CMD_SET_MESSAGE_INTERVAL, 33, 5e5) if i != 2
+                      else gcs.command(M.MAV_CMD_SET_MESSAGE_INTERVAL, 30, 1e5)),
         4.0: lambda: gcs.param("BATT_FS_LOW_ACT", 2),
         5.0: lambda: gcs.upload(M.MAV_MISSION_TYPE_FENCE),
         8.0: lambda: gcs.param("FENCE_ACTION", 0 if i == 1 else 6),
@@ -272,9 +274,9 @@ def main() -> int:
             lines = sum(1 for _ in dumps["this tree"].open())
             digest = hashlib.sha256(dumps["this tree"].read_bytes()).hexdigest()[:16]
             if diff is not None:
-                n, old, new = diff
-                print(f"frames DIFFER at line {n} of {lines}:\n  other: {old[:200]}\n"
-                      f"  this:  {new[:200]}")
+                n, theirs, ours = diff
+                print(f"frames DIFFER at line {n} of {lines}:\n  other: {theirs[:200]}\n"
+                      f"  this:  {ours[:200]}")
                 return 1
             print(f"frames identical: {lines} lines (frames and journal), sha256 {digest}")
             for k in range(args.rounds):

@@ -126,6 +126,8 @@ class Autopilot:
         self.alt_hold_m = 0.0
         self.current_changed = False
         self._jump_counts: dict[int, int] = {}
+        self._last_guidance: Guidance | None = None
+        """What :meth:`_guidance_to` returned last (it says what invalidates it)."""
 
     def airspeed_cmd_m_s(self) -> float:
         """The airspeed to fly: the climb-out's while a NAV_TAKEOFF flies in AUTO, else the
@@ -416,10 +418,24 @@ class Autopilot:
         if self.mode not in FLYING_MODES or nav is None:
             return STRAIGHT, self.alt_hold_m
         if nav.kind in ("hold", "loiter_unlim", "loiter_time", "loiter_turns"):
-            return Guidance("loiter", nav.x_m, nav.y_m, nav.radius_m, nav.clockwise), nav.alt_m
+            return self._guidance_to("loiter", nav, nav.radius_m, nav.clockwise), nav.alt_m
         if nav.kind == "landing":
-            return Guidance("point", nav.x_m, nav.y_m), 0.0
-        return Guidance("point", nav.x_m, nav.y_m), nav.alt_m
+            return self._guidance_to("point", nav), 0.0
+        return self._guidance_to("point", nav), nav.alt_m
+
+    def _guidance_to(self, kind: str, nav: NavTarget, radius_m: float = 0.0,
+                     clockwise: bool = True) -> Guidance:
+        """``Guidance(kind, nav.x_m, nav.y_m, radius_m, clockwise)``: the one returned last
+        time while it is made of the very same values (compared by identity, so -0.0 and
+        NaN are exact; a Guidance is immutable), else a new one. A step's guidance is
+        usually the last step's: reusing it saves building one every step."""
+        last = self._last_guidance
+        if (last is not None and last.kind == kind and last.x_m is nav.x_m
+                and last.y_m is nav.y_m and last.radius_m is radius_m
+                and last.clockwise is clockwise):
+            return last
+        self._last_guidance = Guidance(kind, nav.x_m, nav.y_m, radius_m, clockwise)
+        return self._last_guidance
 
 
 def _past_finish_line(pos: tuple[float, float], prev: tuple[float, float],

@@ -328,6 +328,9 @@ class SimVehicle:
     @property
     def time_boot_ms(self) -> int:
         """Milliseconds since (re)boot in simulated time."""
+        return self._time_boot_ms()
+
+    def _time_boot_ms(self) -> int:
         return max(0, round((self.t_s - self.t_boot_s) * 1000.0))
 
     @property
@@ -516,7 +519,7 @@ class SimVehicle:
         ``FENCE_ACTION`` (RTL, or GUIDED to the fence's return point)."""
         ap, af = self.autopilot, self.airframe
         mode, texts = self.fence.check(af.x_m, af.y_m, armed=ap.armed, mode=ap.mode,
-                                       time_boot_ms=self.time_boot_ms)
+                                       time_boot_ms=self._time_boot_ms)
         out: list[Any] = []
         for text in texts:
             out += self.text.make(text, M.MAV_SEVERITY_NOTICE)
@@ -537,10 +540,11 @@ class SimVehicle:
         """Drain the pack for one step (module docstring); at 0 % the motor stops."""
         af = self.airframe
         motor_on = not af.on_ground and guidance_kind != "glide" and not self.motor_stopped
-        voltage_v = self.battery.voltage_v
-        self.battery.drain(dt_s, af.speed_m_s, math.hypot(wind[0], wind[1]), climb_m_s, motor_on)
-        self.battery_energy_wh += voltage_v * self.battery.current_a * dt_s / 3600.0
-        if not self.battery.empty or self.motor_stopped or af.on_ground:
+        battery = self.battery
+        voltage_v = battery.drain(dt_s, af.speed_m_s, math.hypot(wind[0], wind[1]), climb_m_s,
+                                  motor_on)
+        self.battery_energy_wh += voltage_v * battery.current_a * dt_s / 3600.0
+        if not battery.empty or self.motor_stopped or af.on_ground:
             return []
         self.motor_stopped = True
         text = (f"vehicle {self.system_id}: battery empty at t={self.t_s:.1f} s, "

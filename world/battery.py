@@ -109,12 +109,15 @@ class Battery:
         return self.remaining <= 0.0
 
     def drain(self, dt_s: float, airspeed_m_s: float, wind_m_s: float = 0.0,
-              climb_m_s: float = 0.0, flying: bool = True) -> None:
-        """Draw the current for ``dt_s`` seconds (``used_mah += I dt / 3.6``)."""
+              climb_m_s: float = 0.0, flying: bool = True) -> float:
+        """Draw the current for ``dt_s`` seconds (``used_mah += I dt / 3.6``); returns the
+        pack's voltage it was drawn at (the voltage before the step)."""
+        voltage_v = self.voltage_v
         self.current_a = self.model.current_a(airspeed_m_s, wind_m_s, climb_m_s,
-                                              self.voltage_v, flying)
+                                              voltage_v, flying)
         self.used_mah = min(self.model.capacity_mah,
                             self.used_mah + self.current_a * max(0.0, dt_s) / 3.6)
+        return voltage_v
 
     def swap(self) -> None:
         """A fresh pack (a recovered plane's battery swap)."""
