@@ -16,7 +16,9 @@ uploads a mission (take-off, waypoints, loiter turns and time, a waypoint outsid
 fence, loiter), arms and starts it, changes SIM_WIND_SPD in flight, and puts vehicle 2
 back in AUTO after a scheduled mode fault (LOITER); vehicle 3 gets a battery fault
 (low-battery RTL) and vehicle 1 a pack that runs flat (motor stop, glide, fall). The
-server's downlink goes to an in-memory client that keeps every frame's bytes.
+server's downlink goes to a TCP client whose writes are sends on a local socket pair (a
+system call each, as an asyncio transport's) and which keeps the byte stream (cut into
+MAVLink frames to compare: the same frames, however many a write carries).
 
 The first run of each tree is compared frame by frame: every frame the vehicles sent, in
 order, must be byte-identical (exit 1 at the first difference, which is printed). Then the
@@ -41,7 +43,7 @@ ROOT = Path(__file__).resolve().parent.parent
 VEHICLES = 3
 
 _CHILD = r'''
-import logging, sys, time
+import logging, socket, sys, time
 from domain.geodesy import GeoOrigin
 from groundstation.mavlink.codec import MavlinkDecoder, MavlinkEncoder, mavlink2 as M
 from sitl.faults import build_faults
@@ -58,10 +60,13 @@ TICKS_S = (0.5, 0.37, 0.13)
 
 
 class Writer:
-    """An always-writable TCP client that keeps the bytes it is sent."""
+    """A TCP client whose writes are real socket sends (one system call each, as an
+    asyncio transport's with an empty buffer), and which keeps the byte stream received."""
 
     def __init__(self):
-        self.frames = []
+        self.sock, self.peer = socket.socketpair()
+        self.peer.setblocking(False)
+        self.stream = bytearray()
         self.transport = self
 
     def get_write_buffer_size(self):
@@ -71,10 +76,34 @@ class Writer:
         return False
 
     def write(self, data):
-        self.frames.append(bytes(data))
+        self.sock.sendall(data)
+
+    def receive(self):
+        """What arrived since the last call (also kept in ``stream``)."""
+        got = bytearray()
+        while True:
+            try:
+                chunk = self.peer.recv(1 << 16)
+            except BlockingIOError:
+                break
+            got += chunk
+        self.stream += got
+        return bytes(got)
+
+    def frames(self):
+        """The stream cut into MAVLink 2 frames (header 10, payload, CRC 2, signature 13)."""
+        self.receive()
+        out, i, data = [], 0, bytes(self.stream)
+        while i < len(data):
+            assert data[i] == 0xFD, f"not a MAVLink 2 frame at byte {i}"
+            end = i + 12 + data[i + 1] + (13 if data[i + 2] & 1 else 0)
+            out.append(data[i:end])
+            i = end
+        return out
 
     def close(self):
-        pass
+        self.sock.close()
+        self.peer.close()
 
 
 def geodetic(x_m, y_m):
@@ -120,7 +149,6 @@ class Gcs:
         self.enc = MavlinkEncoder(255, 190)
         self.up = MavlinkDecoder()
         self.down = MavlinkDecoder()
-        self.seen = 0
         self.writer = Writer()
         slot.clients.add(self.writer)
         self.uploads = {}
@@ -162,10 +190,9 @@ class Gcs:
 
     def react(self):
         """Answer the vehicle's mission requests."""
-        frames = self.writer.frames
-        new, self.seen = frames[self.seen:], len(frames)
-        for data in new:
-            for msg in self.down.feed(data):
+        new = self.writer.receive()
+        if new:
+            for msg in self.down.feed(new):
                 if msg.get_type() in ("MISSION_REQUEST", "MISSION_REQUEST_INT"):
                     items = self.uploads.get(int(getattr(msg, "mission_type", 0) or 0))
                     if items is not None and msg.seq < len(items):
@@ -217,7 +244,10 @@ def run():
             g.react()
             script(g, t_s)
             g.last_t = t_s
-    return cpu_s, [g.writer.frames for g in stations], server
+    frames = [g.writer.frames() for g in stations]
+    for g in stations:
+        g.writer.close()
+    return cpu_s, frames, server
 
 
 cpu_s, frames, server = run()

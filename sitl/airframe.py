@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 from world.dynamics import (
     LoiterCommand,
     UavState,
-    step_kinematics,
+    step_pose,
     turn_rate_to_circle,
     turn_rate_to_point,
 )
@@ -120,8 +120,8 @@ class Airframe:
             u = turn_rate_to_circle(state, self._circle(guidance), r_min, wind_xy_m_s=wind)
         else:
             u = 0.0
-        new = step_kinematics(state, u, dt_s, wind_xy_m_s=wind)
-        self.x_m, self.y_m, self.heading_rad = new.x_m, new.y_m, new.heading_rad
+        self.x_m, self.y_m, self.heading_rad = step_pose(
+            self.x_m, self.y_m, self.heading_rad, self.speed_m_s, u, dt_s, wind)
         self.turn_rate_rad_s = u
         self.drift_xy_m_s = wind
         if guidance.kind == "glide":
