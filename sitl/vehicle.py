@@ -507,7 +507,7 @@ class SimVehicle:
             )
             if self.motor_stopped:
                 out += self._crash()
-        if not self.battery_low_sent and self.battery_voltage_v < self.params.get("BATT_LOW_VOLT"):
+        if not self.battery_low_sent and self.battery.voltage_v < self.params.get("BATT_LOW_VOLT"):
             out += self.battery_low()
         out += self._recovery()
         out += self._update_home()
