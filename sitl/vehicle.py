@@ -520,6 +520,8 @@ class SimVehicle:
         ap, af = self.autopilot, self.airframe
         mode, texts = self.fence.check(af.x_m, af.y_m, armed=ap.armed, mode=ap.mode,
                                        time_boot_ms=self._time_boot_ms)
+        if mode is None and not texts:
+            return []  # most steps: nothing to say or do
         out: list[Any] = []
         for text in texts:
             out += self.text.make(text, M.MAV_SEVERITY_NOTICE)
