@@ -27,17 +27,17 @@ the runway).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from world.dynamics import (
     LoiterCommand,
     UavState,
-    step_kinematics,
+    step_pose,
     turn_rate_to_circle,
     turn_rate_to_point,
 )
 
-__all__ = ["Airframe", "Guidance"]
+__all__ = ["GLIDE", "GROUND", "STRAIGHT", "Airframe", "Guidance"]
 
 GRAVITY_M_S2 = 9.80665
 CLIMB_MAX_M_S = 5.0
@@ -62,6 +62,12 @@ class Guidance:
     clockwise: bool = True
 
 
+GROUND = Guidance("ground")
+GLIDE = Guidance("glide")
+STRAIGHT = Guidance("straight")
+"""The guidance kinds without a target, built once (a Guidance is immutable)."""
+
+
 @dataclass
 class Airframe:
     """Kinematic state of one aircraft in the local ENU frame (alt relative to home)."""
@@ -78,6 +84,9 @@ class Airframe:
     touchdown_sink_m_s: float | None = None
     drift_xy_m_s: tuple[float, float] = _CALM
     """What the wind added to the ground velocity in the last step (``d`` above)."""
+    _last_circle: tuple[Guidance, LoiterCommand] | None = field(
+        default=None, init=False, repr=False, compare=False)
+    """The last loiter guidance and its circle (:meth:`_circle` says what invalidates it)."""
 
     def step(
         self,
@@ -108,12 +117,11 @@ class Airframe:
         if guidance.kind == "point":
             u = turn_rate_to_point(state, guidance.x_m, guidance.y_m, r_min, wind_xy_m_s=wind)
         elif guidance.kind == "loiter":
-            cmd = LoiterCommand(guidance.x_m, guidance.y_m, guidance.radius_m, guidance.clockwise)
-            u = turn_rate_to_circle(state, cmd, r_min, wind_xy_m_s=wind)
+            u = turn_rate_to_circle(state, self._circle(guidance), r_min, wind_xy_m_s=wind)
         else:
             u = 0.0
-        new = step_kinematics(state, u, dt_s, wind_xy_m_s=wind)
-        self.x_m, self.y_m, self.heading_rad = new.x_m, new.y_m, new.heading_rad
+        self.x_m, self.y_m, self.heading_rad = step_pose(
+            self.x_m, self.y_m, self.heading_rad, self.speed_m_s, u, dt_s, wind)
         self.turn_rate_rad_s = u
         self.drift_xy_m_s = wind
         if guidance.kind == "glide":
@@ -132,6 +140,16 @@ class Airframe:
             self.climb_m_s = 0.0
             self.turn_rate_rad_s = 0.0
             self.drift_xy_m_s = _CALM
+
+    def _circle(self, guidance: Guidance) -> LoiterCommand:
+        """The circle of a 'loiter' ``guidance``: the last one again while the guidance is
+        the very same (immutable) object, else built anew."""
+        last = self._last_circle
+        if last is not None and last[0] is guidance:
+            return last[1]
+        circle = LoiterCommand(guidance.x_m, guidance.y_m, guidance.radius_m, guidance.clockwise)
+        self._last_circle = (guidance, circle)
+        return circle
 
     @property
     def ground_velocity_m_s(self) -> tuple[float, float]:

@@ -44,7 +44,7 @@ from domain.fault_spec import SIM_MODES
 from domain.geodesy import GeoOrigin, wrap_pi
 from domain.modes import ArduPlaneMode
 from groundstation.mavlink.codec import mavlink2
-from sitl.airframe import Airframe, Guidance
+from sitl.airframe import GLIDE, GROUND, STRAIGHT, Airframe, Guidance
 from sitl.mission_store import MissionStore, StoredItem
 from sitl.params import ParamStore
 from sitl.statustext import StatusTextFactory
@@ -126,6 +126,8 @@ class Autopilot:
         self.alt_hold_m = 0.0
         self.current_changed = False
         self._jump_counts: dict[int, int] = {}
+        self._last_guidance: Guidance | None = None
+        """What :meth:`_guidance_to` returned last (it says what invalidates it)."""
 
     def airspeed_cmd_m_s(self) -> float:
         """The airspeed to fly: the climb-out's while a NAV_TAKEOFF flies in AUTO, else the
@@ -409,17 +411,31 @@ class Autopilot:
         if af.on_ground and not (
             self.armed and self.mode == AUTO and self.nav is not None and self.nav.kind == "takeoff"
         ):
-            return Guidance("ground"), 0.0
+            return GROUND, 0.0
         nav = self.nav
         if self.mode in GLIDE_MODES:
-            return Guidance("glide"), 0.0
+            return GLIDE, 0.0
         if self.mode not in FLYING_MODES or nav is None:
-            return Guidance("straight"), self.alt_hold_m
+            return STRAIGHT, self.alt_hold_m
         if nav.kind in ("hold", "loiter_unlim", "loiter_time", "loiter_turns"):
-            return Guidance("loiter", nav.x_m, nav.y_m, nav.radius_m, nav.clockwise), nav.alt_m
+            return self._guidance_to("loiter", nav, nav.radius_m, nav.clockwise), nav.alt_m
         if nav.kind == "landing":
-            return Guidance("point", nav.x_m, nav.y_m), 0.0
-        return Guidance("point", nav.x_m, nav.y_m), nav.alt_m
+            return self._guidance_to("point", nav), 0.0
+        return self._guidance_to("point", nav), nav.alt_m
+
+    def _guidance_to(self, kind: str, nav: NavTarget, radius_m: float = 0.0,
+                     clockwise: bool = True) -> Guidance:
+        """``Guidance(kind, nav.x_m, nav.y_m, radius_m, clockwise)``: the one returned last
+        time while it is made of the very same values (compared by identity, so -0.0 and
+        NaN are exact; a Guidance is immutable), else a new one. A step's guidance is
+        usually the last step's: reusing it saves building one every step."""
+        last = self._last_guidance
+        if (last is not None and last.kind == kind and last.x_m is nav.x_m
+                and last.y_m is nav.y_m and last.radius_m is radius_m
+                and last.clockwise is clockwise):
+            return last
+        self._last_guidance = Guidance(kind, nav.x_m, nav.y_m, radius_m, clockwise)
+        return self._last_guidance
 
 
 def _past_finish_line(pos: tuple[float, float], prev: tuple[float, float],

@@ -139,6 +139,18 @@ class VehicleFaults:
         if not self.link_down(t_s):
             self.down.push(item, t_s, self.rng)
 
+    def pass_down(self, items: list[Any], t_s: float) -> list[Any]:
+        """Every item enters the down link at ``t_s`` (:meth:`send_down`); returns what the
+        link delivers by ``t_s``, in delivery order (``down.pop_due``). A link with no
+        impairment, nothing held back and no drop in force delivers exactly the items, in
+        order, without the queue (its generator is not drawn from either way)."""
+        down = self.down
+        if not down._queue and down.transparent and not self.link_down(t_s):
+            return items
+        for item in items:
+            self.send_down(item, t_s)
+        return down.pop_due(t_s)
+
     def due_events(self, t_s: float) -> list[FaultEvent]:
         """Autopilot events (kill, reboot, mode, battery, airspeed) whose time has come,
         each once."""

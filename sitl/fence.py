@@ -59,6 +59,19 @@ def _inside_polygon(x_m: float, y_m: float, points: Sequence[tuple[float, float]
     return inside
 
 
+def _outside(x_m: float, y_m: float, areas: list[Area]) -> bool:
+    """Whether (x_m, y_m) breaks one of ``areas``."""
+    for kind, inclusion, points, radius_m in areas:
+        if kind == "circle":
+            cx, cy = points[0]
+            inside = math.hypot(x_m - cx, y_m - cy) <= radius_m
+        else:
+            inside = len(points) >= 3 and _inside_polygon(x_m, y_m, points)
+        if inside != inclusion:
+            return True
+    return False
+
+
 class SimFence:
     """The fence state of one vehicle (module docstring). ``store`` gives the FENCE items
     now, ``param`` reads a parameter."""
@@ -110,7 +123,11 @@ class SimFence:
 
     @property
     def present(self) -> bool:
-        return bool(int(self._param("FENCE_TYPE")) & FENCE_TYPE_POLYGON) and bool(self._areas()[0])
+        return self._present(self._areas()[0])
+
+    def _present(self, areas: list[Area]) -> bool:
+        """Present: FENCE_TYPE has the polygon bit and there are ``areas``."""
+        return bool(int(self._param("FENCE_TYPE")) & FENCE_TYPE_POLYGON) and bool(areas)
 
     @property
     def enabled(self) -> bool:
@@ -118,31 +135,28 @@ class SimFence:
 
     def outside(self, x_m: float, y_m: float) -> bool:
         """Whether (x_m, y_m) breaks an area of the fence."""
-        for kind, inclusion, points, radius_m in self._areas()[0]:
-            if kind == "circle":
-                cx, cy = points[0]
-                inside = math.hypot(x_m - cx, y_m - cy) <= radius_m
-            else:
-                inside = len(points) >= 3 and _inside_polygon(x_m, y_m, points)
-            if inside != inclusion:
-                return True
-        return False
+        return _outside(x_m, y_m, self._areas()[0])
 
     def return_point(self) -> tuple[float, float] | None:
         return self._areas()[1]
 
     # ------------------------------------------------------------------ the check
     def check(
-        self, x_m: float, y_m: float, *, armed: bool, mode: int, time_boot_ms: int,
+        self, x_m: float, y_m: float, *, armed: bool, mode: int,
+        time_boot_ms: Callable[[], int],
     ) -> tuple[int | None, list[str]]:
         """One check (ArduPlane runs it at 10 Hz): the mode to enter (None: none) and the
-        STATUSTEXTs to send (NOTICE)."""
+        STATUSTEXTs to send (NOTICE). ``time_boot_ms`` is read at a new breach only."""
         if self.recovery_mode is not None and mode != self.recovery_mode:
             self.recovery_mode = None  # someone else changed the mode: no longer the fence's
-        if not (self.present and self.enabled):
+        if not self.enabled:  # (then the stored items are not even read)
             self.breached = False
             return None, []
-        outside = self.outside(x_m, y_m)
+        areas = self._areas()[0]
+        if not self._present(areas):
+            self.breached = False
+            return None, []
+        outside = _outside(x_m, y_m, areas)
         if not outside:
             if self.breached:
                 self.breached = False
@@ -152,7 +166,7 @@ class SimFence:
             return None, []  # not a new breach: nothing more is done
         self.breached = True
         self.breach_count += 1
-        self.breach_time_ms = time_boot_ms
+        self.breach_time_ms = time_boot_ms()
         if not armed or self.recovery_mode is not None:
             return None, [FENCE_BREACH_TEXT] if armed else []
         action = int(self._param("FENCE_ACTION"))

@@ -94,6 +94,8 @@ class GeoItemsServer:
     def step(self, t_s: float) -> list[Any]:
         """Re-request a missing item every ``rerequest_s``; cancel after
         ``upload_timeout_s`` of silence."""
+        if not self._uploads:
+            return []
         out: list[Any] = []
         for mtype, up in list(self._uploads.items()):
             if t_s - up.last_receive_t >= self.upload_timeout_s:

@@ -122,6 +122,9 @@ class ParamStore:
         self._specs = {s.name: s for s in specs}
         self._names = [s.name for s in specs]
         self._values = {s.name: float(s.default) for s in specs}
+        self.version = 0
+        """Counts the stores (:meth:`set`): a reader that caches values derived from
+        parameters reads them again when it changes."""
 
     def __len__(self) -> int:
         return len(self._names)
@@ -152,6 +155,7 @@ class ParamStore:
         if spec.param_type != _REAL32:
             value = float(round(value))
         self._values[name] = float(value)
+        self.version += 1
         if name in ("MAV_SYSID", "SYSID_THISMAV"):  # one parameter under two names
             self._values["MAV_SYSID"] = self._values["SYSID_THISMAV"] = float(value)
         return self._values[name]

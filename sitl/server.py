@@ -355,11 +355,13 @@ class SitlServer:
         self, slot: _Slot, msgs: list[Any], origin: Any = None, t_s: float | None = None
     ) -> None:
         t = self.t_s if t_s is None else t_s
-        faults = slot.faults
-        for msg in msgs:
-            private = origin is not None and bool(getattr(msg, "target_system", 0))
-            faults.send_down((msg, origin if private else None), t)
-        for msg, dest in faults.down.pop_due(t):
+        if origin is None:
+            sent = [(msg, None) for msg in msgs]
+        else:
+            sent = [(msg, origin if getattr(msg, "target_system", 0) else None) for msg in msgs]
+        run: list[bytes] = []  # consecutive frames to one destination: sent together
+        run_dest: Any = None
+        for msg, dest in slot.faults.pass_down(sent, t):
             try:
                 data = slot.encoder.encode(msg)
             except Exception:  # a message that cannot be packed is dropped, never fatal
@@ -368,30 +370,58 @@ class SitlServer:
                 data = slot.signing.sign(data, time.time())
             if slot.radio is not None:  # into the vehicle radio's serial port
                 slot.radio.write(RadioEnd.VEHICLE, data, t)
-            else:
-                self._send(slot, data, dest)
+                continue
+            if run and dest is not run_dest:
+                self._send(slot, run, run_dest)
+                run = []
+            run.append(data)
+            run_dest = dest
+        if run:
+            self._send(slot, run, run_dest)
 
-    def _send(self, slot: _Slot, data: bytes, dest: Any = None) -> None:
+    def _send(self, slot: _Slot, frames: list[bytes], dest: Any = None) -> None:
+        """Send ``frames``, in order, to ``dest`` (None: every link of the vehicle). Each
+        UDP datagram is one frame; a TCP client gets them in one write (fewer system calls,
+        the same byte stream) when its buffer has room for them all (so that each frame
+        would have passed the buffer check alone), else frame by frame, each checked."""
         if dest is not None:  # one link only
             if isinstance(dest, tuple):
                 if self._udp is not None:
-                    self._udp.sendto(data, dest[1])
-                    self.bytes_out += len(data)
+                    for data in frames:
+                        self._udp.sendto(data, dest[1])
+                        self.bytes_out += len(data)
             elif not dest.is_closing():
+                data = b"".join(frames)
                 dest.write(data)
                 self.bytes_out += len(data)
             return
+        joined = frames[0] if len(frames) == 1 else b"".join(frames)
         for writer in list(slot.clients):
             if writer.is_closing():
                 slot.clients.discard(writer)
                 continue
+            self._write_checked(writer, frames, joined)
+        udp = self._udp
+        if udp is None or not self._udp_peers:
+            return
+        udp_backlog = getattr(udp, "get_write_buffer_size", None)
+        for data in frames:
+            if udp_backlog is None or udp_backlog() < _MAX_CLIENT_BUFFER:
+                for peer in self._udp_peers:
+                    udp.sendto(data, peer)
+                    self.bytes_out += len(data)
+
+    def _write_checked(self, writer: Any, frames: list[bytes], joined: bytes) -> None:
+        """Write the frames a TCP client's buffer takes: each one while the buffer holds
+        less than ``_MAX_CLIENT_BUFFER`` (a write grows it by at most its length, so with
+        room for them all, one write of ``joined`` sends exactly those frames)."""
+        if writer.transport.get_write_buffer_size() + len(joined) < _MAX_CLIENT_BUFFER:
+            writer.write(joined)
+            self.bytes_out += len(joined)
+            return
+        for data in frames:
             if writer.transport.get_write_buffer_size() < _MAX_CLIENT_BUFFER:
                 writer.write(data)
-                self.bytes_out += len(data)
-        udp_backlog = getattr(self._udp, "get_write_buffer_size", lambda: 0)
-        if self._udp is not None and udp_backlog() < _MAX_CLIENT_BUFFER:
-            for peer in self._udp_peers:
-                self._udp.sendto(data, peer)
                 self.bytes_out += len(data)
 
     # ------------------------------------------------------------------ loop
@@ -449,7 +479,7 @@ class SitlServer:
                         self._inbound(slot, msg, _RADIO, t_s)
                     self._service(slot, t_s)
                 for data in radio.read(RadioEnd.GROUND):
-                    self._send(slot, data)
+                    self._send(slot, [data])
                 if t_s >= step_to:
                     break
             if vehicle is not None:

@@ -79,18 +79,30 @@ class FlownWind:
         self._field = WindField(spec, seed)
         values = wind_param_values(spec)
         self._key = tuple(values[name] for name in WIND_PARAMS)
+        self._calm = spec.calm
+        self._read: tuple[ParamStore, int] | None = None
+        """The store and its ``version`` when the SIM_WIND_* values were last compared
+        with ``_key``: a store not set since needs no new look."""
 
     def at(self, t_s: float, params: ParamStore) -> tuple[float, float]:
         """ENU wind (m/s, towards) at mission time ``t_s`` under the current parameters."""
+        read = self._read
+        if read is None or read[0] is not params or read[1] != params.version:
+            self._follow(params)
+        if self._calm:
+            return _CALM
+        return self._field.at(t_s)
+
+    def _follow(self, params: ParamStore) -> None:
+        """The field of the SIM_WIND_* values in ``params`` (rebuilt when they changed)."""
         key = tuple(params.get(name) for name in WIND_PARAMS)
         if key != self._key:
             speed, from_deg, turb = key
             self.spec = WindSpec(speed, from_deg % 360.0, turb, self.spec.gust_tau_s)
             self._field = WindField(self.spec, self.seed)
             self._key = key
-        if self.spec.calm:
-            return _CALM
-        return self._field.at(t_s)
+            self._calm = self.spec.calm
+        self._read = (params, params.version)
 
 
 class EkfWindModel:

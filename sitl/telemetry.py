@@ -18,6 +18,8 @@ interval (``get_reschedule_interval_ms``), HEARTBEAT excepted.
 
 from __future__ import annotations
 
+import math
+
 from groundstation.mavlink.codec import mavlink2
 
 __all__ = ["STREAM_GROUPS", "StreamScheduler"]
@@ -55,6 +57,10 @@ class StreamScheduler:
     def __init__(self, t_s: float) -> None:
         self.intervals_s: dict[int, float | None] = dict(DEFAULT_INTERVALS_S)
         self._next_s: dict[int, float] = {m: t_s for m in self.intervals_s}
+        self._earliest_s = t_s
+        """No stream is due before this (a lower bound of the enabled next-due times): exact
+        after each full :meth:`due` pass, lowered by :meth:`set_interval`; :meth:`due`
+        before it returns at once."""
         self.slowdown_s = 0.0
         """Added to every stream interval but HEARTBEAT's (ArduPilot's
         ``stream_slowdown_ms``, driven by RADIO_STATUS)."""
@@ -78,6 +84,7 @@ class StreamScheduler:
             return False
         self.intervals_s[msg_id] = interval_s
         self._next_s[msg_id] = t_s
+        self._earliest_s = min(self._earliest_s, t_s)
         return True
 
     def set_default(self, msg_id: int, t_s: float) -> bool:
@@ -98,7 +105,10 @@ class StreamScheduler:
 
     def due(self, t_s: float) -> list[int]:
         """Message ids due at ``t_s`` (each advances by whole intervals, no burst catch-up)."""
+        if t_s + 1e-9 < self._earliest_s:
+            return []  # nothing is due: most physics steps
         out: list[int] = []
+        earliest_s = math.inf
         for msg_id, interval in self.intervals_s.items():
             if interval is None:
                 continue
@@ -111,4 +121,7 @@ class StreamScheduler:
                 if nxt <= t_s:
                     nxt = t_s + interval
                 self._next_s[msg_id] = nxt
+            if nxt < earliest_s:
+                earliest_s = nxt
+        self._earliest_s = earliest_s
         return out

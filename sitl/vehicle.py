@@ -51,7 +51,7 @@ from domain.geodesy import compass_deg_from_enu_rad
 from domain.modes import ArduPlaneMode
 from groundstation.mavlink.codec import mavlink2
 from sitl import command_handler
-from sitl.airframe import Airframe, Guidance
+from sitl.airframe import GLIDE, GROUND, Airframe
 from sitl.autopilot import AUTO, GUIDED, INITIALISING, LOITER, MANUAL, MODE_NAMES, RTL, Autopilot
 from sitl.faults import FaultEvent
 from sitl.fence import SimFence
@@ -328,6 +328,9 @@ class SimVehicle:
     @property
     def time_boot_ms(self) -> int:
         """Milliseconds since (re)boot in simulated time."""
+        return self._time_boot_ms()
+
+    def _time_boot_ms(self) -> int:
         return max(0, round((self.t_s - self.t_boot_s) * 1000.0))
 
     @property
@@ -481,7 +484,7 @@ class SimVehicle:
             self._place_on_deck(self.t_s - dt_s)
         guidance, alt_cmd = ap.guidance(af)
         if self.motor_stopped:  # no thrust: wings level, sinking V / 10; no take-off
-            guidance = Guidance("ground" if af.on_ground else "glide")
+            guidance = GROUND if af.on_ground else GLIDE
         was_on_ground = af.on_ground
         alt0_m = af.alt_m
         wind = self.wind.at(self.t_s - dt_s, self.params)
@@ -504,7 +507,7 @@ class SimVehicle:
             )
             if self.motor_stopped:
                 out += self._crash()
-        if not self.battery_low_sent and self.battery_voltage_v < self.params.get("BATT_LOW_VOLT"):
+        if not self.battery_low_sent and self.battery.voltage_v < self.params.get("BATT_LOW_VOLT"):
             out += self.battery_low()
         out += self._recovery()
         out += self._update_home()
@@ -516,7 +519,9 @@ class SimVehicle:
         ``FENCE_ACTION`` (RTL, or GUIDED to the fence's return point)."""
         ap, af = self.autopilot, self.airframe
         mode, texts = self.fence.check(af.x_m, af.y_m, armed=ap.armed, mode=ap.mode,
-                                       time_boot_ms=self.time_boot_ms)
+                                       time_boot_ms=self._time_boot_ms)
+        if mode is None and not texts:
+            return []  # most steps: nothing to say or do
         out: list[Any] = []
         for text in texts:
             out += self.text.make(text, M.MAV_SEVERITY_NOTICE)
@@ -537,10 +542,11 @@ class SimVehicle:
         """Drain the pack for one step (module docstring); at 0 % the motor stops."""
         af = self.airframe
         motor_on = not af.on_ground and guidance_kind != "glide" and not self.motor_stopped
-        voltage_v = self.battery.voltage_v
-        self.battery.drain(dt_s, af.speed_m_s, math.hypot(*wind), climb_m_s, motor_on)
-        self.battery_energy_wh += voltage_v * self.battery.current_a * dt_s / 3600.0
-        if not self.battery.empty or self.motor_stopped or af.on_ground:
+        battery = self.battery
+        voltage_v = battery.drain(dt_s, af.speed_m_s, math.hypot(wind[0], wind[1]), climb_m_s,
+                                  motor_on)
+        self.battery_energy_wh += voltage_v * battery.current_a * dt_s / 3600.0
+        if not battery.empty or self.motor_stopped or af.on_ground:
             return []
         self.motor_stopped = True
         text = (f"vehicle {self.system_id}: battery empty at t={self.t_s:.1f} s, "
@@ -630,10 +636,12 @@ class SimVehicle:
         return []
 
     def _boot_progress(self) -> list[Any]:
+        flags = self.ready_flags
+        if flags["init"] and flags["gps"] and flags["ekf"]:
+            return []  # booted: nothing more to report until the next boot
         init_s, gps_s, ekf_s = self.config.boot_times_s
         age = self.t_s - self.t_boot_s
         out: list[Any] = []
-        flags = self.ready_flags
         if not flags["init"] and age >= init_s:
             flags["init"] = True
             self.store.capacity = MAX_MISSION_ITEMS

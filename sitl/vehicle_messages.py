@@ -11,6 +11,7 @@ ground; ATTITUDE ``yaw`` the heading; WIND the vehicle's wind estimate
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Any
 
 from domain.geodesy import compass_deg_from_enu_rad
@@ -295,30 +296,42 @@ def landed_state(v: VehicleView) -> int:
     return int(M.MAV_LANDED_STATE_IN_AIR)
 
 
+def _heartbeat(v: VehicleView) -> Any:
+    base, custom = v.mode_of_custom()
+    return M.MAVLink_heartbeat_message(
+        M.MAV_TYPE_FIXED_WING, M.MAV_AUTOPILOT_ARDUPILOTMEGA, base, custom, system_status(v), 3
+    )
+
+
+def _system_time(v: VehicleView) -> Any:
+    unix_us = int((v.config.unix_time_at_zero_s + v.t_s) * 1e6)
+    return M.MAVLink_system_time_message(unix_us, v.time_boot_ms)
+
+
+def _extended_sys_state(v: VehicleView) -> Any:
+    return M.MAVLink_extended_sys_state_message(M.MAV_VTOL_STATE_UNDEFINED, landed_state(v))
+
+
+_BUILDERS: dict[int, Callable[[VehicleView], Any]] = {
+    M.MAVLINK_MSG_ID_HEARTBEAT: _heartbeat,
+    M.MAVLINK_MSG_ID_SYS_STATUS: _sys_status,
+    M.MAVLINK_MSG_ID_BATTERY_STATUS: _battery,
+    M.MAVLINK_MSG_ID_GPS_RAW_INT: _gps,
+    M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: _global_position,
+    M.MAVLINK_MSG_ID_ATTITUDE: _attitude,
+    M.MAVLINK_MSG_ID_VFR_HUD: _vfr_hud,
+    M.MAVLINK_MSG_ID_WIND: _wind,
+    M.MAVLINK_MSG_ID_HOME_POSITION: _home,
+    M.MAVLINK_MSG_ID_MISSION_CURRENT: _mission_current,
+    M.MAVLINK_MSG_ID_NAV_CONTROLLER_OUTPUT: _nav_controller,
+    M.MAVLINK_MSG_ID_AUTOPILOT_VERSION: autopilot_version,
+    M.MAVLINK_MSG_ID_SYSTEM_TIME: _system_time,
+    M.MAVLINK_MSG_ID_EXTENDED_SYS_STATE: _extended_sys_state,
+}
+"""The builder of each message id the vehicle can send (built once, not per message)."""
+
+
 def build_message(v: VehicleView, msg_id: int) -> Any:
     """The message ``msg_id`` as the vehicle would send it now (None if it has none)."""
-    if msg_id == M.MAVLINK_MSG_ID_HEARTBEAT:
-        base, custom = v.mode_of_custom()
-        return M.MAVLink_heartbeat_message(
-            M.MAV_TYPE_FIXED_WING, M.MAV_AUTOPILOT_ARDUPILOTMEGA, base, custom, system_status(v), 3
-        )
-    builders = {
-        M.MAVLINK_MSG_ID_SYS_STATUS: _sys_status,
-        M.MAVLINK_MSG_ID_BATTERY_STATUS: _battery,
-        M.MAVLINK_MSG_ID_GPS_RAW_INT: _gps,
-        M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: _global_position,
-        M.MAVLINK_MSG_ID_ATTITUDE: _attitude,
-        M.MAVLINK_MSG_ID_VFR_HUD: _vfr_hud,
-        M.MAVLINK_MSG_ID_WIND: _wind,
-        M.MAVLINK_MSG_ID_HOME_POSITION: _home,
-        M.MAVLINK_MSG_ID_MISSION_CURRENT: _mission_current,
-        M.MAVLINK_MSG_ID_NAV_CONTROLLER_OUTPUT: _nav_controller,
-        M.MAVLINK_MSG_ID_AUTOPILOT_VERSION: autopilot_version,
-    }
-    if msg_id == M.MAVLINK_MSG_ID_SYSTEM_TIME:
-        unix_us = int((v.config.unix_time_at_zero_s + v.t_s) * 1e6)
-        return M.MAVLink_system_time_message(unix_us, v.time_boot_ms)
-    if msg_id == M.MAVLINK_MSG_ID_EXTENDED_SYS_STATE:
-        return M.MAVLink_extended_sys_state_message(M.MAV_VTOL_STATE_UNDEFINED, landed_state(v))
-    builder = builders.get(msg_id)
+    builder = _BUILDERS.get(msg_id)
     return builder(v) if builder is not None else None

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 __all__ = ["GRAVITY_M_S2", "Battery", "BatteryModel"]
 
@@ -63,9 +64,9 @@ class BatteryModel:
         if self.empty_v >= self.full_v:
             raise ValueError("empty_v must be below full_v")
 
-    @property
+    @cached_property
     def cruise_current_a(self) -> float:
-        """``I_c = 3.6 * capacity_mah / endurance_s``."""
+        """``I_c = 3.6 * capacity_mah / endurance_s`` (computed once: the model is frozen)."""
         return 3.6 * self.capacity_mah / self.endurance_s
 
     def current_a(self, airspeed_m_s: float, wind_m_s: float = 0.0, climb_m_s: float = 0.0,
@@ -100,20 +101,25 @@ class Battery:
 
     @property
     def voltage_v(self) -> float:
+        """``empty_v + (full_v - empty_v) * remaining`` (``remaining`` written out: this
+        is read twice a physics step)."""
         m = self.model
-        return m.empty_v + (m.full_v - m.empty_v) * self.remaining
+        return m.empty_v + (m.full_v - m.empty_v) * max(0.0, 1.0 - self.used_mah / m.capacity_mah)
 
     @property
     def empty(self) -> bool:
         return self.remaining <= 0.0
 
     def drain(self, dt_s: float, airspeed_m_s: float, wind_m_s: float = 0.0,
-              climb_m_s: float = 0.0, flying: bool = True) -> None:
-        """Draw the current for ``dt_s`` seconds (``used_mah += I dt / 3.6``)."""
+              climb_m_s: float = 0.0, flying: bool = True) -> float:
+        """Draw the current for ``dt_s`` seconds (``used_mah += I dt / 3.6``); returns the
+        pack's voltage it was drawn at (the voltage before the step)."""
+        voltage_v = self.voltage_v
         self.current_a = self.model.current_a(airspeed_m_s, wind_m_s, climb_m_s,
-                                              self.voltage_v, flying)
+                                              voltage_v, flying)
         self.used_mah = min(self.model.capacity_mah,
                             self.used_mah + self.current_a * max(0.0, dt_s) / 3.6)
+        return voltage_v
 
     def swap(self) -> None:
         """A fresh pack (a recovered plane's battery swap)."""

@@ -68,6 +68,7 @@ __all__ = [
     "ground_velocity_m_s",
     "max_turn_rate_rad_s",
     "step_kinematics",
+    "step_pose",
     "turn_rate_to_circle",
     "turn_rate_to_point",
 ]
@@ -131,24 +132,40 @@ def step_kinematics(
 ) -> UavState:
     """Advance by ``dt_s`` at constant ``turn_rate_rad_s`` in the constant wind
     ``wind_xy_m_s``: the exact air-relative arc plus ``w dt`` (module docstring)."""
-    v = state.speed_m_s
-    psi0 = state.heading_rad
+    x1, y1, psi1 = step_pose(state.x_m, state.y_m, state.heading_rad, state.speed_m_s,
+                             turn_rate_rad_s, dt_s, wind_xy_m_s)
+    # UavState(...) rather than dataclasses.replace: this runs every step of every UAV
+    return UavState(x1, y1, psi1, state.speed_m_s)
+
+
+def step_pose(
+    x_m: float,
+    y_m: float,
+    heading_rad: float,
+    speed_m_s: float,
+    turn_rate_rad_s: float,
+    dt_s: float,
+    wind_xy_m_s: tuple[float, float] = CALM,
+) -> tuple[float, float, float]:
+    """:func:`step_kinematics` on a bare pose: ``(x_m, y_m, heading_rad)`` after ``dt_s``
+    (for a caller that keeps its own state and need not build a UavState every step)."""
+    v = speed_m_s
+    psi0 = heading_rad
     wx, wy = wind_xy_m_s
     drift_x, drift_y = (0.0, 0.0) if wx == 0.0 and wy == 0.0 else (wx * dt_s, wy * dt_s)
-    # UavState(...) rather than dataclasses.replace: this runs every step of every UAV
     if abs(turn_rate_rad_s) < 1e-9:
-        x1 = state.x_m + v * math.cos(psi0) * dt_s
-        y1 = state.y_m + v * math.sin(psi0) * dt_s
+        x1 = x_m + v * math.cos(psi0) * dt_s
+        y1 = y_m + v * math.sin(psi0) * dt_s
         if drift_x or drift_y:
             x1, y1 = x1 + drift_x, y1 + drift_y
-        return UavState(x1, y1, psi0, v)
+        return x1, y1, psi0
     psi1 = psi0 + turn_rate_rad_s * dt_s
     radius = v / turn_rate_rad_s
-    x1 = state.x_m + radius * (math.sin(psi1) - math.sin(psi0))
-    y1 = state.y_m - radius * (math.cos(psi1) - math.cos(psi0))
+    x1 = x_m + radius * (math.sin(psi1) - math.sin(psi0))
+    y1 = y_m - radius * (math.cos(psi1) - math.cos(psi0))
     if drift_x or drift_y:
         x1, y1 = x1 + drift_x, y1 + drift_y
-    return UavState(x1, y1, wrap_pi(psi1), v)
+    return x1, y1, wrap_pi(psi1)
 
 
 def turn_rate_to_point(
