@@ -15,13 +15,12 @@ no plots: what a campaign worker spends after its imports) and their ratios.
 from __future__ import annotations
 
 import argparse
-import os
 import statistics
-import subprocess
 import sys
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
+from tree_ab import ROOT, interleaved_rounds, ratio_line, tree_children
+
 _CHILD = """
 import sys, time
 from world.scenario import load_scenario
@@ -46,36 +45,14 @@ def main() -> int:
     parser.add_argument("--rounds", type=int, default=15)
     args = parser.parse_args()
     trees = {"other tree": args.against_tree.resolve(), "this tree": ROOT}
-    procs = {
-        name: subprocess.Popen(
-            [sys.executable, "-c", _CHILD, args.scenario, args.duration],
-            env=dict(os.environ, PYTHONPATH=str(root)), cwd=root, text=True,
-            stdin=subprocess.PIPE, stdout=subprocess.PIPE)
-        for name, root in trees.items()
-    }
-    cpu: dict[str, list[float]] = {name: [] for name in trees}
-    try:
-        for proc in procs.values():
-            assert proc.stdout is not None and proc.stdout.readline().strip() == "ready"
-        for k in range(args.rounds):
-            for name in (list(trees) if k % 2 == 0 else list(reversed(trees))):
-                proc = procs[name]
-                assert proc.stdin is not None and proc.stdout is not None
-                proc.stdin.write("run\n")
-                proc.stdin.flush()
-                cpu[name].append(float(proc.stdout.readline()))
-    finally:
-        for proc in procs.values():
-            if proc.stdin is not None:
-                proc.stdin.close()
-            proc.wait(timeout=60)
+    child_args = {name: [args.scenario, args.duration] for name in trees}
+    with tree_children(trees, _CHILD, child_args) as procs:
+        cpu = interleaved_rounds(procs, args.rounds)
     span = f"{args.duration} s" if args.duration else "its duration"
     print(f"{args.scenario}, 3 UAVs, {span}, seed 0: loop CPU per run, {args.rounds} rounds")
     for name, values in cpu.items():
         print(f"   {name:<12} min {min(values):.3f} s, median {statistics.median(values):.3f} s")
-    old, new = cpu["other tree"], cpu["this tree"]
-    print(f"   ratio        min {min(old) / min(new):.2f}, "
-          f"median {statistics.median(old) / statistics.median(new):.2f}")
+    print(ratio_line(cpu["other tree"], cpu["this tree"]))
     return 0
 
 

@@ -33,14 +33,13 @@ from __future__ import annotations
 
 import argparse
 import hashlib
-import os
 import statistics
-import subprocess
 import sys
 import tempfile
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
+from tree_ab import ROOT, interleaved_rounds, ratio_line, tree_children
+
 VEHICLES = 3
 
 _CHILD = r'''
@@ -290,17 +289,8 @@ def main() -> int:
         out_dir = args.frames_out or Path(tmp)
         out_dir.mkdir(parents=True, exist_ok=True)
         dumps = {name: out_dir / f"{name.replace(' ', '-')}.frames" for name in trees}
-        procs = {
-            name: subprocess.Popen(
-                [sys.executable, "-c", _CHILD, str(args.seconds), str(dumps[name])],
-                env=dict(os.environ, PYTHONPATH=str(root)), cwd=root, text=True,
-                stdin=subprocess.PIPE, stdout=subprocess.PIPE)
-            for name, root in trees.items()
-        }
-        cpu: dict[str, list[float]] = {name: [] for name in trees}
-        try:
-            for proc in procs.values():
-                assert proc.stdout is not None and proc.stdout.readline().strip() == "ready"
+        child_args = {name: [str(args.seconds), str(dumps[name])] for name in trees}
+        with tree_children(trees, _CHILD, child_args, timeout_s=120.0) as procs:
             diff = first_difference(dumps["other tree"], dumps["this tree"])
             lines = sum(1 for _ in dumps["this tree"].open())
             digest = hashlib.sha256(dumps["this tree"].read_bytes()).hexdigest()[:16]
@@ -310,18 +300,7 @@ def main() -> int:
                       f"  this:  {ours[:200]}")
                 return 1
             print(f"frames identical: {lines} lines (frames and journal), sha256 {digest}")
-            for k in range(args.rounds):
-                for name in (list(trees) if k % 2 == 0 else list(reversed(trees))):
-                    proc = procs[name]
-                    assert proc.stdin is not None and proc.stdout is not None
-                    proc.stdin.write("run\n")
-                    proc.stdin.flush()
-                    cpu[name].append(float(proc.stdout.readline()))
-        finally:
-            for proc in procs.values():
-                if proc.stdin is not None:
-                    proc.stdin.close()
-                proc.wait(timeout=120)
+            cpu = interleaved_rounds(procs, args.rounds)
     vehicle_s = VEHICLES * args.seconds
     print(f"{VEHICLES} vehicles x {args.seconds:g} simulated s: CPU in SitlServer.advance per "
           f"simulated vehicle-second, {args.rounds} rounds")
@@ -329,8 +308,7 @@ def main() -> int:
         print(f"   {name:<12} min {1e3 * min(values) / vehicle_s:.3f} ms, "
               f"median {1e3 * statistics.median(values) / vehicle_s:.3f} ms")
     old, new = cpu["other tree"], cpu["this tree"]
-    print(f"   ratio        min {min(old) / min(new):.2f}, "
-          f"median {statistics.median(old) / statistics.median(new):.2f} "
+    print(f"{ratio_line(old, new)} "
           f"(CPU saved: {100 * (1 - statistics.median(new) / statistics.median(old)):.0f} %)")
     paired = statistics.median(a / b for a, b in zip(old, new, strict=True))
     print(f"   ratio of each round's pair, median {paired:.2f} "
