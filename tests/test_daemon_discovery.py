@@ -25,7 +25,6 @@ from groundstation.daemon.daemon import Daemon
 from groundstation.daemon.journal import Journal, read_journal
 from groundstation.daemon.world import ScenarioWorld
 from groundstation.runners.report.data import load_run_data
-from groundstation.runners.report.track_plots import plot_tracking
 from planner.search_cells import SearchConfig
 from world.discovery_spec import discovery_mode
 from world.scenario import load_scenario, resolve_targets
@@ -127,6 +126,8 @@ def test_discovery_run_replays_identical_and_reports(tmp_path: Path) -> None:
     report = json.loads(out.getvalue())
     assert report["identical"] and report["track_samples_compared"] > 10
     assert report["decisions_recorded"] == report["decisions_replayed"] > 0
+    from groundstation.runners.report.track_plots import plot_tracking  # matplotlib: here
+
     figure = plot_tracking(load_run_data(run))  # the report's figure of the daemon's lines
     assert figure is not None and figure.info["search_cells"] > 0
     assert figure.info["counts"]["born"] >= 1 and figure.info["tracks"]["prior"]

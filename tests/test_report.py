@@ -13,7 +13,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 from daemon_run import run_gcs
-from matplotlib.image import imread
 
 from groundstation.cli import main
 
@@ -147,6 +146,8 @@ def test_simulate_report_has_every_figure_and_the_tracks(sim_run: Path, sim_repo
     # and the pixels: vehicle 3 is drawn in tab:green across its track's horizontal extent
     info = json.loads((tmp_path / "figures.json").read_text())["map"]
     ax0, _ay0, ax1, _ay1 = info["axes_px"]
+    from matplotlib.image import imread  # (not at collection: every worker would pay it)
+
     pixels = imread(io.BytesIO(pngs["Map of the flight"]), format="png")[:, :, :3]
     green = np.argwhere(np.all(np.abs(pixels - TAB_GREEN) < 0.02, axis=2))
     assert len(green) > 100

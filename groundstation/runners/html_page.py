@@ -10,10 +10,10 @@ import base64
 import html
 import io
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
+if TYPE_CHECKING:  # matplotlib is imported where a figure is drawn (its plot modules)
+    from matplotlib.figure import Figure
 
 __all__ = ["DPI", "PAGE_CSS", "FigurePng", "figure_html", "page_start", "render_png"]
 
@@ -47,6 +47,8 @@ class FigurePng:
 def render_png(fig: Figure, dpi: int = DPI) -> bytes:
     """The PNG bytes of a matplotlib figure built with the object API (Agg canvas; no
     pyplot, no global state)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
     FigureCanvasAgg(fig)
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=dpi)

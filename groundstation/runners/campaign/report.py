@@ -26,6 +26,7 @@ import html
 import math
 from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -38,13 +39,6 @@ from groundstation.runners.campaign.data import (
     load_campaign,
 )
 from groundstation.runners.campaign.paired import PairedRow, paired_with_base
-from groundstation.runners.campaign.plots import (
-    Panel,
-    plot_mean_vs_fleet,
-    plot_mu_ratio,
-    plot_series,
-    plot_solve_times,
-)
 from groundstation.runners.campaign.stats import (
     Cells,
     CellSummary,
@@ -59,6 +53,9 @@ from groundstation.runners.campaign.stats import (
 from groundstation.runners.campaign.table import cell_table, text_table
 from groundstation.runners.html_page import figure_html, page_start
 from groundstation.storage import StorageError, atomic_write_bytes, atomic_write_text
+
+if TYPE_CHECKING:
+    from groundstation.runners.campaign.plots import Panel
 
 __all__ = [
     "CampaignReportError",
@@ -293,6 +290,14 @@ def write_campaign_report(
     summaries = summaries_of(data.runs, cells, data.plans)
     for line in text_table(*cell_table(summaries, cells.varying or cells.keys)):
         note(line)
+    # matplotlib (0.6-1 CPU-s to import) only once the table is out and the plots are due
+    from groundstation.runners.campaign.plots import (
+        plot_mean_vs_fleet,
+        plot_mu_ratio,
+        plot_series,
+        plot_solve_times,
+    )
+
     panels = [
         plot_mean_vs_fleet(summaries, cells),
         plot_series(series_bands(data.runs, cells), cells),
