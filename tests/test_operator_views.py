@@ -391,3 +391,28 @@ def test_link_silence_counts_from_the_links_own_connect_and_first_frame(
                   if e["event"] == "link_silent"]
     assert first["since"] == "first frame" and first["silent_s"] == NO_VEHICLE_AFTER_S
     assert first["received"] == 37
+
+
+def test_the_stop_line_is_the_journals_last_even_with_frames_still_arriving(
+        tmp_path: Path) -> None:
+    """A frame read in the same wake as the shutdown (the built-in vehicles write several
+    frames at once) was acted on after the stop line: a full suite saw a ``loiter_end``
+    journalled after ``stop``. From the stop line on, a vehicle frame changes nothing: here
+    the first position of an unknown system, which would otherwise set the mission origin
+    and journal an ``origin`` line."""
+    from groundstation.link.base import Received
+    from groundstation.mavlink.codec import MavlinkDecoder, MavlinkEncoder, mavlink2
+
+    t = [12.0]
+    daemon, journal = _offline_daemon(tmp_path, 1.0, t)
+    frame = MavlinkEncoder(7, 1).encode(mavlink2.MAVLink_global_position_int_message(
+        1000, 783_000_000, 155_000_000, 100_000, 100_000, 0, 0, 0, 0))
+    rx = Received(MavlinkDecoder().feed(frame)[0], frame, "vehicles0", 1.7e9)
+    try:
+        asyncio.run(daemon._shutdown())
+        daemon._on_vehicle_frame(rx)  # after the stop line
+    finally:
+        journal.close()
+    lines = read_journal(tmp_path / "journal.jsonl")
+    assert lines[-1]["event"] == "stop", [e["event"] for e in lines]
+    assert daemon.origin_or_none is None and daemon.drops.unknown_frames == 0

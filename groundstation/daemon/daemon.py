@@ -425,8 +425,8 @@ class Daemon:
     def _on_vehicle_frame(self, rx: Received) -> None:
         msg = rx.message
         sysid = rx.system_id
-        if sysid == self.config.links.gcs_system_id:
-            return
+        if sysid == self.config.links.gcs_system_id or self._state.finished:
+            return  # floe's own id; or the run is over (its stop line written)
         session = self.sessions.get(sysid)
         if session is None:
             if (
@@ -587,6 +587,10 @@ class Daemon:
                 self.journal("rtl", vehicle=session.id, ok=None, reason="on exit")
         for line in self.newcomers.flush():
             self.journal("unknown_systems", **line)
+        # the stop line is the journal's last: from here no vehicle frame is acted on or
+        # journalled (the router still records it in the tlog). Frames already read in the
+        # same wake could otherwise add a loiter_end after it before the tasks are cancelled
+        self._state.finished = True
         self.journal("stop", logged=False, reason=self._state.stop_reason, **self.summary())
 
     # ------------------------------------------------------------------ loops
