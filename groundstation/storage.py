@@ -376,9 +376,7 @@ class AppendLog:
                         os.ftruncate(self._fd, self._committed)
                 return False
             done += n
-        self._committed += len(data)
-        self.records += 1
-        self.bytes_written += len(data)
+        self._written(len(data))
         return True
 
     def _allocate_reserve(self, size: int) -> None:
@@ -415,6 +413,13 @@ class AppendLog:
             return 0
         return size
 
+    def _written(self, size_bytes: int) -> None:
+        """A whole record of ``size_bytes`` is in the file: counted, and the file's last
+        whole record ends there."""
+        self._committed += size_bytes
+        self.records += 1
+        self.bytes_written += size_bytes
+
     def _write_now(self, queue: collections.deque[tuple[int, bytes]], data: bytes) -> bool:
         """:meth:`append` with nothing held: one write, as :meth:`_drain` would make it, the
         record queued only when it did not go whole (held on an error, the rest written by
@@ -431,9 +436,7 @@ class AppendLog:
             self._fail(exc)
             return False
         if n == len(data):
-            self._committed += n
-            self.records += 1
-            self.bytes_written += n
+            self._written(n)
             return True
         queue.append((self._seq, data))  # a short write: _drain writes the rest or fails
         self.held_bytes += len(data)
@@ -463,9 +466,7 @@ class AppendLog:
             queue.popleft()
             self._head_done = 0
             self.held_bytes -= len(data)
-            self._committed += len(data)
-            self.records += 1
-            self.bytes_written += len(data)
+            self._written(len(data))
         if self.failing:
             self.failing = False
             if self._closing:

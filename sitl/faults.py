@@ -88,6 +88,11 @@ class LinkImpairment:
         """True when the impairment does nothing (the fast path)."""
         return not (self.loss or self.dup or self.reorder or self.delay_s or self.jitter_s)
 
+    @property
+    def holding(self) -> bool:
+        """True while items wait for their delivery time."""
+        return bool(self._queue)
+
     def push(self, item: Any, t_s: float, rng: random.Random) -> None:
         """Offer an item sent at ``t_s``."""
         if self.loss and rng.random() < self.loss:
@@ -145,7 +150,7 @@ class VehicleFaults:
         impairment, nothing held back and no drop in force delivers exactly the items, in
         order, without the queue (its generator is not drawn from either way)."""
         down = self.down
-        if not down._queue and down.transparent and not self.link_down(t_s):
+        if not down.holding and down.transparent and not self.link_down(t_s):
             return items
         for item in items:
             self.send_down(item, t_s)

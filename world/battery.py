@@ -101,10 +101,9 @@ class Battery:
 
     @property
     def voltage_v(self) -> float:
-        """``empty_v + (full_v - empty_v) * remaining`` (``remaining`` written out: this
-        is read twice a physics step)."""
+        """``empty_v + (full_v - empty_v) * remaining``."""
         m = self.model
-        return m.empty_v + (m.full_v - m.empty_v) * max(0.0, 1.0 - self.used_mah / m.capacity_mah)
+        return m.empty_v + (m.full_v - m.empty_v) * self.remaining
 
     @property
     def empty(self) -> bool:
