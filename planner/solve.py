@@ -172,10 +172,23 @@ def load_lp(cpu_left_s: float, lp_cpu_s: float) -> bool:
 
 def warm_up() -> None:
     """Import the LP (scipy) and CP-SAT (OR-Tools) libraries now, outside any solve's budget
-    (~0.3-0.5 s each, once per process). A long-lived caller (daemon, benchmark) calls it
-    once at start; without it the first solve that needs them pays the imports."""
+    (~0.3-0.5 s each, once per process). A benchmark calls it once at start; the daemon
+    once a problem is beyond the DP (:func:`needs_libraries`). Without it the
+    first solve that needs them pays the imports, when they fit its budget."""
     importlib.import_module("scipy.optimize")
     importlib.import_module("ortools.sat.python.cp_model")
+
+
+def libraries_loaded() -> bool:
+    """Whether both of :func:`warm_up`'s libraries are imported."""
+    return "scipy.optimize" in sys.modules and "ortools.sat.python.cp_model" in sys.modules
+
+
+def needs_libraries(m: int, n: int, time_limit_s: float) -> bool:
+    """Whether a problem of ``m`` UAVs and ``n`` targets is beyond the DP (:func:`dp_is_cheap`,
+    which needs neither library), so that its solve may use the LP and CP-SAT. With 3
+    UAVs the DP solves up to 12 targets at a 1 s limit, 11 at 0.1 s (a 2 s limit at 20x)."""
+    return not dp_is_cheap(m, n, time_limit_s)
 
 
 def cpsat_import_s() -> float:

@@ -417,28 +417,61 @@ def test_solver_runner_stops_a_solver_at_its_deadline_and_answers(
     assert elapsed >= 1.5 * 0.3 + 0.5 - 0.02
 
 
-def test_solver_runner_warms_up_in_its_worker_thread_before_the_first_solve(
+def test_solver_runner_loads_the_libraries_only_beyond_the_dp(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    """The planner's imports (scipy, OR-Tools) are loaded by run() in the solver's worker
-    thread, not by the constructor on the event loop (the daemon's start), and a request
-    submitted meanwhile is served after them."""
+    """The planner's imports (scipy, OR-Tools) are loaded in the solver's worker thread,
+    never on the event loop, and only after the answer to the first problem beyond the DP:
+    3 UAVs x 4 and 3 x 12 targets (the DP's largest at a 1 s limit) load nothing; 3 x 13
+    loads them once, and a second 3 x 13 not again."""
     from groundstation.daemon import planning
 
-    calls: list[str] = []
-    monkeypatch.setattr(planning, "warm_up", lambda: calls.append(threading.current_thread().name))
+    calls: list[tuple[str, int]] = []  # (thread, answers given before the warm-up)
     answers: list[Any] = []
+    monkeypatch.setattr(planning, "libraries_loaded", lambda: False)
+    monkeypatch.setattr(
+        planning, "warm_up", lambda: calls.append((threading.current_thread().name, len(answers)))
+    )
 
     async def main() -> None:
         runner = planning.SolverRunner(lambda req, res: answers.append(res))
-        assert calls == []
-        runner.submit(_request(1, 4, 1.0))
         service = asyncio.create_task(runner.run())
-        while not answers:
-            await asyncio.sleep(0.01)
+        for request_id, n_targets in enumerate((4, 12, 13, 13), start=1):
+            runner.submit(_request(request_id, n_targets, 1.0))
+            while len(answers) < request_id or runner.busy:
+                await asyncio.sleep(0.01)
+            await asyncio.sleep(0.05)  # the warm-up after the answer, if any
+            if n_targets <= 12:
+                assert calls == [], n_targets
         runner.close()
         service.cancel()
 
     asyncio.run(asyncio.wait_for(main(), 30.0))
-    assert len(calls) == 1 and calls[0].startswith("floe-solver")
-    assert [a.status for a in answers] == ["optimal"]
+    assert len(calls) == 1, calls
+    thread, answered = calls[0]
+    assert thread.startswith("floe-solver") and answered == 3
+    assert [a.solver for a in answers[:2]] == ["dp", "dp"]
+    assert all(a.solver != "dp" for a in answers[2:])
+
+
+def test_start_up_loads_the_solver_libraries_only_for_a_known_large_first_problem(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Before the clock starts, ``gcs run`` loads CP-SAT and the LP only when the built-in
+    fleet and the targets it starts with are already beyond the DP (then no mission time
+    passes during the imports): paper-boat with sim:3 (3 x 10) does not, nor with 2 more
+    ``--targets``; with 3 more (3 x 13) it does; real vehicles (no sim:N) leave it to the
+    solver runner."""
+    import planner.solve
+    from groundstation.daemon import startup
+    from world.scenario import load_scenario
+
+    calls: list[int] = []
+    monkeypatch.setattr(planner.solve, "warm_up", lambda: calls.append(1))
+    scenario = load_scenario("paper-boat")
+    startup._warm_up_planner(3, scenario, 0, 1.0)
+    startup._warm_up_planner(3, scenario, 2, 1.0)
+    startup._warm_up_planner(None, scenario, 30, 1.0)
+    assert calls == []
+    startup._warm_up_planner(3, scenario, 3, 1.0)
+    assert calls == [1]

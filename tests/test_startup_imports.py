@@ -106,3 +106,22 @@ def test_gcs_simulate_without_plots_loads_no_matplotlib(tmp_path: Path) -> None:
     assert (out / "metrics.json").is_file()
     # paper-boat is a Kalman scenario without discovery: no filterpy, no scipy (GOSPA)
     assert not loaded & set(HEAVY)
+
+
+def test_gcs_run_of_paper_boat_loads_no_solver_library(tmp_path: Path) -> None:
+    """paper-boat's problems (3 UAVs x 10 targets) stay in the DP's range, so a whole ``gcs
+    run`` of it never imports CP-SAT, pandas or scipy (~1 CPU-s a start until issue 30):
+    the solver runner loads them only near the DP's limit."""
+    run_dir = tmp_path / "runs"
+    code = (
+        "from groundstation.cli import main\n"
+        "status = main(['run', '--vehicles', 'sim:3', '--scenario', 'paper-boat', '--duration',"
+        f" '60', '--speedup', '20', '--run-dir', {str(run_dir)!r}, '--http', 'off',"
+        " '--status', 'quiet'])\nassert status == 0, status\n"
+    )
+    loaded, _ = _modules_after(code, tmp_path)
+    journal = [json.loads(line) for line in
+               next(run_dir.glob("*/journal.jsonl")).read_text(encoding="utf-8").splitlines()]
+    plans = [e for e in journal if e["event"] == "plan"]
+    assert plans and not [e for e in journal if e["event"] == "task_error"]
+    assert not loaded & set(HEAVY), loaded & set(HEAVY)

@@ -24,7 +24,7 @@ from collections.abc import Callable, Mapping, Sequence
 
 from groundstation.core.commands import SolveRequest
 from planner import PlanResult, PlanSolver
-from planner.solve import warm_up
+from planner.solve import libraries_loaded, needs_libraries, warm_up
 
 __all__ = ["SolverRunner"]
 
@@ -54,6 +54,7 @@ class SolverRunner:
         self.cancelled = 0
         self.deadline_stops = 0
         self.solved = 0
+        self._warmed = False  # warm_up asked for (once per runner)
 
     def submit(self, request: SolveRequest) -> None:
         solver = PlanSolver(
@@ -66,18 +67,7 @@ class SolverRunner:
         self._queue.put_nowait((request, solver))
 
     async def run(self) -> None:
-        """Serve submitted requests until cancelled (each solve a child task).
-
-        First the planner's libraries are loaded in the worker thread: it imports CP-SAT
-        (ortools.sat and pandas, ~0.3 s of CPU) and scipy's LP (~0.3-0.5 s) only when a solve
-        needs them, and a first large solve would spend that time inside its deadline. Done
-        here, not in __init__, it delays neither the event loop nor the links' start;
-        requests submitted meanwhile wait in the queue."""
-        loop = asyncio.get_running_loop()
-        try:
-            await loop.run_in_executor(self._executor, warm_up)
-        except Exception as exc:  # a broken install: each solve then pays (or fails) itself
-            log.warning("planner warm-up failed: %s", exc)
+        """Serve submitted requests until cancelled (each solve a child task)."""
         async with asyncio.TaskGroup() as solves:
             while True:
                 request, solver = await self._queue.get()
@@ -125,6 +115,28 @@ class SolverRunner:
         if result is not None:
             self.solved += 1
             self.on_solved(request, result)
+        await self._warm_up_for(request)
+
+    async def _warm_up_for(self, request: SolveRequest) -> None:
+        """Load CP-SAT (ortools.sat and pandas) and scipy's LP, ~1 CPU-s of imports, in the
+        worker thread after the answer to the first problem beyond the DP
+        (``needs_libraries``): that solve imported what its budget could pay for, the next
+        ones find both loaded, and a run whose problems stay in the DP's range (paper-boat's
+        3 x 10) never imports them. A solve started meanwhile runs in the second thread."""
+        problem = request.problem
+        if self._warmed or not needs_libraries(
+            len(problem.uavs), len(problem.targets), problem.time_limit_s
+        ):
+            return
+        self._warmed = True
+        if libraries_loaded():
+            return
+        log.info("planner: loading CP-SAT and the LP (%d UAVs, %d targets)",
+                 len(problem.uavs), len(problem.targets))
+        try:
+            await asyncio.get_running_loop().run_in_executor(self._executor, warm_up)
+        except Exception as exc:  # a broken install: each solve then pays (or fails) itself
+            log.warning("planner warm-up failed: %s", exc)
 
     def close(self) -> None:
         for solver in self._solvers.values():

@@ -284,9 +284,6 @@ def _prepare(config: DaemonConfig, embedded: EmbeddedFactory | None) -> _Setup:
     check_config(config)
     config = resolve(config)
     keys = load_signing_keys(config)
-    from planner.solve import warm_up
-
-    warm_up()  # the solver's libraries (~0.6 s of CPU) before any clock starts: no mission time
     scenario = None
     if config.mission.scenario_to_load is not None:
         from world.scenario import load_scenario
@@ -324,8 +321,30 @@ def _prepare(config: DaemonConfig, embedded: EmbeddedFactory | None) -> _Setup:
     except LinkUrlError as exc:
         raise StartError(str(exc)) from None
     clock = MissionClock(config.speedup_x, source=sim.now_s if sim is not None else None)
+    core = core_config(config, scenario, clock.speedup)
+    _warm_up_planner(config.sim_count, scenario, len(targets), core.time_limit_s)
     return _Setup(config, keys, scenario, wind, wind_source, sim, origin, targets, out_specs,
-                  clock, core_config(config, scenario, clock.speedup))
+                  clock, core)
+
+
+def _warm_up_planner(
+    sim_count: int | None, scenario: Scenario | None, given_targets: int, time_limit_s: float
+) -> None:
+    """Load CP-SAT and the LP (~1 CPU-s of imports) before any clock starts, so that no
+    mission time passes during them, when the first problem is already known to be beyond
+    the DP: the built-in fleet (``sim:N``) against the scenario's and ``--targets``'
+    targets. Otherwise the solver runner loads them after the first problem beyond the DP
+    (``planner.solve.needs_libraries``), and a run that stays in its range never does."""
+    if sim_count is None:  # real vehicles: the fleet is known when they are heard
+        return
+    known = given_targets
+    if scenario is not None and scenario.targets_known:
+        random = scenario.random_targets
+        known += len(scenario.targets) + (random.count if random is not None else 0)
+    from planner.solve import needs_libraries, warm_up
+
+    if needs_libraries(sim_count, known, time_limit_s):
+        warm_up()
 
 
 def _open_files(setup: _Setup, stack: contextlib.AsyncExitStack) -> RunFiles:
