@@ -425,15 +425,17 @@ class SitlServer:
                 self.bytes_out += len(data)
 
     # ------------------------------------------------------------------ loop
-    def tick(self) -> None:
-        """Advance the simulated clock to now and run every vehicle and the feed."""
+    def tick(self, end_s: float | None = None) -> None:
+        """Advance the simulated clock to now, never past ``end_s`` (simulated s), and run
+        every vehicle and the feed."""
         now = time.monotonic()
         speedup = self.options.speedup
         cap_s = max(self.options.max_step_s, speedup * self.options.max_stall_s)
         want_s = (now - self._last_wall) * speedup
         self._behind = want_s > cap_s
         self._last_wall = now
-        self.advance(self.t_s + min(want_s, cap_s))
+        t_s = self.t_s + min(want_s, cap_s)
+        self.advance(t_s if end_s is None else min(t_s, end_s))
 
     def advance(self, t_s: float) -> None:
         """Run every vehicle, radio and the feed to simulated time ``t_s`` (never back)."""
@@ -502,9 +504,10 @@ class SitlServer:
         slot.events_seen = len(vehicle.events)
 
     async def run(self, duration_s: float | None = None) -> None:
-        """Tick until :meth:`stop` or ``duration_s`` simulated seconds."""
+        """Tick until :meth:`stop` or ``duration_s`` simulated seconds (the last tick ends
+        on it: a late tick at 50x would otherwise overshoot it by up to 5 s)."""
         while not self._stop.is_set():
-            self.tick()
+            self.tick(duration_s)
             if duration_s is not None and self.t_s >= duration_s:
                 break
             if self._behind:  # overloaded: yield to I/O, then tick again at once

@@ -337,3 +337,13 @@ def test_downlink_loss_and_link_drop_through_the_server(mav2: None) -> None:
             assert conn.recv_match(type="HEARTBEAT", blocking=True, timeout=0.5) is None
         for conn in conns:
             conn.close()
+
+
+def test_run_ends_on_its_duration_even_when_a_tick_comes_late() -> None:
+    """``gcs sitl --duration 10 --speedup 50`` on a starved host stopped after 11.3
+    simulated s: a late tick may advance up to speedup x 0.1 s at once (5 s here), and the
+    last one ran past the duration. The last tick now ends on it."""
+    server = SitlServer(configs(1), ServerOptions(speedup=50.0, base_port=0))
+    server._last_wall = time.monotonic() - 10.0  # the host did not run it for 10 wall s
+    asyncio.run(asyncio.wait_for(server.run(3.0), 30.0))
+    assert server.t_s == 3.0
