@@ -48,6 +48,13 @@ def comparable(rows: list[dict[str, Any]]) -> dict[tuple[Any, ...], dict[str, An
             for r in rows}
 
 
+def _worker_profiles() -> bool:
+    """In a Dask worker: whether its statistical profiler samples the running tasks."""
+    import dask.config
+
+    return bool(dask.config.get("distributed.worker.profile.enabled"))
+
+
 def test_local_pool_dask_and_in_process_runs_give_identical_rows(tmp_path: Path) -> None:
     need(importlib.util.find_spec("distributed") is not None,
          "dask[distributed] is not installed (pip install '.[test,plot,campaign]')")
@@ -60,6 +67,8 @@ def test_local_pool_dask_and_in_process_runs_give_identical_rows(tmp_path: Path)
         plan = open_campaign(path, tmp_path / name)
         with executor as engine:
             outcome = run_campaign(plan, engine)
+            if isinstance(engine, DaskExecutor):  # no dashboard: no profiler sampling runs
+                assert set(engine._client.run(_worker_profiles).values()) == {False}
         assert outcome.finished == 4 and not outcome.failures
         results[name] = (read_results(tmp_path / name).to_pylist(),
                          read_results(tmp_path / name, PLANS_DIR).to_pylist())
