@@ -248,9 +248,22 @@ def test_mission_upload_by_another_gcs_is_an_override(tmp_path: Path) -> None:
     assert stop and stop[0]["reason"] == "test"
 
 
+def _taken_back_after_reboot(journal: Journal) -> bool:
+    """Vehicle 1 rebooted, joined again after it and then got a verified target mission:
+    the last thing the test asserts on (at ~49 of the 120 mission s, measured; its span of
+    plans without vehicle 1 ends at the join)."""
+    reboot = events(journal, "reboot", vehicle="1")
+    if not reboot:
+        return False
+    rejoined = after(events(journal, "vehicle_joined", vehicle="1"), reboot[0]["t"])
+    return bool(rejoined) and bool(
+        after(events(journal, "upload", vehicle="1", ok=True, purpose="target"), rejoined[0]["t"])
+    )
+
+
 @pytest.mark.timeout(60)
 def test_reboot_in_flight_is_taken_back(tmp_path: Path) -> None:
-    _, journal = run_gcs(
+    daemon, journal = run_gcs(
         tmp_path,
         "--vehicles",
         "sim:2",
@@ -263,7 +276,9 @@ def test_reboot_in_flight_is_taken_back(tmp_path: Path) -> None:
         "50",
         "--duration",
         "120",
+        until=_taken_back_after_reboot,
     )
+    assert daemon.stop_reason == "test: awaited events seen", daemon.stop_reason
     assert not events(journal, "task_error")
     reboot = events(journal, "reboot", vehicle="1")
     assert reboot and reboot[0]["t"] >= 40.0

@@ -8,7 +8,9 @@ upload started, no set-current, no mode change, no arming), and that the journal
 override, never a mission end. ``gcs vehicle resume`` (the API's action, as the CLI sends it)
 then gives the vehicle back. A plane that glided into the ground while the pilot had it is
 never launched again on floe's own, even with launch on; ``gcs vehicle launch`` launches it.
-Times are mission times; the wall clock only bounds the runs.
+Times are mission times; the wall clock only bounds the runs. A run whose checks of "nothing
+commanded" end at a stated moment (the resume, the operator's launch) stops once that moment
+and the events asserted after it are in; ``--duration`` only bounds it.
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from daemon_run import Journal, events
+from daemon_run import Journal, events, stop_when
 from test_daemon_trust import KeptSim, changes_vehicle, from_gcs, is_set_mode
 
 from domain.modes import ArduPlaneMode
@@ -36,12 +38,15 @@ from sitl.vehicle import SimVehicle
 
 AUTO = int(ArduPlaneMode.AUTO)
 Watch = Callable[[Daemon, SitlServer, float], None]
+Done = Callable[[SitlServer, Journal], bool]
 
 
-def run_watching(tmp_path: Path, args: list[str], watch: Watch, timeout_s: float = 90.0
-                 ) -> tuple[Daemon, SitlServer, Journal]:  # fmt: skip
+def run_watching(tmp_path: Path, args: list[str], watch: Watch, timeout_s: float = 90.0,
+                 until: Done | None = None) -> tuple[Daemon, SitlServer, Journal]:  # fmt: skip
     """Run the daemon until ``--duration``, calling ``watch(daemon, server, t_s)`` every
-    few wall milliseconds on its event loop."""
+    few wall milliseconds on its event loop; with ``until``, stop it as soon as
+    ``until(server, journal)`` holds (:func:`daemon_run.stop_when`: ``--duration`` is then
+    only the upper bound)."""
     config = build_config([*args, "--run-dir", str(tmp_path), "--http", "off",
                            "--detections", "off", "--status", "quiet"])  # fmt: skip
 
@@ -55,10 +60,17 @@ def run_watching(tmp_path: Path, args: list[str], watch: Watch, timeout_s: float
         ))  # fmt: skip
         daemon = await started
         server = kept.server
-        while not task.done():
-            watch(daemon, server, daemon.clock.now_s())
-            await asyncio.sleep(0.002)
-        await task
+        stopper = None
+        if until is not None:
+            stopper = asyncio.create_task(stop_when(daemon, partial(until, server)))
+        try:
+            while not task.done():
+                watch(daemon, server, daemon.clock.now_s())
+                await asyncio.sleep(0.002)
+            await task
+        finally:
+            if stopper is not None:
+                stopper.cancel()
         return daemon, server
 
     daemon, server = asyncio.run(asyncio.wait_for(main(), timeout_s))
@@ -126,6 +138,33 @@ class Pilots:
                 self.tasks.append(task)
                 task.add_done_callback(partial(_store, reply))
 
+    def given_back(self, server: SitlServer, journal: Journal) -> bool:
+        """Every vehicle of the plan was switched, overridden, and given back: the API
+        answered its resume, the journal took it, and after it came a verified target
+        upload and floe's AUTO at the vehicle. That is the last thing the test asserts on
+        (its spans of "nothing commanded", "no fly" end at the resume; the journal calls the
+        switch an override, not a mission end, within 6 s of it), at ~85 of the 240
+        mission s (measured); the rest of the run only flies on."""
+        for sysid in self.plan:
+            if sysid not in self.resumed or not self.resumed[sysid][1]:
+                return False
+            name = str(sysid)
+            if not [e for e in events(journal, "override", vehicle=name)
+                    if e["t"] >= self.switched[sysid]]:  # fmt: skip
+                return False
+            t_asked = self.resumed[sysid][0]
+            resumed = [e for e in events(journal, "resume", vehicle=name, reason="api")
+                       if e["t"] >= t_asked - 0.5]  # fmt: skip
+            if not resumed:
+                return False
+            t_resume = resumed[0]["t"]
+            if not [e for e in events(journal, "upload", vehicle=name, ok=True,
+                                      purpose="target") if e["t"] >= t_resume]:  # fmt: skip
+                return False
+            if not [c for c in from_gcs(server, sysid, t_resume - 0.5) if is_set_mode(c, AUTO)]:
+                return False
+        return True
+
 
 CASES = {
     "rtl": {1: ("flying to a target", "RTL"), 2: ("loitering", "RTL"), 3: ("last item", "RTL")},
@@ -139,12 +178,13 @@ CASES = {
 @pytest.mark.parametrize("case", list(CASES))
 def test_pilots_switch_is_final_until_given_back(tmp_path: Path, case: str) -> None:
     pilots = Pilots(CASES[case], resume_after_s=12.0)
-    _, server, journal = run_watching(
+    daemon, server, journal = run_watching(
         tmp_path,
         ["--vehicles", "sim:3", "--scenario", "default", "--loiter", "15",
          "--speedup", "25", "--duration", "240"],
-        pilots,
+        pilots, until=pilots.given_back,
     )  # fmt: skip
+    assert daemon.stop_reason == "test: awaited events seen", daemon.stop_reason
     assert not events(journal, "task_error")
     for sysid, (when, mode) in CASES[case].items():
         assert sysid in pilots.switched, f"vehicle {sysid} never reached {when!r}"
@@ -222,13 +262,29 @@ def test_plane_that_came_down_while_the_pilot_had_it_is_never_relaunched(
             launch["reply"] = reply
             task.add_done_callback(partial(_store, reply))
 
-    _, server, journal = run_watching(
+    def relaunched(server: SitlServer, journal: Journal) -> bool:
+        """The operator's launch answered, and after its request floe's launch and a
+        verified takeoff mission: the last thing asserted on (~0.3 s after the request at
+        200 of the 300 mission s, measured). The spans of "nothing armed, uploaded or
+        launched" and of vehicle 2's plans end at that request."""
+        requests = events(journal, "launch_request", vehicle="1")
+        if not launch.get("reply") or not requests:
+            return False
+        t_request = requests[0]["t"]
+        return bool(
+            [e for e in events(journal, "launch", vehicle="1") if e["t"] >= t_request]
+            and [e for e in events(journal, "upload", vehicle="1", purpose="takeoff", ok=True)
+                 if e["t"] >= t_request]
+        )  # fmt: skip
+
+    daemon, server, journal = run_watching(
         tmp_path,
         ["--vehicles", "sim:2", "--scenario", "default",
          "--sim-fault", "1:mode:at=60,mode=FBWA", "--sim-fault", "1:mode:at=140,mode=AUTO",
          "--speedup", "25", "--duration", "300"],
-        operator,
+        operator, until=relaunched,
     )  # fmt: skip
+    assert daemon.stop_reason == "test: awaited events seen", daemon.stop_reason
     assert not events(journal, "task_error")
     hit = [e for e in events(journal, "statustext", vehicle="1") if "Hit ground" in e["text"]]
     (override,) = [e for e in events(journal, "override", vehicle="1")]
