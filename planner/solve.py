@@ -181,7 +181,7 @@ def warm_up() -> None:
 
 def libraries_loaded() -> bool:
     """Whether both of :func:`warm_up`'s libraries are imported."""
-    return "scipy.optimize" in sys.modules and "ortools.sat.python.cp_model" in sys.modules
+    return lp_ready() and cpsat_import_s() == 0.0
 
 
 def needs_libraries(m: int, n: int, time_limit_s: float) -> bool:

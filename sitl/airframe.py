@@ -27,7 +27,8 @@ the runway).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
+from functools import cached_property
 
 from world.dynamics import (
     LoiterCommand,
@@ -61,6 +62,12 @@ class Guidance:
     radius_m: float = 0.0
     clockwise: bool = True
 
+    @cached_property
+    def circle(self) -> LoiterCommand:
+        """The circle of a 'loiter' guidance, built once per guidance (it is immutable; the
+        autopilot hands the airframe the same one step after step while its target holds)."""
+        return LoiterCommand(self.x_m, self.y_m, self.radius_m, self.clockwise)
+
 
 GROUND = Guidance("ground")
 GLIDE = Guidance("glide")
@@ -84,9 +91,6 @@ class Airframe:
     touchdown_sink_m_s: float | None = None
     drift_xy_m_s: tuple[float, float] = _CALM
     """What the wind added to the ground velocity in the last step (``d`` above)."""
-    _last_circle: tuple[Guidance, LoiterCommand] | None = field(
-        default=None, init=False, repr=False, compare=False)
-    """The last loiter guidance and its circle (:meth:`_circle` says what invalidates it)."""
 
     def step(
         self,
@@ -117,7 +121,7 @@ class Airframe:
         if guidance.kind == "point":
             u = turn_rate_to_point(state, guidance.x_m, guidance.y_m, r_min, wind_xy_m_s=wind)
         elif guidance.kind == "loiter":
-            u = turn_rate_to_circle(state, self._circle(guidance), r_min, wind_xy_m_s=wind)
+            u = turn_rate_to_circle(state, guidance.circle, r_min, wind_xy_m_s=wind)
         else:
             u = 0.0
         self.x_m, self.y_m, self.heading_rad = step_pose(
@@ -140,16 +144,6 @@ class Airframe:
             self.climb_m_s = 0.0
             self.turn_rate_rad_s = 0.0
             self.drift_xy_m_s = _CALM
-
-    def _circle(self, guidance: Guidance) -> LoiterCommand:
-        """The circle of a 'loiter' ``guidance``: the last one again while the guidance is
-        the very same (immutable) object, else built anew."""
-        last = self._last_circle
-        if last is not None and last[0] is guidance:
-            return last[1]
-        circle = LoiterCommand(guidance.x_m, guidance.y_m, guidance.radius_m, guidance.clockwise)
-        self._last_circle = (guidance, circle)
-        return circle
 
     @property
     def ground_velocity_m_s(self) -> tuple[float, float]:

@@ -12,6 +12,7 @@ Frames: local ENU metres around ``origin``, headings in radians counter-clockwis
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -242,6 +243,11 @@ class Scenario:
     search: SearchSpec | None = None
     watch: WatchSpec | None = None
 
+    @property
+    def target_count(self) -> int:
+        """Targets it starts with (:func:`count_targets`), known to floe or not."""
+        return count_targets(self.targets, self.random_targets)
+
     def launch_point(self) -> tuple[float, float]:
         """Where the UAVs start: the given point, else the boat, else the origin."""
         if self.fleet.launch_x_m is not None and self.fleet.launch_y_m is not None:
@@ -249,6 +255,11 @@ class Scenario:
         if self.boat is not None:
             return self.boat.x_m, self.boat.y_m
         return 0.0, 0.0
+
+
+def count_targets(listed: Sequence[TargetSpec], random_targets: RandomTargets | None) -> int:
+    """Targets a scenario starts with: those listed plus those drawn at random."""
+    return len(listed) + (random_targets.count if random_targets is not None else 0)
 
 
 def bundled_scenarios() -> list[str]:
@@ -324,7 +335,7 @@ def parse_scenario(data: Any, *, source: str = "") -> Scenario:
     wind = _parse_wind(top.sub("wind"))
     watch = _parse_watch(top.sub("watch")) if top.has("watch") else None
     top.raw("watch")
-    more = parse_discovery(top, len(targets) + (random_targets.count if random_targets else 0))
+    more = parse_discovery(top, count_targets(targets, random_targets))
     top.done()
     ids = [t.id for t in targets] + [e.target.id for e in events if e.target is not None]
     duplicates = sorted({i for i in ids if ids.count(i) > 1})
@@ -501,7 +512,7 @@ def _parse_targets(f: Fields) -> tuple[list[TargetSpec], RandomTargets | None]:
         rf.done()
     else:
         f.raw("random")
-    total = len(listed) + (random_targets.count if random_targets else 0)
+    total = count_targets(listed, random_targets)
     if total > MAX_TARGETS:
         raise FieldError(
             f.path_of("list"), f"{total} targets in all; floe's limit is {MAX_TARGETS}"

@@ -339,8 +339,7 @@ def _warm_up_planner(
         return
     known = given_targets
     if scenario is not None and scenario.targets_known:
-        random = scenario.random_targets
-        known += len(scenario.targets) + (random.count if random is not None else 0)
+        known += scenario.target_count
     from planner.solve import needs_libraries, warm_up
 
     if needs_libraries(sim_count, known, time_limit_s):
