@@ -502,7 +502,21 @@ class DecisionCore:
         if reason is not None:
             self.uploads.reset(record.id, event.t_s)  # its next leg is not delayed
             self._mark_dirty(reason)
+            if record.status is not FleetStatus.ACTIVE:
+                out += self._drop_pending_with(event.t_s, record.id)
         return out
+
+    def _drop_pending_with(self, t_s: float, vehicle: str) -> list[Command]:
+        """The pending request plans ``vehicle``, which has just left the active fleet
+        (lost, overridden, home...): it is cancelled, and its answer, should it still come,
+        is dropped as stale (:meth:`wants_answer`), so no adopted plan names a vehicle the
+        core already knew it could not fly. The replan its leaving asks for (the next
+        tick's, or the next period's) plans without it."""
+        pending = self._pending
+        if pending is None or all(u.id != vehicle for u in pending.problem.uavs):
+            return []
+        self._pending = None
+        return [CancelSolve(t_s, pending.request_id)]
 
     # ------------------------------------------------------------------ planning
     def _mark_dirty(self, reason: str) -> None:
