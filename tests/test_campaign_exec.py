@@ -166,3 +166,42 @@ def test_interrupted_campaigns_resume_and_end_with_every_run_once(tmp_path: Path
     assert [p.name[:6] for p in (out / RUNS_DIR).iterdir()] == ["chunk-"]  # compacted
     plans = pq.read_table(out / PLANS_DIR)
     assert plans.num_rows == sum(table.column("plans").to_pylist())
+
+
+def test_a_merge_takes_its_own_parts_from_memory_and_keeps_the_newest_row(tmp_path: Path) -> None:
+    """The driver merges the parts it wrote from the tables it kept, the others (a killed
+    driver's part, an earlier chunk) from disk: the same rows as a merge that reads every
+    part back, one per run, the newest."""
+    import shutil
+
+    from groundstation.runners.campaign.run import RunOutcome
+    from groundstation.runners.campaign.store import CampaignStore
+
+    schema = pa.schema([("run_id", pa.string()), ("per_plan", pa.bool_()),
+                        ("value", pa.float64())])
+
+    def outcome(run: int, value: float) -> RunOutcome:
+        return RunOutcome(f"r{run}", {"run_id": f"r{run}", "per_plan": False, "value": value}, [])
+
+    out = tmp_path / "out"
+    earlier = CampaignStore(out, schema, None)
+    earlier.prepare()
+    for run in range(5):
+        earlier.write(outcome(run, 1.0))
+    earlier.compact(final=False)  # one chunk of r0..r4
+    earlier.write(outcome(5, 1.0))  # a part left by a driver killed before its merge
+    later = CampaignStore(out, schema, None)
+    later.prepare()
+    for run in range(3, 8):
+        later.write(outcome(run, 2.0))
+    from_disk = tmp_path / "copy"
+    shutil.copytree(out, from_disk)
+    later.compact(final=True)
+    CampaignStore(from_disk, schema, None).compact(final=True)  # knows no part: reads all
+
+    rows = {r["run_id"]: r["value"] for r in read_results(out).to_pylist()}
+    assert rows == {"r0": 1.0, "r1": 1.0, "r2": 1.0, "r3": 2.0, "r4": 2.0, "r5": 2.0,
+                    "r6": 2.0, "r7": 2.0}
+    assert pq.read_table(out / RUNS_DIR).equals(pq.read_table(from_disk / RUNS_DIR))
+    assert [p.name[:6] for p in (out / RUNS_DIR).iterdir()] == ["chunk-"]
+    assert later._written == {}  # nothing kept once merged

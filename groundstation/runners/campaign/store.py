@@ -22,7 +22,7 @@ from __future__ import annotations
 import contextlib
 import os
 import uuid
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -78,15 +78,20 @@ def _dedupe(table: pa.Table, keys: Sequence[str]) -> pa.Table:
 
 
 def _read_parts(
-    parts: Sequence[Path], schema: pa.Schema | None, columns: Sequence[str] | None = None
+    parts: Sequence[Path], schema: pa.Schema | None, columns: Sequence[str] | None = None,
+    known: Mapping[Path, pa.Table] | None = None,
 ) -> pa.Table:
     """Read whole parts (or their ``columns``), cast to ``schema`` when given (columns it
-    lacks are null)."""
+    lacks are null). A part found in ``known`` (the table this process wrote there, in
+    ``schema``) is taken from it instead of being read back."""
     import pyarrow as pa
     import pyarrow.parquet as pq
 
     tables = []
     for part in parts:
+        if known is not None and part in known:
+            tables.append(known[part])
+            continue
         try:
             table = pq.read_table(part, columns=None if columns is None else list(columns))
         except (OSError, pa.ArrowException) as exc:
@@ -146,6 +151,10 @@ class CampaignStore:
         if plans_schema is not None:
             self.schemas[PLANS_DIR] = plans_schema
         self._new_parts = 0
+        #: the per-run parts this store wrote and has not merged yet, by path: a merge takes
+        #: them from here instead of reading them back (a read and a cast of every column
+        #: cost ~16 ms a part, two thirds of the driver's CPU in a 1 000-run campaign)
+        self._written: dict[Path, pa.Table] = {}
 
     def folder(self, kind: str) -> Path:
         return self.out_dir / kind
@@ -190,10 +199,12 @@ class CampaignStore:
 
         if PLANS_DIR in self.schemas and outcome.plan_rows:
             table = rows_to_table(outcome.plan_rows, self.schemas[PLANS_DIR])
-            self._write_part(self.folder(PLANS_DIR) / f"{RUN_PART}{outcome.run_id}.parquet",
-                             table)
+            path = self.folder(PLANS_DIR) / f"{RUN_PART}{outcome.run_id}.parquet"
+            self._write_part(path, table)
+            self._written[path] = table
         table = rows_to_table([outcome.run_row], self.schemas[RUNS_DIR])
         self._write_part(self.folder(RUNS_DIR) / f"{RUN_PART}{outcome.run_id}.parquet", table)
+        self._written[self.folder(RUNS_DIR) / f"{RUN_PART}{outcome.run_id}.parquet"] = table
         self._new_parts += 1
         if self._new_parts >= COMPACT_EVERY_PARTS:
             self.compact(final=False)
@@ -210,10 +221,11 @@ class CampaignStore:
 
     def _merge(self, kind: str, parts: Sequence[Path]) -> None:
         schema = self.schemas[kind]
-        table = _dedupe(_read_parts(parts, schema), _keys(kind))
+        table = _dedupe(_read_parts(parts, schema, known=self._written), _keys(kind))
         target = self.folder(kind) / f"{CHUNK_PART}{uuid.uuid4().hex}.parquet"
         self._write_part(target, table)
         for part in parts:
+            self._written.pop(part, None)
             try:
                 part.unlink()
             except FileNotFoundError:
