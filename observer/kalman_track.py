@@ -46,6 +46,17 @@ filterpy's per-track ``predict`` bit for bit (here: benchmarks/startup_bench.py 
 over random cases, and paper-boat journals are unchanged; tests/test_observer_batch.py
 holds them to 1e-9 relative, which holds whatever BLAS numpy uses).
 
+**The stacks own the state** (issue 30). The tracks that stepped together last time are
+the batch's *members*: their committed states are the rows of the batch's stacks, not
+copied out, so a tick on the grid is one decision (:func:`grid_steps` from the members'
+shared committed time), the three stacked products and ``sigma`` per row, with no Python
+per track; a track points its fields at its row only when something reads it
+(:meth:`KalmanTrack._fresh`). A track changed on its own (a correction, a rewind) leaves
+the members and joins again at its next whole grid step, written into a free row of copies
+of the stacks. tests/test_observer_batch_rows.py checks every track against the same
+track advanced alone (the plain per-track path) with ``array_equal``, over random ticks,
+detections, noise changes, rewinds, births and removals.
+
 **No filterpy at run time.** The filter (:class:`CvFilter`) is the few lines of filterpy
 2.0's ``KalmanFilter.predict`` and ``update`` that floe used, written with the very numpy
 calls filterpy makes, in the same order (``numpy.dot``, ``numpy.linalg.inv``, the Joseph
@@ -122,7 +133,7 @@ class CvFilter:
 
 def transition(dt_s: float) -> np.ndarray:
     """``A(dT) = [[I, dT I], [0, I]]``."""
-    a = np.eye(4)
+    a = _I4.copy()
     a[0, 2] = dt_s
     a[1, 3] = dt_s
     return a
@@ -478,7 +489,10 @@ class KalmanBatch:
 
     def sigmas_above(self, floor_m2: float) -> list[KalmanTrack]:
         """The members whose ``sigma`` is above ``floor_m2`` (m^2)."""
-        return [tr for tr, s in zip(self._rows, self._sigmas, strict=True)
+        sigmas = self._sigmas
+        if not sigmas or max(sigmas) <= floor_m2:
+            return []
+        return [tr for tr, s in zip(self._rows, sigmas, strict=True)
                 if s > floor_m2 and tr is not None]
 
     # --- time -----------------------------------------------------------------------------

@@ -231,7 +231,8 @@ class Observer:
     ) -> MeasurementOutcome:
         """Apply one position measurement; never raises on bad measurement data."""
         r = self.config.r_m2 if r_m2 is None else r_m2
-        if not all(is_finite_number(v) for v in (t_s, x_m, y_m, r)) or r <= 0.0:
+        if not (is_finite_number(t_s) and is_finite_number(x_m) and is_finite_number(y_m)
+                and is_finite_number(r)) or r <= 0.0:
             return self._reject("rejected_invalid", target_id, "invalid", None)
         t, x, y, r = float(t_s), float(x_m), float(y_m), float(r)
         if target_id is not None and (
@@ -389,19 +390,12 @@ class Observer:
         """Snapshot of one track at its current time. Raises KeyError if unknown."""
         tr = self._get(target_id)
         x, y, vx, vy = tr.state
+        sigma = tr.sigma
+        # positional, in TrackSnapshot's field order (a third cheaper than by keyword)
         return TrackSnapshot(
-            id=target_id,
-            t_s=tr.t_s,
-            x_m=x,
-            y_m=y,
-            vx_m_s=vx,
-            vy_m_s=vy,
-            sigma=tr.sigma,
-            cov_xy=tr.cov_xy,
-            lost=self._is_lost(tr),
-            ever_lost=self._ever_lost[target_id],
-            last_seen_s=tr.last_seen_s,
-            q_per_s=tr.q_per_s,
+            target_id, tr.t_s, x, y, vx, vy, sigma, tr.cov_xy,
+            sigma > 0.0 and math.sqrt(sigma) > self.config.fov_radius_m,  # _is_lost
+            self._ever_lost[target_id], tr.last_seen_s, tr.q_per_s,
         )
 
     def tracks(self) -> list[TrackSnapshot]:
