@@ -86,6 +86,10 @@ _I4 = np.eye(4)
 _I2 = np.eye(2)  # r I as r * _I2: the same numbers as r * numpy.eye(2), without a new eye
 
 
+MemberReadout = tuple[tuple[float, float, float, float], float, tuple[float, float, float]]
+"""A member's ``(state, sigma, cov_xy)`` (:meth:`KalmanBatch.read_members`)."""
+
+
 def grid_steps(anchor_s: float, t_s: float, h: float) -> tuple[int, int, float]:
     """``(k_first, k_last, first_dt)``: the grid points k h to commit on the way from the
     committed time ``anchor_s`` to ``t_s`` (none if ``k_last < k_first``), with
@@ -486,6 +490,21 @@ class KalmanBatch:
         for track in released:
             self.release(track)
         return released
+
+    def read_members(self) -> dict[KalmanTrack, MemberReadout]:
+        """Every member's ``(state, sigma, cov_xy)`` at ``t_s`` as :attr:`KalmanTrack.state`,
+        :attr:`KalmanTrack.sigma` and :attr:`KalmanTrack.cov_xy` give them, read from the
+        stacks at once (``tolist``: each float exactly; the rows' flat 0, 1, 5 of ``P`` are
+        ``Pxx, Pxy, Pyy``) instead of pointing each member's fields at its row."""
+        n = len(self._rows)
+        if not self._members:
+            return {}
+        states = self._x.reshape(n, 4).tolist()
+        covs = self._p.reshape(n, 16)[:, [0, 1, 5]].tolist()
+        sigmas = self._sigmas
+        return {tr: ((s[0], s[1], s[2], s[3]), sigmas[k], (c[0], c[1], c[2]))
+                for k, (tr, s, c) in enumerate(zip(self._rows, states, covs, strict=True))
+                if tr is not None}
 
     def sigmas_above(self, floor_m2: float) -> list[KalmanTrack]:
         """The members whose ``sigma`` is above ``floor_m2`` (m^2)."""

@@ -389,18 +389,35 @@ class Observer:
     def track(self, target_id: str) -> TrackSnapshot:
         """Snapshot of one track at its current time. Raises KeyError if unknown."""
         tr = self._get(target_id)
-        x, y, vx, vy = tr.state
-        sigma = tr.sigma
+        return self._snapshot(target_id, tr, tr.t_s, tr.state, tr.sigma, tr.cov_xy)
+
+    def _snapshot(
+        self, target_id: str, tr: _Track, t_s: float, state: tuple[float, float, float, float],
+        sigma: float, cov_xy: tuple[float, float, float],
+    ) -> TrackSnapshot:
+        x, y, vx, vy = state
         # positional, in TrackSnapshot's field order (a third cheaper than by keyword)
         return TrackSnapshot(
-            target_id, tr.t_s, x, y, vx, vy, sigma, tr.cov_xy,
+            target_id, t_s, x, y, vx, vy, sigma, cov_xy,
             sigma > 0.0 and math.sqrt(sigma) > self.config.fov_radius_m,  # _is_lost
             self._ever_lost[target_id], tr.last_seen_s, tr.q_per_s,
         )
 
     def tracks(self) -> list[TrackSnapshot]:
-        """Snapshots of every track (lost ones included), sorted by id."""
-        return [self.track(tid) for tid in sorted(self._tracks)]
+        """Snapshots of every track (lost ones included), sorted by id; the batch's members
+        read from its stacks at once (the same floats as :meth:`track`)."""
+        members = self._batch.read_members()
+        t_members_s = self._batch.t_s
+        out: list[TrackSnapshot] = []
+        for tid in sorted(self._tracks):
+            tr = self._tracks[tid]
+            readout = members.get(tr) if isinstance(tr, KalmanTrack) else None
+            if readout is None:
+                out.append(self._snapshot(tid, tr, tr.t_s, tr.state, tr.sigma, tr.cov_xy))
+            else:
+                state, sigma, cov_xy = readout
+                out.append(self._snapshot(tid, tr, t_members_s, state, sigma, cov_xy))
+        return out
 
     def sigma(self, target_id: str) -> float:
         """``trace(P[:2, :2])`` (m^2), or the linear model's sigma."""

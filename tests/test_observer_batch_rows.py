@@ -150,6 +150,8 @@ def test_batched_observer_equals_the_plain_per_track_path_bit_for_bit(seed: int)
             plain[new_id] = _plain_track(_kalman(obs, new_id))
             lost[new_id] = False
             note_lost(new_id)
+        # every snapshot at once (the members read from the stacks) as one by one, exactly
+        assert repr(obs.tracks()) == repr([obs.track(tid) for tid in obs.target_ids])
         for target_id, tr in plain.items():
             _assert_same(_kalman(obs, target_id), tr)
             assert obs.track(target_id).ever_lost == lost[target_id]
