@@ -150,6 +150,25 @@ def test_batched_observer_equals_the_plain_per_track_path_bit_for_bit(seed: int)
             plain[new_id] = _plain_track(_kalman(obs, new_id))
             lost[new_id] = False
             note_lost(new_id)
+        elif event < 0.41:  # the tracker's updates: a miss's moments, a PDA update
+            tr = plain[tid]
+            mean = np.array(tr.state[:2]) + rng.normal(0.0, 1.0, size=2)
+            obs.set_position_moments(tid, t, mean, 0.8 * tr.p_view[:2, :2])
+            tr.set_position_moments(tr.t_s, mean, 0.8 * tr.p_view[:2, :2])
+            note_lost(tid)
+            zs = np.array(tr.state[:2]) + rng.normal(0.0, 2.0, size=(2, 2))
+            betas = np.array([0.5, 0.3])
+            obs.correct_pda(tid, t, zs, betas, 5.0)
+            tr.correct_pda(tr.t_s, zs, betas, 5.0)
+            note_lost(tid)
+        elif event < 0.43 and len(plain) > 3:  # a newer estimate takes an old id over
+            source = str(rng.choice([k for k in sorted(plain) if k != tid]))
+            obs.take_over(tid, source)
+            moved = plain.pop(source)
+            del lost[source]
+            moved.set_process_noise(plain[tid].q_per_s)
+            plain[tid] = moved
+            note_lost(tid)
         # every snapshot at once (the members read from the stacks) as one by one, exactly
         assert repr(obs.tracks()) == repr([obs.track(tid) for tid in obs.target_ids])
         for target_id, tr in plain.items():
