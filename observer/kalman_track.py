@@ -70,6 +70,7 @@ only for likelihoods floe never reads); that was more than a whole 200 s ``gcs s
 from __future__ import annotations
 
 import math
+import operator
 from collections.abc import Sequence
 
 import numpy as np
@@ -431,11 +432,15 @@ class KalmanBatch:
     BLAS products per matrix, the same elementwise sums.
     """
 
-    def __init__(self, grid_step_s: float) -> None:
+    def __init__(self, grid_step_s: float, watch_floor_m2: float = math.inf) -> None:
         self.grid_step_s = grid_step_s
         f = transition(grid_step_s)
         self._f, self._f_t = f, f.T.copy()
         self._rows: list[KalmanTrack | None] = []  # row k's member (None: a free row)
+        # per row: sigma above it is reported by watched_above (inf: a free row, or a
+        # member unwatched); a joining member is watched from watch_floor_m2
+        self._watch_floor_m2 = watch_floor_m2
+        self._watch: list[float] = []
         self._members = 0
         self._loose: list[KalmanTrack] = []
         self._x = np.empty((0, 4, 1))
@@ -464,6 +469,7 @@ class KalmanBatch:
         """``track`` (a member) leaves the members, loose, with its fields written back."""
         self.write_back(track)
         self._rows[track._row] = None
+        self._watch[track._row] = math.inf
         self._members -= 1
         track._stack, track._row = None, -1
         self._loose.append(track)
@@ -506,13 +512,20 @@ class KalmanBatch:
                 for k, (tr, s, c) in enumerate(zip(self._rows, states, covs, strict=True))
                 if tr is not None}
 
-    def sigmas_above(self, floor_m2: float) -> list[KalmanTrack]:
-        """The members whose ``sigma`` is above ``floor_m2`` (m^2)."""
-        sigmas = self._sigmas
-        if not sigmas or max(sigmas) <= floor_m2:
+    def watched_above(self) -> list[KalmanTrack]:
+        """The watched members whose ``sigma`` is above the watch floor (m^2): one
+        comparison per row in C (``map``) first, the rows themselves only if any is."""
+        sigmas, watch = self._sigmas, self._watch
+        if not any(map(operator.gt, sigmas, watch)):
             return []
-        return [tr for tr, s in zip(self._rows, sigmas, strict=True)
-                if s > floor_m2 and tr is not None]
+        return [tr for tr, s, w in zip(self._rows, sigmas, watch, strict=True)
+                if s > w and tr is not None]
+
+    def unwatch(self, track: KalmanTrack) -> None:
+        """``track`` is no longer reported by :meth:`watched_above` while it stays a
+        member (from its next joining it is watched again)."""
+        if track._stack is self:
+            self._watch[track._row] = math.inf
 
     # --- time -----------------------------------------------------------------------------
     def predict_to(self, tracks: Sequence[KalmanTrack], t_s: float) -> None:
@@ -593,6 +606,7 @@ class KalmanBatch:
             self._q = np.concatenate([self._q, np.zeros((extra, 4, 4))])
             free += range(len(rows), len(rows) + extra)
             rows += [None] * extra
+            self._watch += [math.inf] * extra
         else:
             self._x, self._p, self._q = self._x.copy(), self._p.copy(), self._q.copy()
         xs, ps, qs = self._x, self._p, self._q
@@ -600,6 +614,7 @@ class KalmanBatch:
             kf = track._kf
             xs[k], ps[k], qs[k] = kf.x, kf.P, track._full_step[1]
             rows[k] = track
+            self._watch[k] = self._watch_floor_m2
             track._stack, track._row = self, k
             self._loose.remove(track)
         self._members += len(joiners)

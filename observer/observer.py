@@ -59,11 +59,11 @@ class Observer:
         self._tracks: dict[str, _Track] = {}
         self._ever_lost: dict[str, bool] = {}
         self._counters: dict[str, int] = dict.fromkeys(COUNTER_NAMES, 0)
-        self._batch = KalmanBatch(config.max_step_s)  # every Kalman track, stepped together
+        # every Kalman track, stepped together; the members above the watch floor are
+        # checked for the lost flag: sigma <= fov^2 (1 - 1e-9) has sqrt(sigma) < fov by far
+        # more than a rounding, so the exact rule (_is_lost) runs only above it
+        self._batch = KalmanBatch(config.max_step_s, config.fov_radius_m ** 2 * (1.0 - 1e-9))
         self._id_of: dict[KalmanTrack, str] = {}  # each Kalman track's id
-        # sigma <= this floor is never lost: sqrt(floor) < fov_radius_m by far more than a
-        # rounding, so the exact rule (_is_lost) runs only above it
-        self._lost_floor_m2 = config.fov_radius_m ** 2 * (1.0 - 1e-9)
 
     # --- targets --------------------------------------------------------------------------
     def add_target(
@@ -210,14 +210,20 @@ class Observer:
                         ever_lost[target_id] = True
             return
         # every Kalman track at once (the batch: bit for bit the per-track predictions)
-        members_moved, moved = self._batch.advance(t)
-        if members_moved:  # the members moved: the few above the floor may be lost
-            moved += self._batch.sigmas_above(self._lost_floor_m2)
+        batch = self._batch
+        members_moved, moved = batch.advance(t)
         id_of = self._id_of
         for track in moved:
             target_id = id_of[track]
             if not ever_lost[target_id] and self._is_lost(track):
                 ever_lost[target_id] = True
+        if members_moved:  # the few members above the watch floor may be lost
+            for track in batch.watched_above():
+                target_id = id_of[track]
+                if not ever_lost[target_id] and self._is_lost(track):
+                    ever_lost[target_id] = True
+                if ever_lost[target_id]:  # flagged for good: no need to look again
+                    batch.unwatch(track)
 
     # --- measurements ---------------------------------------------------------------------
     def measure(

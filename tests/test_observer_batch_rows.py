@@ -218,3 +218,38 @@ def test_lost_flags_follow_the_rule_with_the_members_stepped_together() -> None:
             assert not lost_now or snap.ever_lost
     assert all(s.ever_lost for s in obs.tracks())
     assert obs._batch._members == 6
+
+
+def test_watched_members_are_reported_until_unwatched_and_again_after_rejoining() -> None:
+    batch = KalmanBatch(0.1, watch_floor_m2=50.0)
+    tracks = [KalmanTrack(0.0, [0.0] * 4, [s / 2, s / 2, 0.01, 0.01], 0.1, 0.1)
+              for s in (10.0, 60.0, 80.0)]
+    batch.predict_to(tracks, 0.1)  # all three join and step
+    assert batch.watched_above() == tracks[1:]
+    batch.unwatch(tracks[2])
+    batch.advance(0.2)
+    assert batch.watched_above() == [tracks[1]]
+    tracks[2].correct(0.2, 0.0, 0.0, 100.0)  # leaves the members (its sigma stays > 50)
+    batch.advance(0.3)  # joins again, watched from the floor
+    assert tracks[2]._stack is batch and tracks[2].sigma > 50.0
+    assert tracks[2] in batch.watched_above()
+
+
+def test_a_member_just_inside_the_radius_stays_watched_until_it_is_lost() -> None:
+    """Above the watch floor but not lost at one tick, lost at the next: flagged then."""
+    def run(fov_radius_m: float, ticks: int) -> Observer:
+        obs = Observer(ObserverConfig(fov_radius_m=fov_radius_m))
+        obs.add_target("A", 0.0, 0.0, 0.0, sigma0=100.0)
+        obs.add_target("B", 0.0, 500.0, 0.0, sigma0=1.0)
+        for k in range(1, ticks + 1):
+            obs.predict_to(k * 0.1)
+        return obs
+
+    sigma_20 = run(1e9, 20).sigma("A")
+    fov = math.nextafter(math.sqrt(sigma_20), math.inf)  # sqrt(sigma_20) < fov, just
+    obs = run(fov, 20)
+    assert obs.sigma("A") == sigma_20 > fov ** 2 * (1.0 - 1e-9)  # above the floor
+    assert not obs.track("A").ever_lost
+    obs.predict_to(2.1)
+    assert obs.track("A").lost and obs.track("A").ever_lost
+    assert not obs.track("B").ever_lost
