@@ -59,7 +59,11 @@ class Observer:
         self._tracks: dict[str, _Track] = {}
         self._ever_lost: dict[str, bool] = {}
         self._counters: dict[str, int] = dict.fromkeys(COUNTER_NAMES, 0)
-        self._batch = KalmanBatch(config.max_step_s)
+        # every Kalman track, stepped together; the members above the watch floor are
+        # checked for the lost flag: sigma <= fov^2 (1 - 1e-9) has sqrt(sigma) < fov by far
+        # more than a rounding, so the exact rule (_is_lost) runs only above it
+        self._batch = KalmanBatch(config.max_step_s, config.fov_radius_m ** 2 * (1.0 - 1e-9))
+        self._id_of: dict[KalmanTrack, str] = {}  # each Kalman track's id
 
     # --- targets --------------------------------------------------------------------------
     def add_target(
@@ -114,15 +118,31 @@ class Observer:
             if s0 is None:
                 s0 = 0.0 if p0_diag is None else p0_diag[0] + p0_diag[1]
             track = LinearTrack(t, state, s0, q, self.config.linear_growth_per_s)
-        self._tracks[target_id] = track
+        self._put(target_id, track)
         self._ever_lost[target_id] = False
         self._check_lost(target_id)
+
+    def _put(self, target_id: str, track: _Track) -> None:
+        """``track`` becomes ``target_id``'s (a Kalman track joins the batch)."""
+        self._tracks[target_id] = track
+        if isinstance(track, KalmanTrack):
+            self._batch.add(track)
+            self._id_of[track] = target_id
+
+    def _drop(self, target_id: str) -> None:
+        """``target_id`` is no longer tracked (its Kalman track leaves the batch)."""
+        self._unregister(self._tracks.pop(target_id))
+
+    def _unregister(self, track: _Track) -> None:
+        if isinstance(track, KalmanTrack):
+            self._batch.remove(track)
+            del self._id_of[track]
 
     def remove_target(self, target_id: str) -> None:
         """Stop tracking ``target_id``. Raises KeyError if unknown."""
         if target_id not in self._tracks:
             raise KeyError(f"unknown target_id {target_id!r}")
-        del self._tracks[target_id]
+        self._drop(target_id)
         del self._ever_lost[target_id]
 
     def set_position_moments(
@@ -152,7 +172,7 @@ class Observer:
         p0: list[float] | None = None
         if isinstance(old, KalmanTrack):
             p0 = [0.5 * s0, 0.5 * s0, float(old.p_view[2, 2]), float(old.p_view[3, 3])]
-        del self._tracks[target_id]
+        self._drop(target_id)
         self.add_target(target_id, old.t_s, x, y, vx_m_s=vx, vy_m_s=vy,
                         sigma0=None if p0 is not None else s0, p0=p0, q_per_s=old.q_per_s)
         self._tracks[target_id].last_seen_s = old.t_s
@@ -166,8 +186,9 @@ class Observer:
         if target_id == source_id:
             raise ValueError(f"cannot take over {target_id!r} by itself")
         source.set_process_noise(target.q_per_s)
-        self._tracks[target_id] = source
-        del self._tracks[source_id]
+        self._drop(source_id)
+        self._unregister(target)
+        self._put(target_id, source)  # in target_id's place
         del self._ever_lost[source_id]
         self._check_lost(target_id)
 
@@ -180,18 +201,29 @@ class Observer:
     def predict_to(self, t_s: float) -> None:
         """Advance every track to ``t_s``; a track already at or past ``t_s`` is left alone."""
         t = finite_number("t_s", t_s)
-        due = [(tid, tr) for tid, tr in self._tracks.items() if t > tr.t_s]
-        if not due:
-            return
-        kalman = [tr for _, tr in due if isinstance(tr, KalmanTrack)]
-        if kalman:
-            self._batch.predict_to(kalman, t)  # all tracks at once (bit-identical results)
         ever_lost = self._ever_lost
-        for target_id, track in due:
-            if not isinstance(track, KalmanTrack):
-                track.predict_to(t)
+        if self.config.model != "kalman":
+            for target_id, track in self._tracks.items():
+                if t > track.t_s:
+                    track.predict_to(t)
+                    if not ever_lost[target_id] and self._is_lost(track):
+                        ever_lost[target_id] = True
+            return
+        # every Kalman track at once (the batch: bit for bit the per-track predictions)
+        batch = self._batch
+        members_moved, moved = batch.advance(t)
+        id_of = self._id_of
+        for track in moved:
+            target_id = id_of[track]
             if not ever_lost[target_id] and self._is_lost(track):
                 ever_lost[target_id] = True
+        if members_moved:  # the few members above the watch floor may be lost
+            for track in batch.watched_above():
+                target_id = id_of[track]
+                if not ever_lost[target_id] and self._is_lost(track):
+                    ever_lost[target_id] = True
+                if ever_lost[target_id]:  # flagged for good: no need to look again
+                    batch.unwatch(track)
 
     # --- measurements ---------------------------------------------------------------------
     def measure(
@@ -205,7 +237,8 @@ class Observer:
     ) -> MeasurementOutcome:
         """Apply one position measurement; never raises on bad measurement data."""
         r = self.config.r_m2 if r_m2 is None else r_m2
-        if not all(is_finite_number(v) for v in (t_s, x_m, y_m, r)) or r <= 0.0:
+        if not (is_finite_number(t_s) and is_finite_number(x_m) and is_finite_number(y_m)
+                and is_finite_number(r)) or r <= 0.0:
             return self._reject("rejected_invalid", target_id, "invalid", None)
         t, x, y, r = float(t_s), float(x_m), float(y_m), float(r)
         if target_id is not None and (
@@ -362,25 +395,35 @@ class Observer:
     def track(self, target_id: str) -> TrackSnapshot:
         """Snapshot of one track at its current time. Raises KeyError if unknown."""
         tr = self._get(target_id)
-        x, y, vx, vy = tr.state
+        return self._snapshot(target_id, tr, tr.t_s, tr.state, tr.sigma, tr.cov_xy)
+
+    def _snapshot(
+        self, target_id: str, tr: _Track, t_s: float, state: tuple[float, float, float, float],
+        sigma: float, cov_xy: tuple[float, float, float],
+    ) -> TrackSnapshot:
+        x, y, vx, vy = state
+        # positional, in TrackSnapshot's field order (a third cheaper than by keyword)
         return TrackSnapshot(
-            id=target_id,
-            t_s=tr.t_s,
-            x_m=x,
-            y_m=y,
-            vx_m_s=vx,
-            vy_m_s=vy,
-            sigma=tr.sigma,
-            cov_xy=tr.cov_xy,
-            lost=self._is_lost(tr),
-            ever_lost=self._ever_lost[target_id],
-            last_seen_s=tr.last_seen_s,
-            q_per_s=tr.q_per_s,
+            target_id, t_s, x, y, vx, vy, sigma, cov_xy,
+            sigma > 0.0 and math.sqrt(sigma) > self.config.fov_radius_m,  # _is_lost
+            self._ever_lost[target_id], tr.last_seen_s, tr.q_per_s,
         )
 
     def tracks(self) -> list[TrackSnapshot]:
-        """Snapshots of every track (lost ones included), sorted by id."""
-        return [self.track(tid) for tid in sorted(self._tracks)]
+        """Snapshots of every track (lost ones included), sorted by id; the batch's members
+        read from its stacks at once (the same floats as :meth:`track`)."""
+        members = self._batch.read_members()
+        t_members_s = self._batch.t_s
+        out: list[TrackSnapshot] = []
+        for tid in sorted(self._tracks):
+            tr = self._tracks[tid]
+            readout = members.get(tr) if isinstance(tr, KalmanTrack) else None
+            if readout is None:
+                out.append(self._snapshot(tid, tr, tr.t_s, tr.state, tr.sigma, tr.cov_xy))
+            else:
+                state, sigma, cov_xy = readout
+                out.append(self._snapshot(tid, tr, t_members_s, state, sigma, cov_xy))
+        return out
 
     def sigma(self, target_id: str) -> float:
         """``trace(P[:2, :2])`` (m^2), or the linear model's sigma."""
