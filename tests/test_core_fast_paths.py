@@ -3,9 +3,11 @@ against the same core driven through the plain path, input by input."""
 
 from __future__ import annotations
 
+import inspect
 import math
-from dataclasses import replace
+from dataclasses import FrozenInstanceError, asdict, fields, make_dataclass, replace
 
+import pytest
 from core_run import solve_all
 
 from groundstation.core.commands import Command, Decisions, FlyToTarget, Note, PlanAdopted
@@ -20,6 +22,7 @@ from groundstation.core.events import (
     VehicleJoined,
     WindReport,
 )
+from groundstation.core.views import TrackView
 from observer import ObserverConfig
 
 
@@ -106,3 +109,39 @@ def test_telemetry_is_answered_with_empty_decisions_and_detections_with_verdicts
     assert [(v.target, v.accepted) for v in seen.verdicts] == [("A", True)]
     assert core.handle(Telemetry(0.2, "1", 12.0, 5.0, 0.5, 21.0)).verdicts == ()
     assert core.handle(Tick(0.2)).verdicts == ()
+
+
+_SAMPLES: dict[type, list[tuple[tuple[object, ...], dict[str, object]]]] = {
+    Telemetry: [((1.5, "2", 3.0, -4.0, 0.25, 21.5), {}),
+                ((1.5, "2", 3.0, -4.0, 0.25, 21.5, 2.0, 7.5), {}),
+                ((), {"t_s": 0.1, "vehicle": "1", "x_m": 1.0, "y_m": 2.0, "heading_rad": 3.0,
+                      "speed_m_s": 4.0, "sigma_m": 5.0})],
+    TrackView: [(("A", "confirmed", 1.0, 2.0, 3.0, 1.0, 4.0), {}),
+                (("T7", "tentative", 1.0, 2.0, 3.0, 0.4, 4.0, 0.1, -0.2, (2.0, 0.5, 1.0),
+                  True, 3.5), {}),
+                (("B", "prior", 1.0, 2.0, 3.0, 0.5, 4.0),
+                 {"lost": True, "cov_xy": (1.0, 0.0, 2.0)})],
+}
+
+
+@pytest.mark.parametrize("cls", list(_SAMPLES), ids=lambda c: c.__name__)
+def test_written_out_init_is_the_generated_one(cls: type) -> None:
+    """``Telemetry`` and ``TrackView`` write their ``__init__`` out (fast); the value must
+    be the one the frozen dataclass would generate: the same parameters and defaults,
+    fields in order, equality, hash, repr, ``replace``, and still frozen."""
+    generated = make_dataclass(cls.__name__, [(f.name, f.type, f) for f in fields(cls)],
+                               frozen=True)
+    fast_params = list(inspect.signature(cls).parameters.values())
+    plain_params = list(inspect.signature(generated).parameters.values())
+    assert [(p.name, p.default, p.kind) for p in fast_params] == [
+        (p.name, p.default, p.kind) for p in plain_params]
+    for args, kwargs in _SAMPLES[cls]:
+        fast, plain = cls(*args, **kwargs), generated(*args, **kwargs)
+        assert asdict(fast) == asdict(plain) and vars(fast) == vars(plain)
+        assert list(vars(fast)) == [f.name for f in fields(cls)]
+        assert fast == cls(*args, **kwargs) and hash(fast) == hash(plain)
+        assert repr(fast) == repr(plain)
+        name = fields(cls)[2].name
+        assert replace(fast, **{name: 9.0}) == cls(**{**vars(fast), name: 9.0})
+        with pytest.raises(FrozenInstanceError):
+            setattr(fast, name, 0.0)

@@ -880,10 +880,10 @@ class DecisionCore:
 
     def track_views(self) -> list[TrackView]:
         """Every track with its status (``core/views.py``), sorted by id."""
+        status, existence = self.tracks.status, self.tracks.existence
         return [
-            TrackView(tr.id, self.tracks.status(tr.id), tr.x_m, tr.y_m, tr.sigma,
-                      self.tracks.existence(tr.id), tr.t_s, tr.vx_m_s, tr.vy_m_s, tr.cov_xy,
-                      tr.lost, tr.last_seen_s)
+            TrackView(tr.id, status(tr.id), tr.x_m, tr.y_m, tr.sigma, existence(tr.id), tr.t_s,
+                      tr.vx_m_s, tr.vy_m_s, tr.cov_xy, tr.lost, tr.last_seen_s)
             for tr in self.observer.tracks()
         ]
 
