@@ -196,12 +196,6 @@ class Decisions(list[Command]):
 
     Built like a list (``Decisions(commands)``, list's own constructor: one is returned
     for every input, 8 600 a paper-boat run, most of them empty); ``verdicts`` is the
-    class's empty tuple unless :meth:`with_verdicts` set the input's."""
+    class's empty tuple unless the core set the input's."""
 
     verdicts: tuple[Verdict, ...] = ()
-
-    def with_verdicts(self, verdicts: Sequence[Verdict]) -> Decisions:
-        """These decisions with ``verdicts`` (kept as a tuple); ``self``, for chaining."""
-        if verdicts:
-            self.verdicts = tuple(verdicts)
-        return self

@@ -188,7 +188,9 @@ class DecisionCore:
             out += self.wind.withdraw(event, {v.id for v in self.active_vehicles()})
         else:
             out += self._on_fleet_or_target_event(event)
-        return out.with_verdicts(self._verdicts)
+        if self._verdicts:
+            out.verdicts = tuple(self._verdicts)
+        return out
 
     def _on_tick(self, t_s: float, out: list[Command]) -> None:
         """A ``Tick``: the scans buffered by ``t_s``, the observer predicted to it, the
@@ -494,7 +496,7 @@ class DecisionCore:
         """A target's planning value now: a search cell's, else the track's sigma."""
         if self.search is not None and target in self.search:
             return self.search.value_m2(target, t_s)
-        return self.observer.track(target).sigma
+        return self.observer.sigma(target)  # the track's snapshot's sigma, unbuilt
 
     def _first_worth_a_visit(self, record: VehicleRecord, route: tuple[str, ...]
                              ) -> tuple[str, tuple[str, ...], tuple[float, float, float]] | None:

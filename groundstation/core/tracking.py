@@ -169,6 +169,8 @@ class TrackBook:
 
     def labelled(self, event: Detection) -> None:
         """A labelled detection: its frame (if one is buffered) loses its footprint."""
+        if not self._scans:
+            return  # nothing buffered (every detection of a labelled camera's run)
         scan = self._scans.get((event.t_s, event.vehicle or ""))
         if scan is not None:
             scan.labelled = True
