@@ -26,7 +26,8 @@ planned as targets at their centres.
 
 Wind: the vehicles' ``WindReport`` inputs are combined into one estimate
 (:mod:`~groundstation.core.wind_estimate`: median over the active vehicles' fresh reports,
-else the configured fallback), recomputed on every report and tick; a meaningful change is
+else the configured fallback), recomputed on every report and tick once a report was kept
+(before, the fallback stands unchanged: ``WindEstimator.heard``); a meaningful change is
 journalled as a ``wind`` line (:class:`~groundstation.core.commands.WindEstimate`).
 :meth:`DecisionCore.planning_wind_m_s` is what planning and the intercept use.
 """
