@@ -1,5 +1,7 @@
-"""The decision core's fast paths (issue 30) give what the plain path gives: each is checked
-against the same core driven through the plain path, input by input."""
+"""The decision core's fast paths (issue 30) give what the plain path gives: a tick before the
+first wind report against a core driven through the plain path, input by input; the
+written-out ``__init__``s against the ones a frozen dataclass generates; a Telemetry's
+empty answer and a detection's verdicts."""
 
 from __future__ import annotations
 
