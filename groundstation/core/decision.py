@@ -26,7 +26,8 @@ planned as targets at their centres.
 
 Wind: the vehicles' ``WindReport`` inputs are combined into one estimate
 (:mod:`~groundstation.core.wind_estimate`: median over the active vehicles' fresh reports,
-else the configured fallback), recomputed on every report and tick; a meaningful change is
+else the configured fallback), recomputed on every report and tick once a report was kept
+(before, the fallback stands unchanged: ``WindEstimator.heard``); a meaningful change is
 journalled as a ``wind`` line (:class:`~groundstation.core.commands.WindEstimate`).
 :meth:`DecisionCore.planning_wind_m_s` is what planning and the intercept use.
 """
@@ -152,20 +153,22 @@ class DecisionCore:
     # ------------------------------------------------------------------ public API
     def handle(self, event: Event) -> Decisions:
         """Apply one event; return the commands it causes (possibly none), with the
-        verdicts on the detections it decided (:class:`~groundstation.core.commands.Decisions`)."""
+        verdicts on the detections it decided (:class:`~groundstation.core.commands.Decisions`).
+
+        A ``Telemetry`` (three in four inputs of a simulated run: one per vehicle and tick)
+        only moves its vehicle's pose, so it is answered first, with no commands."""
         if self.on_input is not None:
             self.on_input(event)
-        self._verdicts = []
         if event.t_s > self.t_s:
             self.t_s = event.t_s
-        out: list[Command] = []
-        if isinstance(event, Tick):
-            out += self._process_scans(event.t_s)
-            self.observer.predict_to(event.t_s)
-            self._apply_priority()
-        elif isinstance(event, Telemetry):
+        out = Decisions()
+        if isinstance(event, Telemetry):
             self._on_pose(event.vehicle, event.t_s, event.x_m, event.y_m, event.heading_rad,
                           event.speed_m_s)
+            return out
+        self._verdicts = []
+        if isinstance(event, Tick):
+            self._on_tick(event.t_s, out)
         elif isinstance(event, Detection):
             out += self._on_detection(event)
         elif isinstance(event, CameraFrame):
@@ -186,21 +189,30 @@ class DecisionCore:
             out += self.wind.withdraw(event, {v.id for v in self.active_vehicles()})
         else:
             out += self._on_fleet_or_target_event(event)
-        if isinstance(event, Tick):
-            out += self._update_wind(event.t_s)  # reports age out; before the plan uses it
-            if self.watch is not None and self.watch.due(event.t_s):
-                watch = self.watch.tick(event.t_s, self.vehicles.values(), self._intercept_xy)
-                if any(isinstance(c, SendHome) for c in watch):
-                    self._mark_dirty("vehicle sent home")
-                out += watch
-            if self.uploads.due(event.t_s):
-                self._mark_dirty("upload interval passed")
-            if self.uploads.review(self._value_now, self._last_seen_s):
-                self._mark_dirty("revisit worth it")
-            # Events only mark the plan dirty; the next tick replans once for all of them,
-            # so a burst (several targets added at once) gives one plan, not one each.
-            out += self._maybe_replan(event.t_s)
-        return Decisions(out, self._verdicts)
+        if self._verdicts:
+            out.verdicts = tuple(self._verdicts)
+        return out
+
+    def _on_tick(self, t_s: float, out: list[Command]) -> None:
+        """A ``Tick``: the scans buffered by ``t_s``, the observer predicted to it, the
+        wind, the watch, the upload rule's deferrals and misses, then at most one plan
+        (appended to ``out``, in that order)."""
+        out += self._process_scans(t_s)
+        self.observer.predict_to(t_s)
+        self._apply_priority()
+        out += self._update_wind(t_s)  # reports age out; before the plan uses it
+        if self.watch is not None and self.watch.due(t_s):
+            watch = self.watch.tick(t_s, self.vehicles.values(), self._intercept_xy)
+            if any(isinstance(c, SendHome) for c in watch):
+                self._mark_dirty("vehicle sent home")
+            out += watch
+        if self.uploads.due(t_s):
+            self._mark_dirty("upload interval passed")
+        if self.uploads.review(self._value_now, self._last_seen_s):
+            self._mark_dirty("revisit worth it")
+        # Events only mark the plan dirty; the next tick replans once for all of them,
+        # so a burst (several targets added at once) gives one plan, not one each.
+        out += self._maybe_replan(t_s)
 
     def _on_watch_input(self, event: BatteryReport | VehicleOnDeck | VehicleLanded
                         ) -> list[Command]:
@@ -256,7 +268,9 @@ class DecisionCore:
         return self._pending is not None and self._pending.request_id == request_id
 
     def active_vehicles(self) -> list[VehicleRecord]:
-        return [v for v in self.vehicles.values() if v.status is FleetStatus.ACTIVE]
+        """The vehicles in the plan (``FleetStatus.ACTIVE``), in the order they joined."""
+        active = FleetStatus.ACTIVE  # once: a member's lookup is a descriptor call (3.11)
+        return [v for v in self.vehicles.values() if v.status is active]
 
     def planning_wind_m_s(self) -> tuple[float, float]:
         """The wind (ENU m/s, towards) the planner and the intercept use: the vehicles'
@@ -272,13 +286,19 @@ class DecisionCore:
         return self.wind.current
 
     def _update_wind(self, t_s: float) -> list[Command]:
-        """The estimate at ``t_s``; legs it moved are replanned (``core/wind_replan.py``)."""
+        """The estimate at ``t_s``; legs it moved are replanned (``core/wind_replan.py``).
+        Nothing to do before the first wind report (``WindEstimator.heard``): the estimate
+        is still the fallback every leg was predicted in."""
+        if not self.wind.heard:
+            return []
         active = self.active_vehicles()  # the estimate's update changes no vehicle
         out = self.wind.update(t_s, {v.id for v in active})
         if self.config.wind_aware:
             state = self.wind.current
             legs = self.wind_replan.legs(t_s, state.xy_m_s, state.source, active,
                                          self._leg_time_s)
+            if not legs:
+                return out  # nothing moved (every tick of a steady estimate)
             notes = self.wind_replan.replan(t_s, legs, self.config.policy.commit)
             for leg in legs:  # bounded by its own rule (a 2 m/s change): not delayed
                 self.uploads.reset(leg.vehicle.id, t_s)
@@ -477,7 +497,7 @@ class DecisionCore:
         """A target's planning value now: a search cell's, else the track's sigma."""
         if self.search is not None and target in self.search:
             return self.search.value_m2(target, t_s)
-        return self.observer.track(target).sigma
+        return self.observer.sigma(target)  # the track's snapshot's sigma, unbuilt
 
     def _first_worth_a_visit(self, record: VehicleRecord, route: tuple[str, ...]
                              ) -> tuple[str, tuple[str, ...], tuple[float, float, float]] | None:
@@ -863,10 +883,10 @@ class DecisionCore:
 
     def track_views(self) -> list[TrackView]:
         """Every track with its status (``core/views.py``), sorted by id."""
+        status, existence = self.tracks.status, self.tracks.existence
         return [
-            TrackView(tr.id, self.tracks.status(tr.id), tr.x_m, tr.y_m, tr.sigma,
-                      self.tracks.existence(tr.id), tr.t_s, tr.vx_m_s, tr.vy_m_s, tr.cov_xy,
-                      tr.lost, tr.last_seen_s)
+            TrackView(tr.id, status(tr.id), tr.x_m, tr.y_m, tr.sigma, existence(tr.id), tr.t_s,
+                      tr.vx_m_s, tr.vy_m_s, tr.cov_xy, tr.lost, tr.last_seen_s)
             for tr in self.observer.tracks()
         ]
 

@@ -46,13 +46,20 @@ class Tick:
     t_s: float
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, init=False)
 class Telemetry:
     """A vehicle's planar pose and airspeed (local ENU, heading CCW from east).
 
     ``fix_age_s``: None for a fix (fresh telemetry); for a vehicle whose telemetry lags,
     the age of the fix this pose was predicted from, with ``sigma_m`` its uncertainty
-    (``groundstation/vehicle/freshness.py``). Journals written before have neither."""
+    (``groundstation/vehicle/freshness.py``). Journals written before have neither.
+
+    The commonest input (one per vehicle and tick: 6 000 in a 3-UAV paper-boat run), so
+    its ``__init__`` is written out: it fills the instance's ``__dict__`` at once, where
+    the one a frozen dataclass generates sets each field through ``object.__setattr__``
+    (0.6 us against 1.3 us). The value is the same (fields, defaults, equality, hash,
+    repr) and as frozen: assigning a field raises ``FrozenInstanceError``
+    (tests/test_core_fast_paths.py checks it against the generated one)."""
 
     t_s: float
     vehicle: str
@@ -62,6 +69,13 @@ class Telemetry:
     speed_m_s: float
     fix_age_s: float | None = None
     sigma_m: float | None = None
+
+    def __init__(self, t_s: float, vehicle: str, x_m: float, y_m: float, heading_rad: float,
+                 speed_m_s: float, fix_age_s: float | None = None,
+                 sigma_m: float | None = None) -> None:
+        self.__dict__.update(t_s=t_s, vehicle=vehicle, x_m=x_m, y_m=y_m,
+                             heading_rad=heading_rad, speed_m_s=speed_m_s,
+                             fix_age_s=fix_age_s, sigma_m=sigma_m)
 
 
 @dataclass(frozen=True)

@@ -169,6 +169,8 @@ class TrackBook:
 
     def labelled(self, event: Detection) -> None:
         """A labelled detection: its frame (if one is buffered) loses its footprint."""
+        if not self._scans:
+            return  # nothing buffered (every detection of a labelled camera's run)
         scan = self._scans.get((event.t_s, event.vehicle or ""))
         if scan is not None:
             scan.labelled = True
@@ -181,6 +183,8 @@ class TrackBook:
                 ) -> list[tuple[PendingScan, tuple[TrackEvent, ...], tuple[str, ...]]]:
         """Scan every buffered frame with ``t_s`` at or before ``t_s``, in order; each
         scan with the tracker's events and the tracks its detections were assigned to."""
+        if not self._scans:
+            return []  # no camera frame waits (every tick of a labelled camera's run)
         due = sorted(key for key in self._scans if key[0] <= t_s)
         if not due:
             return []

@@ -24,13 +24,18 @@ __all__ = ["CoreView", "SearchCellView", "TrackView", "VehicleView", "search_cel
 TENTATIVE = "tentative"
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, init=False)
 class TrackView:
     """One track: ``status`` is ``tentative``, ``confirmed`` or ``prior``; ``sigma_m2`` is
     ``trace(P_xy)``; ``existence`` the tracker's probability that it is a real iceberg
     (1 for a track the core added while no tracker exists); ``t_s`` the estimate's time;
     velocity, ``cov_xy = (Pxx, Pxy, Pyy)``, ``lost`` (``sqrt(sigma) > fov_radius_m``) and
-    the last accepted measurement's time (None: never) as ``observer.TrackSnapshot``."""
+    the last accepted measurement's time (None: never) as ``observer.TrackSnapshot``.
+
+    One per track in every view (a view a mission second offline), so its ``__init__`` is
+    written out like ``events.Telemetry``'s: the instance's ``__dict__`` filled at once
+    (0.7 us against 1.8 us for the frozen dataclass's twelve ``object.__setattr__``);
+    the same value, as frozen (tests/test_core_fast_paths.py)."""
 
     id: str
     status: str
@@ -44,6 +49,14 @@ class TrackView:
     cov_xy: tuple[float, float, float] = (0.0, 0.0, 0.0)
     lost: bool = False
     last_seen_s: float | None = None
+
+    def __init__(self, id: str, status: str, x_m: float, y_m: float, sigma_m2: float,
+                 existence: float, t_s: float, vx_m_s: float = 0.0, vy_m_s: float = 0.0,
+                 cov_xy: tuple[float, float, float] = (0.0, 0.0, 0.0), lost: bool = False,
+                 last_seen_s: float | None = None) -> None:
+        self.__dict__.update(id=id, status=status, x_m=x_m, y_m=y_m, sigma_m2=sigma_m2,
+                             existence=existence, t_s=t_s, vx_m_s=vx_m_s, vy_m_s=vy_m_s,
+                             cov_xy=cov_xy, lost=lost, last_seen_s=last_seen_s)
 
     @property
     def sigma(self) -> float:

@@ -145,6 +145,11 @@ class WindEstimator:
         """Reports dropped: not finite, or stronger than any flyable weather."""
         self._outlier_since: dict[str, float] = {}
         self._flagged: set[str] = set()
+        self.heard = False
+        """A report was ever kept. Until then :meth:`update` has nothing to do: no report
+        is held, so the estimate is the fallback it always was (already counted as
+        journalled) and no vehicle is an outlier; the core skips it (and the wind replan:
+        every leg was predicted in that fallback) on every tick of a calm run."""
 
     # ------------------------------------------------------------------ inputs
     def report(self, event: WindReport) -> None:
@@ -153,6 +158,7 @@ class WindEstimator:
         if not (math.isfinite(wx) and math.isfinite(wy)) or math.hypot(wx, wy) > MAX_WIND_M_S:
             self.rejected += 1
             return
+        self.heard = True
         kept = self.reports.setdefault(event.vehicle, deque())
         if kept and event.t_s < kept[-1].t_s:
             kept.clear()  # time went back (a replay edited by hand): start again

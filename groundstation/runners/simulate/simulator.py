@@ -378,26 +378,33 @@ class _Simulation:
         steps = round(self.duration_s / self.dt_s)
         next_sample_s = 0.0
         t_s = 0.0
+        # fixed for the run, read once: each step reads them for every vehicle
+        vehicles = list(self.vehicles.values())
+        deck, world, feed, dt_s = self.deck, self.world, self.feed, self.dt_s
+        boat_fixes = world.boat is not None and self.core.config.priority_gain > 0
+        windy = not self.scenario.wind.calm
         try:
             for k in range(steps + 1):
-                t_s = k * self.dt_s
+                t_s = k * dt_s
                 self.apply_script(t_s)
-                if self.deck is not None:
+                if deck is not None:
                     self.deck_step(t_s)
-                for vehicle in self.vehicles.values():
-                    if self.deck is not None and self.deck.on_deck(vehicle.id):
+                for vehicle in vehicles:
+                    if deck is not None and deck.on_deck(vehicle.id):
                         continue
-                    self.metrics.position(t_s, vehicle.id, vehicle.state.x_m, vehicle.state.y_m)
+                    s = vehicle.state  # its telemetry (``telemetry``), built in place
+                    self.metrics.position(t_s, vehicle.id, s.x_m, s.y_m)
                     if not vehicle.lost:
-                        self.feed(self.telemetry(t_s, vehicle))
-                if self.world.boat is not None and self.core.config.priority_gain > 0:
-                    self.feed(BoatPosition(t_s, self.world.boat.x_m, self.world.boat.y_m))
+                        feed(Telemetry(t_s, vehicle.id, s.x_m, s.y_m, s.heading_rad,
+                                       s.speed_m_s))
+                if boat_fixes and world.boat is not None:
+                    feed(BoatPosition(t_s, world.boat.x_m, world.boat.y_m))
                 on_second = t_s >= next_sample_s - 1e-9
-                if on_second and self.deck is not None:
-                    self.feed(self.ship_fix(t_s))
-                if on_second and not self.scenario.wind.calm:
+                if on_second and deck is not None:
+                    feed(self.ship_fix(t_s))
+                if on_second and windy:
                     self.report_wind(t_s)
-                self.feed(Tick(t_s))
+                feed(Tick(t_s))
                 if on_second:
                     self.sample(t_s)
                     next_sample_s += 1.0
@@ -405,27 +412,27 @@ class _Simulation:
                         self.options.progress(t_s, self.duration_s)
                 if k == steps:
                     break
-                wind_xy_m_s = self.wind.at(t_s + 0.5 * self.dt_s)
-                for vehicle in self.vehicles.values():
-                    if self.deck is not None and not self.fly_on_watch(t_s, vehicle, wind_xy_m_s):
+                wind_xy_m_s = self.wind.at(t_s + 0.5 * dt_s)
+                for vehicle in vehicles:
+                    if deck is not None and not self.fly_on_watch(t_s, vehicle, wind_xy_m_s):
                         continue
-                    if vehicle.step(t_s, self.dt_s, wind_xy_m_s) and not vehicle.lost and (
+                    if vehicle.step(t_s, dt_s, wind_xy_m_s) and not vehicle.lost and (
                         vehicle.commanded
                     ):
                         if self.options.journal:
-                            self.run.journal.append({"event": "loiter_end", "t": t_s + self.dt_s,
+                            self.run.journal.append({"event": "loiter_end", "t": t_s + dt_s,
                                                      "vehicle": vehicle.id})
-                        self.feed(LoiterEnded(t_s + self.dt_s, vehicle.id))
-                self.world.step(self.dt_s)
-                if not self.world.frames_due():
+                        feed(LoiterEnded(t_s + dt_s, vehicle.id))
+                world.step(dt_s)
+                if not world.frames_due():
                     continue  # no camera frame this step
-                positions = {v.id: (v.state.x_m, v.state.y_m) for v in self.vehicles.values()}
+                positions = {v.id: (v.state.x_m, v.state.y_m) for v in vehicles}
                 if self.discovery is not None:
-                    for event in self.discovery.observe(self.world, positions,
+                    for event in self.discovery.observe(world, positions,
                                                         lambda v: self.vehicles[v].lost):
                         self.feed_observed(event)
                     continue
-                for m in self.world.observe(positions):
+                for m in world.observe(positions):
                     if self.vehicles[m.vehicle].lost:
                         continue
                     self.feed_observed(Detection(m.t_s, m.vehicle, m.target, m.x_m, m.y_m, m.r_m2))
