@@ -43,6 +43,12 @@ from dataclasses import dataclass
 import numpy as np
 
 _GRID_EPS = 1e-9
+_REACH_MARGIN = 1.0 + 1e-9
+"""An iceberg further than ``R (1 + 1e-9)`` from the camera along x is out of view
+without the exact test ``dx^2 + dy^2 > R^2``: then ``dx^2 > R^2 (1 + 2e-9)``, which the
+rounding of ``**`` (under one unit in the last place, ~1e-16 relative) cannot bring
+down to the rounded ``R^2``, and adding ``dy^2 >= 0`` cannot either. Nearer icebergs
+(and a NaN) take the exact test, so the verdict is always the exact test's."""
 
 
 @dataclass
@@ -235,7 +241,7 @@ class World:
     def observe(self, uav_positions: Mapping[str, Sequence[float]]) -> list[Measurement]:
         """Measurements due at the current time (empty between camera ticks): the
         detections of :meth:`observe_frames`, frame after frame."""
-        return [m for frame in self.observe_frames(uav_positions) for m in frame.detections]
+        return [m for _, _, _, detections in self._scan(uav_positions) for m in detections]
 
     def observe_frames(self, uav_positions: Mapping[str, Sequence[float]]) -> list[Frame]:
         """Frames due at the current time (empty between camera ticks), one per vehicle.
@@ -244,38 +250,66 @@ class World:
         horizontal coordinates matter. Vehicles and icebergs are visited in sorted order, so
         the noise drawn does not depend on the mapping's order.
         """
-        tick = self.camera.tick(self.t_s)
+        radius_m = self.camera.fov_radius_m
+        return [Frame(self.t_s, vehicle, ux, uy, radius_m, detections)
+                for vehicle, ux, uy, detections in self._scan(uav_positions)]
+
+    def _scan(self, uav_positions: Mapping[str, Sequence[float]],
+              ) -> list[tuple[str, float, float, tuple[Measurement, ...]]]:
+        """The camera tick due now (empty between ticks): each vehicle in sorted order, its
+        position and what its frame reports (module docstring).
+
+        Vehicle after vehicle, iceberg after iceberg (both sorted), an iceberg is in view
+        when ``(x - ux)^2 + (y - uy)^2 <= R^2`` and is then detected unless
+        ``pd < 1`` and its uniform draw is ``>= pd``. The noise of all the tick's
+        detections is then drawn at once, in that order: ``normal(0, sqrt(r), 2 n)`` is the
+        same numbers as ``n`` draws of 2 (numpy draws a sample at a time, each
+        ``0 + sqrt(r) z`` with ``z`` the stream's next normal), and leaves the generator
+        where the ``n`` draws would.
+        """
+        camera = self.camera
+        tick = camera.tick(self.t_s)
         if self._last_tick is not None and tick <= self._last_tick:
             return []
         self._last_tick = tick
-        radius_m = self.camera.fov_radius_m
-        frames: list[Frame] = []
+        fov2 = camera.fov_radius_m**2
+        reach_m = camera.fov_radius_m * _REACH_MARGIN
+        pd = camera.pd
+        icebergs = [(iid, ice.x_m, ice.y_m) for iid, ice in sorted(self.icebergs.items())]
+        views: list[tuple[str, float, float, list[tuple[str, float, float]]]] = []
+        seen_count = 0
         for vehicle in sorted(uav_positions):
             pos = uav_positions[vehicle]
             ux, uy = float(pos[0]), float(pos[1])
-            detections = self._detections(vehicle, ux, uy) + self._clutter(vehicle, ux, uy)
-            if not self.camera.labelled:
+            seen: list[tuple[str, float, float]] = []
+            for iceberg in icebergs:
+                _, x_m, y_m = iceberg
+                dx_m = x_m - ux
+                if dx_m > reach_m or dx_m < -reach_m:  # out of view (_REACH_MARGIN)
+                    continue
+                if dx_m ** 2 + (y_m - uy) ** 2 > fov2:  # the exact test
+                    continue
+                if pd < 1.0 and self._detect_rng.random() >= pd:
+                    continue
+                seen.append(iceberg)
+            views.append((vehicle, ux, uy, seen))
+            seen_count += len(seen)
+        noise = (self._camera_rng.normal(0.0, math.sqrt(camera.r_m2), size=2 * seen_count)
+                 .tolist() if seen_count else [])
+        t_s, r_m2, labelled = self.t_s, camera.r_m2, camera.labelled
+        out: list[tuple[str, float, float, tuple[Measurement, ...]]] = []
+        k = 0
+        for vehicle, ux, uy, seen in views:
+            detections: list[Measurement] = []
+            for iid, x_m, y_m in seen:
+                detections.append(Measurement(t_s, vehicle, iid if labelled else None,
+                                              x_m + noise[k], y_m + noise[k + 1], r_m2,
+                                              x_m, y_m, iid))
+                k += 2
+            detections += self._clutter(vehicle, ux, uy)
+            if not labelled:
                 detections.sort(key=lambda m: (m.x_m, m.y_m))
-            frames.append(Frame(self.t_s, vehicle, ux, uy, radius_m, tuple(detections)))
-        return frames
-
-    def _detections(self, vehicle: str, ux: float, uy: float) -> list[Measurement]:
-        camera = self.camera
-        fov2 = camera.fov_radius_m**2
-        sd = math.sqrt(camera.r_m2)
-        out: list[Measurement] = []
-        for iid in sorted(self.icebergs):
-            ice = self.icebergs[iid]
-            if (ice.x_m - ux) ** 2 + (ice.y_m - uy) ** 2 > fov2:
-                continue
-            if camera.pd < 1.0 and self._detect_rng.random() >= camera.pd:
-                continue
-            n = self._camera_rng.normal(0.0, sd, size=2)
-            out.append(Measurement(
-                t_s=self.t_s, vehicle=vehicle, target=iid if camera.labelled else None,
-                x_m=ice.x_m + float(n[0]), y_m=ice.y_m + float(n[1]), r_m2=camera.r_m2,
-                true_x_m=ice.x_m, true_y_m=ice.y_m, truth=iid,
-            ))
+            out.append((vehicle, ux, uy, tuple(detections)))
         return out
 
     def _clutter(self, vehicle: str, ux: float, uy: float) -> list[Measurement]:
