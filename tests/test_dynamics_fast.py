@@ -21,6 +21,7 @@ from groundstation.runners.simulate.vehicle import OfflineVehicle
 from world.dynamics import (
     LoiterCommand,
     UavState,
+    _saturated,
     advance_pose,
     circle_turn_rate,
     point_turn_rate,
@@ -311,3 +312,14 @@ def test_the_offline_vehicle_flies_the_plain_path_bit_for_bit() -> None:
     # a loiter's end, holds and free flight
     assert {("transit", "hold"), ("transit", "loiter"), ("loiter", "hold"), ("hold", "hold"),
             ("free", "free")} <= flown
+
+
+def test_saturation_is_the_builtins_min_and_max_bit_for_bit() -> None:
+    """``_saturated`` against ``max(-u, min(u, r))``: ties, signed zeros, infinities, NaN."""
+    rng = random.Random(11)
+    specials = [0.0, -0.0, 1.0, -1.0, math.inf, -math.inf, math.nan, 0.2095, -0.2095]
+    cases = [(r, u) for r in specials for u in specials if not math.isnan(u)]
+    cases += [(rng.uniform(-1.0, 1.0), rng.uniform(0.0, 0.5)) for _ in range(10_000)]
+    for rate, u_max in cases:
+        assert bits(_saturated(rate, u_max)) == bits(max(-u_max, min(u_max, rate))), (
+            rate, u_max)

@@ -6,7 +6,8 @@ no frame for ``observe``. A journal recorded by ``gcs simulate`` must replay the
 each tick here is checked against the camera as it was written before (kept below, verbatim
 but for names) on a twin world of the same seed, over random worlds and cameras (``pd``,
 clutter, unlabelled, icebergs on the footprint's edge): every float compared on its exact
-value, and every generator left in the same state.
+value, and the other generators left in the same state (the camera's own draws its normals
+ahead in blocks).
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from world.model import Boat, Camera, Frame, Iceberg, Measurement, World
+from world.model import _NOISE_BLOCK, Boat, Camera, Frame, Iceberg, Measurement, World
 
 # ----------------------------------------------------------------- the plain path
 # World.observe_frames, _detections and _clutter as they were (main at c247c22)
@@ -112,8 +113,9 @@ def frame_bits(frame: Frame) -> tuple[object, ...]:
 
 
 def generator_states(world: World) -> list[object]:
-    return [g.bit_generator.state for g in (world._camera_rng, world._detect_rng,
-                                            world._clutter_rng,
+    """The detection, clutter and icebergs' generators (the camera's draws its normals
+    ahead: its numbers are compared in the measurements)."""
+    return [g.bit_generator.state for g in (world._detect_rng, world._clutter_rng,
                                             *world._iceberg_rngs.values())]
 
 
@@ -196,3 +198,25 @@ def test_the_camera_sees_and_draws_what_the_plain_camera_did() -> None:
                   for c in (i.x_m, i.y_m, i.vx_m_s, i.vy_m_s)))
             assert fast.t_s == plain.t_s == flat.t_s
     assert ticks > 1000 and measured > 1000  # the cases compared real frames and detections
+
+
+def test_crowded_frames_take_the_noise_across_blocks_as_the_plain_camera_drew_it() -> None:
+    """Up to 60 icebergs in view of 4 vehicles: ticks that need more normals than a block,
+    and many blocks in turn, give the plain camera's numbers."""
+    rng = random.Random(3)
+    icebergs = [Iceberg(f"T{k}", rng.uniform(0.0, 100.0), rng.uniform(0.0, 100.0), 0.1, 0.0)
+                for k in range(60)]
+    fast, plain = (World(copy.deepcopy(icebergs), None, Camera(300.0, 2.0, 5.0),
+                         np.random.default_rng(9)) for _ in range(2))
+    used = most = 0
+    for _ in range(30):
+        positions = {str(v): (rng.uniform(0.0, 100.0), rng.uniform(0.0, 100.0))
+                     for v in range(rng.randrange(1, 5))}
+        got = fast.observe(positions)
+        want = [m for f in plain_observe_frames(plain, positions) for m in f.detections]
+        assert [measurement_bits(m) for m in got] == [measurement_bits(m) for m in want]
+        used += 2 * len(got)
+        most = max(most, 2 * len(got))
+        fast.step(0.5)
+        plain_step(plain, 0.5)
+    assert used > 10 * _NOISE_BLOCK and most > _NOISE_BLOCK

@@ -117,6 +117,14 @@ class LoiterCommand:
     clockwise: bool = True
 
 
+def _saturated(rate_rad_s: float, u_max: float) -> float:
+    """``max(-u_max, min(u_max, rate_rad_s))`` by two comparisons, with the builtins' very
+    choices (``min`` keeps ``u_max`` unless the rate is below it, ``max`` keeps ``-u_max``
+    unless the result is above it; a NaN rate gives ``u_max``), at a third of their cost."""
+    rate_rad_s = rate_rad_s if rate_rad_s < u_max else u_max
+    return rate_rad_s if rate_rad_s > -u_max else -u_max
+
+
 def max_turn_rate_rad_s(speed_m_s: float, min_turn_radius_m: float) -> float:
     """u_max = V / R_min."""
     return speed_m_s / min_turn_radius_m
@@ -249,7 +257,7 @@ def point_turn_rate(
         cy = y_m + side * min_turn_radius_m * cos_heading
         if math.hypot(aim_x_m - cx, aim_y_m - cy) < min_turn_radius_m * 0.999:
             return 0.0
-    return max(-u_max, min(u_max, _HEADING_GAIN_PER_S * err))
+    return _saturated(_HEADING_GAIN_PER_S * err, u_max)
 
 
 def turn_rate_to_circle(
@@ -301,7 +309,7 @@ def circle_turn_rate(
         along = math.sqrt(max(v * v - w_perp * w_perp, (1e-3 * v) ** 2))
         ground = max(wx * c + wy * s + along, 0.0)
         feed_forward = lam * ground * ground / (max(d, radius) * along)
-    return max(-u_max, min(u_max, _HEADING_GAIN_PER_S * err + feed_forward))
+    return _saturated(_HEADING_GAIN_PER_S * err + feed_forward, u_max)
 
 
 def distance_to_circle_m(
