@@ -137,11 +137,12 @@ def edge_m(rng: random.Random, radius_m: float) -> float:
 
 
 def random_icebergs(rng: random.Random, camera: Camera,
-                    vehicles: dict[str, tuple[float, float]]) -> list[Iceberg]:
+                    vehicles: dict[str, tuple[float, float]],
+                    count: int | None = None) -> list[Iceberg]:
     """Anywhere in the field, near a vehicle, or on a footprint's edge along x or y."""
     radius_m = camera.fov_radius_m
     out = []
-    for k in range(rng.randrange(16)):
+    for k in range(rng.randrange(16) if count is None else count):
         ux, uy = rng.choice(list(vehicles.values()))
         kind = rng.randrange(4)
         if kind == 0:
@@ -153,7 +154,7 @@ def random_icebergs(rng: random.Random, camera: Camera,
             edge = edge_m(rng, radius_m)
             x_m, y_m = (ux + edge, uy) if kind == 2 else (ux, uy + edge)
         q_per_s = rng.choice([0.0, 0.0, 0.05, rng.uniform(0.0, 0.5)])
-        out.append(Iceberg(f"T{rng.randrange(1000)}-{k}", x_m, y_m,
+        out.append(Iceberg(f"T{rng.randrange(10**9)}-{k}", x_m, y_m,
                            rng.uniform(-3.0, 3.0), rng.uniform(-3.0, 3.0), q_per_s))
     return out
 
@@ -192,6 +193,14 @@ def test_the_camera_sees_and_draws_what_the_plain_camera_did() -> None:
             for w in (fast, flat):
                 w.step(dt_s)
             plain_step(plain, dt_s)
+            if fast.icebergs and rng.random() < 0.1:  # one melts away, or calves anew
+                gone = rng.choice(sorted(fast.icebergs))
+                for w in (fast, plain, flat):
+                    w.remove_iceberg(gone)
+            if rng.random() < 0.1:
+                (new,) = random_icebergs(rng, camera, vehicles, count=1)
+                for w in (fast, plain, flat):
+                    w.add_iceberg(copy.deepcopy(new))
             assert hexes(*(c for i in fast.icebergs.values()
                            for c in (i.x_m, i.y_m, i.vx_m_s, i.vy_m_s))) == hexes(
                 *(c for i in plain.icebergs.values()

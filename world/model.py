@@ -210,6 +210,10 @@ class World:
         ``_normals_used`` of them are used."""
         self._normals_used = 0
         self.icebergs: dict[str, Iceberg] = {}
+        """The icebergs by id, in the order they were added (read it; add and remove through
+        :meth:`add_iceberg` and :meth:`remove_iceberg`)."""
+        self._by_id: list[tuple[str, Iceberg]] = []
+        """``icebergs`` sorted by id, for the camera (kept by add and remove)."""
         self._iceberg_rngs: dict[str, np.random.Generator] = {}
         self._last_tick: int | None = None
         for iceberg in icebergs:
@@ -221,6 +225,7 @@ class World:
         if iceberg.id in self.icebergs:
             raise ValueError(f"iceberg {iceberg.id!r} already exists")
         self.icebergs[iceberg.id] = iceberg
+        self._by_id = sorted(self.icebergs.items())
         (self._iceberg_rngs[iceberg.id],) = self._rng.spawn(1)
 
     def remove_iceberg(self, id: str) -> None:
@@ -228,6 +233,7 @@ class World:
         if id not in self.icebergs:
             raise KeyError(f"unknown iceberg {id!r}")
         del self.icebergs[id]
+        self._by_id = sorted(self.icebergs.items())
         del self._iceberg_rngs[id]
 
     def step(self, dt_s: float) -> None:
@@ -287,7 +293,7 @@ class World:
         fov2 = camera.fov_radius_m**2
         reach_m = camera.fov_radius_m * _REACH_MARGIN
         pd = camera.pd
-        icebergs = [(iid, ice.x_m, ice.y_m) for iid, ice in sorted(self.icebergs.items())]
+        icebergs = [(iid, ice.x_m, ice.y_m) for iid, ice in self._by_id]
         views: list[tuple[str, float, float, list[tuple[str, float, float]]]] = []
         seen_count = 0
         for vehicle in sorted(uav_positions):
