@@ -1,13 +1,14 @@
 """The world's fast camera and drift give the plain path's numbers, bit for bit.
 
-``World`` sorts the icebergs once per camera tick, skips an iceberg far along x before the
-exact footprint test (``_REACH_MARGIN``), draws the noise of a whole tick at once and builds
-no frame for ``observe``. A journal recorded by ``gcs simulate`` must replay the same, so
-each tick here is checked against the camera as it was written before (kept below, verbatim
-but for names) on a twin world of the same seed, over random worlds and cameras (``pd``,
-clutter, unlabelled, icebergs on the footprint's edge): every float compared on its exact
-value, and the other generators left in the same state (the camera's own draws its normals
-ahead in blocks).
+``World`` keeps its icebergs sorted, skips an iceberg far along x before the exact footprint
+test (``_REACH_MARGIN``), takes its normals from blocks drawn ahead (the camera's noise, the
+icebergs' random walk) and builds no frame for ``observe``. A journal recorded by
+``gcs simulate`` must replay the same, so each tick here is checked against the camera and
+the step as they were written before (kept below, verbatim but for names) on a twin world
+of the same seed, over random worlds and cameras (``pd``, clutter, unlabelled, icebergs on
+the footprint's edge): every float compared on its exact value, and the detection and
+clutter generators left in the same state (the camera's and the icebergs' own draw their
+normals ahead in blocks).
 """
 
 from __future__ import annotations
@@ -113,10 +114,9 @@ def frame_bits(frame: Frame) -> tuple[object, ...]:
 
 
 def generator_states(world: World) -> list[object]:
-    """The detection, clutter and icebergs' generators (the camera's draws its normals
-    ahead: its numbers are compared in the measurements)."""
-    return [g.bit_generator.state for g in (world._detect_rng, world._clutter_rng,
-                                            *world._iceberg_rngs.values())]
+    """The detection and clutter generators (the camera's and the icebergs' draw their
+    normals ahead: their numbers are compared in the measurements and the velocities)."""
+    return [g.bit_generator.state for g in (world._detect_rng, world._clutter_rng)]
 
 
 def random_camera(rng: random.Random) -> Camera:
@@ -229,3 +229,21 @@ def test_crowded_frames_take_the_noise_across_blocks_as_the_plain_camera_drew_it
         fast.step(0.5)
         plain_step(plain, 0.5)
     assert used > 10 * _NOISE_BLOCK and most > _NOISE_BLOCK
+
+
+def test_the_icebergs_random_walk_takes_its_normals_across_blocks_as_drawn_before() -> None:
+    """Drifting icebergs with process noise over many blocks of normals, at irregular steps
+    (some of zero length, which draw nothing): the plain step's velocities and positions."""
+    rng = random.Random(5)
+    icebergs = [Iceberg(f"D{k}", rng.uniform(0.0, 1500.0), rng.uniform(0.0, 1500.0),
+                        rng.uniform(-3.0, 3.0), rng.uniform(-3.0, 3.0), q_per_s)
+                for k, q_per_s in enumerate([0.1, 0.0, 0.5, 0.013])]
+    fast, plain = (World(copy.deepcopy(icebergs), Boat(0.0, 0.0, 1.0, 5.0),
+                         Camera(), np.random.default_rng(21)) for _ in range(2))
+    for _ in range(4 * _NOISE_BLOCK):
+        dt_s = rng.choice([0.1, 0.1, 0.0, rng.uniform(0.0, 2.0)])
+        fast.step(dt_s)
+        plain_step(plain, dt_s)
+        assert hexes(*(c for i in fast.icebergs.values()
+                       for c in (i.x_m, i.y_m, i.vx_m_s, i.vy_m_s))) == hexes(
+            *(c for i in plain.icebergs.values() for c in (i.x_m, i.y_m, i.vx_m_s, i.vy_m_s)))

@@ -36,9 +36,10 @@ draws exactly what it drew before these faults existed.
 The noise is the camera generator's stream of standard normals ``z`` taken in order, each
 detection's ``n = (0 + s z_k, 0 + s z_k+1)`` with ``s = sqrt(r)``: what
 ``normal(0, s, size=2)`` returns (numpy draws it a sample at a time, each
-``loc + scale * z``), so the numbers are those of one such draw per detection. They are
-drawn ahead in blocks of ``_NOISE_BLOCK`` (one numpy call for many frames); the generator
-itself is then ahead of what the frames have used.
+``loc + scale * z``), so the numbers are those of one such draw per detection; an
+iceberg's ``dv`` likewise, ``s = sqrt(q dt)``, from its own generator. They are drawn ahead
+in blocks of ``_NOISE_BLOCK`` (:class:`_Normals`: one numpy call for many frames or
+steps); a generator itself is then ahead of what the world has used.
 """
 
 from __future__ import annotations
@@ -174,6 +175,28 @@ class Camera:
         return math.floor(t_s * self.rate_hz + _GRID_EPS)
 
 
+class _Normals:
+    """A generator's standard normals in order, drawn ahead ``_NOISE_BLOCK`` or more at a
+    time (module docstring): ``take(n)`` gives the same numbers as ``n`` drawn one at a
+    time, the generator's state apart."""
+
+    def __init__(self, rng: np.random.Generator) -> None:
+        self._rng = rng
+        self._drawn: list[float] = []
+        self._used = 0
+        """The first ``_used`` of ``_drawn`` are taken."""
+
+    def take(self, count: int) -> list[float]:
+        """The next ``count`` standard normals."""
+        start, end = self._used, self._used + count
+        if end > len(self._drawn):
+            fresh = self._rng.standard_normal(max(_NOISE_BLOCK, count)).tolist()
+            self._drawn = self._drawn[start:] + fresh
+            start, end = 0, count
+        self._used = end
+        return self._drawn[start:end]
+
+
 def _check_iceberg(iceberg: Iceberg) -> None:
     if not isinstance(iceberg.id, str) or not iceberg.id:
         raise ValueError(f"Iceberg.id must be a non-empty string, got {iceberg.id!r}")
@@ -205,16 +228,14 @@ class World:
         self._rng = rng
         (self._camera_rng,) = rng.spawn(1)
         self._detect_rng, self._clutter_rng = self._camera_rng.spawn(2)
-        self._normals: list[float] = []
-        """The camera generator's standard normals drawn ahead; the first
-        ``_normals_used`` of them are used."""
-        self._normals_used = 0
+        self._camera_normals = _Normals(self._camera_rng)
         self.icebergs: dict[str, Iceberg] = {}
         """The icebergs by id, in the order they were added (read it; add and remove through
         :meth:`add_iceberg` and :meth:`remove_iceberg`)."""
         self._by_id: list[tuple[str, Iceberg]] = []
         """``icebergs`` sorted by id, for the camera (kept by add and remove)."""
         self._iceberg_rngs: dict[str, np.random.Generator] = {}
+        self._iceberg_normals: dict[str, _Normals] = {}
         self._last_tick: int | None = None
         for iceberg in icebergs:
             self.add_iceberg(iceberg)
@@ -227,6 +248,7 @@ class World:
         self.icebergs[iceberg.id] = iceberg
         self._by_id = sorted(self.icebergs.items())
         (self._iceberg_rngs[iceberg.id],) = self._rng.spawn(1)
+        self._iceberg_normals[iceberg.id] = _Normals(self._iceberg_rngs[iceberg.id])
 
     def remove_iceberg(self, id: str) -> None:
         """Remove an iceberg. Raises KeyError if unknown."""
@@ -235,6 +257,7 @@ class World:
         del self.icebergs[id]
         self._by_id = sorted(self.icebergs.items())
         del self._iceberg_rngs[id]
+        del self._iceberg_normals[id]
 
     def step(self, dt_s: float) -> None:
         """Advance icebergs and boat by ``dt_s`` (see the module docstring)."""
@@ -244,11 +267,10 @@ class World:
             iceberg.x_m += iceberg.vx_m_s * dt_s
             iceberg.y_m += iceberg.vy_m_s * dt_s
             if iceberg.q_per_s > 0.0 and dt_s > 0.0:
-                dv = self._iceberg_rngs[iceberg.id].normal(
-                    0.0, math.sqrt(iceberg.q_per_s * dt_s), size=2
-                )
-                iceberg.vx_m_s += float(dv[0])
-                iceberg.vy_m_s += float(dv[1])
+                sd = math.sqrt(iceberg.q_per_s * dt_s)
+                z_x, z_y = self._iceberg_normals[iceberg.id].take(2)
+                iceberg.vx_m_s += 0.0 + sd * z_x  # normal(0, sd): module docstring
+                iceberg.vy_m_s += 0.0 + sd * z_y
         if self.boat is not None:
             self.boat.step(dt_s)
         self.t_s += dt_s
@@ -312,7 +334,7 @@ class World:
                 seen.append(iceberg)
             views.append((vehicle, ux, uy, seen))
             seen_count += len(seen)
-        normals = self._take_normals(2 * seen_count)
+        normals = self._camera_normals.take(2 * seen_count)
         sd = math.sqrt(camera.r_m2)
         t_s, r_m2, labelled = self.t_s, camera.r_m2, camera.labelled
         out: list[tuple[str, float, float, tuple[Measurement, ...]]] = []
@@ -330,17 +352,6 @@ class World:
                 detections.sort(key=lambda m: (m.x_m, m.y_m))
             out.append((vehicle, ux, uy, tuple(detections)))
         return out
-
-    def _take_normals(self, count: int) -> list[float]:
-        """The camera generator's next ``count`` standard normals, in order (drawn ahead
-        ``_NOISE_BLOCK`` or more at a time: the module docstring)."""
-        start, end = self._normals_used, self._normals_used + count
-        if end > len(self._normals):
-            fresh = self._camera_rng.standard_normal(max(_NOISE_BLOCK, count)).tolist()
-            self._normals = self._normals[start:] + fresh
-            start, end = 0, count
-        self._normals_used = end
-        return self._normals[start:end]
 
     def _clutter(self, vehicle: str, ux: float, uy: float) -> list[Measurement]:
         """False alarms: Poisson count, uniform over the footprint disc."""
