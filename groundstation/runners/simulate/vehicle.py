@@ -28,10 +28,10 @@ from world.dynamics import (
     CALM,
     LoiterCommand,
     UavState,
+    advance_pose,
+    circle_turn_rate,
     distance_to_circle_m,
-    step_kinematics,
-    turn_rate_to_circle,
-    turn_rate_to_point,
+    point_turn_rate,
 )
 
 __all__ = ["OfflineVehicle"]
@@ -77,40 +77,49 @@ class OfflineVehicle:
              wind_xy_m_s: tuple[float, float] = CALM) -> bool:
         """Advance by ``dt_s`` ending at ``t_s + dt_s`` in the wind ``wind_xy_m_s`` (ENU,
         constant over the step); True when a loiter (or pass) ended: a pass through
-        waypoints ends at the last one, as ArduPlane's mission reaches its final loiter."""
-        ended = False
+        waypoints ends at the last one, as ArduPlane's mission reaches its final loiter.
+
+        The guidance and the kinematics are :mod:`world.dynamics`' on the bare pose
+        (``point_turn_rate`` or ``circle_turn_rate``, then ``advance_pose``), sharing one
+        ``cos psi, sin psi``: the same numbers as ``turn_rate_to_point`` /
+        ``turn_rate_to_circle`` and ``step_kinematics`` on the state."""
         s = self.state
-        if self.aim_xy_m is None:
+        x_m, y_m, psi, speed_m_s = s.x_m, s.y_m, s.heading_rad, s.speed_m_s
+        cos_psi, sin_psi = math.cos(psi), math.sin(psi)
+        aim = self.aim_xy_m
+        passing = self.phase == "transit" and self.loiter_s <= 0.0
+        if aim is None:
             rate = 0.0
-        elif self.phase == "transit" and self.loiter_s <= 0.0:
-            rate = turn_rate_to_point(s, *self.aim_xy_m, self.turn_radius_m,
-                                      wind_xy_m_s=wind_xy_m_s)
-        else:
-            circle = LoiterCommand(*self.aim_xy_m, self.loiter_radius_m)
-            rate = turn_rate_to_circle(s, circle, self.turn_radius_m, wind_xy_m_s=wind_xy_m_s)
-        self.state = step_kinematics(s, rate, dt_s, wind_xy_m_s=wind_xy_m_s)
-        t_next = t_s + dt_s
-        if self.aim_xy_m is None:
+        elif passing:
+            rate = point_turn_rate(x_m, y_m, psi, cos_psi, sin_psi, speed_m_s, aim[0], aim[1],
+                                   self.turn_radius_m, wind_xy_m_s)
+        else:  # a clockwise loiter circle round the aim point
+            rate = circle_turn_rate(x_m, y_m, psi, speed_m_s, aim[0], aim[1],
+                                    self.loiter_radius_m, True, self.turn_radius_m,
+                                    wind_xy_m_s)
+        x_m, y_m, psi = advance_pose(x_m, y_m, psi, cos_psi, sin_psi, speed_m_s, rate, dt_s,
+                                     wind_xy_m_s)
+        self.state = UavState(x_m, y_m, psi, speed_m_s)
+        if aim is None:
             return False
-        if self.phase == "transit":
-            if self.loiter_s <= 0.0:
-                if math.dist((self.state.x_m, self.state.y_m), self.aim_xy_m) <= (
-                    self.arrival_radius_m
-                ):
-                    here = (self.state.x_m, self.state.y_m)
-                    while self.through and math.dist(here, self.through[0]) <= (
-                            self.arrival_radius_m):  # reached at once (a repeated point)
-                        self.aim_xy_m, self.through = self.through[0], self.through[1:]
-                    if self.through:  # on to the next waypoint of the mission
-                        self.aim_xy_m, self.through = self.through[0], self.through[1:]
-                    else:
-                        self.phase, ended = "hold", True
-            else:
-                circle = LoiterCommand(*self.aim_xy_m, self.loiter_radius_m)
-                if distance_to_circle_m(self.state, circle, self.turn_radius_m) <= (
-                    _ON_CIRCLE_TOLERANCE_M
-                ):
-                    self.phase, self.loiter_end_s = "loiter", t_next + self.loiter_s
+        ended = False
+        t_next = t_s + dt_s
+        if passing:
+            if math.dist((x_m, y_m), aim) <= self.arrival_radius_m:
+                here = (x_m, y_m)
+                while self.through and math.dist(here, self.through[0]) <= (
+                        self.arrival_radius_m):  # reached at once (a repeated point)
+                    self.aim_xy_m, self.through = self.through[0], self.through[1:]
+                if self.through:  # on to the next waypoint of the mission
+                    self.aim_xy_m, self.through = self.through[0], self.through[1:]
+                else:
+                    self.phase, ended = "hold", True
+        elif self.phase == "transit":
+            circle = LoiterCommand(*aim, self.loiter_radius_m)
+            if distance_to_circle_m(self.state, circle, self.turn_radius_m) <= (
+                _ON_CIRCLE_TOLERANCE_M
+            ):
+                self.phase, self.loiter_end_s = "loiter", t_next + self.loiter_s
         elif self.phase == "loiter" and self.loiter_end_s is not None and (
             t_next >= self.loiter_end_s - 1e-9
         ):
