@@ -384,8 +384,11 @@ class Observer:
             raise KeyError(f"unknown target_id {target_id!r}") from None
 
     def _is_lost(self, track: _Track) -> bool:
+        """:meth:`_lost_at` the track's sigma."""
+        return self._lost_at(track.sigma)
+
+    def _lost_at(self, sigma: float) -> bool:
         """``sqrt(max(sigma, 0)) > fov_radius_m`` (fov_radius_m > 0)."""
-        sigma = track.sigma
         return sigma > 0.0 and math.sqrt(sigma) > self.config.fov_radius_m
 
     def _check_lost(self, target_id: str) -> None:
@@ -405,7 +408,7 @@ class Observer:
         # positional, in TrackSnapshot's field order (a third cheaper than by keyword)
         return TrackSnapshot(
             target_id, t_s, x, y, vx, vy, sigma, cov_xy,
-            sigma > 0.0 and math.sqrt(sigma) > self.config.fov_radius_m,  # _is_lost
+            self._lost_at(sigma),
             self._ever_lost[target_id], tr.last_seen_s, tr.q_per_s,
         )
 

@@ -79,8 +79,6 @@ __all__ = [
 
 _HEADING_GAIN_PER_S = 2.0
 _ORBIT_GAIN = 2.0
-_PI = math.pi
-_TWO_PI = 2.0 * math.pi
 _HALF_PI = math.pi / 2.0
 
 CALM: tuple[float, float] = (0.0, 0.0)
@@ -204,7 +202,7 @@ def advance_pose(
     y1 = y_m - radius * (math.cos(psi1) - cos_heading)
     if drift_x or drift_y:
         x1, y1 = x1 + drift_x, y1 + drift_y
-    return x1, y1, (psi1 + _PI) % _TWO_PI - _PI  # wrap_pi(psi1)
+    return x1, y1, wrap_pi(psi1)
 
 
 def turn_rate_to_point(
@@ -248,8 +246,8 @@ def point_turn_rate(
     bearing = math.atan2(dy, dx)
     if wind_xy_m_s[0] != 0.0 or wind_xy_m_s[1] != 0.0:
         bearing = crab_heading_rad(bearing, wind_xy_m_s, speed_m_s)
-    err = (bearing - heading_rad + _PI) % _TWO_PI - _PI  # wrap_pi(bearing - heading)
-    u_max = speed_m_s / min_turn_radius_m  # max_turn_rate_rad_s
+    err = wrap_pi(bearing - heading_rad)
+    u_max = max_turn_rate_rad_s(speed_m_s, min_turn_radius_m)
     if err > 1e-3 or err < -1e-3:  # |err| > 1e-3: is the point inside the turning circle?
         side = 1.0 if err >= 0.0 else -1.0
         # centre of the turning circle on the side we would turn to
@@ -289,7 +287,7 @@ def circle_turn_rate(
     """:func:`turn_rate_to_circle` on a bare pose and circle (module docstring: the
     vector field ``chi_d`` and its feed-forward; 0 at the centre itself)."""
     v = speed_m_s
-    u_max = v / min_turn_radius_m  # max_turn_rate_rad_s
+    u_max = max_turn_rate_rad_s(v, min_turn_radius_m)
     radius = max(radius_m, min_turn_radius_m)
     lam = -1.0 if clockwise else 1.0
     dx, dy = x_m - centre_x_m, y_m - centre_y_m
@@ -300,7 +298,7 @@ def circle_turn_rate(
     chi_d = gamma + lam * (_HALF_PI + math.atan(_ORBIT_GAIN * (d - radius) / radius))
     wx, wy = wind_xy_m_s
     if wx == 0.0 and wy == 0.0:
-        err = (chi_d - heading_rad + _PI) % _TWO_PI - _PI  # wrap_pi(chi_d - psi)
+        err = wrap_pi(chi_d - heading_rad)
         feed_forward = lam * v / max(d, radius)
     else:
         err = wrap_pi(crab_heading_rad(chi_d, wind_xy_m_s, v) - heading_rad)

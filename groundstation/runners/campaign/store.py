@@ -203,8 +203,9 @@ class CampaignStore:
             self._write_part(path, table)
             self._written[path] = table
         table = rows_to_table([outcome.run_row], self.schemas[RUNS_DIR])
-        self._write_part(self.folder(RUNS_DIR) / f"{RUN_PART}{outcome.run_id}.parquet", table)
-        self._written[self.folder(RUNS_DIR) / f"{RUN_PART}{outcome.run_id}.parquet"] = table
+        path = self.folder(RUNS_DIR) / f"{RUN_PART}{outcome.run_id}.parquet"
+        self._write_part(path, table)
+        self._written[path] = table
         self._new_parts += 1
         if self._new_parts >= COMPACT_EVERY_PARTS:
             self.compact(final=False)

@@ -392,11 +392,10 @@ class _Simulation:
                 for vehicle in vehicles:
                     if deck is not None and deck.on_deck(vehicle.id):
                         continue
-                    s = vehicle.state  # its telemetry (``telemetry``), built in place
+                    s = vehicle.state
                     self.metrics.position(t_s, vehicle.id, s.x_m, s.y_m)
                     if not vehicle.lost:
-                        feed(Telemetry(t_s, vehicle.id, s.x_m, s.y_m, s.heading_rad,
-                                       s.speed_m_s))
+                        feed(self.telemetry(t_s, vehicle))
                 if boat_fixes and world.boat is not None:
                     feed(BoatPosition(t_s, world.boat.x_m, world.boat.y_m))
                 on_second = t_s >= next_sample_s - 1e-9
