@@ -124,7 +124,7 @@ def plot_mean_vs_fleet(summaries: Sequence[CellSummary], cells: Cells) -> Panel:
         ax.set_xticks(range(len(summaries)), [cells.label(c) for c in range(len(summaries))])
         ax.tick_params(axis="x", labelrotation=30, labelsize=7)
     _maybe_log(ax, every)
-    ax.set_ylabel("mean uncertainty, mean over seeds (m$^2$)")
+    ax.set_ylabel("mean uncertainty, mean over seeds (m²)")
     ax.grid(True, which="both", alpha=0.3)
     if lines > 1 and _fleet_varies(cells):
         ax.legend(fontsize=7)
@@ -193,7 +193,7 @@ def plot_series(bands: SeriesBands | None, cells: Cells) -> Panel:
     for ax in axes[-cols:]:
         ax.set_xlabel("mission time (s)")
     for ax in axes[::cols]:
-        ax.set_ylabel("mean sigma (m$^2$)")
+        ax.set_ylabel("mean sigma (m²)")
     caption = (
         "Mean over a cell's seeds of the runs' average uncertainty at each mission "
         f"{'second' if bands.step_s == 1 else f'{bands.step_s} s'}; band: 95 % t interval."

@@ -14,7 +14,7 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Circle
 
 from domain.wind_triangle import wind_from_vector
-from groundstation.runners.html_page import FigurePng, render_png
+from groundstation.runners.html_page import FigurePng, plain_log_axis, render_png
 from groundstation.runners.report.data import RunData, fallback_wind_of
 
 __all__ = [
@@ -138,7 +138,7 @@ def plot_uncertainty(data: RunData) -> FigurePng | None:
     fig = Figure(figsize=(9, 6.5), layout="constrained")
     top, bottom = fig.subplots(2, 1, sharex=True)
     top.plot([t for t, _ in mean], [s for _, s in mean], color="black", lw=2)
-    top.set_ylabel("mean sigma (m$^2$)")
+    top.set_ylabel("mean sigma (m²)")
     top.set_title("uncertainty: average over the targets (top), per target (bottom)")
     top.grid(True, alpha=0.3)
     for k, (target, rows) in enumerate(sorted(data.target_estimates.items())):
@@ -152,8 +152,9 @@ def plot_uncertainty(data: RunData) -> FigurePng | None:
         )
     bottom.axhline(150.0**2, color="red", ls="--", lw=1, label="lost (sqrt sigma = 150 m)")
     bottom.set_yscale("log")
+    plain_log_axis(bottom.yaxis)
     bottom.set_xlabel("mission time (s)")
-    bottom.set_ylabel("sigma (m$^2$)")
+    bottom.set_ylabel("sigma (m²)")
     bottom.legend(fontsize=7, ncol=6, loc="upper left")
     bottom.grid(True, alpha=0.3)
     return FigurePng(

@@ -66,7 +66,7 @@ def _draw_map(ax: Any, fig: Figure, data: RunData, tracking: TrackingData) -> di
             ax.update_datalim([(c.x_m - c.size_m / 2, c.y_m - c.size_m / 2),
                                (c.x_m + c.size_m / 2, c.y_m + c.size_m / 2)])
         fig.colorbar(ScalarMappable(norm=norm, cmap=cmap), ax=ax, shrink=0.7,
-                     label=f"search value (m$^2$) at t={tracking.search[-1][0]:.0f} s")
+                     label=f"search value (m²) at t={tracking.search[-1][0]:.0f} s")
     for truth in data.target_truth.values():
         pts = [r for r in truth if math.isfinite(r[1]) and math.isfinite(r[2])]
         if pts:

@@ -15,6 +15,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle
 
+from groundstation.runners.html_page import plain_log_axis
 from groundstation.runners.simulate.simulator import MapSnapshot, SimulationRun
 from groundstation.storage import atomic_write_with
 
@@ -57,7 +58,7 @@ def plot_uncertainty(run: SimulationRun, path: Path) -> Path:
     top, bottom = fig.subplots(2, 1, sharex=True)
     series = run.metrics["uncertainty_series"]
     top.plot([t for t, _ in series], [s for _, s in series], color="black", lw=2)
-    top.set_ylabel("mean uncertainty sigma (m$^2$)")
+    top.set_ylabel("mean uncertainty sigma (m²)")
     top.set_title(uncertainty_title(run))
     top.grid(True, alpha=0.3)
     fov = run.scenario.fleet.fov_radius_m
@@ -67,8 +68,9 @@ def plot_uncertainty(run: SimulationRun, path: Path) -> Path:
                     label=target)
     bottom.axhline(fov**2, color="red", ls="--", lw=1, label="lost (sqrt sigma = FOV)")
     bottom.set_yscale("log")
+    plain_log_axis(bottom.yaxis)
     bottom.set_xlabel("mission time (s)")
-    bottom.set_ylabel("sigma per target (m$^2$)")
+    bottom.set_ylabel("sigma per target (m²)")
     bottom.legend(fontsize=7, ncol=6, loc="upper left")
     bottom.grid(True, alpha=0.3)
     return _save(fig, path)
@@ -153,7 +155,7 @@ def plot_comparison(
                 color=_COLOURS[k % len(_COLOURS)],
                 label=f"{uavs} UAV(s), growth over the 2nd half: {growth_text(series)}")
     ax.set_xlabel("mission time (s)")
-    ax.set_ylabel("mean uncertainty sigma (m$^2$)")
+    ax.set_ylabel("mean uncertainty sigma (m²)")
     ax.set_title(title)
     ax.grid(True, alpha=0.3)
     ax.legend()
