@@ -3,13 +3,14 @@ a SetHome reaches a vehicle as DO_SET_HOME and is verified by HOME_POSITION (``h
 in the journal), and the ship's beacon (GLOBAL_POSITION_INT from system 17) reaches every
 vehicle link with the ship's position.
 
-The peer is a minimal scripted ArduPlane-shaped vehicle in a thread (the built-in simulator
-on main does not answer DO_SET_HOME yet): HEARTBEAT (FBWA, armed), GLOBAL_POSITION_INT
+The peer is a minimal scripted ArduPlane-shaped vehicle in a thread, so the tests see every
+frame it received: HEARTBEAT (FBWA, armed), GLOBAL_POSITION_INT
 (flying at 100 m, 22 m/s), SYS_STATUS and HOME_POSITION; it answers PARAM_REQUEST_READ,
 DO_SET_HOME (COMMAND_ACK, then HOME_POSITION at the new home) and REQUEST_MESSAGE 242, and
 keeps what it received. The test feeds the decision core's commands directly: it asserts on
-the journal and on what the peer received. The last test runs the built-in simulator with
-the real watch core (ship-watch, --launch): only the core's launch orders launch.
+the journal and on what the peer received. The last tests run the built-in simulator with
+the real watch core (ship-watch, --launch): only the core's launch orders launch, and the
+homes the vehicles confirmed (the simulator answers DO_SET_HOME too) are the API's.
 """
 
 from __future__ import annotations
@@ -286,10 +287,15 @@ def test_with_a_watch_on_station_only_the_core_s_orders_launch(tmp_path: Path) -
     assert {e["vehicle"] for e in events(journal, "vehicle_joined")} == ordered
     reports = [e for e in events(journal, "input") if e["kind"] == "BatteryReport"]
     assert {e["vehicle"] for e in reports} == {"1", "2", "3", "4"}
-    # the API: no launch is wanted of anyone now (the ordered ones fly), no home confirmed
-    # (the simulator on main answers DO_SET_HOME UNSUPPORTED)
+    # the API: no launch is wanted of anyone now (the ordered ones fly), and each vehicle's
+    # home is the last one it confirmed (the simulator answers DO_SET_HOME), or None
     state = DaemonController(daemon).state()
-    assert all(v["launch_wanted"] is None and "home" in v for v in state["vehicles"])
+    assert all(v["launch_wanted"] is None for v in state["vehicles"])
+    assert not events(journal, "home_set_failed")
+    confirmed = {e["vehicle"]: [e["x_m"], e["y_m"]] for e in events(journal, "home_set")}
+    assert set(confirmed) >= ordered  # the ship moves: the flying ones' homes follow it
+    assert {v["id"]: v["home"] for v in state["vehicles"]} == {
+        name: confirmed.get(name) for name in ("1", "2", "3", "4")}
 
 
 @pytest.mark.timeout(120)
