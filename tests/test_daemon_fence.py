@@ -143,12 +143,18 @@ def _breach_cleared(journal: Journal) -> bool:
 
 @pytest.mark.timeout(200)
 def test_a_pilot_flying_out_of_the_area_is_brought_back_by_the_fence(tmp_path: Path) -> None:
-    """The pilot takes vehicle 1 in FBWA at 60 s and flies straight on: floe commands
+    """The pilot takes vehicle 1 in CRUISE at 60 s and flies straight on: floe commands
     nothing more to it, and the autopilot's own fence (set by floe at join) turns it home
-    when it crosses the fence."""
+    when it crosses the fence.
+
+    CRUISE, not FBWA: with no RC input (throttle closed) ArduPlane's FBWA glides, and the
+    simulator's does too, so a plane that was heading inward when the pilot took it came
+    down (``SIM Hit ground`` about 45 s later) before it reached the fence; which way it
+    headed at 60 mission s depended on the load (3 of 7 runs beside two busy loops).
+    CRUISE holds altitude and heading: the breach comes within the area's width."""
     daemon, journal = run_gcs(
         tmp_path, "--vehicles", "sim:1", "--scenario", "default", "--launch",
-        "--operating-radius", "1000", "--sim-fault", "1:mode:at=60,mode=FBWA",
+        "--operating-radius", "1000", "--sim-fault", "1:mode:at=60,mode=CRUISE",
         "--speedup", "40", "--duration", "300",
         until=_breach_cleared, timeout_s=170.0,
     )  # fmt: skip
@@ -163,12 +169,16 @@ def test_a_pilot_flying_out_of_the_area_is_brought_back_by_the_fence(tmp_path: P
         abs(math.hypot(c["x_m"], c["y_m"]) - (1000 - band_m)) < 0.5 for c in clipped
     ), (band_m, clipped)
     [override] = events(journal, "override", vehicle="1")
-    assert override["mode"] == "FBWA" and fence["t"] < override["t"]
+    assert override["mode"] == "CRUISE" and fence["t"] < override["t"]
     [breach] = [e for e in journal if e["event"] == "statustext"
                 and e["text"] == "Fence breached: Polygon"]
     assert breach["t"] > override["t"]
-    rtl = [e for e in events(journal, "mode", vehicle="1", mode="RTL") if e["t"] >= breach["t"]]
-    assert rtl and rtl[0]["cause"] == "vehicle" and rtl[0]["t"] - breach["t"] < 1.0
+    # the vehicle's own RTL is the next mode it reports. The daemon reads the mode from the
+    # 1 Hz HEARTBEAT, and at 40x a frame read 25 ms of wall late is 1 mission s late: the
+    # bound is two heartbeats (1.055 s was seen beside two busy loops)
+    modes_after = [e for e in events(journal, "mode", vehicle="1") if e["t"] >= breach["t"]]
+    assert modes_after and modes_after[0]["mode"] == "RTL"
+    assert modes_after[0]["cause"] == "vehicle" and modes_after[0]["t"] - breach["t"] < 2.0
     # nothing commanding went to the pilot's vehicle after the override: no transfer, no
     # parameter, no command but the telemetry rates
     log = mavutil.mavlink_connection(str(daemon.run_dir / "flight.tlog"), dialect="ardupilotmega")
