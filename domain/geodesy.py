@@ -23,8 +23,6 @@ import functools
 import math
 from dataclasses import dataclass
 
-import pymap3d
-
 __all__ = [
     "WGS84_A_M",
     "WGS84_B_M",
@@ -166,7 +164,11 @@ class GeoOrigin:
     def to_local(self, lat_deg: float, lon_deg: float, alt_m: float | None = None) -> tuple[
         float, float, float
     ]:
-        """Local (east_m, north_m, up_m) of a geodetic point."""
+        """Local (east_m, north_m, up_m) of a geodetic point (pymap3d's ``geodetic2enu``,
+        imported at the first call: a command that never converts a fix, ``gcs simulate``
+        of a local scenario, does not pay its import, ~30 ms of CPU beside numpy)."""
+        import pymap3d
+
         e, n, u = pymap3d.geodetic2enu(
             lat_deg, lon_deg, self.alt_m if alt_m is None else alt_m,
             self.lat_deg, self.lon_deg, self.alt_m,

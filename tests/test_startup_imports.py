@@ -106,6 +106,32 @@ def test_gcs_simulate_without_plots_loads_no_matplotlib(tmp_path: Path) -> None:
     assert (out / "metrics.json").is_file()
     # paper-boat is a Kalman scenario without discovery: no filterpy, no scipy (GOSPA)
     assert not loaded & set(HEAVY)
+    # and local metres throughout: pymap3d (~30 ms) loads at the first fix converted
+    assert "pymap3d" not in loaded and "groundstation" in loaded
+
+
+@pytest.mark.parametrize("argv", [["--help"], ["--vehicles", "sim:1", "--no-such-flag"]])
+def test_gcs_run_answers_help_and_a_bad_flag_without_importing_the_daemon(
+        tmp_path: Path, argv: list[str]) -> None:
+    """The arguments are parsed before the daemon (aiohttp, rich, pymavlink, the planner:
+    ~0.5 CPU-s) is imported, so ``--help`` and a typo answer at once."""
+    code = (
+        "import contextlib, io, sys\nfrom groundstation.cli import main\n"
+        "err, out = io.StringIO(), io.StringIO()\n"
+        "try:\n"
+        "    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(out):\n"
+        f"        status = main(['run', *{argv!r}])\n"
+        "except SystemExit as exc:\n"
+        "    status = exc.code\n"
+        "print(status, out.getvalue().splitlines()[:1], err.getvalue().strip())\n"
+    )
+    loaded, printed = _modules_after(code, tmp_path)
+    if argv == ["--help"]:
+        assert printed.startswith("0 ['usage: gcs run")
+    else:
+        assert printed.startswith("2 [] gcs run: error: unrecognized arguments: --no-such-flag")
+    assert not loaded & {"aiohttp", "rich", "pymavlink", "pymap3d", *HEAVY}
+    assert "groundstation" in loaded
 
 
 def test_gcs_run_of_paper_boat_loads_no_solver_library(tmp_path: Path) -> None:

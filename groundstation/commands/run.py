@@ -234,12 +234,12 @@ def _parser() -> argparse.ArgumentParser:
 def build_config(argv: list[str]) -> DaemonConfig:
     """Parse ``argv`` (and its ``--config`` file) into the effective, resolved
     :class:`DaemonConfig` (raises ConfigError naming the flag or key)."""
-    from groundstation.daemon.config import load_config_file, resolve
-    from groundstation.daemon.config_parse import parse_config
-
     parser = _parser()
     spelling = {a.dest: a.option_strings[0] for a in reversed(parser._actions) if a.option_strings}
     args = vars(parser.parse_args(argv))
+    from groundstation.daemon.config import load_config_file, resolve
+    from groundstation.daemon.config_parse import parse_config  # pymavlink, for the fence
+
     path = args.pop("config", None)
     data = load_config_file(path) if path else {}
     flags = {spelling[dest]: value for dest, value in args.items()}
@@ -276,16 +276,18 @@ def _print_summary(daemon: Daemon) -> None:
 
 
 def run(argv: list[str]) -> int:
-    """Entry point of ``gcs run``; returns the exit status."""
+    """Entry point of ``gcs run``; returns the exit status. The arguments are checked before
+    the daemon is imported, so ``--help`` and a mistyped flag answer at once."""
     from domain.errors import ConfigError
-    from groundstation.daemon.alerts import never_heard
-    from groundstation.daemon.startup import MetricsNotWritten, StartError
 
     try:
         config = build_config(argv)
     except ConfigError as exc:
         print(f"gcs run: error: {exc}", file=sys.stderr)
         return 2
+    from groundstation.daemon.alerts import never_heard
+    from groundstation.daemon.startup import MetricsNotWritten, StartError
+
     try:
         daemon = run_async(lambda: run_daemon(config))
     except MetricsNotWritten as exc:  # the run happened: its summary, then the error
