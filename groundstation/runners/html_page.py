@@ -112,12 +112,11 @@ def decade_label(value: float, _position: int | None = None) -> str:
 
 def plain_log_axis(axis: Axis) -> None:
     """Label a log-scaled ``axis`` at its decades with :func:`decade_label`, minor ticks
-    unlabelled. Matplotlib's own log labels are mathtext (``$\\mathdefault{10^{3}}$``):
-    parsing them was about 15 % of the CPU of a default ``gcs simulate`` (py-spy), and
-    Unicode superscripts, which matplotlib's DejaVu Sans draws, give the same label without
-    the parser. Meant for an axis spanning several decades (an uncertainty from below 1 m²
-    to the FOV's square), where matplotlib labels no minor tick either; an axis that may
-    show less than a decade keeps matplotlib's labels."""
+    unlabelled. Matplotlib's own log labels are mathtext (``$\\mathdefault{10^{3}}$``), each
+    parsed by its pyparsing grammar; Unicode superscripts, which matplotlib's DejaVu Sans
+    draws, give the same label as plain text. Meant for an axis spanning several decades
+    (an uncertainty from below 1 m² to the FOV's square), where matplotlib labels no minor
+    tick either; an axis that may show less than a decade keeps matplotlib's labels."""
     from matplotlib.ticker import FuncFormatter, NullFormatter
 
     axis.set_major_formatter(FuncFormatter(decade_label))
