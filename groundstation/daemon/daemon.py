@@ -268,7 +268,8 @@ class Daemon:
         return self.origin_or_none
 
     def journal(self, event: str, *, logged: bool = False, **fields: object) -> None:
-        """Write a journal line; an operator event also reaches the console, once.
+        """Write a journal line, stamped now; an operator event also reaches the console,
+        once.
 
         The rule that keeps every problem to one console line: the journal line of an
         operator event is logged at its :func:`line_level` (a problem at WARNING), unless
@@ -276,7 +277,10 @@ class Daemon:
         (supervision, the core's failure, the vehicle controller's warnings, the alerts).
         The link layer never warns of what it notifies (``link_rebound``, ``peer_rebound``):
         its notice is journalled here and told by its line."""
-        line = self.journal_file.write(event, **fields)
+        self._tell(self.journal_file.write(event, **fields), logged)
+
+    def _tell(self, line: dict[str, Any], logged: bool) -> None:
+        """The console's part of :meth:`journal` for a line already written."""
         if not logged and (level := line_level(line)) >= logging.INFO:
             log.log(level, "%s", describe_line(line))
 
@@ -634,12 +638,15 @@ class Daemon:
         """Everything due by ``now`` (mission s): world, ticks, metrics, housekeeping."""
         due = self._due
         tick_s = self.core.config.tick_s
-        # first, so its lines are stamped at ``now``, not after the world's and the core's
-        # ticks (a plan can take 0.4 mission s at 10x: lines 4.6 s apart for a 5 s period)
+        # first, and every line of the report stamped ``now``: one report is one time, and
+        # reports are SIGNING_REPORT_S apart. Stamped as written they were not: a plan can
+        # take 0.4 mission s at 10x, and a starved process can stop between two lines of
+        # one report (4.8 s apart for a 5 s period, beside two busy loops)
         if self.signing is not None and now >= due.signing_report_s:
             due.signing_report_s = now + SIGNING_REPORT_S
             for entry in self.signing.take_report():
-                self.journal("signing_rejected", **entry)
+                self._tell(self.journal_file.write_at(now, "signing_rejected", entry),
+                           logged=False)
         if due.tick_s < now - MAX_TICKS_PER_WAKE * tick_s:
             due.tick_s = now - MAX_TICKS_PER_WAKE * tick_s
         while due.tick_s <= now + 1e-9:

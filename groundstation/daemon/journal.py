@@ -106,8 +106,14 @@ class Journal:
 
     def write(self, event: str, **fields: Any) -> dict[str, Any]:
         """Journal one event now; returns the line as written."""
+        return self.write_at(self._now_s(), event, fields)
+
+    def write_at(self, at_s: float, event: str, fields: dict[str, Any]) -> dict[str, Any]:
+        """Journal one event stamped ``at_s`` (mission s): a report made as of a time the
+        caller read from this journal's clock just before, so the journal stays in time
+        order. Returns the line as written."""
         line: dict[str, Any] = {
-            "t": round(self._now_s(), 3),
+            "t": round(at_s, 3),
             "unix_s": round(self._unix_s(), 3),
             "event": event,
         }
