@@ -284,15 +284,22 @@ class KalmanTrack:
 
     def _refresh_view(self) -> None:
         dt = self._t_s - self._t_anchor_s
+        if dt <= _TINY_S:
+            self._view_committed()
+            return
         kf = self._kf
-        if dt > _TINY_S:
-            a = transition(dt)
-            self._x_view = a @ kf.x
-            self._p_view = a @ kf.P @ a.T + process_noise(self.q_per_s, dt)
-        else:  # shared, not copied: no array here is ever changed in place
-            self._x_view = kf.x
-            self._p_view = kf.P
+        a = transition(dt)
+        self._x_view = a @ kf.x
+        self._p_view = a @ kf.P @ a.T + process_noise(self.q_per_s, dt)
         self._sigma = float(self._p_view[0, 0] + self._p_view[1, 1])
+
+    def _view_committed(self) -> None:
+        """The view is the committed state ``kf.x``, ``kf.P`` (shared, not copied: no array
+        here is ever changed in place), with its ``sigma``."""
+        kf = self._kf
+        self._x_view = kf.x
+        self._p_view = kf.P
+        self._sigma = float(kf.P[0, 0] + kf.P[1, 1])
 
     def set_process_noise(self, q_per_s: float) -> None:
         """New intensity, applied from the last committed time on (a track in a batch
@@ -321,9 +328,7 @@ class KalmanTrack:
         self._t_anchor_s = t_s
         kf.update(np.array([x_m, y_m]), R=r_m2 * _I2)
         kf.P = 0.5 * (kf.P + kf.P.T)
-        self._x_view = kf.x
-        self._p_view = kf.P
-        self._sigma = float(self._p_view[0, 0] + self._p_view[1, 1])
+        self._view_committed()
         self.last_seen_s = t_s
 
     def correct_pda(
@@ -356,9 +361,7 @@ class KalmanTrack:
         spread = (nus * b[:, None]).T @ nus - np.outer(nu, nu)
         p = beta0 * p_prior + (1.0 - beta0) * kf.P + k @ spread @ k.T
         kf.P = 0.5 * (p + p.T)
-        self._x_view = kf.x
-        self._p_view = kf.P
-        self._sigma = float(self._p_view[0, 0] + self._p_view[1, 1])
+        self._view_committed()
         self.last_seen_s = t_s
 
     def set_position_moments(self, t_s: float, mean_xy: np.ndarray, cov_xy: np.ndarray) -> None:
@@ -379,9 +382,7 @@ class KalmanTrack:
         kf.x = x + g @ dm
         kf.P = 0.5 * (new_p + new_p.T)
         self._t_anchor_s = t_s
-        self._x_view = kf.x
-        self._p_view = kf.P
-        self._sigma = float(self._p_view[0, 0] + self._p_view[1, 1])
+        self._view_committed()
 
     def rewind_to(self, t_s: float) -> bool:
         """Move the viewed estimate back to ``t_s`` if it is not before the committed time

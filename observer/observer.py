@@ -201,28 +201,23 @@ class Observer:
     def predict_to(self, t_s: float) -> None:
         """Advance every track to ``t_s``; a track already at or past ``t_s`` is left alone."""
         t = finite_number("t_s", t_s)
-        ever_lost = self._ever_lost
         if self.config.model != "kalman":
             for target_id, track in self._tracks.items():
                 if t > track.t_s:
                     track.predict_to(t)
-                    if not ever_lost[target_id] and self._is_lost(track):
-                        ever_lost[target_id] = True
+                    self._check_lost(target_id)
             return
         # every Kalman track at once (the batch: bit for bit the per-track predictions)
         batch = self._batch
         members_moved, moved = batch.advance(t)
         id_of = self._id_of
         for track in moved:
-            target_id = id_of[track]
-            if not ever_lost[target_id] and self._is_lost(track):
-                ever_lost[target_id] = True
+            self._check_lost(id_of[track])
         if members_moved:  # the few members above the watch floor may be lost
             for track in batch.watched_above():
                 target_id = id_of[track]
-                if not ever_lost[target_id] and self._is_lost(track):
-                    ever_lost[target_id] = True
-                if ever_lost[target_id]:  # flagged for good: no need to look again
+                self._check_lost(target_id)
+                if self._ever_lost[target_id]:  # flagged for good: no need to look again
                     batch.unwatch(track)
 
     # --- measurements ---------------------------------------------------------------------

@@ -195,17 +195,9 @@ class CampaignStore:
 
     def write(self, outcome: RunOutcome) -> None:
         """Store one finished run: its plans' part, then its run part (module docstring)."""
-        from groundstation.runners.campaign.schema import rows_to_table
-
         if PLANS_DIR in self.schemas and outcome.plan_rows:
-            table = rows_to_table(outcome.plan_rows, self.schemas[PLANS_DIR])
-            path = self.folder(PLANS_DIR) / f"{RUN_PART}{outcome.run_id}.parquet"
-            self._write_part(path, table)
-            self._written[path] = table
-        table = rows_to_table([outcome.run_row], self.schemas[RUNS_DIR])
-        path = self.folder(RUNS_DIR) / f"{RUN_PART}{outcome.run_id}.parquet"
-        self._write_part(path, table)
-        self._written[path] = table
+            self._write_run_part(PLANS_DIR, outcome.run_id, outcome.plan_rows)
+        self._write_run_part(RUNS_DIR, outcome.run_id, [outcome.run_row])
         self._new_parts += 1
         if self._new_parts >= COMPACT_EVERY_PARTS:
             self.compact(final=False)
@@ -219,6 +211,15 @@ class CampaignStore:
             if len(parts) > 1:
                 self._merge(kind, parts)
         self._new_parts = 0
+
+    def _write_run_part(self, kind: str, run_id: str, rows: list[dict[str, Any]]) -> None:
+        """One run's rows of ``kind`` as its own part, the table kept for the next merge."""
+        from groundstation.runners.campaign.schema import rows_to_table
+
+        table = rows_to_table(rows, self.schemas[kind])
+        path = self.folder(kind) / f"{RUN_PART}{run_id}.parquet"
+        self._write_part(path, table)
+        self._written[path] = table
 
     def _merge(self, kind: str, parts: Sequence[Path]) -> None:
         schema = self.schemas[kind]

@@ -381,7 +381,7 @@ class _Simulation:
         # fixed for the run, read once: each step reads them for every vehicle
         vehicles = list(self.vehicles.values())
         deck, world, feed, dt_s = self.deck, self.world, self.feed, self.dt_s
-        boat_fixes = world.boat is not None and self.core.config.priority_gain > 0
+        boat_fixes = self.core.config.priority_gain > 0  # and a boat: the core steers by it
         windy = not self.scenario.wind.calm
         try:
             for k in range(steps + 1):
